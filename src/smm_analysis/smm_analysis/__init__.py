@@ -1,0 +1,1 @@
+"""Offline closed-loop reproduction of the FPDESO paper, metrics and bag analysis."""

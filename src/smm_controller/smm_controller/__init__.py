@@ -1,0 +1,1 @@
+"""FPDESO controller of the SMM: TD, fuzzy PD, FLESO, robust term, baselines, and their nodes."""

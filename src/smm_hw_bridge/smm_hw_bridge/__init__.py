@@ -1,0 +1,1 @@
+"""Bridge between the SMM ROS interfaces and the hydraulic test bench."""

@@ -1,0 +1,1 @@
+"""Interface contract of the SMM stack: topic names, QoS, message <-> numpy conversions."""
