@@ -20,7 +20,7 @@ setup(
     zip_safe=True,
     maintainer="SMM control stack maintainers",
     maintainer_email="smm-maintainers@example.org",
-    description="Interface contract of the SMM stack: topic names, QoS, message <-> numpy conversions.",
+    description="Interface contract of the SMM stack: topic names, QoS, conversions between messages and numpy arrays.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -1,0 +1,52 @@
+# SMM control stack: every target sets itself up on a fresh machine (Python >= 3.11 and make are all it needs).
+#   make demo   full closed-loop run on the simulator (the main job)
+#   make test   the whole test suite (unit, bag, node, end-to-end in a private network namespace)
+#   make bench  benchmarks: figures and ratios, never pass/fail on a shared machine's timing
+# Re-running a target is quick: the virtual environment is rebuilt only when a requirements file or a
+# package's setup.py/package.xml changes.
+
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.smm-installed
+PACKAGES := smm_msgs_py smm_dynamics smm_controller smm_sim smm_hw_bridge smm_analysis
+PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg src/$(p)/package.xml)
+
+# Keep DDS discovery on this machine unless the caller chose otherwise.
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+export PYTHONDONTWRITEBYTECODE := 1
+
+.PHONY: setup test demo bench lint typecheck reproduce colcon clean
+
+setup: $(STAMP)
+
+$(STAMP): requirements.txt requirements-dev.txt $(PACKAGE_FILES)
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-dev.txt
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation \
+		$(foreach p,$(PACKAGES),-e src/$(p))
+	@touch $@
+
+test: $(STAMP)
+	$(PY) -m pytest tests
+
+demo: $(STAMP)
+	$(PY) -m smm_analysis.demo
+
+bench: $(STAMP)
+	$(PY) bench/run.py
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check src tests bench
+
+typecheck: $(STAMP)
+	$(VENV)/bin/mypy
+
+reproduce: $(STAMP)
+	$(VENV)/bin/smm-reproduce --out out/reproduce
+
+colcon: $(STAMP)
+	$(VENV)/bin/colcon build --base-paths src --build-base build --install-base install
+
+clean:
+	rm -rf $(VENV) build install log out .pytest_cache .mypy_cache .ruff_cache .hypothesis

@@ -1,0 +1,24 @@
+"""Typed errors of the analysis library (each a ``ValueError``, so one ``except`` catches them all)."""
+
+__all__ = [
+    "AnalysisError",
+    "MetricsInputError",
+    "UnknownControllerError",
+    "UnknownScenarioError",
+]
+
+
+class AnalysisError(ValueError):
+    """Base class of every error raised by ``smm_analysis``."""
+
+
+class MetricsInputError(AnalysisError):
+    """Arrays given to a metric are malformed: wrong shape, mismatched length, NaN/Inf, time not increasing."""
+
+
+class UnknownScenarioError(AnalysisError):
+    """A scenario name is not in ``smm_analysis.scenarios.SCENARIOS``."""
+
+
+class UnknownControllerError(AnalysisError):
+    """A controller name is not one of the controllers the closed loop can run."""

@@ -1,0 +1,342 @@
+"""Performance indices of SPEC section 5 (paper eq. 42-45), step-response metrics and end-effector errors.
+
+Arrays in, floats out, so that the offline simulator and the bag analysis share one implementation.
+Times are integer nanosecond stamps (any integer dtype), strictly increasing; signals are sampled at
+those stamps. Integrals (RMS, eq. 44, and control energy, eq. 45) use the trapezoidal rule over the
+actual sample intervals, from the first to the last stamp, so ``t_f = t[-1] - t[0]``. For a uniformly
+sampled periodic signal over whole periods this is exact (e = A sin -> RMS = A / sqrt(2)).
+
+Step metrics are measured on the response normalised by the step size ``A = target - initial``:
+
+* rise time: time between the first crossings of 10 % and 90 % of ``A`` (linear interpolation between
+  samples); ``inf`` if 90 % is never reached;
+* overshoot: ``max(0, max(sign(A) (y - target)))`` in rad, and the same divided by ``|A|`` as a
+  fraction (``overshoot_fraction``; times 100 gives percent);
+* settling time: time from the step until the response enters, for good, the band ``|y - target| <=
+  0.02 |A|`` (interpolated crossing); ``inf`` if the last sample is still outside the band.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from smm_dynamics import SMMParameters, end_effector_position
+
+from smm_analysis.errors import MetricsInputError
+
+__all__ = [
+    "CARTESIAN_AXES",
+    "AxisError",
+    "JointIndices",
+    "StepMetrics",
+    "control_energy",
+    "end_effector_errors",
+    "joint_indices",
+    "max_abs_error",
+    "mean_abs_error",
+    "rms_error",
+    "step_metrics",
+    "validated_time",
+]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+CARTESIAN_AXES: tuple[str, str, str] = ("x", "y", "z")
+_NS_PER_S = 1e9
+_MM_PER_M = 1e3
+
+
+@dataclass(frozen=True)
+class JointIndices:
+    """Indices of eq. 42-45 for one joint.
+
+    Attributes:
+        Ma: Maximal absolute tracking error (rad), eq. 42.
+        Ave: Mean absolute tracking error over the samples (rad), eq. 43.
+        RMS: Root mean square tracking error sqrt((1/t_f) integral e^2 dt) (rad), eq. 44.
+        eps_u: Control energy integral tau^2 dt (N^2 m^2 s), eq. 45.
+    """
+
+    Ma: float
+    Ave: float
+    RMS: float
+    eps_u: float
+
+
+@dataclass(frozen=True)
+class StepMetrics:
+    """Step-response metrics of one joint (see the module docstring for the definitions).
+
+    Attributes:
+        rise_time: 10-90 % rise time (s).
+        overshoot: Overshoot beyond the target (rad), >= 0.
+        overshoot_fraction: Overshoot divided by the step size (dimensionless; x100 = percent).
+        settling_time: 2 % settling time from the step (s).
+    """
+
+    rise_time: float
+    overshoot: float
+    overshoot_fraction: float
+    settling_time: float
+
+
+@dataclass(frozen=True)
+class AxisError:
+    """End-effector position error along one Cartesian axis.
+
+    Attributes:
+        max_mm: Maximal absolute error (mm).
+        rms_mm: RMS error over time (mm), same integration as :func:`rms_error`.
+    """
+
+    max_mm: float
+    rms_mm: float
+
+
+def validated_time(t_ns: ArrayLike, *, name: str = "t_ns") -> IntArray:
+    """Checks a stamp array: 1-D integers (ns), at least two samples, strictly increasing.
+
+    Args:
+        t_ns: Stamps (ns), shape (N,).
+        name: Name used in error messages.
+
+    Returns:
+        The stamps as int64, shape (N,).
+
+    Raises:
+        MetricsInputError: Wrong dtype or shape, fewer than 2 samples, or not strictly increasing.
+    """
+    stamps = np.asarray(t_ns)
+    if stamps.ndim != 1:
+        raise MetricsInputError(f"{name} must be 1-D, got shape {stamps.shape}")
+    if not np.issubdtype(stamps.dtype, np.integer):
+        raise MetricsInputError(f"{name} must hold integer nanoseconds, got dtype {stamps.dtype}")
+    if stamps.size < 2:
+        raise MetricsInputError(f"{name} needs at least 2 samples, got {stamps.size}")
+    stamps = stamps.astype(np.int64)
+    steps = np.diff(stamps)
+    if np.any(steps <= 0):
+        bad = int(np.argmax(steps <= 0))
+        raise MetricsInputError(
+            f"{name} must be strictly increasing, got {int(stamps[bad])} then {int(stamps[bad + 1])} at index {bad}"
+        )
+    return stamps
+
+
+def _validated_series(name: str, values: ArrayLike, length: int | None = None) -> FloatArray:
+    series = np.asarray(values, dtype=np.float64)
+    if series.ndim != 1:
+        raise MetricsInputError(f"{name} must be 1-D, got shape {series.shape}")
+    if series.size == 0:
+        raise MetricsInputError(f"{name} must not be empty")
+    if length is not None and series.size != length:
+        raise MetricsInputError(f"{name} has {series.size} samples but the time base has {length}")
+    if not np.all(np.isfinite(series)):
+        raise MetricsInputError(f"{name} holds NaN or Inf at index {int(np.argmin(np.isfinite(series)))}")
+    return series
+
+
+def _validated_joint_array(name: str, values: ArrayLike, length: int) -> FloatArray:
+    array = np.asarray(values, dtype=np.float64)
+    if array.ndim != 2 or array.shape[1] != 2:
+        raise MetricsInputError(f"{name} must have shape (N, 2), got {array.shape}")
+    if array.shape[0] != length:
+        raise MetricsInputError(f"{name} has {array.shape[0]} samples but the time base has {length}")
+    if not np.all(np.isfinite(array)):
+        raise MetricsInputError(f"{name} holds NaN or Inf")
+    return array
+
+
+def _integral(t_s: FloatArray, values: FloatArray) -> float:
+    return float(np.sum(0.5 * (values[1:] + values[:-1]) * np.diff(t_s)))
+
+
+def _seconds(stamps: IntArray) -> FloatArray:
+    """Seconds relative to the first stamp, exact in integer arithmetic before the conversion."""
+    return (stamps - stamps[0]).astype(np.float64) / _NS_PER_S
+
+
+def max_abs_error(error: ArrayLike) -> float:
+    """Eq. 42: max |e| (same unit as ``error``), ``error`` shape (N,)."""
+    return float(np.max(np.abs(_validated_series("error", error))))
+
+
+def mean_abs_error(error: ArrayLike) -> float:
+    """Eq. 43: (1/n) sum |e(i)| (same unit as ``error``), ``error`` shape (N,)."""
+    return float(np.mean(np.abs(_validated_series("error", error))))
+
+
+def rms_error(t_ns: ArrayLike, error: ArrayLike) -> float:
+    """Eq. 44: sqrt((1/t_f) integral e^2 dt), trapezoidal over the stamps.
+
+    Args:
+        t_ns: Stamps (ns), shape (N,).
+        error: Tracking error at the stamps, shape (N,).
+
+    Returns:
+        RMS error (same unit as ``error``).
+    """
+    stamps = validated_time(t_ns)
+    series = _validated_series("error", error, stamps.size)
+    t_s = _seconds(stamps)
+    return math.sqrt(_integral(t_s, series**2) / t_s[-1])
+
+
+def control_energy(t_ns: ArrayLike, torque: ArrayLike) -> float:
+    """Eq. 45: integral tau^2 dt, trapezoidal over the stamps.
+
+    Args:
+        t_ns: Stamps (ns), shape (N,).
+        torque: Control torque at the stamps (N m), shape (N,).
+
+    Returns:
+        Control energy (N^2 m^2 s).
+    """
+    stamps = validated_time(t_ns)
+    series = _validated_series("torque", torque, stamps.size)
+    return _integral(_seconds(stamps), series**2)
+
+
+def joint_indices(
+    t_ns: ArrayLike, reference: ArrayLike, position: ArrayLike, torque: ArrayLike
+) -> dict[str, JointIndices]:
+    """Eq. 42-45 for both joints.
+
+    Args:
+        t_ns: Stamps (ns), shape (N,).
+        reference: Desired position q_d (rad), shape (N, 2).
+        position: Position the error is measured on (true plant position where recorded) (rad),
+            shape (N, 2).
+        torque: Control torque (N m), shape (N, 2).
+
+    Returns:
+        ``{"alpha": JointIndices, "beta": JointIndices}``.
+    """
+    stamps = validated_time(t_ns)
+    desired = _validated_joint_array("reference", reference, stamps.size)
+    actual = _validated_joint_array("position", position, stamps.size)
+    effort = _validated_joint_array("torque", torque, stamps.size)
+    error = desired - actual
+    result: dict[str, JointIndices] = {}
+    for joint, name in enumerate(("alpha", "beta")):
+        result[name] = JointIndices(
+            Ma=max_abs_error(error[:, joint]),
+            Ave=mean_abs_error(error[:, joint]),
+            RMS=rms_error(stamps, error[:, joint]),
+            eps_u=control_energy(stamps, effort[:, joint]),
+        )
+    return result
+
+
+def _first_crossing(t_s: FloatArray, normalised: FloatArray, level: float) -> float:
+    """Time at which ``normalised`` first reaches ``level`` (linear interpolation), inf if never."""
+    reached = np.nonzero(normalised >= level)[0]
+    if reached.size == 0:
+        return math.inf
+    index = int(reached[0])
+    if index == 0:
+        return float(t_s[0])
+    before, after = normalised[index - 1], normalised[index]
+    fraction = (level - before) / (after - before)
+    return float(t_s[index - 1] + fraction * (t_s[index] - t_s[index - 1]))
+
+
+def step_metrics(
+    t_ns: ArrayLike,
+    response: ArrayLike,
+    target: float,
+    *,
+    initial: float = 0.0,
+    step_time_ns: int | None = None,
+    settling_band: float = 0.02,
+) -> StepMetrics:
+    """Rise time (10-90 %), overshoot and settling time of a step response.
+
+    Args:
+        t_ns: Stamps (ns), shape (N,).
+        response: Output (rad), shape (N,).
+        target: Final value commanded by the step (rad).
+        initial: Output value before the step (rad); ``target != initial``.
+        step_time_ns: Stamp of the step (ns); default the first stamp. Earlier samples are ignored.
+        settling_band: Half-width of the settling band as a fraction of the step size, in (0, 1).
+
+    Returns:
+        The metrics; times are relative to the step (s).
+
+    Raises:
+        MetricsInputError: Malformed arrays, a zero step, a bad band or a step after the last sample.
+    """
+    stamps = validated_time(t_ns)
+    output = _validated_series("response", response, stamps.size)
+    if not (math.isfinite(target) and math.isfinite(initial)):
+        raise MetricsInputError(f"target and initial must be finite, got {target!r}, {initial!r}")
+    amplitude = target - initial
+    if amplitude == 0.0:
+        raise MetricsInputError(f"target must differ from initial, both are {target!r}")
+    if not 0.0 < settling_band < 1.0:
+        raise MetricsInputError(f"settling_band must be in (0, 1), got {settling_band!r}")
+    start_ns = int(stamps[0]) if step_time_ns is None else int(step_time_ns)
+    keep = stamps >= start_ns
+    if np.count_nonzero(keep) < 2:
+        raise MetricsInputError(f"step_time_ns {start_ns} leaves fewer than 2 samples")
+    t_s = (stamps[keep] - start_ns).astype(np.float64) / _NS_PER_S
+    normalised = (output[keep] - initial) / amplitude
+
+    rise_start = _first_crossing(t_s, normalised, 0.1)
+    rise_end = _first_crossing(t_s, normalised, 0.9)
+    rise_time = rise_end - rise_start if math.isfinite(rise_end) else math.inf
+
+    overshoot_fraction = max(0.0, float(np.max(normalised)) - 1.0)
+
+    distance = np.abs(normalised - 1.0)
+    outside = np.nonzero(distance > settling_band)[0]
+    if outside.size == 0:
+        settling_time = float(t_s[0])
+    elif int(outside[-1]) == normalised.size - 1:
+        settling_time = math.inf
+    else:
+        last = int(outside[-1])
+        fraction = (distance[last] - settling_band) / (distance[last] - distance[last + 1])
+        settling_time = float(t_s[last] + fraction * (t_s[last + 1] - t_s[last]))
+
+    return StepMetrics(
+        rise_time=rise_time,
+        overshoot=overshoot_fraction * abs(amplitude),
+        overshoot_fraction=overshoot_fraction,
+        settling_time=settling_time,
+    )
+
+
+def end_effector_errors(
+    t_ns: ArrayLike, reference: ArrayLike, position: ArrayLike, params: SMMParameters
+) -> Mapping[str, AxisError]:
+    """End-effector position errors (Section V.B, Table 6) along x, y, z in mm.
+
+    Args:
+        t_ns: Stamps (ns), shape (N,).
+        reference: Desired joint position (rad), shape (N, 2).
+        position: Actual joint position (rad), shape (N, 2).
+        params: Parameters providing the link length L and theta(q) through
+            ``smm_dynamics.end_effector_position``.
+
+    Returns:
+        ``{"x": AxisError, "y": AxisError, "z": AxisError}``.
+    """
+    stamps = validated_time(t_ns)
+    desired = _validated_joint_array("reference", reference, stamps.size)
+    actual = _validated_joint_array("position", position, stamps.size)
+    desired_xyz = np.array([end_effector_position(row, params) for row in desired], dtype=np.float64)
+    actual_xyz = np.array([end_effector_position(row, params) for row in actual], dtype=np.float64)
+    error_mm = (desired_xyz - actual_xyz) * _MM_PER_M
+    return {
+        axis: AxisError(
+            max_mm=max_abs_error(error_mm[:, index]),
+            rms_mm=rms_error(stamps, error_mm[:, index]),
+        )
+        for index, axis in enumerate(CARTESIAN_AXES)
+    }

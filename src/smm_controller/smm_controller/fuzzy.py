@@ -1,0 +1,434 @@
+"""Mamdani fuzzy inference engine (SPEC section 4, paper Section III.B-C, eq. 17).
+
+Definition implemented here, exactly:
+
+* fuzzification: each crisp input is evaluated on the membership functions (MFs) of its variable;
+* rule firing strength: AND = min over the rule's antecedent memberships;
+* implication: min (each output label's MF is clipped at the largest firing strength of the rules that
+  conclude that label, i.e. aggregation = max);
+* aggregation: max over the clipped output MFs;
+* defuzzification: centroid (eq. 17) of the aggregated membership sampled on a uniform grid over the
+  output universe, taken as the *exact* centroid of the piecewise-linear interpolation of the samples.
+  Area and first moment of that interpolation are linear in the samples, so both are one dot product
+  with a precomputed weight vector (:func:`centroid_weights`). This is what scikit-fuzzy's
+  ``defuzz(x, mfx, "centroid")`` computes for the same samples.
+
+Zero aggregated area cannot happen for a complete rule base with inputs clipped to the input
+universe (at least one rule fires with positive strength and the Gaussian output MFs are positive
+everywhere). It is still guarded: the defuzzified value is then :data:`ZERO_AREA_FALLBACK` (0.0, the
+"no correction" value of the normalised outputs used here).
+
+Speed: a control step needs several small inferences (per joint, per output). :class:`MamdaniBatch`
+evaluates the rule bases in plain Python (only the labels that are active, at most two per input for a
+uniform triangular partition) and does the aggregation and defuzzification of all joints and outputs
+in four vectorised numpy calls.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from itertools import product
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "ZERO_AREA_FALLBACK",
+    "FuzzyVariable",
+    "GaussianMF",
+    "MamdaniBatch",
+    "MamdaniSystem",
+    "MembershipFunction",
+    "TriangularMF",
+    "centroid",
+    "centroid_weights",
+    "gaussian_mf",
+    "triangular_mf",
+    "uniform_grid",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Defuzzified value returned when the aggregated membership has zero area (see module docstring).
+ZERO_AREA_FALLBACK = 0.0
+
+
+def _require_finite(name: str, value: float) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+
+
+def triangular_mf(x: npt.ArrayLike, a: float, b: float, c: float) -> FloatArray:
+    """Triangular membership max(0, min((x - a)/(b - a), (c - x)/(c - b))).
+
+    Args:
+        x: Points of the universe, any shape.
+        a: Left foot (membership 0), a < b.
+        b: Peak (membership 1).
+        c: Right foot (membership 0), c > b.
+
+    Returns:
+        Membership degrees in [0, 1], same shape as ``x``.
+    """
+    points = np.asarray(x, dtype=np.float64)
+    rising = (points - a) / (b - a)
+    falling = (c - points) / (c - b)
+    return np.maximum(0.0, np.minimum(rising, falling))
+
+
+def gaussian_mf(x: npt.ArrayLike, mean: float, sigma: float) -> FloatArray:
+    """Gaussian membership exp(-(x - mean)^2 / (2 sigma^2)).
+
+    Args:
+        x: Points of the universe, any shape.
+        mean: Centre (membership 1).
+        sigma: Standard deviation, > 0.
+
+    Returns:
+        Membership degrees in (0, 1], same shape as ``x``.
+    """
+    points = np.asarray(x, dtype=np.float64)
+    return np.exp(-((points - mean) ** 2) / (2.0 * sigma * sigma))
+
+
+class MembershipFunction(Protocol):
+    """A membership function evaluated on scalars (per step) and on arrays (grids, plots)."""
+
+    def degree(self, x: float) -> float:
+        """Membership degree of one crisp value."""
+        ...
+
+    def sample(self, x: npt.ArrayLike) -> FloatArray:
+        """Membership degrees of an array of values."""
+        ...
+
+
+@dataclass(frozen=True)
+class TriangularMF:
+    """Triangle with feet ``a``, ``c`` and peak ``b`` (a < b < c); see :func:`triangular_mf`."""
+
+    a: float
+    b: float
+    c: float
+
+    def __post_init__(self) -> None:
+        for name in ("a", "b", "c"):
+            _require_finite(name, getattr(self, name))
+        if not self.a < self.b < self.c:
+            raise ValueError(
+                f"TriangularMF needs a < b < c, got a={self.a!r}, b={self.b!r}, c={self.c!r}"
+            )
+
+    def degree(self, x: float) -> float:
+        """Membership degree of one crisp value (same formula as :func:`triangular_mf`)."""
+        return max(0.0, min((x - self.a) / (self.b - self.a), (self.c - x) / (self.c - self.b)))
+
+    def sample(self, x: npt.ArrayLike) -> FloatArray:
+        """Membership degrees of an array of values."""
+        return triangular_mf(x, self.a, self.b, self.c)
+
+
+@dataclass(frozen=True)
+class GaussianMF:
+    """Gaussian with centre ``mean`` and standard deviation ``sigma`` > 0; see :func:`gaussian_mf`."""
+
+    mean: float
+    sigma: float
+
+    def __post_init__(self) -> None:
+        _require_finite("mean", self.mean)
+        _require_finite("sigma", self.sigma)
+        if self.sigma <= 0.0:
+            raise ValueError(f"sigma must be > 0, got {self.sigma!r}")
+
+    def degree(self, x: float) -> float:
+        """Membership degree of one crisp value (same formula as :func:`gaussian_mf`)."""
+        return math.exp(-((x - self.mean) ** 2) / (2.0 * self.sigma * self.sigma))
+
+    def sample(self, x: npt.ArrayLike) -> FloatArray:
+        """Membership degrees of an array of values."""
+        return gaussian_mf(x, self.mean, self.sigma)
+
+
+class FuzzyVariable:
+    """A linguistic variable: ordered labels, one membership function each.
+
+    If the MFs are triangles forming a uniform partition (peaks equally spaced by ``d`` and every
+    triangle's feet at its neighbours' peaks), then at most two adjacent labels are non-zero at any
+    point, and :meth:`active` only evaluates those two (same formula, same result as evaluating all).
+
+    Args:
+        labels: Label names, e.g. ("NB", ..., "PB").
+        mfs: One membership function per label.
+    """
+
+    def __init__(self, labels: Sequence[str], mfs: Sequence[MembershipFunction]) -> None:
+        if len(labels) == 0 or len(labels) != len(mfs):
+            raise ValueError(
+                f"labels and mfs must be non-empty and of equal length, got {len(labels)} labels "
+                f"and {len(mfs)} mfs"
+            )
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"labels must be unique, got {tuple(labels)!r}")
+        self.labels: tuple[str, ...] = tuple(labels)
+        self.mfs: tuple[MembershipFunction, ...] = tuple(mfs)
+        self._index = {label: i for i, label in enumerate(self.labels)}
+        self._lattice = self._uniform_triangle_lattice()
+
+    def _uniform_triangle_lattice(self) -> tuple[float, float] | None:
+        if len(self.mfs) < 2 or not all(isinstance(mf, TriangularMF) for mf in self.mfs):
+            return None
+        triangles = [mf for mf in self.mfs if isinstance(mf, TriangularMF)]
+        spacing = triangles[1].b - triangles[0].b
+        tolerance = 1e-12 * max(1.0, abs(spacing))
+        for i, tri in enumerate(triangles):
+            expected_peak = triangles[0].b + i * spacing
+            if (
+                abs(tri.b - expected_peak) > tolerance
+                or abs(tri.b - tri.a - spacing) > tolerance
+                or abs(tri.c - tri.b - spacing) > tolerance
+            ):
+                return None
+        return triangles[0].b, spacing
+
+    def index(self, label: str) -> int:
+        """Position of ``label`` in :attr:`labels` (ValueError if unknown)."""
+        try:
+            return self._index[label]
+        except KeyError:
+            raise ValueError(f"unknown label {label!r}; labels are {self.labels!r}") from None
+
+    def memberships(self, x: float) -> tuple[float, ...]:
+        """Membership degree of ``x`` in every label, in label order."""
+        return tuple(mf.degree(x) for mf in self.mfs)
+
+    def active(self, x: float) -> list[tuple[int, float]]:
+        """(label index, degree) for every label with degree > 0 at ``x``, in label order."""
+        mfs = self.mfs
+        if self._lattice is not None:
+            first_peak, spacing = self._lattice
+            left = int((x - first_peak) // spacing)
+            left = 0 if left < 0 else min(left, len(mfs) - 2)
+            candidates: Sequence[int] = (left, left + 1)
+        else:
+            candidates = range(len(mfs))
+        pairs = []
+        for i in candidates:
+            degree = mfs[i].degree(x)
+            if degree > 0.0:
+                pairs.append((i, degree))
+        return pairs
+
+
+def uniform_grid(universe: tuple[float, float], grid_points: int) -> FloatArray:
+    """Uniform grid of ``grid_points`` points over ``universe`` (both ends included)."""
+    low, high = universe
+    if grid_points < 3:
+        raise ValueError(f"grid_points must be >= 3, got {grid_points!r}")
+    if not low < high:
+        raise ValueError(f"universe must satisfy low < high, got {universe!r}")
+    return np.linspace(low, high, grid_points)
+
+
+def centroid_weights(grid: npt.ArrayLike) -> FloatArray:
+    """Weights giving area and first moment of the piecewise-linear interpolation of samples.
+
+    For samples ``m`` on the increasing ``grid``, ``m @ W[:, 0]`` is the integral of the
+    piecewise-linear interpolation and ``m @ W[:, 1]`` the integral of x times it. On a segment
+    [x0, x1] of width d with end values m0, m1: area = d (m0 + m1)/2 and
+    moment = x0 d (m0 + m1)/2 + d^2 (m0/6 + m1/3).
+
+    Args:
+        grid: Strictly increasing points, shape (n,), n >= 2.
+
+    Returns:
+        Weights, shape (n, 2): column 0 area, column 1 moment.
+    """
+    points = np.asarray(grid, dtype=np.float64)
+    if points.ndim != 1 or points.size < 2 or not np.all(np.diff(points) > 0.0):
+        raise ValueError("grid must be a strictly increasing 1-D array of at least 2 points")
+    left = points[:-1]
+    width = np.diff(points)
+    weights = np.zeros((points.size, 2))
+    weights[:-1, 0] += 0.5 * width
+    weights[1:, 0] += 0.5 * width
+    weights[:-1, 1] += 0.5 * left * width + width * width / 6.0
+    weights[1:, 1] += 0.5 * left * width + width * width / 3.0
+    return weights
+
+
+def centroid(grid: npt.ArrayLike, membership: npt.ArrayLike) -> float:
+    """Exact centroid of the piecewise-linear interpolation of ``membership`` on ``grid`` (eq. 17).
+
+    Args:
+        grid: Strictly increasing points, shape (n,).
+        membership: Non-negative samples, shape (n,).
+
+    Returns:
+        The centroid, or :data:`ZERO_AREA_FALLBACK` if the area is zero.
+    """
+    area, moment = np.asarray(membership, dtype=np.float64) @ centroid_weights(grid)
+    return float(moment / area) if area > 0.0 else ZERO_AREA_FALLBACK
+
+
+class MamdaniSystem:
+    """One Mamdani rule base (min AND, min implication, max aggregation, centroid).
+
+    Args:
+        inputs: Input variables, in the order of the crisp inputs and of each rule's antecedent.
+        outputs: Output variables (each an MF family over ``universe``).
+        rules: Antecedent labels (one per input) -> consequent labels (one per output). Input
+            combinations without a rule do not fire.
+        grid_points: Points of the uniform defuzzification grid over ``universe``, >= 3.
+        universe: Output universe (low, high).
+    """
+
+    def __init__(
+        self,
+        inputs: Sequence[FuzzyVariable],
+        outputs: Sequence[FuzzyVariable],
+        rules: Mapping[tuple[str, ...], tuple[str, ...]],
+        grid_points: int = 201,
+        universe: tuple[float, float] = (-1.0, 1.0),
+    ) -> None:
+        if not inputs or not outputs:
+            raise ValueError("a MamdaniSystem needs at least one input and one output variable")
+        self.inputs: tuple[FuzzyVariable, ...] = tuple(inputs)
+        self.outputs: tuple[FuzzyVariable, ...] = tuple(outputs)
+        self.grid: FloatArray = uniform_grid(universe, grid_points)
+        self.universe = universe
+        self._radix = [len(var.labels) for var in self.inputs]
+        self.n_labels = max(len(var.labels) for var in self.outputs)
+        self._n_strengths = len(self.outputs) * self.n_labels
+        # Per flattened antecedent combination: the strength slots (o * n_labels + label) it sets.
+        targets: list[tuple[int, ...]] = [() for _ in range(math.prod(self._radix))]
+        for antecedent, consequent in rules.items():
+            if len(antecedent) != len(self.inputs) or len(consequent) != len(self.outputs):
+                raise ValueError(
+                    f"rule {antecedent!r} -> {consequent!r} does not match {len(self.inputs)} "
+                    f"inputs and {len(self.outputs)} outputs"
+                )
+            flat = self._flat_index([var.index(label) for var, label in zip(self.inputs, antecedent)])
+            targets[flat] = tuple(
+                o * self.n_labels + var.index(label)
+                for o, (var, label) in enumerate(zip(self.outputs, consequent))
+            )
+        self._targets = targets
+        # Output MF samples, shape (n_labels, n_outputs, grid); missing labels are zero rows.
+        samples = np.zeros((self.n_labels, len(self.outputs), self.grid.size))
+        for o, var in enumerate(self.outputs):
+            for label, mf in enumerate(var.mfs):
+                samples[label, o] = mf.sample(self.grid)
+        self.output_samples: FloatArray = samples
+        self.output_samples.flags.writeable = False
+
+    def _flat_index(self, indices: Sequence[int]) -> int:
+        flat = 0
+        for radix, i in zip(self._radix, indices):
+            flat = flat * radix + i
+        return flat
+
+    def label_strengths(self, x: Sequence[float]) -> list[float]:
+        """Implication level of every output label: max firing strength of the rules concluding it.
+
+        Args:
+            x: One crisp value per input variable.
+
+        Returns:
+            Flat list, ``strengths[o * n_labels + label]`` for output o (labels padded to
+            ``n_labels`` with 0.0).
+        """
+        if len(x) != len(self.inputs):
+            raise ValueError(f"expected {len(self.inputs)} inputs, got {len(x)}")
+        strengths = [0.0] * self._n_strengths
+        targets = self._targets
+        if len(self.inputs) == 2:
+            second = self.inputs[1].active(x[1])
+            radix = self._radix[1]
+            for i, degree_i in self.inputs[0].active(x[0]):
+                base = i * radix
+                for j, degree_j in second:
+                    firing = degree_i if degree_i < degree_j else degree_j
+                    for slot in targets[base + j]:
+                        if firing > strengths[slot]:
+                            strengths[slot] = firing
+            return strengths
+        for combination in product(*(var.active(value) for var, value in zip(self.inputs, x))):
+            flat = 0
+            firing = 1.0
+            for radix, (i, degree) in zip(self._radix, combination):
+                flat = flat * radix + i
+                if degree < firing:
+                    firing = degree
+            for slot in targets[flat]:
+                if firing > strengths[slot]:
+                    strengths[slot] = firing
+        return strengths
+
+    def aggregated_membership(self, x: Sequence[float]) -> FloatArray:
+        """Aggregated output membership sampled on :attr:`grid`, shape (n_outputs, grid_points)."""
+        strengths = np.reshape(self.label_strengths(x), (len(self.outputs), self.n_labels))
+        clipped = np.minimum(strengths.T[:, :, None], self.output_samples)
+        return np.asarray(clipped.max(axis=0), dtype=np.float64)
+
+    def evaluate(self, x: Sequence[float]) -> tuple[float, ...]:
+        """Crisp outputs for one crisp input vector (one value per output variable)."""
+        return tuple(MamdaniBatch([self]).evaluate([x])[0])
+
+
+class MamdaniBatch:
+    """Evaluates several rule bases that share output MFs and grid, in one vectorised pass.
+
+    Typical use: one system per joint (alpha, beta), each with its own rule table; all joints and all
+    outputs are aggregated and defuzzified together.
+
+    Args:
+        systems: Rule bases with identical output MF samples (same grid and output variables).
+    """
+
+    def __init__(self, systems: Sequence[MamdaniSystem]) -> None:
+        if not systems:
+            raise ValueError("MamdaniBatch needs at least one system")
+        first = systems[0]
+        for system in systems[1:]:
+            if system.output_samples.shape != first.output_samples.shape or not np.array_equal(
+                system.output_samples, first.output_samples
+            ):
+                raise ValueError("all systems of a MamdaniBatch must share output MFs and grid")
+        self.systems: tuple[MamdaniSystem, ...] = tuple(systems)
+        self._n_outputs = len(first.outputs)
+        self._n_labels = first.n_labels
+        n_rows = len(systems) * self._n_outputs
+        # Rows are (system, output) pairs; layout (labels, rows, grid) so that the max over labels
+        # is a reduction along the leading axis.
+        self._samples = np.ascontiguousarray(
+            np.concatenate([first.output_samples] * len(systems), axis=1)
+        )
+        self._clipped = np.empty((self._n_labels, n_rows, first.grid.size))
+        self._aggregated = np.empty((n_rows, first.grid.size))
+        self._weights = centroid_weights(first.grid)
+
+    def evaluate(self, inputs: Sequence[Sequence[float]]) -> list[list[float]]:
+        """Crisp outputs of every system.
+
+        Args:
+            inputs: One crisp input vector per system, in system order.
+
+        Returns:
+            ``outputs[s][o]``: crisp value of output o of system s.
+        """
+        if len(inputs) != len(self.systems):
+            raise ValueError(f"expected {len(self.systems)} input vectors, got {len(inputs)}")
+        strengths: list[float] = []
+        for system, x in zip(self.systems, inputs):
+            strengths += system.label_strengths(x)
+        levels = np.array(strengths).reshape(-1, self._n_labels).T[:, :, None]  # (labels, rows, 1)
+        np.minimum(levels, self._samples, out=self._clipped)
+        np.maximum.reduce(self._clipped, axis=0, out=self._aggregated)
+        area_moment = (self._aggregated @ self._weights).tolist()  # per row: (area, moment)
+        crisp = [moment / area if area > 0.0 else ZERO_AREA_FALLBACK for area, moment in area_moment]
+        n_outputs = self._n_outputs
+        return [crisp[s * n_outputs : (s + 1) * n_outputs] for s in range(len(self.systems))]

@@ -1,0 +1,459 @@
+"""Pure simulated SMM plant (SPEC sections 1-3): no ROS, no clock, deterministic for a seed.
+
+What happens to a torque command in :meth:`SimulatedPlant.step` (in this order):
+
+1. **Validation.** A command that is not shape (2,) or holds NaN/Inf raises ``ValueError`` before
+   anything else happens, so a bad command never reaches the integrator.
+2. **Saturation** (``torque_limit``): the command is clipped element-wise to ``+-torque_limit``
+   (the D/A and valve range). ``inf`` switches it off.
+3. **Servo-valve lag** (``valve_time_constants``): a first-order lag ``tau_a' = (tau_s - tau_a) / T``
+   with two time constants, ``T = T_rise`` while ``|tau_a|`` grows (the valve opens: the lag output
+   moves away from zero) and ``T = T_fall`` while it shrinks (it moves back towards zero). The paper's
+   valve (Table 5) is specified by its response time for a +-100 % step: 50 ms rise, 25 ms fall. A
+   first-order lag reaches 90 % of a step after ``T ln 10``; reading the catalogue response time as
+   that 90 % time gives ``T_rise = 0.050 / ln 10 = 21.7 ms`` and ``T_fall = 0.025 / ln 10 = 10.9 ms``
+   (:func:`valve_time_constants_from_response_times`). The lag is integrated exactly over each RK4
+   sub-step, and the torque held over that sub-step is the lag's exact mean over it.
+4. **RK4 integration** of eq. 2 with the true parameters (``params`` with inertias scaled by
+   ``inertia_scale``) and the external disturbance ``tau_dist`` (eq. 46 or none), in ``substeps``
+   equal sub-steps per call; the disturbance is evaluated at each sub-step's midpoint.
+5. **Mechanical stops** (``joint_limits``), an inelastic stop: after each sub-step a joint beyond
+   ``+-limit`` is put back on the limit and the velocity component that points further into the stop
+   is set to zero (no bounce, no penetration). A velocity leaving the stop is kept, so the joint can
+   come off the stop as soon as the net torque pulls it away.
+
+The reported applied torque (``Measurement.applied_torque``, the ``effort`` of the raw JointState) is
+the mean torque that acted on the mechanism over the last control interval: after saturation and lag,
+before the external disturbance (which the plant does not know it receives).
+
+Sensing (SPEC section 2): :meth:`SimulatedPlant.measure` returns the true position plus zero-mean
+Gaussian noise (``noise_std`` per joint, drawn once per sample from a ``numpy.random.Generator``
+seeded with ``seed``, so repeated ``measure()`` calls at one instant return the same sample), then
+quantised to the encoder resolution ``2 pi / encoder_counts_per_rev`` by rounding to the nearest
+count (0 counts = no quantisation). Time is kept as integer nanoseconds: after ``k`` steps of
+``dt`` the stamp is exactly ``k * round(dt * 1e9)``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Final, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from smm_dynamics import SMMParameters, rk4_step
+
+__all__ = [
+    "DISTURBANCE_MODELS",
+    "PAPER_VALVE_RESPONSE_TIMES",
+    "GroundTruth",
+    "Measurement",
+    "PlantConfig",
+    "SimulatedPlant",
+    "disturbance_torque",
+    "eq46_disturbance",
+    "valve_time_constants_from_response_times",
+]
+
+FloatArray = NDArray[np.float64]
+DisturbanceModel = Literal["none", "eq46"]
+
+DISTURBANCE_MODELS: Final[tuple[str, ...]] = ("none", "eq46")
+"""Names accepted by ``PlantConfig.disturbance``."""
+
+PAPER_VALVE_RESPONSE_TIMES: Final[tuple[float, float]] = (0.050, 0.025)
+"""Servo-valve response time for a +-100 % step of the paper's Table 5 (rise, fall) (s)."""
+
+_NS_PER_S: Final[int] = 1_000_000_000
+_EQ46_ONSET_NS: Final[int] = 1_000_000_000
+_EQ46_AMPLITUDE: Final[float] = 0.5
+_EQ46_FREQUENCY: Final[float] = 7.0
+
+
+def valve_time_constants_from_response_times(
+    rise_time: float, fall_time: float, reached_fraction: float = 0.9
+) -> tuple[float, float]:
+    """Maps a valve's step response times to first-order lag time constants.
+
+    A first-order lag reaches the fraction ``p`` of a step after ``-T ln(1 - p)``; the catalogue's
+    response time is read as the time to ``reached_fraction`` (default 90 %).
+
+    Args:
+        rise_time: Response time while the valve opens (s), > 0.
+        fall_time: Response time while the valve closes (s), > 0.
+        reached_fraction: Fraction of the step reached at the response time, in (0, 1).
+
+    Returns:
+        (T_rise, T_fall) (s). For the paper's valve (50 ms, 25 ms): (21.7 ms, 10.9 ms).
+    """
+    for name, value in (("rise_time", rise_time), ("fall_time", fall_time)):
+        if not math.isfinite(value) or value <= 0.0:
+            raise ValueError(f"{name} must be a finite number > 0 s, got {value!r}")
+    if not 0.0 < reached_fraction < 1.0:
+        raise ValueError(f"reached_fraction must be in (0, 1), got {reached_fraction!r}")
+    scale = -math.log(1.0 - reached_fraction)
+    return rise_time / scale, fall_time / scale
+
+
+def eq46_disturbance(t: float) -> tuple[float, float]:
+    """External disturbance of eq. 46: 0 for t <= 1 s, then [-0.5 cos 7t, 0.5 cos 7t] (N m).
+
+    Args:
+        t: Time since the start of the run (s).
+
+    Returns:
+        (alpha, beta) disturbance torque (N m). It enters eq. 2 on the left-hand side, so it
+        opposes a positive drive torque.
+    """
+    if t <= _EQ46_ONSET_NS / _NS_PER_S:
+        return 0.0, 0.0
+    value = _EQ46_AMPLITUDE * math.cos(_EQ46_FREQUENCY * t)
+    return -value, value
+
+
+def disturbance_torque(model: str, t: float) -> tuple[float, float]:
+    """External disturbance torque of a named model at time ``t``.
+
+    Args:
+        model: One of :data:`DISTURBANCE_MODELS`.
+        t: Time since the start of the run (s).
+
+    Returns:
+        (alpha, beta) disturbance torque (N m).
+    """
+    if model == "none":
+        return 0.0, 0.0
+    if model == "eq46":
+        return eq46_disturbance(t)
+    raise ValueError(f"disturbance must be one of {DISTURBANCE_MODELS}, got {model!r}")
+
+
+def _require_pair(name: str, value: object, *, minimum: float, allow_equal: bool, allow_inf: bool) -> None:
+    if not isinstance(value, tuple) or len(value) != 2:
+        raise ValueError(f"{name} must be a tuple (alpha, beta) of 2 floats, got {value!r}")
+    for item in value:
+        if isinstance(item, bool) or not isinstance(item, (int, float)) or math.isnan(item):
+            raise ValueError(f"{name} must hold numbers, got {value!r}")
+        if math.isinf(item) and not (allow_inf and item > 0):
+            raise ValueError(f"{name} must be finite, got {value!r}")
+        if item < minimum or (item == minimum and not allow_equal):
+            relation = ">=" if allow_equal else ">"
+            raise ValueError(f"{name} must be {relation} {minimum}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class PlantConfig:
+    """Configuration of the simulated plant.
+
+    Attributes:
+        params: Nominal rigid-body parameters; the true plant uses them with the inertias scaled by
+            ``inertia_scale``.
+        inertia_scale: Model error: factor on I11, I22, I44, I55 of the true plant (1.0 = none;
+            SPEC case2: 1.1), > 0.
+        noise_std: Standard deviation of the Gaussian position noise (alpha, beta) (rad), >= 0.
+        encoder_counts_per_rev: Encoder resolution (counts per revolution); 0 = no quantisation.
+        seed: Seed of the noise generator (``numpy.random.default_rng``), >= 0.
+        disturbance: External disturbance model, ``"none"`` or ``"eq46"``.
+        joint_limits: Mechanical stops at +-limit (alpha, beta) (rad), in (0, pi/2) so the state
+            never reaches the coordinate singularity at cos(beta) = 0.
+        torque_limit: Saturation of the applied torque (alpha, beta) (N m), > 0; ``inf`` = off.
+        valve_time_constants: (T_rise, T_fall) of the first-order valve lag (s), both > 0, or
+            ``None`` (off). See :func:`valve_time_constants_from_response_times`.
+        substeps: RK4 sub-steps per :meth:`SimulatedPlant.step` call, >= 1.
+        control_period: Nominal control period (s), > 0; used by callers that step at a fixed rate
+            (``period_ns``). Each ``step`` call still receives its own ``dt``.
+    """
+
+    params: SMMParameters = field(default_factory=SMMParameters)
+    inertia_scale: float = 1.0
+    noise_std: tuple[float, float] = (0.0, 0.0)
+    encoder_counts_per_rev: int = 0
+    seed: int = 0
+    disturbance: DisturbanceModel = "none"
+    joint_limits: tuple[float, float] = (1.3, 1.3)
+    torque_limit: tuple[float, float] = (math.inf, math.inf)
+    valve_time_constants: tuple[float, float] | None = None
+    substeps: int = 1
+    control_period: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.params, SMMParameters):
+            raise ValueError(f"params must be an SMMParameters, got {self.params!r}")
+        scale = self.inertia_scale
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale):
+            raise ValueError(f"inertia_scale must be a finite number, got {scale!r}")
+        if scale <= 0.0:
+            raise ValueError(f"inertia_scale must be > 0, got {scale!r}")
+        _require_pair("noise_std", self.noise_std, minimum=0.0, allow_equal=True, allow_inf=False)
+        counts = self.encoder_counts_per_rev
+        if isinstance(counts, bool) or not isinstance(counts, int) or counts < 0:
+            raise ValueError(f"encoder_counts_per_rev must be an int >= 0, got {counts!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"seed must be an int >= 0, got {self.seed!r}")
+        if self.disturbance not in DISTURBANCE_MODELS:
+            raise ValueError(f"disturbance must be one of {DISTURBANCE_MODELS}, got {self.disturbance!r}")
+        _require_pair("joint_limits", self.joint_limits, minimum=0.0, allow_equal=False, allow_inf=False)
+        if max(self.joint_limits) >= math.pi / 2:
+            raise ValueError(f"joint_limits must be < pi/2 rad (singularity), got {self.joint_limits!r}")
+        _require_pair("torque_limit", self.torque_limit, minimum=0.0, allow_equal=False, allow_inf=True)
+        if self.valve_time_constants is not None:
+            _require_pair(
+                "valve_time_constants",
+                self.valve_time_constants,
+                minimum=0.0,
+                allow_equal=False,
+                allow_inf=False,
+            )
+        if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1:
+            raise ValueError(f"substeps must be an int >= 1, got {self.substeps!r}")
+        period = self.control_period
+        if isinstance(period, bool) or not isinstance(period, (int, float)) or not math.isfinite(period):
+            raise ValueError(f"control_period must be a finite number, got {period!r}")
+        if round(period * _NS_PER_S) <= 0:
+            raise ValueError(f"control_period must be >= 1 ns, got {period!r}")
+
+    @property
+    def true_params(self) -> SMMParameters:
+        """Parameters of the true plant: ``params`` with the inertias scaled by ``inertia_scale``."""
+        if self.inertia_scale == 1.0:
+            return self.params
+        return self.params.with_inertia_scale(self.inertia_scale)
+
+    @property
+    def period_ns(self) -> int:
+        """Control period in integer nanoseconds."""
+        return round(self.control_period * _NS_PER_S)
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One encoder sample, what the raw JointState carries.
+
+    Attributes:
+        stamp_ns: Sample time since reset (ns).
+        position: Measured position (alpha, beta) (rad), noisy and quantised, shape (2,).
+        applied_torque: Mean torque applied over the last control interval (N m), shape (2,);
+            zeros before the first step.
+    """
+
+    stamp_ns: int
+    position: FloatArray
+    applied_torque: FloatArray
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """True state of the plant, for analysis only (the control chain must not use it).
+
+    Attributes:
+        stamp_ns: Time since reset (ns).
+        position: True joint position q (rad), shape (2,).
+        velocity: True joint velocity q' (rad/s), shape (2,).
+        applied_torque: Mean torque applied over the last control interval (N m), shape (2,).
+        disturbance_torque: External disturbance at ``stamp_ns`` (N m), shape (2,).
+    """
+
+    stamp_ns: int
+    position: FloatArray
+    velocity: FloatArray
+    applied_torque: FloatArray
+    disturbance_torque: FloatArray
+
+
+def _validated_command(tau_command: ArrayLike) -> tuple[float, float]:
+    try:
+        command = np.asarray(tau_command, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"tau_command must be numeric, shape (2,), got {tau_command!r}") from error
+    if command.shape != (2,):
+        raise ValueError(f"tau_command must have shape (2,), got shape {command.shape}")
+    first, second = float(command[0]), float(command[1])
+    if not (math.isfinite(first) and math.isfinite(second)):
+        raise ValueError(f"tau_command must be finite, got {command.tolist()!r}")
+    return first, second
+
+
+def _validated_dt_ns(dt: float) -> int:
+    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not math.isfinite(dt):
+        raise ValueError(f"dt must be a finite number of seconds, got {dt!r}")
+    dt_ns = round(dt * _NS_PER_S)
+    if dt_ns <= 0:
+        raise ValueError(f"dt must be >= 1 ns, got {dt!r}")
+    return dt_ns
+
+
+class SimulatedPlant:
+    """The 2-DOF SMM with sensing and actuation models; see the module docstring for the order.
+
+    Args:
+        config: Plant configuration.
+    """
+
+    def __init__(self, config: PlantConfig) -> None:
+        self._config = config
+        self._params = config.true_params
+        self._limits = config.joint_limits
+        self._saturation = config.torque_limit
+        self._quantum = 2.0 * math.pi / config.encoder_counts_per_rev if config.encoder_counts_per_rev else 0.0
+        self._rng = np.random.default_rng(config.seed)
+        self._q = np.zeros(2)
+        self._qd = np.zeros(2)
+        self._t_ns = 0
+        self._valve = [0.0, 0.0]
+        self._command = (0.0, 0.0)
+        self._applied = (0.0, 0.0)
+        self._noise = np.zeros(2)
+        self._measured = np.zeros(2)
+        self.reset()
+
+    @property
+    def config(self) -> PlantConfig:
+        """The configuration this plant was built with."""
+        return self._config
+
+    def reset(self, position: ArrayLike | None = None) -> None:
+        """Restarts at rest at t = 0 with a freshly seeded noise generator.
+
+        Args:
+            position: Initial joint position (rad), shape (2,), inside the stops; default q = 0.
+        """
+        q0 = np.zeros(2) if position is None else np.array(position, dtype=np.float64)
+        if q0.shape != (2,) or not np.all(np.isfinite(q0)):
+            raise ValueError(f"position must be finite, shape (2,), got {position!r}")
+        if np.any(np.abs(q0) > np.asarray(self._limits)):
+            raise ValueError(f"position must lie within joint_limits {self._limits}, got {q0.tolist()!r}")
+        self._rng = np.random.default_rng(self._config.seed)
+        self._q = q0
+        self._qd = np.zeros(2)
+        self._t_ns = 0
+        self._valve = [0.0, 0.0]
+        self._command = (0.0, 0.0)
+        self._applied = (0.0, 0.0)
+        self._sample_sensor()
+
+    @property
+    def time_ns(self) -> int:
+        """Time since reset (ns)."""
+        return self._t_ns
+
+    def measure(self) -> Measurement:
+        """The encoder sample at the current time (the same sample however often it is called).
+
+        Returns:
+            Noisy, quantised position and the torque applied over the last interval.
+        """
+        return Measurement(
+            stamp_ns=self._t_ns,
+            position=self._measured.copy(),
+            applied_torque=np.array(self._applied),
+        )
+
+    @property
+    def ground_truth(self) -> GroundTruth:
+        """True q, q', applied torque and disturbance at the current time."""
+        return GroundTruth(
+            stamp_ns=self._t_ns,
+            position=self._q.copy(),
+            velocity=self._qd.copy(),
+            applied_torque=np.array(self._applied),
+            disturbance_torque=np.array(disturbance_torque(self._config.disturbance, self._t_ns / _NS_PER_S)),
+        )
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """Actuator and sensor internals, shape (2,) each (copies).
+
+        Keys: ``commanded_torque`` (last command, N m), ``saturated_torque`` (after the limit, N m),
+        ``valve_torque`` (lag output at the current time, N m), ``applied_torque`` (mean over the last
+        interval, N m), ``disturbance_torque`` (N m), ``measurement_noise`` (rad).
+        """
+        saturated = tuple(self._saturate(self._command))
+        return {
+            "commanded_torque": np.array(self._command),
+            "saturated_torque": np.array(saturated),
+            "valve_torque": np.array(self._valve),
+            "applied_torque": np.array(self._applied),
+            "disturbance_torque": np.array(disturbance_torque(self._config.disturbance, self._t_ns / _NS_PER_S)),
+            "measurement_noise": self._noise.copy(),
+        }
+
+    def step(self, tau_command: ArrayLike, dt: float) -> None:
+        """Applies a torque command over [t, t + dt] and advances the plant.
+
+        Args:
+            tau_command: Commanded torque (alpha, beta) (N m), shape (2,), finite.
+            dt: Interval (s), rounded to whole nanoseconds, >= 1 ns.
+
+        Raises:
+            ValueError: The command is not finite or not shape (2,), or dt is invalid. The plant state
+                is left untouched.
+        """
+        command = _validated_command(tau_command)
+        dt_ns = _validated_dt_ns(dt)
+        config = self._config
+        saturated = self._saturate(command)
+        substeps = config.substeps
+        h = dt_ns / _NS_PER_S / substeps
+        t0 = self._t_ns / _NS_PER_S
+        q, qd = self._q, self._qd
+        applied_sum = [0.0, 0.0]
+        for index in range(substeps):
+            torque = self._valve_substep(saturated, h)
+            applied_sum[0] += torque[0]
+            applied_sum[1] += torque[1]
+            t_mid = t0 + (index + 0.5) * h
+            dist = disturbance_torque(config.disturbance, t_mid)
+            tau_dist = None if dist == (0.0, 0.0) else np.array(dist)
+            q, qd = rk4_step(q, qd, np.array(torque), h, self._params, tau_dist=tau_dist)
+            q, qd = self._apply_stops(np.asarray(q, dtype=np.float64), np.asarray(qd, dtype=np.float64))
+        self._q, self._qd = q, qd
+        self._command = command
+        self._applied = (applied_sum[0] / substeps, applied_sum[1] / substeps)
+        self._t_ns += dt_ns
+        self._sample_sensor()
+
+    def _saturate(self, command: tuple[float, float]) -> tuple[float, float]:
+        limit_a, limit_b = self._saturation
+        return (min(max(command[0], -limit_a), limit_a), min(max(command[1], -limit_b), limit_b))
+
+    def _valve_substep(self, target: tuple[float, float], h: float) -> tuple[float, float]:
+        """Advances the valve lag by h towards ``target``; returns the mean torque over the sub-step."""
+        constants = self._config.valve_time_constants
+        if constants is None:
+            self._valve = [target[0], target[1]]
+            return target
+        rise, fall = constants
+        mean = [0.0, 0.0]
+        for joint in range(2):
+            start = self._valve[joint]
+            goal = target[joint]
+            opening = start == 0.0 or (goal - start) * start > 0.0
+            time_constant = rise if opening else fall
+            decay = math.exp(-h / time_constant)
+            self._valve[joint] = goal + (start - goal) * decay
+            mean[joint] = goal + (start - goal) * (time_constant / h) * (1.0 - decay)
+        return mean[0], mean[1]
+
+    def _apply_stops(self, q: FloatArray, qd: FloatArray) -> tuple[FloatArray, FloatArray]:
+        for joint in range(2):
+            limit = self._limits[joint]
+            if q[joint] > limit:
+                q[joint] = limit
+                qd[joint] = min(qd[joint], 0.0)
+            elif q[joint] < -limit:
+                q[joint] = -limit
+                qd[joint] = max(qd[joint], 0.0)
+        return q, qd
+
+    def _sample_sensor(self) -> None:
+        std = self._config.noise_std
+        if std[0] > 0.0 or std[1] > 0.0:
+            self._noise = self._rng.standard_normal(2) * np.asarray(std)
+        else:
+            self._noise = np.zeros(2)
+        measured = self._q + self._noise
+        if self._quantum > 0.0:
+            measured = np.round(measured / self._quantum) * self._quantum
+        self._measured = measured

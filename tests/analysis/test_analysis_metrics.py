@@ -1,0 +1,221 @@
+"""Metrics of SPEC section 5 against analytic references, and rejection of malformed inputs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+from smm_dynamics import SMMParameters, end_effector_position
+
+from smm_analysis.errors import MetricsInputError
+from smm_analysis.metrics import (
+    control_energy,
+    end_effector_errors,
+    joint_indices,
+    max_abs_error,
+    mean_abs_error,
+    rms_error,
+    step_metrics,
+)
+
+PERIOD_NS = 100_000  # 0.1 ms: fine enough that interpolation errors stay far below the tolerances
+
+
+def _time(duration: float, period_ns: int = PERIOD_NS) -> np.ndarray:
+    return np.arange(0, round(duration * 1e9) + 1, period_ns, dtype=np.int64)
+
+
+@given(
+    amplitude=st.floats(0.01, 5.0),
+    periods=st.integers(1, 5),
+    frequency=st.floats(0.5, 5.0),
+)
+@settings(max_examples=25, deadline=None)
+def test_rms_of_sine_over_whole_periods_is_amplitude_over_sqrt2(
+    amplitude: float, periods: int, frequency: float
+) -> None:
+    samples = 2000 * periods
+    duration = periods / frequency
+    t_ns = np.round(np.linspace(0.0, duration, samples + 1) * 1e9).astype(np.int64)
+    error = amplitude * np.sin(2.0 * np.pi * frequency * t_ns / 1e9)
+    assert_allclose(rms_error(t_ns, error), amplitude / math.sqrt(2.0), rtol=1e-6)
+
+
+def test_rms_of_constant_and_ramp() -> None:
+    t_ns = _time(2.0)
+    assert_allclose(rms_error(t_ns, np.full(t_ns.size, -0.3)), 0.3, rtol=1e-12)
+    ramp = t_ns / 1e9  # e = t on [0, 2]: (1/2) int t^2 dt = 4/3
+    assert_allclose(rms_error(t_ns, ramp), math.sqrt(4.0 / 3.0), rtol=1e-6)
+
+
+def test_rms_uses_actual_sample_intervals() -> None:
+    # Non-uniform sampling of e = t on [0, 1]: the trapezoid of t^2 must still approximate 1/3.
+    t_s = np.sort(np.concatenate(([0.0, 1.0], np.random.default_rng(3).uniform(0.0, 1.0, 20000))))
+    t_ns = np.unique(np.round(t_s * 1e9).astype(np.int64))
+    assert_allclose(rms_error(t_ns, t_ns / 1e9), math.sqrt(1.0 / 3.0), rtol=1e-4)
+
+
+def test_control_energy_of_sine_and_constant() -> None:
+    t_ns = _time(2.0)
+    torque = 3.0 * np.sin(np.pi * t_ns / 1e9)  # 2 s = one period: int 9 sin^2 = 9
+    assert_allclose(control_energy(t_ns, torque), 9.0, rtol=1e-6)
+    assert_allclose(control_energy(t_ns, np.full(t_ns.size, 2.0)), 8.0, rtol=1e-12)
+
+
+def test_max_and_mean_abs_error() -> None:
+    error = np.array([0.1, -0.4, 0.2, -0.1])
+    assert max_abs_error(error) == pytest.approx(0.4)
+    assert mean_abs_error(error) == pytest.approx(0.2)
+
+
+def test_joint_indices_per_joint() -> None:
+    t_ns = _time(2.0)
+    t = t_ns / 1e9
+    reference = np.column_stack((np.sin(np.pi * t), 0.5 * np.sin(np.pi * t)))
+    error = np.column_stack((0.02 * np.sin(np.pi * t), np.full(t.size, -0.01)))
+    torque = np.column_stack((np.ones(t.size), 2.0 * np.ones(t.size)))
+    indices = joint_indices(t_ns, reference, reference - error, torque)
+    assert_allclose(indices["alpha"].RMS, 0.02 / math.sqrt(2.0), rtol=1e-6)
+    assert_allclose(indices["alpha"].Ma, 0.02, rtol=1e-6)
+    assert_allclose(indices["alpha"].Ave, 0.02 * 2.0 / math.pi, rtol=1e-3)
+    assert_allclose(indices["beta"].RMS, 0.01, rtol=1e-12)
+    assert_allclose(indices["beta"].eps_u, 8.0, rtol=1e-12)
+    assert_allclose(indices["alpha"].eps_u, 2.0, rtol=1e-12)
+
+
+@pytest.mark.parametrize("tau", [0.01, 0.03, 0.1])
+@pytest.mark.parametrize("amplitude", [1.0, -0.785])
+def test_first_order_step_response(tau: float, amplitude: float) -> None:
+    t_ns = _time(1.0, period_ns=10_000)
+    response = amplitude * (1.0 - np.exp(-(t_ns / 1e9) / tau))
+    metrics = step_metrics(t_ns, response, amplitude)
+    assert_allclose(metrics.rise_time, math.log(9.0) * tau, rtol=1e-3)  # 2.197 tau
+    assert_allclose(metrics.settling_time, math.log(50.0) * tau, rtol=1e-3)  # 3.912 tau
+    assert metrics.overshoot == 0.0
+    assert metrics.overshoot_fraction == 0.0
+
+
+@pytest.mark.parametrize("zeta", [0.2, 0.5, 0.7])
+def test_second_order_underdamped_overshoot(zeta: float) -> None:
+    omega_n = 40.0
+    omega_d = omega_n * math.sqrt(1.0 - zeta**2)
+    t_ns = _time(2.0, period_ns=10_000)
+    t = t_ns / 1e9
+    phase = math.acos(zeta)
+    unit = 1.0 - np.exp(-zeta * omega_n * t) * np.sin(omega_d * t + phase) / math.sqrt(1.0 - zeta**2)
+    amplitude = 0.785
+    metrics = step_metrics(t_ns, amplitude * unit, amplitude)
+    expected_fraction = math.exp(-zeta * math.pi / math.sqrt(1.0 - zeta**2))
+    assert_allclose(metrics.overshoot_fraction, expected_fraction, rtol=1e-4)
+    assert_allclose(metrics.overshoot, amplitude * expected_fraction, rtol=1e-4)
+    # The envelope bound of the 2 % settling time: the true settling time never exceeds it.
+    envelope = -math.log(0.02 * math.sqrt(1.0 - zeta**2)) / (zeta * omega_n)
+    assert 0.0 < metrics.settling_time <= envelope
+
+
+def test_step_metrics_with_offset_initial_value_and_step_time() -> None:
+    t_ns = _time(1.0, period_ns=10_000)
+    t = t_ns / 1e9
+    step_at = 0.2
+    tau = 0.05
+    response = np.where(t < step_at, 0.5, 0.5 + 1.5 * (1.0 - np.exp(-(t - step_at) / tau)))
+    metrics = step_metrics(t_ns, response, 2.0, initial=0.5, step_time_ns=200_000_000)
+    assert_allclose(metrics.rise_time, math.log(9.0) * tau, rtol=1e-3)
+    assert_allclose(metrics.settling_time, math.log(50.0) * tau, rtol=1e-3)
+
+
+def test_step_that_never_arrives_has_infinite_times() -> None:
+    t_ns = _time(0.5)
+    metrics = step_metrics(t_ns, 0.5 * (1.0 - np.exp(-(t_ns / 1e9) / 0.01)), 1.0)
+    assert math.isinf(metrics.rise_time)
+    assert math.isinf(metrics.settling_time)
+
+
+def test_end_effector_errors_zero_when_on_reference_and_match_direct_kinematics() -> None:
+    params = SMMParameters()
+    t_ns = _time(1.0, period_ns=1_000_000)
+    t = t_ns / 1e9
+    reference = np.column_stack((np.sin(np.pi * t), 0.785 * np.sin(np.pi * t)))
+    zero = end_effector_errors(t_ns, reference, reference, params)
+    assert all(zero[axis].max_mm == 0.0 and zero[axis].rms_mm == 0.0 for axis in ("x", "y", "z"))
+    offset = reference + np.array([0.0, 0.01])
+    errors = end_effector_errors(t_ns, reference, offset, params)
+    expected = np.array(
+        [
+            (np.asarray(end_effector_position(a, params)) - np.asarray(end_effector_position(b, params))) * 1e3
+            for a, b in zip(reference, offset, strict=True)
+        ]
+    )
+    for index, axis in enumerate(("x", "y", "z")):
+        assert_allclose(errors[axis].max_mm, np.max(np.abs(expected[:, index])), rtol=1e-12)
+        assert_allclose(errors[axis].rms_mm, rms_error(t_ns, expected[:, index]), rtol=1e-12)
+    assert errors["z"].max_mm > 0.0
+
+
+def test_rejects_mismatched_lengths() -> None:
+    t_ns = _time(0.1)
+    with pytest.raises(MetricsInputError, match="samples"):
+        rms_error(t_ns, np.zeros(t_ns.size - 1))
+    with pytest.raises(MetricsInputError, match="samples"):
+        control_energy(t_ns, np.zeros(t_ns.size + 1))
+    with pytest.raises(MetricsInputError, match="samples"):
+        joint_indices(t_ns, np.zeros((t_ns.size, 2)), np.zeros((t_ns.size - 1, 2)), np.zeros((t_ns.size, 2)))
+    with pytest.raises(MetricsInputError, match="samples"):
+        step_metrics(t_ns, np.zeros(3), 1.0)
+
+
+@pytest.mark.parametrize(
+    "stamps",
+    [
+        np.array([0, 2, 1, 3], dtype=np.int64),
+        np.array([0, 1, 1, 2], dtype=np.int64),
+    ],
+)
+def test_rejects_non_increasing_time(stamps: np.ndarray) -> None:
+    with pytest.raises(MetricsInputError, match="strictly increasing"):
+        rms_error(stamps, np.zeros(stamps.size))
+    with pytest.raises(MetricsInputError, match="strictly increasing"):
+        step_metrics(stamps, np.linspace(0.0, 1.0, stamps.size), 1.0)
+
+
+def test_rejects_float_or_short_time() -> None:
+    with pytest.raises(MetricsInputError, match="integer"):
+        rms_error(np.array([0.0, 0.1, 0.2]), np.zeros(3))
+    with pytest.raises(MetricsInputError, match="at least 2"):
+        rms_error(np.array([0], dtype=np.int64), np.zeros(1))
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_rejects_non_finite_values(bad: float) -> None:
+    t_ns = _time(0.01)
+    values = np.zeros(t_ns.size)
+    values[3] = bad
+    with pytest.raises(MetricsInputError, match="NaN"):
+        rms_error(t_ns, values)
+    with pytest.raises(MetricsInputError, match="NaN"):
+        max_abs_error(values)
+    with pytest.raises(MetricsInputError, match="NaN"):
+        mean_abs_error(values)
+    with pytest.raises(MetricsInputError, match="NaN"):
+        step_metrics(t_ns, values, 1.0)
+    joint = np.zeros((t_ns.size, 2))
+    joint[2, 1] = bad
+    with pytest.raises(MetricsInputError, match="NaN"):
+        joint_indices(t_ns, joint, np.zeros_like(joint), np.zeros_like(joint))
+
+
+def test_rejects_zero_step_and_bad_band() -> None:
+    t_ns = _time(0.01)
+    with pytest.raises(MetricsInputError, match="differ"):
+        step_metrics(t_ns, np.ones(t_ns.size), 1.0, initial=1.0)
+    with pytest.raises(MetricsInputError, match="settling_band"):
+        step_metrics(t_ns, np.ones(t_ns.size), 1.0, settling_band=0.0)
+
+
+def test_metrics_errors_are_value_errors() -> None:
+    with pytest.raises(ValueError):
+        rms_error(np.array([0, 1], dtype=np.int64), np.zeros((2, 2)))

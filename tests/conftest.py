@@ -1,0 +1,108 @@
+"""Test-session set-up: every test runs in a private network namespace with only loopback.
+
+At start-up the pytest process re-executes itself under ``unshare --net`` (``-r`` as well when not root),
+with ``lo`` brought up by ``netns_exec.py``. Nodes started by tests, and DDS participants created inside the
+test process, therefore cannot send a packet anywhere but loopback, whatever their discovery settings.
+``ROS_AUTOMATIC_DISCOVERY_RANGE`` is set to ``LOCALHOST`` when unset, and each test gets its own
+``ROS_DOMAIN_ID`` (fixture ``ros_domain_id``), so tests never see each other's graphs.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+_NETNS_MARKER = "SMM_TEST_PRIVATE_NETNS"
+_NETNS_FAILURE = "SMM_TEST_NETNS_FAILURE"
+_HERE = Path(__file__).resolve().parent
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+
+def _unshare_command() -> list[str]:
+    command = ["unshare", "--net"]
+    if os.geteuid() != 0:
+        command.append("--map-root-user")
+    return command
+
+
+def _why_no_private_netns() -> str | None:
+    if shutil.which("unshare") is None:
+        return "the 'unshare' command (util-linux) is not installed"
+    probe = subprocess.run([*_unshare_command(), "--", "true"], capture_output=True, text=True, check=False)
+    if probe.returncode != 0:
+        return f"'unshare --net' failed: {probe.stderr.strip() or probe.returncode} (run as root)"
+    return None
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Re-execute the session inside a fresh network namespace, once."""
+    if os.environ.get(_NETNS_MARKER) == "1" or _NETNS_FAILURE in os.environ:
+        return
+    reason = _why_no_private_netns()
+    if reason is not None:
+        # Pure tests still run; every test that needs ROS fails with this reason (fixture ros_netns).
+        os.environ[_NETNS_FAILURE] = reason
+        return
+    capture = config.pluginmanager.getplugin("capturemanager")
+    if capture is not None:
+        capture.suspend_global_capture(in_=True)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.environ[_NETNS_MARKER] = "1"
+    argv = [sys.executable, "-m", "pytest", *config.invocation_params.args]
+    os.chdir(config.invocation_params.dir)
+    command = [*_unshare_command(), "--", sys.executable, str(_HERE / "netns_exec.py"), *argv]
+    os.execvp(command[0], command)
+
+
+@pytest.fixture(scope="session")
+def ros_netns() -> None:
+    """Fail (never skip) a ROS test that would run outside the private network namespace."""
+    from netns_exec import interface_names
+
+    if _NETNS_FAILURE in os.environ:
+        pytest.fail(f"no private network namespace for ROS tests: {os.environ[_NETNS_FAILURE]}")
+    names = interface_names()
+    if names != ["lo"]:
+        pytest.fail(f"ROS tests must run with loopback only, but interfaces are {names}")
+
+
+_domain_ids = itertools.cycle(range(1, 200))
+
+
+@pytest.fixture
+def ros_domain_id(ros_netns: None, monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
+    """A ROS_DOMAIN_ID of this test's own, exported to the environment of everything it starts."""
+    domain_id = next(_domain_ids)
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain_id))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST"))
+    yield domain_id
+
+
+@pytest.fixture
+def ros_context(ros_domain_id: int) -> Iterator[object]:
+    """A private, initialised rclpy Context on this test's domain; shut down afterwards."""
+    from ros_harness import private_context
+
+    with private_context(ros_domain_id) as context:
+        yield context
+
+
+@pytest.fixture
+def ros_processes(ros_domain_id: int, tmp_path: Path) -> Iterator[object]:
+    """Start node processes for this test; every one is stopped and reaped at teardown."""
+    from ros_harness import ProcessGroup
+
+    group = ProcessGroup(log_dir=tmp_path / "logs")
+    try:
+        yield group
+    finally:
+        group.stop_all()
