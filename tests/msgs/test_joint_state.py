@@ -4,6 +4,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -32,17 +33,17 @@ stamps = st.integers(min_value=0, max_value=MAX_STAMP_NS)
 
 def make_joint_state(
     names: Sequence[str],
-    position: Sequence[float],
-    velocity: Sequence[float] = (),
-    effort: Sequence[float] = (),
+    position: npt.ArrayLike,
+    velocity: npt.ArrayLike = (),
+    effort: npt.ArrayLike = (),
     stamp_ns: int = 1_500_000_000,
 ) -> JointState:
     msg = JointState()
     msg.header.stamp = ns_to_stamp(stamp_ns)
     msg.name = list(names)
-    msg.position = [float(v) for v in position]
-    msg.velocity = [float(v) for v in velocity]
-    msg.effort = [float(v) for v in effort]
+    msg.position = np.asarray(position, dtype=np.float64).tolist()
+    msg.velocity = np.asarray(velocity, dtype=np.float64).tolist()
+    msg.effort = np.asarray(effort, dtype=np.float64).tolist()
     return msg
 
 
@@ -65,8 +66,8 @@ def test_any_joint_order_is_reordered_to_alpha_beta(
     sample = joint_state_to_sample(msg, require_velocity=True, require_effort=True)
     assert sample.stamp_ns == stamp_ns
     assert_array_equal(sample.position, position)
-    assert_array_equal(sample.velocity, velocity)  # type: ignore[arg-type]
-    assert_array_equal(sample.effort, effort)  # type: ignore[arg-type]
+    assert_array_equal(sample.velocity, velocity)
+    assert_array_equal(sample.effort, effort)
 
 
 @given(stamp_ns=stamps, position=finite_pairs, effort=finite_pairs)
@@ -81,7 +82,7 @@ def test_sample_round_trip_keeps_absent_fields_absent(
     back = joint_state_to_sample(msg, require_effort=True)
     assert back.velocity is None
     assert_array_equal(back.position, position)
-    assert_array_equal(back.effort, effort)  # type: ignore[arg-type]
+    assert_array_equal(back.effort, effort)
 
 
 def test_sample_arrays_are_read_only_copies_of_the_message() -> None:
@@ -130,8 +131,10 @@ def test_bad_joint_names_are_rejected_with_a_clear_message(
         ([0.0, 0.0], [], [1.0]),
     ],
 )
-def test_wrong_field_lengths_are_rejected(position: list[float], velocity: list[float], effort: list[float]) -> None:
-    with pytest.raises(ArrayLengthError):
+def test_wrong_field_lengths_are_rejected(
+    position: list[float], velocity: list[float], effort: list[float]
+) -> None:
+    with pytest.raises(ArrayLengthError, match="JointState"):
         joint_state_to_sample(make_joint_state(["alpha", "beta"], position, velocity, effort))
 
 

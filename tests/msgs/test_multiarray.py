@@ -226,7 +226,9 @@ def test_bad_internals_are_not_published() -> None:
 Mutation = Callable[[Float64MultiArray], None]
 
 
-def set_dim(index: int, label: str | None = None, size: int | None = None, stride: int | None = None) -> Mutation:
+def set_dim(
+    index: int, label: str | None = None, size: int | None = None, stride: int | None = None
+) -> Mutation:
     def mutate(msg: Float64MultiArray) -> None:
         dim = msg.layout.dim[index]
         if label is not None:
@@ -256,6 +258,10 @@ def extra_dim(msg: Float64MultiArray) -> None:
     msg.layout.dim = [*msg.layout.dim, MultiArrayDimension(label="extra:x", size=1, stride=1)]
 
 
+def second_stamp(msg: Float64MultiArray) -> None:
+    msg.layout.dim = [*msg.layout.dim, MultiArrayDimension(label="stamp_ns:1", size=1, stride=1)]
+
+
 def set_data(values: list[float]) -> Mutation:
     def mutate(msg: Float64MultiArray) -> None:
         msg.data = values
@@ -268,6 +274,7 @@ TORQUE_MUTATIONS: dict[str, tuple[Mutation, type[InterfaceError]]] = {
     "missing stamp": (drop_stamp, LayoutError),
     "stamp not last": (stamp_first, LayoutError),
     "extra dimension": (extra_dim, LayoutError),
+    "two stamp dimensions": (second_stamp, LayoutError),
     "joint order swapped": (set_dim(0, label="joint:beta,alpha"), LayoutError),
     "unknown joint": (set_dim(0, label="joint:alpha,gamma"), LayoutError),
     "wrong dim name": (set_dim(0, label="joints:alpha,beta"), LayoutError),

@@ -33,7 +33,18 @@ def test_time_round_trip_is_exact(sec: int, nanosec: int) -> None:
 
 @pytest.mark.parametrize(
     "stamp_ns",
-    [0, 1, 999_999_999, 1_000_000_000, 2**32, 2**53 + 1, 2**60 + 1, 2**61 - 1 - 2**58, MAX_STAMP_NS - 1, MAX_STAMP_NS],
+    [
+        0,
+        1,
+        999_999_999,
+        1_000_000_000,
+        2**32,
+        2**53 + 1,
+        2**60 + 1,
+        2**61 - 1 - 2**58,
+        MAX_STAMP_NS - 1,
+        MAX_STAMP_NS,
+    ],
 )
 def test_boundary_stamps_round_trip(stamp_ns: int) -> None:
     assert stamp_to_ns(ns_to_stamp(stamp_ns)) == stamp_ns

@@ -2,6 +2,7 @@
 
 __all__ = [
     "AnalysisError",
+    "ClosedLoopDivergedError",
     "MetricsInputError",
     "UnknownControllerError",
     "UnknownScenarioError",
@@ -22,3 +23,7 @@ class UnknownScenarioError(AnalysisError):
 
 class UnknownControllerError(AnalysisError):
     """A controller name is not one of the controllers the closed loop can run."""
+
+
+class ClosedLoopDivergedError(AnalysisError):
+    """The control chain produced a non-finite torque: the closed loop went unstable."""

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Literal
 
+from smm_controller.reference import SineReference, StepReference
 from smm_sim.plant import DISTURBANCE_MODELS, DisturbanceModel
 
 from smm_analysis.errors import UnknownScenarioError
@@ -70,6 +71,12 @@ class Scenario:
     def is_step(self) -> bool:
         """True for a step reference (step metrics apply)."""
         return self.reference_kind == "step"
+
+    def reference(self) -> StepReference | SineReference:
+        """The reference generator q_d(t) -> shape (3, 2) (position, velocity, acceleration)."""
+        if self.reference_kind == "step":
+            return StepReference(amplitude=self.amplitude)
+        return SineReference(amplitude=self.amplitude, angular_frequency=self.angular_frequency)
 
     def with_duration(self, duration: float) -> Scenario:
         """The same scenario with another length (s), e.g. shortened for tests."""

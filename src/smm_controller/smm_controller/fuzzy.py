@@ -176,9 +176,10 @@ class FuzzyVariable:
         self.labels: tuple[str, ...] = tuple(labels)
         self.mfs: tuple[MembershipFunction, ...] = tuple(mfs)
         self._index = {label: i for i, label in enumerate(self.labels)}
+        self._sides: list[tuple[float, float, float, float]] = []
         self._lattice = self._uniform_triangle_lattice()
 
-    def _uniform_triangle_lattice(self) -> tuple[float, float] | None:
+    def _uniform_triangle_lattice(self) -> tuple[float, float, float] | None:
         if len(self.mfs) < 2 or not all(isinstance(mf, TriangularMF) for mf in self.mfs):
             return None
         triangles = [mf for mf in self.mfs if isinstance(mf, TriangularMF)]
@@ -192,7 +193,12 @@ class FuzzyVariable:
                 or abs(tri.c - tri.b - spacing) > tolerance
             ):
                 return None
-        return triangles[0].b, spacing
+        # Between peaks k and k+1 only labels k (falling side) and k+1 (rising side) are non-zero.
+        self._sides = [
+            (left.c, left.c - left.b, right.a, right.b - right.a)
+            for left, right in zip(triangles[:-1], triangles[1:])
+        ]
+        return triangles[0].b, triangles[-1].b, spacing
 
     def index(self, label: str) -> int:
         """Position of ``label`` in :attr:`labels` (ValueError if unknown)."""
@@ -206,18 +212,28 @@ class FuzzyVariable:
         return tuple(mf.degree(x) for mf in self.mfs)
 
     def active(self, x: float) -> list[tuple[int, float]]:
-        """(label index, degree) for every label with degree > 0 at ``x``, in label order."""
-        mfs = self.mfs
-        if self._lattice is not None:
-            first_peak, spacing = self._lattice
-            left = int((x - first_peak) // spacing)
-            left = 0 if left < 0 else min(left, len(mfs) - 2)
-            candidates: Sequence[int] = (left, left + 1)
-        else:
-            candidates = range(len(mfs))
+        """(label index, degree) for every label with degree > 0 at ``x``, in label order.
+
+        On a uniform triangular partition only the falling side of the label left of x and the rising
+        side of the label right of x are evaluated; they equal the full triangle formula up to
+        rounding (within a few ulps of a peak the interval found by the floor may be the
+        neighbouring one, whence the clamp to 1; memberships of order 1e-16 that rounding may leave
+        on a third label are dropped).
+        """
+        lattice = self._lattice
+        if lattice is not None and lattice[0] <= x <= lattice[1]:
+            left = min(int((x - lattice[0]) // lattice[2]), len(self._sides) - 1)
+            peak_left, falling_width, foot_right, rising_width = self._sides[left]
+            falling = min((peak_left - x) / falling_width, 1.0)
+            rising = min((x - foot_right) / rising_width, 1.0)
+            if falling > 0.0:
+                if rising > 0.0:
+                    return [(left, falling), (left + 1, rising)]
+                return [(left, falling)]
+            return [(left + 1, rising)] if rising > 0.0 else []
         pairs = []
-        for i in candidates:
-            degree = mfs[i].degree(x)
+        for i, mf in enumerate(self.mfs):
+            degree = mf.degree(x)
             if degree > 0.0:
                 pairs.append((i, degree))
         return pairs
@@ -341,10 +357,36 @@ class MamdaniSystem:
             Flat list, ``strengths[o * n_labels + label]`` for output o (labels padded to
             ``n_labels`` with 0.0).
         """
+        strengths = [0.0] * self._n_strengths
+        self.accumulate_strengths(x, strengths, self._targets)
+        return strengths
+
+    def slot_table(self, slot_of: Sequence[int]) -> list[tuple[int, ...]]:
+        """Rule targets re-indexed for a caller's layout.
+
+        Args:
+            slot_of: Destination index for each local slot ``o * n_labels + label``.
+
+        Returns:
+            Per flattened antecedent combination, the destination slots it sets.
+        """
+        return [tuple(slot_of[slot] for slot in slots) for slots in self._targets]
+
+    def accumulate_strengths(
+        self, x: Sequence[float], out: list[float], targets: Sequence[tuple[int, ...]]
+    ) -> None:
+        """Raises ``out[slot]`` to the firing strength of every rule concluding that slot.
+
+        Rule firing is AND = min over the antecedent memberships; a label's implication level is the
+        max over its rules. Only active labels (membership > 0) are visited.
+
+        Args:
+            x: One crisp value per input variable.
+            out: Strength slots, initialised to 0.0 by the caller.
+            targets: Slots set by each flattened antecedent combination (see :meth:`slot_table`).
+        """
         if len(x) != len(self.inputs):
             raise ValueError(f"expected {len(self.inputs)} inputs, got {len(x)}")
-        strengths = [0.0] * self._n_strengths
-        targets = self._targets
         if len(self.inputs) == 2:
             second = self.inputs[1].active(x[1])
             radix = self._radix[1]
@@ -353,9 +395,15 @@ class MamdaniSystem:
                 for j, degree_j in second:
                     firing = degree_i if degree_i < degree_j else degree_j
                     for slot in targets[base + j]:
-                        if firing > strengths[slot]:
-                            strengths[slot] = firing
-            return strengths
+                        if firing > out[slot]:
+                            out[slot] = firing
+            return
+        if len(self.inputs) == 1:
+            for i, firing in self.inputs[0].active(x[0]):
+                for slot in targets[i]:
+                    if firing > out[slot]:
+                        out[slot] = firing
+            return
         for combination in product(*(var.active(value) for var, value in zip(self.inputs, x))):
             flat = 0
             firing = 1.0
@@ -364,9 +412,8 @@ class MamdaniSystem:
                 if degree < firing:
                     firing = degree
             for slot in targets[flat]:
-                if firing > strengths[slot]:
-                    strengths[slot] = firing
-        return strengths
+                if firing > out[slot]:
+                    out[slot] = firing
 
     def aggregated_membership(self, x: Sequence[float]) -> FloatArray:
         """Aggregated output membership sampled on :attr:`grid`, shape (n_outputs, grid_points)."""
@@ -399,15 +446,25 @@ class MamdaniBatch:
             ):
                 raise ValueError("all systems of a MamdaniBatch must share output MFs and grid")
         self.systems: tuple[MamdaniSystem, ...] = tuple(systems)
-        self._n_outputs = len(first.outputs)
-        self._n_labels = first.n_labels
-        n_rows = len(systems) * self._n_outputs
-        # Rows are (system, output) pairs; layout (labels, rows, grid) so that the max over labels
-        # is a reduction along the leading axis.
+        n_outputs = len(first.outputs)
+        n_labels = first.n_labels
+        n_rows = len(systems) * n_outputs
+        self._n_outputs = n_outputs
+        self._n_slots = n_labels * n_rows
+        # Rows are (system, output) pairs. Strength slots are label-major, slot = label * rows + row,
+        # so that the strengths reshape to (labels, rows, 1) and the max over labels is a reduction
+        # along the leading axis.
+        self._targets = [
+            system.slot_table(
+                [label * n_rows + s * n_outputs + o for o in range(n_outputs) for label in range(n_labels)]
+            )
+            for s, system in enumerate(systems)
+        ]
+        self._shape = (n_labels, n_rows, 1)
         self._samples = np.ascontiguousarray(
             np.concatenate([first.output_samples] * len(systems), axis=1)
         )
-        self._clipped = np.empty((self._n_labels, n_rows, first.grid.size))
+        self._clipped = np.empty((n_labels, n_rows, first.grid.size))
         self._aggregated = np.empty((n_rows, first.grid.size))
         self._weights = centroid_weights(first.grid)
 
@@ -420,15 +477,20 @@ class MamdaniBatch:
         Returns:
             ``outputs[s][o]``: crisp value of output o of system s.
         """
+        crisp = self.evaluate_flat(inputs)
+        n = self._n_outputs
+        return [crisp[s * n : (s + 1) * n] for s in range(len(self.systems))]
+
+    def evaluate_flat(self, inputs: Sequence[Sequence[float]]) -> list[float]:
+        """Crisp outputs of every system, flat: ``outputs[s * n_outputs + o]``."""
         if len(inputs) != len(self.systems):
             raise ValueError(f"expected {len(self.systems)} input vectors, got {len(inputs)}")
-        strengths: list[float] = []
-        for system, x in zip(self.systems, inputs):
-            strengths += system.label_strengths(x)
-        levels = np.array(strengths).reshape(-1, self._n_labels).T[:, :, None]  # (labels, rows, 1)
-        np.minimum(levels, self._samples, out=self._clipped)
+        strengths = [0.0] * self._n_slots
+        for system, x, targets in zip(self.systems, inputs, self._targets):
+            system.accumulate_strengths(x, strengths, targets)
+        np.minimum(np.array(strengths).reshape(self._shape), self._samples, out=self._clipped)
         np.maximum.reduce(self._clipped, axis=0, out=self._aggregated)
-        area_moment = (self._aggregated @ self._weights).tolist()  # per row: (area, moment)
-        crisp = [moment / area if area > 0.0 else ZERO_AREA_FALLBACK for area, moment in area_moment]
-        n_outputs = self._n_outputs
-        return [crisp[s * n_outputs : (s + 1) * n_outputs] for s in range(len(self.systems))]
+        return [
+            moment / area if area > 0.0 else ZERO_AREA_FALLBACK
+            for area, moment in np.dot(self._aggregated, self._weights).tolist()
+        ]

@@ -1,1 +1,47 @@
 """Rigid-body model of the 2-DOF hydraulic spherical motion mechanism (pure numpy)."""
+
+from smm_dynamics.model import (
+    coriolis_matrix,
+    coriolis_vector,
+    end_effector_position,
+    forward_dynamics,
+    friction_torque,
+    gravity_vector,
+    inverse_dynamics,
+    kinetic_energy,
+    mass_matrix,
+    mass_matrix_gradient,
+    mass_matrix_inverse,
+    mass_matrix_time_derivative,
+    potential_energy,
+    rigid_body_terms,
+    rk4_step,
+    spin_angle,
+    spin_angle_gradient,
+    total_energy,
+)
+from smm_dynamics.parameters import TABLE2_BODIES, BodyData, SMMParameters
+
+__all__ = [
+    "TABLE2_BODIES",
+    "BodyData",
+    "SMMParameters",
+    "coriolis_matrix",
+    "coriolis_vector",
+    "end_effector_position",
+    "forward_dynamics",
+    "friction_torque",
+    "gravity_vector",
+    "inverse_dynamics",
+    "kinetic_energy",
+    "mass_matrix",
+    "mass_matrix_gradient",
+    "mass_matrix_inverse",
+    "mass_matrix_time_derivative",
+    "potential_energy",
+    "rigid_body_terms",
+    "rk4_step",
+    "spin_angle",
+    "spin_angle_gradient",
+    "total_energy",
+]

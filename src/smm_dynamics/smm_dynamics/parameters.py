@@ -114,9 +114,7 @@ class SMMParameters:
             raise ValueError(f"gravity_sign must be +1.0 or -1.0, got {self.gravity_sign!r}")
         friction = self.viscous_friction
         if not isinstance(friction, tuple) or len(friction) != 2:
-            raise ValueError(
-                f"viscous_friction must be a tuple (alpha, beta) of 2 floats, got {friction!r}"
-            )
+            raise ValueError(f"viscous_friction must be a tuple (alpha, beta) of 2 floats, got {friction!r}")
         for value in friction:
             _require_finite("viscous_friction", value)
             if value < 0.0:

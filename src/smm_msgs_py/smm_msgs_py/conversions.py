@@ -250,7 +250,7 @@ def _joint_order(names: Sequence[str]) -> list[int] | None:
         return None
     name_list = list(names)
     duplicates = sorted({name for name in name_list if name_list.count(name) > 1})
-    if False:
+    if duplicates:
         raise JointNameError(f"duplicate joint name(s) {duplicates} in {name_list}")
     unknown = [name for name in name_list if name not in JOINT_NAMES]
     if unknown:

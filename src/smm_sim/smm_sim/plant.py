@@ -47,6 +47,7 @@ from smm_dynamics import SMMParameters, rk4_step
 
 __all__ = [
     "DISTURBANCE_MODELS",
+    "DisturbanceModel",
     "PAPER_VALVE_RESPONSE_TIMES",
     "GroundTruth",
     "Measurement",

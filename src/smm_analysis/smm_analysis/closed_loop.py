@@ -1,0 +1,306 @@
+"""Offline closed loop: the simulated plant and the control chain, in the order of docs/DESIGN.md.
+
+At each control step k (t_k = k * period, k = 0 .. N with N = duration / period):
+
+1. ``y_k, tau_applied_{k-1} = plant.measure()`` (encoder position and the torque applied over the
+   previous interval, the ``effort`` of the raw JointState; zero at k = 0);
+2. ``tau_k = chain.step(y_k, tau_applied_{k-1}, r(t_k), dt)`` (TD -> FLESO -> controller);
+3. ``plant.step(tau_k, dt)`` applies tau_k over [t_k, t_{k+1}].
+
+The ROS graph runs the same calls split over nodes, so a lockstep run of the graph reproduces this
+loop. FPDESO gets a FLESO; the baselines get the same TD (they need q') and no FLESO (xi~ = 0).
+Everything is deterministic for a given seed (the plant's noise generator is the only randomness).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from smm_controller import (
+    CONTROLLER_NAMES,
+    FLESO,
+    ControlChain,
+    FLESOConfig,
+    JointController,
+    TrackingDifferentiator,
+    TrackingDifferentiatorConfig,
+    make_controller,
+)
+from smm_dynamics import SMMParameters
+from smm_sim.plant import PlantConfig, SimulatedPlant
+
+from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError, UnknownControllerError
+from smm_analysis.scenarios import Scenario, get_scenario
+
+__all__ = [
+    "DEFAULT_CONTROL_PERIOD",
+    "DEFAULT_SUBSTEPS",
+    "Trajectory",
+    "build_chain",
+    "run_closed_loop",
+    "scenario_plant_config",
+]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+DEFAULT_CONTROL_PERIOD = 1e-3
+"""Control period of the paper's controllers (s)."""
+
+DEFAULT_SUBSTEPS = 1
+"""RK4 sub-steps per control period. One is enough: at 1 ms the case2 RMS of every controller changes
+by less than 1e-6 relative between 1 and 8 sub-steps (``tests/analysis/test_analysis_closed_loop.py``
+pins the agreement), because the fastest closed-loop pole (about 110 rad/s for FPDESO) is far below the
+RK4 stability limit 2.8 / dt."""
+
+_NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """One closed-loop run, sampled at every control step (N + 1 samples, t_0 = 0 .. t_N = t_f).
+
+    Attributes:
+        scenario: Scenario name.
+        controller: Controller name.
+        seed: Seed of the plant's noise generator.
+        control_period: Control period dt (s).
+        model_params: Nominal parameters the controller's model (FLESO, FPDESO) uses.
+        plant_params: True plant parameters (inertias scaled by the scenario's model error).
+        t_ns: Sample stamps (ns), int64, shape (N + 1,).
+        reference: q_d, q_d', q_d'' at the stamps, shape (N + 1, 3, 2) (rad, rad/s, rad/s^2).
+        measured_position: Encoder position y_k given to the chain (rad), shape (N + 1, 2).
+        position: True joint position q (rad), shape (N + 1, 2).
+        velocity: True joint velocity q' (rad/s), shape (N + 1, 2).
+        command_torque: Chain output tau_k (N m), shape (N + 1, 2).
+        applied_torque: Mean torque the plant applied over [t_k, t_{k+1}] (N m), shape (N + 1, 2).
+        disturbance_estimate: FLESO estimate xi~_k (N m; zeros without FLESO or when internals are
+            not recorded), shape (N + 1, 2).
+        disturbance_torque: True external disturbance at t_k (N m), shape (N + 1, 2).
+        internals: Every chain internal (``td.x1``, ``fleso.bandwidth``, ``controller.kp``, ...)
+            at every step, each shape (N + 1, 2); empty if not recorded.
+    """
+
+    scenario: str
+    controller: str
+    seed: int
+    control_period: float
+    model_params: SMMParameters
+    plant_params: SMMParameters
+    t_ns: IntArray
+    reference: FloatArray
+    measured_position: FloatArray
+    position: FloatArray
+    velocity: FloatArray
+    command_torque: FloatArray
+    applied_torque: FloatArray
+    disturbance_estimate: FloatArray
+    disturbance_torque: FloatArray
+    internals: Mapping[str, FloatArray] = field(default_factory=dict)
+
+    @property
+    def time(self) -> FloatArray:
+        """Sample times (s), shape (N + 1,)."""
+        return self.t_ns.astype(np.float64) / _NS_PER_S
+
+    @property
+    def desired_position(self) -> FloatArray:
+        """q_d at the stamps (rad), shape (N + 1, 2)."""
+        return self.reference[:, 0, :]
+
+    @property
+    def tracking_error(self) -> FloatArray:
+        """e = q_d - q with the true position (rad), shape (N + 1, 2)."""
+        return self.reference[:, 0, :] - self.position
+
+
+def scenario_plant_config(
+    scenario: Scenario,
+    *,
+    seed: int = 0,
+    control_period: float = DEFAULT_CONTROL_PERIOD,
+    substeps: int = DEFAULT_SUBSTEPS,
+    params: SMMParameters | None = None,
+) -> PlantConfig:
+    """The plant of a scenario: its noise, disturbance and model error; actuator limits and lag off.
+
+    Args:
+        scenario: The scenario.
+        seed: Noise seed.
+        control_period: Control period (s).
+        substeps: RK4 sub-steps per control period.
+        params: Nominal parameters (default ``SMMParameters()``); the plant scales their inertias.
+
+    Returns:
+        The plant configuration.
+    """
+    return PlantConfig(
+        params=params if params is not None else SMMParameters(),
+        inertia_scale=scenario.inertia_scale,
+        noise_std=scenario.noise_std,
+        seed=seed,
+        disturbance=scenario.disturbance,
+        substeps=substeps,
+        control_period=control_period,
+    )
+
+
+def build_chain(
+    controller_name: str,
+    model_params: SMMParameters,
+    *,
+    td_config: TrackingDifferentiatorConfig | None = None,
+    fleso_config: FLESOConfig | None = None,
+    controller: JointController | None = None,
+) -> ControlChain:
+    """TD -> (FLESO for FPDESO) -> controller.
+
+    Args:
+        controller_name: One of ``smm_controller.CONTROLLER_NAMES``.
+        model_params: Nominal model parameters (FLESO and FPDESO).
+        td_config: TD parameters (default: ``smm_controller``'s defaults).
+        fleso_config: FLESO parameters for FPDESO (default: the paper's).
+        controller: A controller instance to use instead of the paper's default gains (for a clearly
+            labelled retuned set).
+
+    Returns:
+        The chain.
+
+    Raises:
+        UnknownControllerError: ``controller_name`` is unknown.
+    """
+    if controller_name not in CONTROLLER_NAMES:
+        raise UnknownControllerError(
+            f"unknown controller {controller_name!r}; known: {', '.join(CONTROLLER_NAMES)}"
+        )
+    law = controller if controller is not None else make_controller(controller_name, model_params)
+    fleso = FLESO(fleso_config, model_params) if controller_name == "fpdeso" else None
+    return ControlChain(TrackingDifferentiator(td_config), fleso, law)
+
+
+def run_closed_loop(
+    scenario: Scenario | str,
+    controller_name: str,
+    *,
+    seed: int = 0,
+    control_period: float = DEFAULT_CONTROL_PERIOD,
+    td_config: TrackingDifferentiatorConfig | None = None,
+    fleso_config: FLESOConfig | None = None,
+    controller: JointController | None = None,
+    model_params: SMMParameters | None = None,
+    plant_config: PlantConfig | None = None,
+    substeps: int = DEFAULT_SUBSTEPS,
+    record_internals: bool = True,
+) -> Trajectory:
+    """Runs one scenario with one controller in closed loop.
+
+    Args:
+        scenario: A :class:`Scenario` or the name of one in ``SCENARIOS``.
+        controller_name: ``"fpdeso"``, ``"fpd"``, ``"pid"`` or ``"npd"``.
+        seed: Seed of the plant's noise generator.
+        control_period: Control period dt (s); the scenario's duration must be a whole number of
+            periods (to 1 ns).
+        td_config: TD parameters (default: ``smm_controller``'s defaults).
+        fleso_config: FLESO parameters (FPDESO only; default: the paper's).
+        controller: Controller instance replacing the default-gain one (retuned sets).
+        model_params: Nominal model of the controller (default ``SMMParameters()``).
+        plant_config: Full plant configuration, replacing the one derived from the scenario
+            (its ``control_period`` is ignored: the loop uses ``control_period``).
+        substeps: RK4 sub-steps per period when the plant is derived from the scenario.
+        record_internals: Record every chain internal at every step (costs about a third of the
+            run time; off for benchmarks of the loop itself).
+
+    Returns:
+        The sampled run.
+
+    Raises:
+        UnknownScenarioError: Unknown scenario name.
+        UnknownControllerError: Unknown controller name.
+        AnalysisError: The duration is not a whole number of control periods.
+        ClosedLoopDivergedError: The chain produced a non-finite torque (unstable loop).
+    """
+    spec = get_scenario(scenario) if isinstance(scenario, str) else scenario
+    nominal = model_params if model_params is not None else SMMParameters()
+    if not (math.isfinite(control_period) and control_period > 0.0):
+        raise AnalysisError(f"control_period must be a finite number > 0 s, got {control_period!r}")
+    period_ns = round(control_period * _NS_PER_S)
+    duration_ns = round(spec.duration * _NS_PER_S)
+    if period_ns <= 0 or duration_ns % period_ns != 0:
+        raise AnalysisError(
+            f"duration {spec.duration!r} s is not a whole number of control periods {control_period!r} s"
+        )
+    steps = duration_ns // period_ns
+    config = (
+        plant_config
+        if plant_config is not None
+        else scenario_plant_config(spec, seed=seed, control_period=control_period, substeps=substeps, params=nominal)
+    )
+    plant = SimulatedPlant(config)
+    chain = build_chain(
+        controller_name, nominal, td_config=td_config, fleso_config=fleso_config, controller=controller
+    )
+    dt = period_ns / _NS_PER_S
+
+    t_ns = np.arange(steps + 1, dtype=np.int64) * period_ns
+    reference = spec.reference().sample(t_ns.astype(np.float64) / _NS_PER_S)
+    reference_rows = reference.tolist()
+    samples = steps + 1
+    measured = np.empty((samples, 2))
+    position = np.empty((samples, 2))
+    velocity = np.empty((samples, 2))
+    command = np.empty((samples, 2))
+    applied = np.empty((samples, 2))
+    estimate = np.zeros((samples, 2))
+    disturbance = np.empty((samples, 2))
+    recorded: dict[str, FloatArray] = {}
+
+    for k in range(samples):
+        sample = plant.measure()
+        truth = plant.ground_truth
+        y = sample.position
+        effort = sample.applied_torque
+        tau = chain.step_floats(
+            float(y[0]), float(y[1]), float(effort[0]), float(effort[1]), reference_rows[k], dt
+        )
+        if not (math.isfinite(tau[0]) and math.isfinite(tau[1])):
+            raise ClosedLoopDivergedError(
+                f"{controller_name} on {spec.name}: non-finite torque {tau!r} at step {k} "
+                f"(t = {k * dt:.3f} s); the closed loop went unstable"
+            )
+        measured[k] = y
+        position[k] = truth.position
+        velocity[k] = truth.velocity
+        disturbance[k] = truth.disturbance_torque
+        command[k] = tau
+        if record_internals:
+            internals = chain.internals
+            estimate[k] = internals["disturbance_estimate"]
+            for key, value in internals.items():
+                if key not in recorded:
+                    recorded[key] = np.empty((samples, 2))
+                recorded[key][k] = value
+        plant.step(tau, dt)
+        applied[k] = plant.ground_truth.applied_torque
+
+    return Trajectory(
+        scenario=spec.name,
+        controller=controller_name,
+        seed=seed,
+        control_period=dt,
+        model_params=nominal,
+        plant_params=config.true_params,
+        t_ns=t_ns,
+        reference=reference,
+        measured_position=measured,
+        position=position,
+        velocity=velocity,
+        command_torque=command,
+        applied_torque=applied,
+        disturbance_estimate=estimate,
+        disturbance_torque=disturbance,
+        internals=recorded,
+    )

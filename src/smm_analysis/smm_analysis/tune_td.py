@@ -1,0 +1,179 @@
+"""Sweep of the tracking differentiator's (sigma, h) against case2 tracking RMS with FPDESO (SPEC section 4).
+
+The TD step t is the control period; sigma (speed factor, rad/s^2) and h (filter factor, s, >= t) are
+swept over a grid, the same value on both joints, and each pair is scored by the case2 RMS tracking
+error of FPDESO (true plant position, eq. 44) per joint and by their sum.
+
+Run ``python -m smm_analysis.tune_td`` for the default grid (prints the table and the best pair).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from smm_controller import TrackingDifferentiatorConfig
+
+from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD, run_closed_loop
+from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError
+from smm_analysis.metrics import rms_error
+from smm_analysis.scenarios import SCENARIOS, Scenario
+
+__all__ = ["DEFAULT_FILTER_FACTORS", "DEFAULT_SPEEDS", "TDSweepPoint", "best_point", "format_table", "main", "sweep_td"]
+
+DEFAULT_SPEEDS: tuple[float, ...] = (1.0e3, 1.0e4, 1.0e5, 1.0e6)
+"""Speed factors sigma of the default grid (rad/s^2)."""
+
+DEFAULT_FILTER_FACTORS: tuple[float, ...] = (0.001, 0.002, 0.003, 0.005, 0.008, 0.012)
+"""Filter factors h of the default grid (s)."""
+
+
+@dataclass(frozen=True)
+class TDSweepPoint:
+    """Score of one (sigma, h) pair.
+
+    Attributes:
+        speed: sigma (rad/s^2), both joints.
+        filter_factor: h (s), both joints.
+        rms_alpha: case2 RMS tracking error of alpha (rad); inf if the loop went unstable.
+        rms_beta: case2 RMS tracking error of beta (rad); inf if the loop went unstable.
+    """
+
+    speed: float
+    filter_factor: float
+    rms_alpha: float
+    rms_beta: float
+
+    @property
+    def rms_sum(self) -> float:
+        """rms_alpha + rms_beta (rad), the score minimised."""
+        return self.rms_alpha + self.rms_beta
+
+
+def sweep_td(
+    speeds: Sequence[float] = DEFAULT_SPEEDS,
+    filter_factors: Sequence[float] = DEFAULT_FILTER_FACTORS,
+    *,
+    scenario: Scenario | None = None,
+    controller_name: str = "fpdeso",
+    seed: int = 0,
+    control_period: float = DEFAULT_CONTROL_PERIOD,
+    progress: Callable[[TDSweepPoint], None] | None = None,
+) -> list[TDSweepPoint]:
+    """Runs the closed loop for every (sigma, h) of the grid.
+
+    Args:
+        speeds: sigma values (rad/s^2), > 0.
+        filter_factors: h values (s), >= control_period.
+        scenario: Scenario to score on (default: case2).
+        controller_name: Controller of the chain (default FPDESO).
+        seed: Noise seed.
+        control_period: Control period = TD step t (s).
+        progress: Called with each point as soon as it is computed.
+
+    Returns:
+        One point per pair, sigma-major order.
+
+    Raises:
+        AnalysisError: An empty grid or an h below the control period.
+    """
+    if not speeds or not filter_factors:
+        raise AnalysisError("the sweep needs at least one speed and one filter factor")
+    too_small = [h for h in filter_factors if h < control_period]
+    if too_small:
+        raise AnalysisError(f"filter factors {too_small} are below the control period {control_period} s")
+    spec = scenario if scenario is not None else SCENARIOS["case2"]
+    points: list[TDSweepPoint] = []
+    for speed in speeds:
+        for factor in filter_factors:
+            td = TrackingDifferentiatorConfig(speed=(speed, speed), filter_factor=(factor, factor))
+            try:
+                run = run_closed_loop(
+                    spec,
+                    controller_name,
+                    seed=seed,
+                    control_period=control_period,
+                    td_config=td,
+                    record_internals=False,
+                )
+            except ClosedLoopDivergedError:
+                point = TDSweepPoint(speed, factor, math.inf, math.inf)
+            else:
+                error = run.tracking_error
+                point = TDSweepPoint(
+                    speed=speed,
+                    filter_factor=factor,
+                    rms_alpha=rms_error(run.t_ns, error[:, 0]),
+                    rms_beta=rms_error(run.t_ns, error[:, 1]),
+                )
+            points.append(point)
+            if progress is not None:
+                progress(point)
+    return points
+
+
+def best_point(points: Sequence[TDSweepPoint]) -> TDSweepPoint:
+    """The point with the smallest rms_alpha + rms_beta."""
+    if not points:
+        raise AnalysisError("no sweep points")
+    return min(points, key=lambda point: point.rms_sum)
+
+
+def format_table(points: Sequence[TDSweepPoint]) -> str:
+    """Markdown table: rows sigma, columns h, cells 'RMS alpha / RMS beta' in mrad."""
+    speeds = sorted({point.speed for point in points})
+    factors = sorted({point.filter_factor for point in points})
+    lookup = {(point.speed, point.filter_factor): point for point in points}
+    best = best_point(points)
+    header = "| sigma (rad/s^2) \\ h (ms) | " + " | ".join(f"{1e3 * h:g}" for h in factors) + " |"
+    lines = [header, "|---|" + "---|" * len(factors)]
+    for speed in speeds:
+        cells = []
+        for factor in factors:
+            point = lookup.get((speed, factor))
+            if point is None:
+                cells.append("")
+                continue
+            cell = f"{1e3 * point.rms_alpha:.3f} / {1e3 * point.rms_beta:.3f}"
+            cells.append(f"**{cell}**" if point is best else cell)
+        lines.append(f"| {speed:g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``python -m smm_analysis.tune_td``; returns the exit code."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--speeds", type=float, nargs="+", default=list(DEFAULT_SPEEDS), help="sigma values (rad/s^2)")
+    parser.add_argument(
+        "--filter-factors", type=float, nargs="+", default=list(DEFAULT_FILTER_FACTORS), help="h values (s)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="noise seed")
+    args = parser.parse_args(argv)
+    try:
+        points = sweep_td(
+            args.speeds,
+            args.filter_factors,
+            seed=args.seed,
+            progress=lambda p: print(
+                f"sigma {p.speed:g} h {1e3 * p.filter_factor:g} ms: RMS {1e3 * p.rms_alpha:.3f} / "
+                f"{1e3 * p.rms_beta:.3f} mrad",
+                flush=True,
+            ),
+        )
+    except AnalysisError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print()
+    print("case2 FPDESO RMS tracking error alpha / beta (mrad):")
+    print(format_table(points))
+    best = best_point(points)
+    print(f"\nbest: sigma = {best.speed:g} rad/s^2, h = {best.filter_factor:g} s "
+          f"(RMS {1e3 * best.rms_alpha:.3f} / {1e3 * best.rms_beta:.3f} mrad)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

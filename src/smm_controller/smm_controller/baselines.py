@@ -1,0 +1,336 @@
+"""Baseline controllers of the paper (Section V.A): PID, NPD (eq. 38-40) and FPD.
+
+All three output joint torque directly (N m) and use no model. They share the FPDESO step signature;
+the disturbance estimate is accepted and ignored. e = q_d - q, e' = q_d' - q' with q, q' from the TD.
+
+PID discretisation (backward Euler, chosen because it is stable and free of ringing for any N dt; the
+paper's beta filter has N dt = 1.456 at 1 ms, where Tustin's filter pole would already be 0.16):
+
+    I_k = clamp(I_{k-1} + k_i e_k dt, -I_max, I_max)         (anti-windup clamp, N m)
+    D_k = (D_{k-1} + k_d N (e_k - e_{k-1})) / (1 + N dt)     (D(s) = k_d N s / (s + N) on e)
+    tau = clamp(k_p e_k + I_k + D_k, -tau_max, tau_max)
+
+Conditional integration: when the unclamped output exceeds tau_max and e_k pushes it further out, I is
+held at I_{k-1}. On the first step after reset e_{k-1} = e_k, so the derivative starts at 0 (no kick).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from smm_controller._validation import (
+    FloatArray,
+    as_joint_vector,
+    as_reference,
+    check_dt,
+    check_pair,
+    internals_view,
+)
+from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
+
+__all__ = [
+    "FPDConfig",
+    "FPDController",
+    "NPDConfig",
+    "NPDController",
+    "PIDConfig",
+    "PIDController",
+    "npd_gain",
+]
+
+
+class _TorqueController:
+    """Shared array interface of the baselines: validation and conversion around ``step_floats``."""
+
+    def step(
+        self,
+        reference: npt.ArrayLike,
+        q: npt.ArrayLike,
+        q_dot: npt.ArrayLike,
+        disturbance_estimate: npt.ArrayLike,
+        dt: float,
+    ) -> FloatArray:
+        """Joint torque command.
+
+        Args:
+            reference: Rows q_d (rad), q_d' (rad/s), q_d'' (rad/s^2); columns alpha, beta; shape (3, 2).
+            q: Position estimate (rad), shape (2,).
+            q_dot: Velocity estimate (rad/s), shape (2,).
+            disturbance_estimate: Ignored by the baselines (N m), shape (2,).
+            dt: Control period (s), > 0.
+
+        Returns:
+            tau (N m), shape (2,).
+        """
+        check_dt(dt)
+        ref = as_reference(reference).tolist()
+        q0, q1 = as_joint_vector("q", q)
+        qd0, qd1 = as_joint_vector("q_dot", q_dot)
+        xi0, xi1 = as_joint_vector("disturbance_estimate", disturbance_estimate)
+        return np.array(self.step_floats(ref, q0, q1, qd0, qd1, xi0, xi1, dt))
+
+    def step_floats(
+        self,
+        reference: Sequence[Sequence[float]],
+        q0: float,
+        q1: float,
+        qd0: float,
+        qd1: float,
+        xi0: float,
+        xi1: float,
+        dt: float,
+    ) -> tuple[float, float]:
+        """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class PIDConfig:
+    """PID gains per joint (alpha, beta); defaults are the paper's (Section V.A, item 2).
+
+    Attributes:
+        kp: Proportional gain (N m/rad), >= 0.
+        ki: Integral gain (N m/(rad s)), >= 0.
+        kd: Derivative gain (N m s/rad), >= 0.
+        derivative_filter: N of k_d N s/(s + N) (rad/s), > 0.
+        integrator_limit: Clamp of the integral term (N m), > 0; inf = no clamp (paper).
+        output_limit: Clamp of the torque (N m), > 0; inf = none (paper). While the output is
+            clamped, integration that would push it further is suspended.
+    """
+
+    kp: tuple[float, float] = (10.0, 50.0)
+    ki: tuple[float, float] = (0.9, 3.0)
+    kd: tuple[float, float] = (1.5, 0.5)
+    derivative_filter: tuple[float, float] = (500.0, 1456.0)
+    integrator_limit: tuple[float, float] = (math.inf, math.inf)
+    output_limit: tuple[float, float] = (math.inf, math.inf)
+
+    def __post_init__(self) -> None:
+        check_pair("kp", self.kp, non_negative=True)
+        check_pair("ki", self.ki, non_negative=True)
+        check_pair("kd", self.kd, non_negative=True)
+        check_pair("derivative_filter", self.derivative_filter, positive=True)
+        check_pair("integrator_limit", self.integrator_limit, positive=True, allow_inf=True)
+        check_pair("output_limit", self.output_limit, positive=True, allow_inf=True)
+
+
+def _clamp(x: float, limit: float) -> float:
+    return -limit if x < -limit else (limit if x > limit else x)
+
+
+class PIDController(_TorqueController):
+    """Discrete PID with filtered derivative, integrator clamp and conditional integration.
+
+    Args:
+        config: Gains (default: the paper's).
+    """
+
+    def __init__(self, config: PIDConfig | None = None) -> None:
+        self.config = config if config is not None else PIDConfig()
+        self.reset()
+
+    def reset(self) -> None:
+        """Zeroes the integral and derivative states; the next step has no derivative kick."""
+        self._integral = [0.0, 0.0]
+        self._derivative = [0.0, 0.0]
+        self._previous_error: list[float] | None = None
+        self._last: tuple[float, ...] = (0.0,) * 10
+
+    def step_floats(
+        self,
+        reference: Sequence[Sequence[float]],
+        q0: float,
+        q1: float,
+        qd0: float,
+        qd1: float,
+        xi0: float,
+        xi1: float,
+        dt: float,
+    ) -> tuple[float, float]:
+        """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
+        config = self.config
+        errors = (reference[0][0] - q0, reference[0][1] - q1)
+        previous = self._previous_error if self._previous_error is not None else list(errors)
+        taus = []
+        proportional = []
+        for j in range(2):
+            e = errors[j]
+            n = config.derivative_filter[j]
+            self._derivative[j] = (self._derivative[j] + config.kd[j] * n * (e - previous[j])) / (
+                1.0 + n * dt
+            )
+            p = config.kp[j] * e
+            held = self._integral[j]
+            integral = _clamp(held + config.ki[j] * e * dt, config.integrator_limit[j])
+            unclamped = p + integral + self._derivative[j]
+            limit = config.output_limit[j]
+            if abs(unclamped) > limit and e * unclamped > 0.0:
+                integral = held
+                unclamped = p + integral + self._derivative[j]
+            self._integral[j] = integral
+            proportional.append(p)
+            taus.append(_clamp(unclamped, limit))
+        self._previous_error = list(errors)
+        self._last = (
+            errors[0],
+            errors[1],
+            proportional[0],
+            proportional[1],
+            self._integral[0],
+            self._integral[1],
+            self._derivative[0],
+            self._derivative[1],
+            taus[0],
+            taus[1],
+        )
+        return taus[0], taus[1]
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """Read-only copies, shape (2,): e (rad), p, i, d, tau (N m)."""
+        return internals_view(("e", "p", "i", "d", "tau"), self._last)
+
+
+@dataclass(frozen=True)
+class NPDConfig:
+    """Nonlinear PD gains per joint (alpha, beta); defaults are the paper's (Section V.A, item 3).
+
+    Attributes:
+        k_np: Proportional gain coefficient K_Np (N m/rad^rho_p), > 0.
+        k_nd: Derivative gain coefficient K_Nd (N m s^rho_d/rad^rho_d), > 0.
+        delta_p: Error threshold below which the P gain is constant (rad), > 0.
+        delta_d: Error-rate threshold below which the D gain is constant (rad/s), > 0.
+        rho_p: Nonlinearity exponent of the P term, > 0 (1 = linear).
+        rho_d: Nonlinearity exponent of the D term, > 0 (1 = linear).
+    """
+
+    k_np: tuple[float, float] = (29.0, 20.0)
+    k_nd: tuple[float, float] = (0.8, 0.5)
+    delta_p: tuple[float, float] = (0.1, 0.1)
+    delta_d: tuple[float, float] = (0.1, 0.2)
+    rho_p: tuple[float, float] = (1.2, 0.6)
+    rho_d: tuple[float, float] = (1.1, 0.8)
+
+    def __post_init__(self) -> None:
+        for name in ("k_np", "k_nd", "delta_p", "delta_d", "rho_p", "rho_d"):
+            check_pair(name, getattr(self, name), positive=True)
+
+
+def npd_gain(x: float, coefficient: float, threshold: float, exponent: float) -> float:
+    """NPD gain of eq. 39 (and eq. 40 read with |e'|): k |x|^(rho-1) above the threshold, else k delta^(rho-1)."""
+    magnitude = abs(x)
+    if magnitude > threshold:
+        return coefficient * magnitude ** (exponent - 1.0)
+    return coefficient * threshold ** (exponent - 1.0)
+
+
+class NPDController(_TorqueController):
+    """Nonlinear PD (eq. 38-40): tau = K_Np(e) e + K_Nd(e') e'.
+
+    Args:
+        config: Gains (default: the paper's).
+    """
+
+    def __init__(self, config: NPDConfig | None = None) -> None:
+        self.config = config if config is not None else NPDConfig()
+        self.reset()
+
+    def reset(self) -> None:
+        """The law is memoryless; this clears the recorded internals."""
+        self._last: tuple[float, ...] = (0.0,) * 6
+
+    def step_floats(
+        self,
+        reference: Sequence[Sequence[float]],
+        q0: float,
+        q1: float,
+        qd0: float,
+        qd1: float,
+        xi0: float,
+        xi1: float,
+        dt: float,
+    ) -> tuple[float, float]:
+        """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
+        c = self.config
+        e0 = reference[0][0] - q0
+        e1 = reference[0][1] - q1
+        ed0 = reference[1][0] - qd0
+        ed1 = reference[1][1] - qd1
+        kp0 = npd_gain(e0, c.k_np[0], c.delta_p[0], c.rho_p[0])
+        kp1 = npd_gain(e1, c.k_np[1], c.delta_p[1], c.rho_p[1])
+        kd0 = npd_gain(ed0, c.k_nd[0], c.delta_d[0], c.rho_d[0])
+        kd1 = npd_gain(ed1, c.k_nd[1], c.delta_d[1], c.rho_d[1])
+        tau0 = kp0 * e0 + kd0 * ed0
+        tau1 = kp1 * e1 + kd1 * ed1
+        self._last = (kp0, kp1, kd0, kd1, tau0, tau1)
+        return tau0, tau1
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """Read-only copies, shape (2,): kp, kd, tau (N m)."""
+        return internals_view(("kp", "kd", "tau"), self._last)
+
+
+@dataclass(frozen=True)
+class FPDConfig:
+    """FPD baseline: the fuzzy gain schedule with the paper's FPD gains (N m/rad, N m s/rad).
+
+    Attributes:
+        fuzzy: Gain schedule parameters (default: Section V.A, item 4).
+    """
+
+    fuzzy: FuzzyPDConfig = PAPER_FPD_FUZZY
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.fuzzy, FuzzyPDConfig):
+            raise ValueError(f"fuzzy must be a FuzzyPDConfig, got {self.fuzzy!r}")
+
+
+class FPDController(_TorqueController):
+    """Fuzzy PD (eq. 11-12 without model): tau = k_p e + k_d e'.
+
+    Args:
+        config: Gains (default: the paper's FPD gains).
+    """
+
+    def __init__(self, config: FPDConfig | None = None) -> None:
+        self.config = config if config is not None else FPDConfig()
+        self.schedule = FuzzyPDGainSchedule(self.config.fuzzy)
+        self.reset()
+
+    def reset(self) -> None:
+        """The law is memoryless; this clears the recorded internals."""
+        self.schedule.reset()
+        self._last: tuple[float, ...] = (0.0,) * 6
+
+    def step_floats(
+        self,
+        reference: Sequence[Sequence[float]],
+        q0: float,
+        q1: float,
+        qd0: float,
+        qd1: float,
+        xi0: float,
+        xi1: float,
+        dt: float,
+    ) -> tuple[float, float]:
+        """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
+        e0 = reference[0][0] - q0
+        e1 = reference[0][1] - q1
+        ed0 = reference[1][0] - qd0
+        ed1 = reference[1][1] - qd1
+        kp0, kp1, kd0, kd1 = self.schedule.step_floats(e0, e1, ed0, ed1)
+        tau0 = kp0 * e0 + kd0 * ed0
+        tau1 = kp1 * e1 + kd1 * ed1
+        self._last = (kp0, kp1, kd0, kd1, tau0, tau1)
+        return tau0, tau1
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """Read-only copies, shape (2,): kp, kd, tau (N m)."""
+        return internals_view(("kp", "kd", "tau"), self._last)

@@ -1,0 +1,188 @@
+"""The control chain in the order of docs/DESIGN.md, and factories with the paper's defaults.
+
+One call of :meth:`ControlChain.step` runs, for measurement y_k and the torque applied during the
+previous interval tau_applied_{k-1}:
+
+1. TD: (q^, q^') = td(y_k)
+2. FLESO (if any): xi~_k = fleso(q^, tau_applied_{k-1})  (else xi~ = 0)
+3. controller: tau_k = controller(r_k, q^, q^', xi~_k)
+
+All stages run on plain floats internally (``step_floats``), so one step converts arrays only once
+on the way in and once on the way out.
+"""
+
+from __future__ import annotations
+
+import types
+from collections.abc import Mapping, Sequence
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+from smm_dynamics import SMMParameters
+
+from smm_controller._validation import FloatArray, as_joint_vector, as_reference, check_dt
+from smm_controller.baselines import FPDController, NPDController, PIDController
+from smm_controller.fleso import FLESO
+from smm_controller.fpdeso import FPDESOController
+from smm_controller.td import TrackingDifferentiator
+
+__all__ = ["CONTROLLER_NAMES", "ControlChain", "JointController", "make_chain", "make_controller"]
+
+#: Names accepted by :func:`make_controller` and :func:`make_chain`.
+CONTROLLER_NAMES: tuple[str, ...] = ("fpdeso", "fpd", "pid", "npd")
+
+
+class JointController(Protocol):
+    """The interface shared by FPDESO and the baselines."""
+
+    def step(
+        self,
+        reference: npt.ArrayLike,
+        q: npt.ArrayLike,
+        q_dot: npt.ArrayLike,
+        disturbance_estimate: npt.ArrayLike,
+        dt: float,
+    ) -> FloatArray:
+        """Torque command (N m), shape (2,)."""
+        ...
+
+    def step_floats(
+        self,
+        reference: Sequence[Sequence[float]],
+        q0: float,
+        q1: float,
+        qd0: float,
+        qd1: float,
+        xi0: float,
+        xi1: float,
+        dt: float,
+    ) -> tuple[float, float]:
+        """Same on floats."""
+        ...
+
+    def reset(self) -> None:
+        """Restores the initial state."""
+        ...
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """Read-only copies of the internal signals."""
+        ...
+
+
+class ControlChain:
+    """TD -> FLESO -> controller, one control step per call.
+
+    Args:
+        td: Tracking differentiator applied to the measured position.
+        fleso: Disturbance observer, or None (xi~ = 0, as for the baselines).
+        controller: FPDESO or a baseline.
+    """
+
+    def __init__(
+        self, td: TrackingDifferentiator, fleso: FLESO | None, controller: JointController
+    ) -> None:
+        self.td = td
+        self.fleso = fleso
+        self.controller = controller
+        self._disturbance = (0.0, 0.0)
+
+    def reset(self) -> None:
+        """Resets every stage."""
+        self.td.reset()
+        if self.fleso is not None:
+            self.fleso.reset()
+        self.controller.reset()
+        self._disturbance = (0.0, 0.0)
+
+    def step(
+        self, y: npt.ArrayLike, tau_applied: npt.ArrayLike, reference: npt.ArrayLike, dt: float
+    ) -> FloatArray:
+        """One control step.
+
+        Args:
+            y: Measured position (rad), shape (2,).
+            tau_applied: Torque applied during the previous interval (N m), shape (2,).
+            reference: Rows q_d (rad), q_d' (rad/s), q_d'' (rad/s^2); columns alpha, beta;
+                shape (3, 2).
+            dt: Control period (s), > 0.
+
+        Returns:
+            Torque command tau (N m), shape (2,).
+        """
+        check_dt(dt)
+        y0, y1 = as_joint_vector("y", y)
+        tau0, tau1 = as_joint_vector("tau_applied", tau_applied)
+        ref = as_reference(reference).tolist()
+        return np.array(self.step_floats(y0, y1, tau0, tau1, ref, dt))
+
+    def step_floats(
+        self,
+        y0: float,
+        y1: float,
+        tau0: float,
+        tau1: float,
+        reference: Sequence[Sequence[float]],
+        dt: float,
+    ) -> tuple[float, float]:
+        """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
+        q0, q1, qd0, qd1 = self.td.step_floats(y0, y1, dt)
+        if self.fleso is not None:
+            xi0, xi1 = self.fleso.step_floats(q0, q1, tau0, tau1, dt)
+        else:
+            xi0 = xi1 = 0.0
+        self._disturbance = (xi0, xi1)
+        return self.controller.step_floats(reference, q0, q1, qd0, qd1, xi0, xi1, dt)
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """All stages' internals, keys prefixed ``td.``, ``fleso.``, ``controller.``, shape (2,)."""
+        merged: dict[str, FloatArray] = {}
+        stages: list[tuple[str, Mapping[str, FloatArray]]] = [("td", self.td.internals)]
+        if self.fleso is not None:
+            stages.append(("fleso", self.fleso.internals))
+        stages.append(("controller", self.controller.internals))
+        for prefix, internals in stages:
+            for key, value in internals.items():
+                merged[f"{prefix}.{key}"] = value
+        disturbance = np.array(self._disturbance)
+        disturbance.flags.writeable = False
+        merged["disturbance_estimate"] = disturbance
+        return types.MappingProxyType(merged)
+
+
+def make_controller(name: str, params: SMMParameters) -> JointController:
+    """A controller with the paper's default gains.
+
+    Args:
+        name: "fpdeso", "fpd", "pid" or "npd".
+        params: Nominal model parameters (used by FPDESO only).
+
+    Returns:
+        The controller.
+    """
+    if name == "fpdeso":
+        return FPDESOController(None, params)
+    if name == "fpd":
+        return FPDController()
+    if name == "pid":
+        return PIDController()
+    if name == "npd":
+        return NPDController()
+    raise ValueError(f"controller name must be one of {CONTROLLER_NAMES}, got {name!r}")
+
+
+def make_chain(name: str, params: SMMParameters) -> ControlChain:
+    """The full chain with default gains: TD, FLESO (FPDESO only) and the named controller.
+
+    Args:
+        name: "fpdeso", "fpd", "pid" or "npd".
+        params: Nominal model parameters (FLESO and FPDESO).
+
+    Returns:
+        The chain.
+    """
+    controller = make_controller(name, params)
+    fleso = FLESO(None, params) if name == "fpdeso" else None
+    return ControlChain(TrackingDifferentiator(), fleso, controller)

@@ -1,0 +1,158 @@
+"""FPDESO control law (paper eq. 26-30; SPEC section 4).
+
+    e = q_d - q,  e' = q_d' - q'              (q, q' are the TD outputs)
+    (k_p, k_d) = fuzzy gain schedule (eq. 12),  u = k_p e + k_d e'      (rad/s^2)
+    tau = M(q)(q_d'' + u) + C(q, q') q' + G(q) + xi~ - v
+    v = -b_d * sign(M^-1(q) e')   (element-wise; eq. 27)
+
+Split as in the paper: feedforward tau_c1 = M q_d'' + C q' + G (eq. 28), feedback tau_c2 = M u
+(eq. 29), compensation tau_c3 = xi~ - v (eq. 30). With a boundary layer phi > 0 the sign is replaced by
+sat(x / phi) (phi in the units of M^-1 e', rad/(kg m^2 s)); phi = 0 is the paper's pure sign, with
+sign(0) = 0. On the exact model with xi~ = 0 and b_d = 0 the closed loop is q'' = q_d'' + u (eq. 10).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from smm_dynamics import SMMParameters
+
+from smm_controller._validation import (
+    FloatArray,
+    as_joint_vector,
+    as_reference,
+    check_dt,
+    check_pair,
+    internals_view,
+)
+from smm_controller.fuzzy_pd import PAPER_FPDESO_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
+from smm_controller.model import NominalModel
+
+__all__ = ["FPDESOConfig", "FPDESOController", "robust_switch"]
+
+
+@dataclass(frozen=True)
+class FPDESOConfig:
+    """FPDESO parameters per joint (alpha, beta); defaults are the paper's (Section V.A).
+
+    Attributes:
+        fuzzy: Fuzzy PD gain schedule (gains in 1/s^2 and 1/s).
+        robust_gain: b_d, bound of the disturbance estimation error (N m), >= 0.
+        boundary_layer: phi, width of the boundary layer of the robust term, >= 0 (0 = pure sign).
+    """
+
+    fuzzy: FuzzyPDConfig = PAPER_FPDESO_FUZZY
+    robust_gain: tuple[float, float] = (0.03 * math.pi, 0.02 * math.pi)
+    boundary_layer: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.fuzzy, FuzzyPDConfig):
+            raise ValueError(f"fuzzy must be a FuzzyPDConfig, got {self.fuzzy!r}")
+        check_pair("robust_gain", self.robust_gain, non_negative=True)
+        check_pair("boundary_layer", self.boundary_layer, non_negative=True)
+
+
+def robust_switch(x: float, phi: float) -> float:
+    """sign(x) for phi = 0 (with sign(0) = 0), else the saturation sat(x / phi) in [-1, 1]."""
+    if phi > 0.0:
+        ratio = x / phi
+        return -1.0 if ratio < -1.0 else (1.0 if ratio > 1.0 else ratio)
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+
+class FPDESOController:
+    """Fuzzy PD inverse-dynamics decoupling law with disturbance compensation and robust term.
+
+    Args:
+        config: Gains (default: the paper's).
+        params: The controller's nominal model parameters (not the plant's).
+    """
+
+    def __init__(self, config: FPDESOConfig | None, params: SMMParameters) -> None:
+        self.config = config if config is not None else FPDESOConfig()
+        self.model = NominalModel(params)
+        self.schedule = FuzzyPDGainSchedule(self.config.fuzzy)
+        self.reset()
+
+    def reset(self) -> None:
+        """The law is memoryless; this clears the recorded internals."""
+        self.schedule.reset()
+        self._last: tuple[float, ...] = (0.0,) * 16
+
+    def step(
+        self,
+        reference: npt.ArrayLike,
+        q: npt.ArrayLike,
+        q_dot: npt.ArrayLike,
+        disturbance_estimate: npt.ArrayLike,
+        dt: float,
+    ) -> FloatArray:
+        """Joint torque command.
+
+        Args:
+            reference: Rows q_d (rad), q_d' (rad/s), q_d'' (rad/s^2); columns alpha, beta; shape (3, 2).
+            q: Position estimate (TD x1) (rad), shape (2,).
+            q_dot: Velocity estimate (TD x2) (rad/s), shape (2,).
+            disturbance_estimate: xi~ (N m), shape (2,).
+            dt: Control period (s), > 0 (the law itself is static).
+
+        Returns:
+            tau (N m), shape (2,).
+        """
+        check_dt(dt)
+        ref = as_reference(reference).tolist()
+        q0, q1 = as_joint_vector("q", q)
+        qd0, qd1 = as_joint_vector("q_dot", q_dot)
+        xi0, xi1 = as_joint_vector("disturbance_estimate", disturbance_estimate)
+        return np.array(self.step_floats(ref, q0, q1, qd0, qd1, xi0, xi1, dt))
+
+    def step_floats(
+        self,
+        reference: Sequence[Sequence[float]],
+        q0: float,
+        q1: float,
+        qd0: float,
+        qd1: float,
+        xi0: float,
+        xi1: float,
+        dt: float,
+    ) -> tuple[float, float]:
+        """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
+        position, velocity, acceleration = reference
+        e0 = position[0] - q0
+        e1 = position[1] - q1
+        ed0 = velocity[0] - qd0
+        ed1 = velocity[1] - qd1
+        kp0, kp1, kd0, kd1 = self.schedule.step_floats(e0, e1, ed0, ed1)
+        u0 = kp0 * e0 + kd0 * ed0
+        u1 = kp1 * e1 + kd1 * ed1
+        m11, m12, m22, c0, c1, g0, g1 = self.model.bias(q0, q1, qd0, qd1)
+        ff0 = m11 * acceleration[0] + m12 * acceleration[1] + c0 + g0
+        ff1 = m12 * acceleration[0] + m22 * acceleration[1] + c1 + g1
+        fb0 = m11 * u0 + m12 * u1
+        fb1 = m12 * u0 + m22 * u1
+        # sign(M^-1 e') = sign(adj(M) e') since det M > 0.
+        z0 = m22 * ed0 - m12 * ed1
+        z1 = m11 * ed1 - m12 * ed0
+        det = m11 * m22 - m12 * m12
+        config = self.config
+        b_d = config.robust_gain
+        phi = config.boundary_layer
+        v0 = -b_d[0] * robust_switch(z0 / det, phi[0])
+        v1 = -b_d[1] * robust_switch(z1 / det, phi[1])
+        tau0 = ff0 + fb0 + xi0 - v0
+        tau1 = ff1 + fb1 + xi1 - v1
+        self._last = (kp0, kp1, kd0, kd1, u0, u1, ff0, ff1, fb0, fb1, xi0, xi1, v0, v1, tau0, tau1)
+        return tau0, tau1
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """Read-only copies, shape (2,): kp, kd, u (rad/s^2), feedforward (tau_c1), feedback (M u),
+        disturbance (xi~), robust (v), tau; torques in N m, tau = feedforward + feedback +
+        disturbance - robust.
+        """
+        return internals_view(("kp", "kd", "u", "feedforward", "feedback", "disturbance", "robust", "tau"), self._last)

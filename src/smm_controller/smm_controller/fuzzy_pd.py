@@ -1,0 +1,156 @@
+"""Fuzzy PD gain schedule (paper eq. 12, Tables 1 and 7; SPEC section 4).
+
+Per joint j (alpha uses Table 1, beta Table 7):
+
+    e~ = clip(k_e e, -1, 1),  ce~ = clip(k_de e', -1, 1)
+    (f(k_e), f(k_de)) = Mamdani(e~, ce~)                 (see smm_controller.fuzzy / rules)
+    k_p = k_p0 + k1 f(k_e),   k_d = k_d0 + k2 f(k_de)
+
+The gains are in the units of the law that uses them: 1/s^2 and 1/s for FPDESO (u is an acceleration),
+N m/rad and N m s/rad for the FPD baseline (u is a torque). All four evaluations of a step (two joints,
+two outputs) are aggregated and defuzzified in one vectorised pass.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from smm_controller._validation import (
+    FloatArray,
+    as_joint_vector,
+    check_grid_points,
+    check_pair,
+    internals_view,
+)
+from smm_controller.fuzzy import MamdaniBatch
+from smm_controller.rules import TABLE_1, TABLE_7, RuleTable, pd_gain_system
+
+__all__ = [
+    "PAPER_FPDESO_FUZZY",
+    "PAPER_FPD_FUZZY",
+    "FuzzyPDConfig",
+    "FuzzyPDGainSchedule",
+]
+
+
+@dataclass(frozen=True)
+class FuzzyPDConfig:
+    """Fuzzy PD gain schedule parameters, per joint (alpha, beta); defaults: paper FPDESO gains.
+
+    Attributes:
+        k_e: Error scaling to the normalised input e~ (1/rad), > 0.
+        k_de: Error-rate scaling to ce~ (s/rad), > 0.
+        k1: Scale of the fuzzy output f(k_e) on k_p, >= 0 and < kp0.
+        k2: Scale of the fuzzy output f(k_de) on k_d, >= 0 and < kd0.
+        kp0: Base proportional gain, > 0.
+        kd0: Base derivative gain, > 0.
+        grid_points: Defuzzification grid size over [-1, 1], integer >= 3.
+
+    k1 < kp0 and k2 < kd0 keep both gains positive for every fuzzy output in [-1, 1] (the stability
+    proof of Section IV needs positive definite K_p and K_d).
+    """
+
+    k_e: tuple[float, float] = (2.0, 6.0)
+    k_de: tuple[float, float] = (5.0, 2.0)
+    k1: tuple[float, float] = (10.0, 13.0)
+    k2: tuple[float, float] = (0.5, 0.9)
+    kp0: tuple[float, float] = (4050.0, 4150.0)
+    kd0: tuple[float, float] = (110.0, 90.0)
+    grid_points: int = 201
+
+    def __post_init__(self) -> None:
+        check_pair("k_e", self.k_e, positive=True)
+        check_pair("k_de", self.k_de, positive=True)
+        check_pair("k1", self.k1, non_negative=True)
+        check_pair("k2", self.k2, non_negative=True)
+        check_pair("kp0", self.kp0, positive=True)
+        check_pair("kd0", self.kd0, positive=True)
+        check_grid_points(self.grid_points)
+        for scale_name, scale, base_name, base in (
+            ("k1", self.k1, "kp0", self.kp0),
+            ("k2", self.k2, "kd0", self.kd0),
+        ):
+            if any(s >= b for s, b in zip(scale, base)):
+                raise ValueError(
+                    f"{scale_name} must be < {base_name} per joint so the gain stays positive, "
+                    f"got {scale_name}={scale!r}, {base_name}={base!r}"
+                )
+
+
+#: Paper gains of the FPDESO controller (Section V.A).
+PAPER_FPDESO_FUZZY = FuzzyPDConfig()
+#: Paper gains of the FPD baseline (Section V.A, item 4).
+PAPER_FPD_FUZZY = FuzzyPDConfig(
+    k_e=(8.0, 5.0), k_de=(2.0, 3.0), k1=(1.5, 5.0), k2=(0.5, 0.8), kp0=(41.0, 45.0), kd0=(1.1, 0.9)
+)
+
+
+def _clip_unit(x: float) -> float:
+    return -1.0 if x < -1.0 else (1.0 if x > 1.0 else x)
+
+
+class FuzzyPDGainSchedule:
+    """Gain schedule k_p(e, e'), k_d(e, e') of eq. 12 for both joints.
+
+    Args:
+        config: Gains (default: paper FPDESO gains).
+        tables: Rule tables (alpha, beta), rows ce, columns e (default: Tables 1 and 7).
+    """
+
+    def __init__(
+        self,
+        config: FuzzyPDConfig | None = None,
+        tables: tuple[RuleTable, RuleTable] = (TABLE_1, TABLE_7),
+    ) -> None:
+        self.config = config if config is not None else FuzzyPDConfig()
+        self._batch = MamdaniBatch(
+            [pd_gain_system(table, self.config.grid_points) for table in tables]
+        )
+        self.reset()
+
+    def reset(self) -> None:
+        """The schedule is memoryless; this only clears the recorded internals."""
+        self._last: tuple[float, ...] = (0.0,) * 12
+
+    def step(self, e: npt.ArrayLike, e_dot: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """Gains for the current error.
+
+        Args:
+            e: Tracking error q_d - q (rad), shape (2,).
+            e_dot: Error rate q_d' - q' (rad/s), shape (2,).
+
+        Returns:
+            (kp, kd), each shape (2,).
+        """
+        e0, e1 = as_joint_vector("e", e)
+        ed0, ed1 = as_joint_vector("e_dot", e_dot)
+        kp0, kp1, kd0, kd1 = self.step_floats(e0, e1, ed0, ed1)
+        return np.array((kp0, kp1)), np.array((kd0, kd1))
+
+    def step_floats(
+        self, e0: float, e1: float, ed0: float, ed1: float
+    ) -> tuple[float, float, float, float]:
+        """Same as :meth:`step` on floats: returns (kp_alpha, kp_beta, kd_alpha, kd_beta)."""
+        config = self.config
+        k_e = config.k_e
+        k_de = config.k_de
+        x0 = _clip_unit(k_e[0] * e0)
+        x1 = _clip_unit(k_e[1] * e1)
+        c0 = _clip_unit(k_de[0] * ed0)
+        c1 = _clip_unit(k_de[1] * ed1)
+        (fe0, fde0), (fe1, fde1) = self._batch.evaluate(((x0, c0), (x1, c1)))
+        kp0 = config.kp0[0] + config.k1[0] * fe0
+        kp1 = config.kp0[1] + config.k1[1] * fe1
+        kd0 = config.kd0[0] + config.k2[0] * fde0
+        kd1 = config.kd0[1] + config.k2[1] * fde1
+        self._last = (x0, x1, c0, c1, fe0, fe1, fde0, fde1, kp0, kp1, kd0, kd1)
+        return kp0, kp1, kd0, kd1
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """Read-only copies, shape (2,): e_normalised, ce_normalised, f_ke, f_kde, kp, kd."""
+        return internals_view(("e_normalised", "ce_normalised", "f_ke", "f_kde", "kp", "kd"), self._last)

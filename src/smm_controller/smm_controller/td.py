@@ -1,0 +1,192 @@
+"""Tracking differentiator (TD, paper eq. 24-25), one per joint, applied to the measured position.
+
+Discrete form (eq. 24), with step t = dt (s), input v(k) (rad):
+
+    x1(k+1) = x1(k) + t x2(k)
+    x2(k+1) = x2(k) + t fst(x1(k) - v(k), x2(k), sigma, h)
+
+x1 tracks v (rad), x2 is its derivative (rad/s). ``step`` returns the updated states x1(k+1), x2(k+1).
+
+fst (eq. 25) is implemented as printed in its use of the step t inside ``y = e + t x2``, while the
+linear zone, the saturation width delta = h sigma and delta1 = h delta use the filter factor h. Two
+misprints of eq. 25 are corrected as in Han's original function (ref. [35] of the paper), of which eq.
+25 is a transcription:
+
+* the nonlinear branch reads ``x2 + sign(y) (sqrt(8 sigma |y| + delta^2) - delta) / 2`` (printed: the
+  sign multiplies only the square root, which makes g discontinuous at y = -delta1 and fst not odd);
+* the saturation is sat(g, delta) (printed once as sat(g, sigma), then defined with delta).
+
+With h = t, fst equals Han's ``fhan(e, x2, sigma, h)`` (:func:`fhan`, which uses y = e + h x2); a test
+pins both the agreement for h = t and the difference for h != t.
+
+Validation: h >= t is required (the paper: "generally, h > t"); ``step`` raises ValueError if a filter
+factor is smaller than dt, since dt is only known at run time.
+
+Initialisation: on the first step after construction or ``reset()``, x1 = v and x2 = 0 (the plant
+starts at rest). Starting from x1 = 0 instead would make the TD chase the first sample with its full
+acceleration sigma, i.e. a velocity spike of up to sqrt(2 sigma |v|) that the D-term and the observer
+would act on; starting at the sample gives no start-up transient.
+"""
+
+from __future__ import annotations
+
+import math
+import types
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from smm_controller._validation import (
+    FloatArray,
+    as_joint_vector,
+    check_dt,
+    check_pair,
+    readonly_copies,
+)
+
+__all__ = [
+    "DEFAULT_TD_FILTER_FACTOR",
+    "DEFAULT_TD_SPEED",
+    "TrackingDifferentiator",
+    "TrackingDifferentiatorConfig",
+    "fhan",
+    "fst",
+]
+
+#: Provisional speed factor sigma per joint (rad/s^2). For |y| < h^2 sigma the TD is a linear
+#: second-order filter with natural frequency 1/h, so sigma only matters for large jumps; a large
+#: value keeps the TD linear over the scenarios (SPEC section 3). To be swept against case2 RMS.
+DEFAULT_TD_SPEED: tuple[float, float] = (1.0e5, 1.0e5)
+#: Provisional filter factor h per joint (s), >= the control period. To be swept against case2 RMS.
+DEFAULT_TD_FILTER_FACTOR: tuple[float, float] = (0.002, 0.002)
+
+
+@dataclass(frozen=True)
+class TrackingDifferentiatorConfig:
+    """Parameters of the tracking differentiator, per joint (alpha, beta).
+
+    Attributes:
+        speed: sigma, the tracking speed factor (rad/s^2), > 0.
+        filter_factor: h, the filter factor (s), > 0; must also be >= dt at run time.
+    """
+
+    speed: tuple[float, float] = DEFAULT_TD_SPEED
+    filter_factor: tuple[float, float] = DEFAULT_TD_FILTER_FACTOR
+
+    def __post_init__(self) -> None:
+        check_pair("speed", self.speed, positive=True)
+        check_pair("filter_factor", self.filter_factor, positive=True)
+
+
+def fhan(x1: float, x2: float, r: float, h0: float) -> float:
+    """Han's time-optimal synthesis function fhan in its common form (y = x1 + h0 x2).
+
+    Args:
+        x1: Tracking error x1 - v (rad).
+        x2: Derivative state (rad/s).
+        r: Speed factor (rad/s^2), > 0.
+        h0: Filter factor (s), > 0.
+
+    Returns:
+        The acceleration command (rad/s^2), in [-r, r].
+    """
+    d = r * h0
+    d0 = h0 * d
+    y = x1 + h0 * x2
+    if abs(y) > d0:
+        a = x2 + math.copysign(0.5 * (math.sqrt(d * d + 8.0 * r * abs(y)) - d), y)
+    else:
+        a = x2 + y / h0
+    return -r * math.copysign(1.0, a) if abs(a) > d else -r * a / d
+
+
+def fst(e: float, x2: float, sigma: float, h: float, t: float) -> float:
+    """Synthesis function of eq. 25 (y = e + t x2; see the module docstring for the corrections).
+
+    Args:
+        e: Tracking error x1(k) - v(k) (rad).
+        x2: Derivative state x2(k) (rad/s).
+        sigma: Speed factor (rad/s^2), > 0.
+        h: Filter factor (s), > 0.
+        t: Integration step (s), > 0.
+
+    Returns:
+        The acceleration command (rad/s^2), in [-sigma, sigma].
+    """
+    delta = h * sigma
+    delta1 = h * delta
+    y = e + t * x2
+    if abs(y) < delta1:
+        g = x2 + y / h
+    else:
+        g = x2 + math.copysign(0.5 * (math.sqrt(8.0 * sigma * abs(y) + delta * delta) - delta), y)
+    return -sigma * (g / delta if abs(g) < delta else math.copysign(1.0, g))
+
+
+class TrackingDifferentiator:
+    """Two independent tracking differentiators (alpha, beta), eq. 24-25.
+
+    Args:
+        config: Speed and filter factors per joint.
+    """
+
+    def __init__(self, config: TrackingDifferentiatorConfig | None = None) -> None:
+        self.config = config if config is not None else TrackingDifferentiatorConfig()
+        self._sigma = self.config.speed
+        self._h = self.config.filter_factor
+        self.reset()
+
+    def reset(self) -> None:
+        """Forgets the state; the next step re-initialises x1 to its input and x2 to 0."""
+        self._initialised = False
+        self._x1 = [0.0, 0.0]
+        self._x2 = [0.0, 0.0]
+        self._input = [0.0, 0.0]
+
+    def step(self, v: npt.ArrayLike, dt: float) -> tuple[FloatArray, FloatArray]:
+        """Advances both TDs by one step of length dt.
+
+        Args:
+            v: Measured position (alpha, beta) (rad), shape (2,).
+            dt: Step size t (s), > 0 and <= every filter factor h.
+
+        Returns:
+            (x1, x2): tracked position (rad) and its derivative (rad/s), each shape (2,).
+        """
+        check_dt(dt)
+        v0, v1 = as_joint_vector("v", v)
+        x1a, x1b, x2a, x2b = self.step_floats(v0, v1, dt)
+        return np.array((x1a, x1b)), np.array((x2a, x2b))
+
+    def step_floats(self, v0: float, v1: float, dt: float) -> tuple[float, float, float, float]:
+        """Same as :meth:`step` on plain floats: returns (x1_alpha, x1_beta, x2_alpha, x2_beta)."""
+        h0, h1 = self._h
+        if h0 < dt or h1 < dt:
+            raise ValueError(f"filter_factor {self._h!r} must be >= dt = {dt!r} s")
+        x1 = self._x1
+        x2 = self._x2
+        self._input[0] = v0
+        self._input[1] = v1
+        if not self._initialised:
+            x1[0] = v0
+            x1[1] = v1
+            x2[0] = 0.0
+            x2[1] = 0.0
+            self._initialised = True
+        sigma0, sigma1 = self._sigma
+        accel0 = fst(x1[0] - v0, x2[0], sigma0, h0, dt)
+        accel1 = fst(x1[1] - v1, x2[1], sigma1, h1, dt)
+        x1[0] += dt * x2[0]
+        x1[1] += dt * x2[1]
+        x2[0] += dt * accel0
+        x2[1] += dt * accel1
+        return x1[0], x1[1], x2[0], x2[1]
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """Read-only copies: x1 (rad), x2 (rad/s), input (rad), each shape (2,)."""
+        return types.MappingProxyType(
+            readonly_copies({"x1": self._x1, "x2": self._x2, "input": self._input})
+        )

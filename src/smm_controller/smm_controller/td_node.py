@@ -1,0 +1,129 @@
+"""``td_node``: the tracking differentiator (:mod:`smm_controller.td`) on the raw measurement.
+
+Subscribes ``joint_states`` (raw measurement, position in rad); for each new stamp steps the TD once with
+dt = ``control_period`` and publishes ``joint_states_filtered`` (position x1 in rad, velocity x2 in rad/s,
+``header.stamp`` = the measurement's) and ``~/internals`` (TD internals + the node counters). Stamp policy,
+bad input and parameters: see ``docs/NODES.md`` and :mod:`smm_msgs_py.node_support`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from rclpy.context import Context
+from sensor_msgs.msg import JointState
+from smm_msgs_py import topics
+from smm_msgs_py.conversions import JointSample, internals_to_msg, joint_state_to_sample, sample_to_joint_state
+from smm_msgs_py.errors import InterfaceError
+from smm_msgs_py.node_support import (
+    ControlPeriodConfig,
+    MeasurementDrivenNode,
+    Output,
+    ParameterOverrides,
+    run_node,
+)
+from smm_msgs_py.parameters import ConfigParameters
+from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
+from std_msgs.msg import Float64MultiArray
+
+from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
+
+__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "TD_PREFIX", "TdNode", "main"]
+
+NODE_NAME = "td_node"
+TD_PREFIX = "td"
+"""Parameters of :class:`~smm_controller.td.TrackingDifferentiatorConfig` are ``td.<field>``."""
+INTERNALS_TOPIC = "~/internals"
+"""Private diagnostics topic: TD internals (x1, x2, input) and node counters, labelled rows."""
+
+
+class TdNode(MeasurementDrivenNode):
+    """Tracking differentiator node.
+
+    Args:
+        context: rclpy context (None: the default one).
+        parameter_overrides: Parameter values overriding defaults and parameter files.
+        namespace: Node namespace (None: from the command line).
+        cli_args: Node-specific command-line arguments.
+        node_name: Node name.
+
+    Raises:
+        ValueError: invalid initial parameters (message names the parameter).
+    """
+
+    def __init__(
+        self,
+        *,
+        context: Context | None = None,
+        parameter_overrides: ParameterOverrides | None = None,
+        namespace: str | None = None,
+        cli_args: Sequence[str] | None = None,
+        node_name: str = NODE_NAME,
+    ) -> None:
+        super().__init__(
+            node_name,
+            context=context,
+            parameter_overrides=parameter_overrides,
+            namespace=namespace,
+            cli_args=cli_args,
+        )
+        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
+        self.td_parameters = ConfigParameters(
+            self,
+            TD_PREFIX,
+            TrackingDifferentiatorConfig(),
+            check=self._check_td_config,
+            on_change=self._on_td_config,
+        )
+        self.td = TrackingDifferentiator(self.td_parameters.config)
+        self._filtered_publisher = self.create_publisher(
+            JointState, topics.JOINT_STATES_FILTERED, qos_for_topic(topics.JOINT_STATES_FILTERED)
+        )
+        self._internals_publisher = self.create_publisher(Float64MultiArray, INTERNALS_TOPIC, diagnostic_qos())
+        self.create_subscription(
+            JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
+        )
+
+    @property
+    def control_period(self) -> float:
+        """dt of every step (s)."""
+        return self.timing.config.control_period
+
+    def _check_td_config(self, config: TrackingDifferentiatorConfig) -> None:
+        dt = self.timing.config.control_period
+        if min(config.filter_factor) < dt:
+            raise ValueError(
+                f"{TD_PREFIX}.filter_factor {config.filter_factor!r} must be >= control_period = {dt!r} s"
+            )
+
+    def _on_td_config(self, config: TrackingDifferentiatorConfig) -> None:
+        # The TD has no way to take a new config and keep its state: a new one re-initialises on the
+        # next sample (x1 = measurement, x2 = 0), see docs/NODES.md.
+        self.td = TrackingDifferentiator(config)
+
+    def _on_measurement(self, msg: JointState) -> None:
+        try:
+            sample = joint_state_to_sample(msg)
+        except InterfaceError as error:
+            self.reject(topics.JOINT_STATES, error)
+            return
+        if self.admit(topics.JOINT_STATES, sample.stamp_ns):
+            self.answer(sample.stamp_ns, lambda: self._step(sample), lambda: self._diagnostics(sample.stamp_ns))
+
+    def _step(self, sample: JointSample) -> list[Output]:
+        position, velocity = self.td.step(sample.position, self.control_period)
+        filtered = JointSample(sample.stamp_ns, position, velocity)
+        return [(self._filtered_publisher, sample_to_joint_state(filtered))]
+
+    def _diagnostics(self, stamp_ns: int) -> list[Output]:
+        rows = {**self.td.internals, **self.counter_rows()}
+        return [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
+
+
+def main(args: Sequence[str] | None = None) -> None:
+    """Console script ``td_node``."""
+    run_node(lambda context: TdNode(context=context), args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,667 @@
+"""``smm_sim_node``: the simulated plant (:class:`smm_sim.plant.SimulatedPlant`) as a ROS 2 node.
+
+Topics (relative, so under the graph's namespace ``/smm``; see ``docs/INTERFACES.md``):
+
+* publishes ``joint_states`` (raw measurement: ``position`` rad, ``effort`` = torque applied over the last
+  interval, N m; ``header.stamp`` = sample time), ``ground_truth`` (true position, velocity, effort;
+  analysis only) and, in lockstep, ``/clock``;
+* subscribes ``torque_command`` (``Float64MultiArray`` [tau_alpha, tau_beta] N m, stamped with the
+  measurement it answers).
+
+Stamps are the plant's time since start (``k * control_period`` exactly, integer ns) in both clock modes,
+so a record or a bag of either mode lines up with the offline simulator sample by sample.
+
+Clock modes (parameter ``clock_mode``, fixed at start-up):
+
+* ``lockstep``: the node publishes ``/clock`` and the measurement of step k, and advances one step only when
+  the torque command stamped with that measurement's stamp arrives. A command for an older stamp is a late
+  re-transmission and is ignored quietly; one for a stamp never published is dropped with a warning.
+  Messages published before the subscribers matched are lost in DDS, so the current measurement is
+  re-published every ``republish_period`` wall seconds until it is answered (the controller nodes answer a
+  repeated stamp by re-publishing their last answer without stepping). A run is therefore deterministic for
+  a seed and goes as fast as the graph allows.
+* ``realtime``: a steady-clock timer steps the plant every ``control_period`` with the latest valid command;
+  a command older than ``command_timeout`` gives zero torque (throttled warning). The node measures the
+  measurement-to-command latency (receive time of the first answer minus publish time of the answered
+  measurement) and the deadline misses (a tick at which the answer to the previous measurement had not
+  arrived) and logs them every ``stats_period`` seconds.
+
+End of a run: after ``max_steps`` steps or ``duration`` seconds of plant time (whichever comes first; 0 means
+no limit) the node writes ``record_file`` / ``stats_file`` (when set), logs a summary and completes
+:attr:`SimNode.done`; :func:`main` then exits 0. That exit is how ``smm-launch`` (and the launch file's
+``OnProcessExit`` handler) know the run is complete.
+
+Bad commands (NaN/Inf, wrong length, bad layout, bad or unknown stamp) are dropped with a throttled warning
+and counted; they never reach the integrator.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final, Literal
+
+import numpy as np
+import numpy.typing as npt
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+from rclpy.timer import Timer
+from rcl_interfaces.msg import SetParametersResult
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import JointState
+from smm_dynamics import SMMParameters
+from smm_msgs_py import topics
+from smm_msgs_py.conversions import JointSample, clock_msg, msg_to_torque, sample_to_joint_state
+from smm_msgs_py.errors import InterfaceError
+from smm_msgs_py.node_support import WARN_THROTTLE_S, ensure_localhost_discovery, make_executor
+from smm_msgs_py.parameters import ConfigParameters
+from smm_msgs_py.qos import qos_for_topic
+from std_msgs.msg import Float64MultiArray
+
+from smm_sim.plant import GroundTruth, Measurement, PlantConfig, SimulatedPlant
+
+__all__ = [
+    "CLOCK_MODES",
+    "NODE_NAME",
+    "LatencyStats",
+    "PlantParameters",
+    "SimNode",
+    "SimNodeConfig",
+    "main",
+]
+
+NODE_NAME: Final[str] = "smm_sim_node"
+CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
+_NS_PER_S: Final[int] = 1_000_000_000
+_STARTUP_ONLY: Final[frozenset[str]] = frozenset({"clock_mode"})
+_PUBLISHED_STAMPS_KEPT: Final[int] = 1000
+"""Realtime: publish times of this many recent measurements are kept to match answers (1 s at 1 kHz)."""
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PlantParameters:
+    """ROS-parameter mirror of :class:`smm_sim.plant.PlantConfig` (fixed at start-up).
+
+    Fields keep PlantConfig's names and units; two use a ROS-friendly encoding because ROS parameters have
+    neither ``None`` nor (portably) infinity: ``torque_limit`` 0 means no saturation and
+    ``valve_time_constants`` (0, 0) means no valve lag.
+
+    Attributes:
+        params: Nominal rigid-body parameters of the plant (the true plant scales their inertias).
+        inertia_scale: Model error, factor on I11, I22, I44, I55 of the true plant (1.0 = none), > 0.
+        noise_std: Standard deviation of the Gaussian position noise (alpha, beta) (rad), >= 0.
+        encoder_counts_per_rev: Encoder resolution (counts per revolution), 0 = no quantisation.
+        seed: Seed of the noise generator, >= 0; the same seed gives the same run.
+        disturbance: External disturbance model, "none" or "eq46".
+        joint_limits: Mechanical stops at +-limit (alpha, beta) (rad), in (0, pi/2).
+        torque_limit: Saturation of the applied torque (alpha, beta) (N m), > 0; 0 = no saturation.
+        valve_time_constants: Servo-valve lag (T_rise, T_fall) (s), > 0; (0, 0) = no lag.
+        substeps: RK4 sub-steps per control period, >= 1.
+        control_period: Control period (s), >= 1 ns.
+        initial_position: Joint position at start (alpha, beta) (rad), inside the stops.
+    """
+
+    params: SMMParameters = field(default_factory=SMMParameters)
+    inertia_scale: float = 1.0
+    noise_std: tuple[float, float] = (0.0, 0.0)
+    encoder_counts_per_rev: int = 0
+    seed: int = 0
+    disturbance: Literal["none", "eq46"] = "none"
+    joint_limits: tuple[float, float] = (1.3, 1.3)
+    torque_limit: tuple[float, float] = (0.0, 0.0)
+    valve_time_constants: tuple[float, float] = (0.0, 0.0)
+    substeps: int = 1
+    control_period: float = 1e-3
+    initial_position: tuple[float, float] = (0.0, 0.0)
+    plant_config: PlantConfig = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for name in ("torque_limit", "valve_time_constants"):
+            value = getattr(self, name)
+            if not isinstance(value, tuple) or len(value) != 2:
+                raise ValueError(f"{name} must be a tuple (alpha, beta) of 2 floats, got {value!r}")
+        torque_limit = tuple(math.inf if limit == 0.0 else limit for limit in self.torque_limit)
+        valve = None if self.valve_time_constants == (0.0, 0.0) else self.valve_time_constants
+        config = PlantConfig(
+            params=self.params,
+            inertia_scale=self.inertia_scale,
+            noise_std=self.noise_std,
+            encoder_counts_per_rev=self.encoder_counts_per_rev,
+            seed=self.seed,
+            disturbance=self.disturbance,
+            joint_limits=self.joint_limits,
+            torque_limit=torque_limit,  # type: ignore[arg-type]
+            valve_time_constants=valve,
+            substeps=self.substeps,
+            control_period=self.control_period,
+        )
+        position = self.initial_position
+        if (
+            not isinstance(position, tuple)
+            or len(position) != 2
+            or not all(isinstance(v, float) and math.isfinite(v) for v in position)
+            or any(abs(v) > limit for v, limit in zip(position, self.joint_limits, strict=True))
+        ):
+            raise ValueError(
+                f"initial_position must be 2 finite floats within joint_limits {self.joint_limits!r}, "
+                f"got {position!r}"
+            )
+        object.__setattr__(self, "plant_config", config)
+
+
+@dataclass(frozen=True)
+class SimNodeConfig:
+    """Behaviour of the simulator node (``clock_mode`` is fixed at start-up, the rest may change live).
+
+    Attributes:
+        clock_mode: "lockstep" (step when the answering command arrives; publishes /clock) or "realtime"
+            (wall-clock timer at the control period).
+        command_timeout: Realtime: a command older than this gives zero torque (s), > 0.
+        republish_period: Lockstep: re-publish an unanswered measurement after this many wall seconds (s),
+            > 0.
+        max_steps: Stop after this many steps, >= 0; 0 = no limit.
+        duration: Stop after this much plant time (s), >= 0; 0 = no limit.
+        record_file: Write the run (.npz: stamps, true and measured position, velocity, applied and
+            commanded torque) here at the end; "" = no record.
+        stats_file: Write the run statistics (JSON: steps, drops, latency percentiles, deadline misses)
+            here at the end; "" = none.
+        stats_period: Realtime: log the latency statistics every this many wall seconds (s), >= 0;
+            0 = only at the end.
+    """
+
+    clock_mode: Literal["lockstep", "realtime"] = "realtime"
+    command_timeout: float = 0.05
+    republish_period: float = 0.1
+    max_steps: int = 0
+    duration: float = 0.0
+    record_file: str = ""
+    stats_file: str = ""
+    stats_period: float = 5.0
+
+    def __post_init__(self) -> None:
+        if self.clock_mode not in CLOCK_MODES:
+            raise ValueError(f"clock_mode must be one of {CLOCK_MODES}, got {self.clock_mode!r}")
+        for name in ("command_timeout", "republish_period"):
+            value = getattr(self, name)
+            if not (isinstance(value, float) and math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be a finite number > 0 s, got {value!r}")
+        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int) or self.max_steps < 0:
+            raise ValueError(f"max_steps must be an int >= 0 (0 = no limit), got {self.max_steps!r}")
+        for name in ("duration", "stats_period"):
+            value = getattr(self, name)
+            if not (isinstance(value, float) and math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name} must be a finite number >= 0 s (0 = off), got {value!r}")
+
+    def step_limit(self, period_ns: int) -> int | None:
+        """Number of steps after which the run ends (None = no end), from max_steps and duration.
+
+        Args:
+            period_ns: Control period (ns).
+        """
+        limits = []
+        if self.max_steps > 0:
+            limits.append(self.max_steps)
+        if self.duration > 0.0:
+            limits.append(max(1, round(self.duration * _NS_PER_S / period_ns)))
+        return min(limits) if limits else None
+
+
+class LatencyStats:
+    """Measurement-to-command latencies (ns), kept whole for exact percentiles (8 bytes per sample)."""
+
+    def __init__(self) -> None:
+        self._samples: list[int] = []
+
+    def add(self, latency_ns: int) -> None:
+        """Record one latency (ns)."""
+        self._samples.append(latency_ns)
+
+    @property
+    def count(self) -> int:
+        """Number of latencies recorded."""
+        return len(self._samples)
+
+    def percentile_us(self, percent: float) -> float:
+        """The ``percent`` percentile (0-100) in microseconds; NaN when empty."""
+        if not self._samples:
+            return math.nan
+        return float(np.percentile(np.asarray(self._samples, dtype=np.float64), percent)) / 1e3
+
+    def summary(self) -> dict[str, float]:
+        """count, p50, p90, p99 and max (us)."""
+        return {
+            "count": float(self.count),
+            "p50_us": self.percentile_us(50.0),
+            "p90_us": self.percentile_us(90.0),
+            "p99_us": self.percentile_us(99.0),
+            "max_us": self.percentile_us(100.0),
+        }
+
+
+class _Recorder:
+    """Per-step record of the run (lists of floats, converted to arrays once at the end)."""
+
+    def __init__(self) -> None:
+        self.stamp_ns: list[int] = []
+        self.position: list[tuple[float, float]] = []
+        self.velocity: list[tuple[float, float]] = []
+        self.applied_torque: list[tuple[float, float]] = []
+        self.measured_position: list[tuple[float, float]] = []
+        self.command_stamp_ns: list[int] = []
+        self.command: list[tuple[float, float]] = []
+
+    def sample(self, truth: GroundTruth, measured: Measurement) -> None:
+        self.stamp_ns.append(truth.stamp_ns)
+        self.position.append((float(truth.position[0]), float(truth.position[1])))
+        self.velocity.append((float(truth.velocity[0]), float(truth.velocity[1])))
+        self.applied_torque.append((float(truth.applied_torque[0]), float(truth.applied_torque[1])))
+        self.measured_position.append((float(measured.position[0]), float(measured.position[1])))
+
+    def command_applied(self, stamp_ns: int, command: tuple[float, float]) -> None:
+        self.command_stamp_ns.append(stamp_ns)
+        self.command.append(command)
+
+    def save(self, path: Path) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(
+            path,
+            stamp_ns=np.asarray(self.stamp_ns, dtype=np.int64),
+            position=np.asarray(self.position, dtype=np.float64).reshape(-1, 2),
+            velocity=np.asarray(self.velocity, dtype=np.float64).reshape(-1, 2),
+            applied_torque=np.asarray(self.applied_torque, dtype=np.float64).reshape(-1, 2),
+            measured_position=np.asarray(self.measured_position, dtype=np.float64).reshape(-1, 2),
+            command_stamp_ns=np.asarray(self.command_stamp_ns, dtype=np.int64),
+            command=np.asarray(self.command, dtype=np.float64).reshape(-1, 2),
+        )
+
+
+class SimNode(Node):
+    """The simulated SMM plant node (see the module docstring).
+
+    Args:
+        context: rclpy context (None: the default one).
+        parameter_overrides: Parameter values overriding the defaults (as ``rclpy.node.Node``).
+        node_name: Node name.
+        namespace: Node namespace (None: from the command line, else the root).
+
+    Raises:
+        ValueError: A parameter value is invalid (the message names the parameter and the value).
+    """
+
+    def __init__(
+        self,
+        *,
+        context: Context | None = None,
+        parameter_overrides: Sequence[Parameter] | None = None,
+        node_name: str = NODE_NAME,
+        namespace: str | None = None,
+    ) -> None:
+        super().__init__(
+            node_name,
+            context=context,
+            parameter_overrides=None if parameter_overrides is None else list(parameter_overrides),
+            namespace=namespace,
+        )
+        self._plant_parameters = ConfigParameters(self, "", PlantParameters(), read_only=True)
+        self._node_parameters = ConfigParameters(self, "", SimNodeConfig(), on_change=self._on_config_change)
+        # Registered after the declarations, which run the set-parameters callbacks too.
+        self.add_on_set_parameters_callback(self._refuse_startup_only)
+        plant_parameters = self._plant_parameters.config
+        self._clock_mode = self._node_parameters.config.clock_mode
+        self._plant = SimulatedPlant(plant_parameters.plant_config)
+        self._plant.reset(np.asarray(plant_parameters.initial_position))
+        self._period_ns = plant_parameters.plant_config.period_ns
+        self._dt = self._period_ns / _NS_PER_S
+
+        self.done: Future = Future()
+        """Completed (result: number of steps) when the run reached ``max_steps`` / ``duration``."""
+        self.steps = 0
+        self.dropped_invalid = 0
+        self.dropped_unknown_stamp = 0
+        self.ignored_late = 0
+        self.republished = 0
+        self.stale_ticks = 0
+        self.deadline_misses = 0
+        self.late_ticks = 0
+        self.latency = LatencyStats()
+        self._measurement = self._plant.measure()
+        self._truth = self._plant.ground_truth
+        self._recorder = _Recorder()
+        self._recorder.sample(self._truth, self._measurement)
+        self._finished = False
+
+        self._joint_states_pub = self.create_publisher(
+            JointState, topics.JOINT_STATES, qos_for_topic(topics.JOINT_STATES)
+        )
+        self._ground_truth_pub = self.create_publisher(
+            JointState, topics.GROUND_TRUTH, qos_for_topic(topics.GROUND_TRUTH)
+        )
+        self._clock_pub = (
+            self.create_publisher(ClockMsg, topics.CLOCK, qos_for_topic(topics.CLOCK))
+            if self._clock_mode == "lockstep"
+            else None
+        )
+        self.create_subscription(
+            Float64MultiArray, topics.TORQUE_COMMAND, self._on_command, qos_for_topic(topics.TORQUE_COMMAND)
+        )
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._stats_timer: Timer | None = None
+        # Realtime state: the latest valid command and when it arrived (monotonic ns).
+        self._command: tuple[float, float] = (0.0, 0.0)
+        self._command_stamp_ns = -1
+        self._command_received_ns: int | None = None
+        self._published_at: OrderedDict[int, int] = OrderedDict()
+        self._answered_previous = True
+        self._next_tick_ns = 0
+        # Lockstep state: when the current measurement was last published (monotonic ns).
+        self._last_publish_ns = 0
+        self._step_limit = self._node_parameters.config.step_limit(self._period_ns)
+
+        if self._clock_mode == "lockstep":
+            self._timer = self.create_timer(
+                self._node_parameters.config.republish_period, self._on_republish_timer, clock=self._steady
+            )
+            self._publish_measurement()
+        else:
+            self._timer = self.create_timer(self._dt, self._on_realtime_tick, clock=self._steady)
+            self._next_tick_ns = time.monotonic_ns() + self._period_ns
+            self._restart_stats_timer(self._node_parameters.config.stats_period)
+            self._publish_measurement()
+        self.get_logger().info(
+            f"{self._clock_mode} simulation, period {self._dt * 1e3:g} ms, "
+            f"{'no step limit' if self._step_limit is None else f'{self._step_limit} steps'}, "
+            f"seed {plant_parameters.seed}, disturbance {plant_parameters.disturbance}, "
+            f"inertia scale {plant_parameters.inertia_scale:g}, noise std {list(plant_parameters.noise_std)} rad"
+        )
+
+    # ------------------------------------------------------------------------------------- properties
+
+    @property
+    def clock_mode(self) -> str:
+        """"lockstep" or "realtime" (fixed at start-up)."""
+        return self._clock_mode
+
+    @property
+    def plant(self) -> SimulatedPlant:
+        """The simulated plant (read it only from the executor's thread)."""
+        return self._plant
+
+    @property
+    def config(self) -> SimNodeConfig:
+        """The current node configuration."""
+        return self._node_parameters.config
+
+    @property
+    def plant_parameters(self) -> PlantParameters:
+        """The plant parameters (fixed at start-up)."""
+        return self._plant_parameters.config
+
+    @property
+    def current_stamp_ns(self) -> int:
+        """Stamp of the latest published measurement (ns since start)."""
+        return self._plant.time_ns
+
+    @property
+    def finished(self) -> bool:
+        """True once the run reached its step limit."""
+        return self._finished
+
+    def statistics(self) -> dict[str, Any]:
+        """Counters and latency figures of the run so far (JSON-serialisable)."""
+        return {
+            "clock_mode": self._clock_mode,
+            "steps": self.steps,
+            "control_period_s": self._dt,
+            "dropped_invalid": self.dropped_invalid,
+            "dropped_unknown_stamp": self.dropped_unknown_stamp,
+            "ignored_late": self.ignored_late,
+            "republished": self.republished,
+            "stale_ticks": self.stale_ticks,
+            "deadline_misses": self.deadline_misses,
+            "late_ticks": self.late_ticks,
+            "latency": self.latency.summary(),
+        }
+
+    # ------------------------------------------------------------------------------------- parameters
+
+    def _refuse_startup_only(self, parameters: list[Parameter]) -> SetParametersResult:
+        for parameter in parameters:
+            if parameter.name in _STARTUP_ONLY and parameter.value != getattr(self.config, parameter.name):
+                return SetParametersResult(
+                    successful=False, reason=f"{parameter.name} is fixed at start-up; restart the node to change it"
+                )
+        return SetParametersResult(successful=True)
+
+    def _on_config_change(self, config: SimNodeConfig) -> None:
+        self._step_limit = config.step_limit(self._period_ns)
+        if self._clock_mode == "lockstep":
+            self._timer.destroy()
+            self._timer = self.create_timer(config.republish_period, self._on_republish_timer, clock=self._steady)
+        else:
+            self._restart_stats_timer(config.stats_period)
+        if self._step_limit is not None and self.steps >= self._step_limit:
+            self._finish()
+
+    def _restart_stats_timer(self, period: float) -> None:
+        if self._stats_timer is not None:
+            self._stats_timer.destroy()
+            self._stats_timer = None
+        if period > 0.0:
+            self._stats_timer = self.create_timer(period, self._log_statistics, clock=self._steady)
+
+    # ---------------------------------------------------------------------------------------- commands
+
+    def _warn(self, message: str) -> None:
+        self.get_logger().warning(message, throttle_duration_sec=WARN_THROTTLE_S)
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        received_ns = time.monotonic_ns()
+        if self._finished:
+            return
+        try:
+            command = msg_to_torque(msg)
+        except InterfaceError as error:
+            self.dropped_invalid += 1
+            self._warn(
+                f"dropped torque command ({type(error).__name__}: {error}); "
+                f"{self.dropped_invalid} invalid commands so far"
+            )
+            return
+        values = (float(command.values[0]), float(command.values[1]))
+        stamp_ns = command.stamp_ns
+        if self._clock_mode == "lockstep":
+            self._lockstep_command(stamp_ns, values)
+        else:
+            self._realtime_command(stamp_ns, values, received_ns)
+
+    def _drop_unknown_stamp(self, stamp_ns: int) -> None:
+        self.dropped_unknown_stamp += 1
+        self._warn(
+            f"dropped torque command for stamp {stamp_ns} ns: no measurement with that stamp was published "
+            f"(current {self._plant.time_ns} ns); {self.dropped_unknown_stamp} such commands so far"
+        )
+
+    def _lockstep_command(self, stamp_ns: int, values: tuple[float, float]) -> None:
+        current = self._plant.time_ns
+        if stamp_ns < current:
+            # A re-transmitted answer to a measurement that was already answered: expected, not an error.
+            self.ignored_late += 1
+            return
+        if stamp_ns > current:
+            self._drop_unknown_stamp(stamp_ns)
+            return
+        self._step(values, stamp_ns)
+        if not self._finished:
+            self._publish_measurement()
+
+    def _realtime_command(self, stamp_ns: int, values: tuple[float, float], received_ns: int) -> None:
+        published_ns = self._published_at.get(stamp_ns)
+        if published_ns is None:
+            if stamp_ns <= self._command_stamp_ns or (self._published_at and stamp_ns < next(iter(self._published_at))):
+                self.ignored_late += 1
+            else:
+                self._drop_unknown_stamp(stamp_ns)
+            return
+        if stamp_ns <= self._command_stamp_ns:
+            # Out of order or repeated: a newer answer is already in force.
+            self.ignored_late += 1
+            return
+        self._command = values
+        self._command_stamp_ns = stamp_ns
+        self._command_received_ns = received_ns
+        self.latency.add(received_ns - published_ns)
+        if stamp_ns == self._plant.time_ns:
+            self._answered_previous = True
+
+    # ------------------------------------------------------------------------------------------ stepping
+
+    def _step(self, command: tuple[float, float], command_stamp_ns: int) -> None:
+        self._plant.step(command, self._dt)
+        self.steps += 1
+        self._recorder.command_applied(command_stamp_ns, command)
+        self._measurement = self._plant.measure()
+        self._truth = self._plant.ground_truth
+        self._recorder.sample(self._truth, self._measurement)
+        if self._step_limit is not None and self.steps >= self._step_limit:
+            self._finish()
+
+    def _publish_measurement(self) -> None:
+        measurement = self._measurement
+        truth = self._truth
+        stamp_ns = measurement.stamp_ns
+        if self._clock_pub is not None:
+            self._clock_pub.publish(clock_msg(stamp_ns))
+        self._ground_truth_pub.publish(
+            sample_to_joint_state(JointSample(stamp_ns, truth.position, truth.velocity, truth.applied_torque))
+        )
+        now_ns = time.monotonic_ns()
+        self._joint_states_pub.publish(
+            sample_to_joint_state(JointSample(stamp_ns, measurement.position, None, measurement.applied_torque))
+        )
+        self._last_publish_ns = now_ns
+        if self._clock_mode == "realtime":
+            self._published_at[stamp_ns] = now_ns
+            while len(self._published_at) > _PUBLISHED_STAMPS_KEPT:
+                self._published_at.popitem(last=False)
+
+    def _on_republish_timer(self) -> None:
+        if self._finished:
+            return
+        waited_ns = time.monotonic_ns() - self._last_publish_ns
+        if waited_ns >= self.config.republish_period * _NS_PER_S * 0.999:
+            self.republished += 1
+            self._publish_measurement()
+
+    def _on_realtime_tick(self) -> None:
+        if self._finished:
+            return
+        now_ns = time.monotonic_ns()
+        if now_ns - self._next_tick_ns > self._period_ns:
+            self.late_ticks += 1
+        self._next_tick_ns = max(self._next_tick_ns + self._period_ns, now_ns)
+        if not self._answered_previous:
+            self.deadline_misses += 1
+        received = self._command_received_ns
+        timeout_ns = self.config.command_timeout * _NS_PER_S
+        if received is None or now_ns - received > timeout_ns:
+            command = (0.0, 0.0)
+            self.stale_ticks += 1
+            if received is not None:
+                self._warn(
+                    f"no torque command for {(now_ns - received) / 1e6:.1f} ms "
+                    f"(> command_timeout {self.config.command_timeout * 1e3:g} ms): applying zero torque"
+                )
+        else:
+            command = self._command
+        self._step(command, self._command_stamp_ns if command is self._command else -1)
+        if self._finished:
+            return
+        self._answered_previous = False
+        self._publish_measurement()
+
+    # ------------------------------------------------------------------------------------------ the end
+
+    def _log_statistics(self) -> None:
+        stats = self.statistics()
+        latency = stats["latency"]
+        self.get_logger().info(
+            f"{stats['steps']} steps; latency p50 {latency['p50_us']:.0f} us, p99 {latency['p99_us']:.0f} us "
+            f"({int(latency['count'])} answers); deadline misses {stats['deadline_misses']}, late ticks "
+            f"{stats['late_ticks']}, zero-torque ticks {stats['stale_ticks']}; dropped {stats['dropped_invalid']} "
+            f"invalid, {stats['dropped_unknown_stamp']} unknown-stamp commands"
+        )
+
+    def write_outputs(self) -> None:
+        """Write ``record_file`` and ``stats_file`` (when set) with the run so far."""
+        config = self.config
+        if config.record_file:
+            self._recorder.save(Path(config.record_file))
+        if config.stats_file:
+            path = Path(config.stats_file)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(self.statistics(), indent=2, allow_nan=True))
+
+    def _finish(self) -> None:
+        if self._finished:
+            return
+        self._finished = True
+        self._timer.cancel()
+        if self._stats_timer is not None:
+            self._stats_timer.cancel()
+        self.write_outputs()
+        self._log_statistics()
+        self.get_logger().info(f"run complete after {self.steps} steps ({self._plant.time_ns / _NS_PER_S:g} s)")
+        self.done.set_result(self.steps)
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``smm_sim_node``: run until the step limit (exit 0), Ctrl-C (0) or a bad parameter (2).
+
+    Args:
+        args: Command line (``--ros-args ...``); None for ``sys.argv``.
+
+    Returns:
+        The exit code.
+    """
+    ensure_localhost_discovery()
+    context = Context()
+    rclpy.init(args=None if args is None else list(args), context=context)
+    node: SimNode | None = None
+    executor = None
+    try:
+        try:
+            node = SimNode(context=context)
+        except ValueError as error:
+            print(f"{NODE_NAME}: invalid parameter: {error}", file=sys.stderr)
+            return 2
+        executor = make_executor(context)
+        executor.add_node(node)
+        executor.spin_until_future_complete(node.done)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if executor is not None:
+            executor.shutdown()
+        if node is not None:
+            if not node.finished:
+                node.write_outputs()
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

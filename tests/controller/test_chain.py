@@ -1,0 +1,79 @@
+"""ControlChain runs TD -> FLESO -> controller (docs/DESIGN.md) and the factories use paper gains."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from smm_dynamics import SMMParameters
+
+from smm_controller.baselines import FPDController, NPDController, PIDController
+from smm_controller.chain import CONTROLLER_NAMES, ControlChain, make_chain, make_controller
+from smm_controller.fleso import FLESO
+from smm_controller.fpdeso import FPDESOConfig, FPDESOController
+from smm_controller.reference import SineReference
+from smm_controller.td import TrackingDifferentiator
+
+DT = 0.001
+PARAMS = SMMParameters()
+
+
+def test_chain_equals_manual_composition_in_design_order() -> None:
+    chain = make_chain("fpdeso", PARAMS)
+    td, fleso, controller = TrackingDifferentiator(), FLESO(None, PARAMS), FPDESOController(None, PARAMS)
+    references = SineReference().sample(np.arange(100) * DT)
+    rng = np.random.default_rng(7)
+    tau_applied = np.zeros(2)
+    for k in range(100):
+        y = references[k, 0] * 0.98 + rng.normal(0.0, 1e-3, 2)
+        q, q_dot = td.step(y, DT)
+        xi = fleso.step(q, tau_applied, DT)
+        expected = controller.step(references[k], q, q_dot, xi, DT)
+        got = chain.step(y, tau_applied, references[k], DT)
+        assert_allclose(got, expected, rtol=0, atol=0)
+        tau_applied = 0.9 * got
+    internals = chain.internals
+    assert_allclose(internals["fleso.xi_tilde"], fleso.internals["xi_tilde"], atol=0)
+    assert_allclose(internals["disturbance_estimate"], fleso.internals["xi_tilde"], atol=0)
+    assert_allclose(internals["td.x1"], td.internals["x1"], atol=0)
+    assert_allclose(internals["controller.tau"], controller.internals["tau"], atol=0)
+
+
+def test_without_observer_the_disturbance_estimate_is_zero() -> None:
+    controller = FPDESOController(FPDESOConfig(robust_gain=(0.0, 0.0)), PARAMS)
+    chain = ControlChain(TrackingDifferentiator(), None, controller)
+    reference = SineReference().evaluate(0.1)
+    chain.step([0.01, 0.02], [0.5, 0.5], reference, DT)
+    assert_allclose(chain.internals["controller.disturbance"], [0.0, 0.0], atol=0)
+    assert not any(key.startswith("fleso.") for key in chain.internals)
+
+
+@pytest.mark.parametrize(
+    ("name", "kind"), [("fpdeso", FPDESOController), ("fpd", FPDController), ("pid", PIDController), ("npd", NPDController)]
+)
+def test_make_controller(name: str, kind: type) -> None:
+    assert isinstance(make_controller(name, PARAMS), kind)
+    chain = make_chain(name, PARAMS)
+    assert isinstance(chain.controller, kind)
+    assert (chain.fleso is not None) == (name == "fpdeso")
+    assert name in CONTROLLER_NAMES
+
+
+def test_make_controller_rejects_unknown_names() -> None:
+    with pytest.raises(ValueError, match="controller name must be one of"):
+        make_controller("lqr", PARAMS)
+
+
+def test_model_based_parts_reject_other_parameter_objects() -> None:
+    with pytest.raises(ValueError, match="params must be SMMParameters"):
+        FPDESOController(None, {"I11": 1.0})  # type: ignore[arg-type]
+
+
+def test_step_validates_inputs() -> None:
+    chain = make_chain("pid", PARAMS)
+    with pytest.raises(ValueError, match="y must have shape"):
+        chain.step([0.0, 0.0, 0.0], [0.0, 0.0], np.zeros((3, 2)), DT)
+    with pytest.raises(ValueError, match="tau_applied must be finite"):
+        chain.step([0.0, 0.0], [np.nan, 0.0], np.zeros((3, 2)), DT)
+    with pytest.raises(ValueError, match="dt"):
+        chain.step([0.0, 0.0], [0.0, 0.0], np.zeros((3, 2)), 0.0)

@@ -1,0 +1,121 @@
+"""Tracking differentiator (eq. 24-25) against Han's fhan."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig, fhan, fst
+
+errors = st.floats(-2.0, 2.0)
+rates = st.floats(-50.0, 50.0)
+speeds = st.floats(1.0, 1e6)
+steps = st.floats(1e-4, 1e-2)
+
+
+@settings(deadline=None, max_examples=300)
+@given(e=errors, x2=rates, sigma=speeds, h=steps)
+def test_fst_equals_fhan_when_h_equals_t(e: float, x2: float, sigma: float, h: float) -> None:
+    assert fst(e, x2, sigma, h, h) == pytest.approx(fhan(e, x2, sigma, h), rel=1e-12, abs=1e-9)
+
+
+def test_fst_differs_from_fhan_when_h_differs_from_t() -> None:
+    # Linear zone: fst = -(x2 + (e + t x2)/h)/h, fhan = -(x2 + (e + h x2)/h)/h.
+    e, x2, sigma, h, t = 0.001, 0.5, 1e5, 0.004, 0.001
+    assert fst(e, x2, sigma, h, t) == pytest.approx(-(x2 + (e + t * x2) / h) / h, rel=1e-12)
+    assert fhan(e, x2, sigma, h) == pytest.approx(-(x2 + (e + h * x2) / h) / h, rel=1e-12)
+    assert abs(fst(e, x2, sigma, h, t) - fhan(e, x2, sigma, h)) > 1.0
+
+
+@settings(deadline=None)
+@given(e=errors, x2=rates, sigma=speeds, h=steps)
+def test_fhan_is_odd_and_bounded(e: float, x2: float, sigma: float, h: float) -> None:
+    value = fhan(e, x2, sigma, h)
+    assert fhan(-e, -x2, sigma, h) == pytest.approx(-value, rel=1e-12, abs=1e-9)
+    assert abs(value) <= sigma * (1 + 1e-12)
+
+
+@pytest.mark.parametrize("side", [-1.0, 1.0])
+def test_fst_is_continuous_at_the_zone_boundary(side: float) -> None:
+    """The corrected nonlinear branch meets the linear one at |y| = delta1 for both signs of y."""
+    sigma, h, t = 100.0, 0.05, 0.05
+    boundary = h * h * sigma
+    below = fst(side * boundary * (1 - 1e-9), 0.0, sigma, h, t)
+    above = fst(side * boundary * (1 + 1e-9), 0.0, sigma, h, t)
+    assert below == pytest.approx(above, rel=1e-6)
+
+
+def test_step_is_eq_24_with_fhan_when_h_equals_dt() -> None:
+    dt = 0.002
+    td = TrackingDifferentiator(TrackingDifferentiatorConfig(speed=(500.0, 2000.0), filter_factor=(dt, dt)))
+    rng = np.random.default_rng(1)
+    x1 = np.array([0.1, -0.2])
+    x2 = np.zeros(2)
+    td.step(x1, dt)
+    for _ in range(200):
+        v = x1 + rng.normal(0.0, 0.05, 2)
+        accel = [fhan(x1[j] - v[j], x2[j], (500.0, 2000.0)[j], dt) for j in range(2)]
+        x1, x2 = x1 + dt * x2, x2 + dt * np.array(accel)
+        got_x1, got_x2 = td.step(v, dt)
+        assert_allclose(got_x1, x1, rtol=1e-12, atol=1e-12)
+        assert_allclose(got_x2, x2, rtol=1e-12, atol=1e-9)
+
+
+def test_first_step_starts_at_the_sample_at_rest() -> None:
+    td = TrackingDifferentiator()
+    x1, x2 = td.step([0.3, -0.4], 0.001)
+    assert_allclose(x1, [0.3, -0.4])
+    assert_allclose(x2, [0.0, 0.0])
+
+
+def test_tracks_a_ramp_and_its_slope() -> None:
+    dt = 0.001
+    td = TrackingDifferentiator()
+    slope = np.array([0.5, -1.0])
+    for k in range(2000):
+        x1, x2 = td.step(slope * k * dt, dt)
+    assert_allclose(x2, slope, rtol=1e-6)
+    # Linear-zone lag of the filter: position behind the input by about (h + dt) times the slope.
+    assert np.all(np.abs(x1 - slope * 1999 * dt) < 0.01)
+
+
+def test_filter_factor_below_dt_is_rejected_at_step() -> None:
+    td = TrackingDifferentiator(TrackingDifferentiatorConfig(filter_factor=(0.002, 0.0005)))
+    td.step([0.0, 0.0], 0.0005)
+    with pytest.raises(ValueError, match="filter_factor"):
+        td.step([0.0, 0.0], 0.001)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("speed", (0.0, 1.0)),
+        ("speed", (-1.0, 1.0)),
+        ("speed", (math.nan, 1.0)),
+        ("speed", (math.inf, 1.0)),
+        ("speed", (1.0,)),
+        ("filter_factor", (0.001, 0.0)),
+        ("filter_factor", [0.001, 0.001]),
+        ("filter_factor", (0.001, True)),
+    ],
+)
+def test_config_rejections(field: str, value: object) -> None:
+    with pytest.raises(ValueError, match=field):
+        TrackingDifferentiatorConfig(**{field: value})  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("bad", [[0.0], [[0.0, 0.0]], [math.nan, 0.0]])
+def test_step_rejects_bad_input(bad: object) -> None:
+    with pytest.raises(ValueError, match="v"):
+        TrackingDifferentiator().step(bad, 0.001)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.001, math.nan, math.inf])
+def test_step_rejects_bad_dt(dt: float) -> None:
+    with pytest.raises(ValueError, match="dt"):
+        TrackingDifferentiator().step([0.0, 0.0], dt)

@@ -1,0 +1,301 @@
+"""smm_sim_node: lockstep gating, stamp matching, bad-command rejection, realtime timeout, parameters."""
+
+from __future__ import annotations
+
+import array
+import math
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+PERIOD_NS = 1_000_000
+
+
+class Harness:
+    """A SimNode and a test node ("controller") in one private context and one executor."""
+
+    def __init__(self, context: Any, **parameters: Any) -> None:
+        import rclpy
+        from rclpy.parameter import Parameter
+        from sensor_msgs.msg import JointState
+        from smm_msgs_py import topics
+        from smm_msgs_py.node_support import make_executor
+        from smm_msgs_py.qos import qos_for_topic
+        from smm_sim.sim_node import SimNode
+        from std_msgs.msg import Float64MultiArray
+
+        overrides = [Parameter(name, value=value) for name, value in parameters.items()]
+        self.sim = SimNode(context=context, parameter_overrides=overrides)
+        self.peer = rclpy.create_node("test_peer", context=context)
+        self.measurements: list[Any] = []
+        self.truths: list[Any] = []
+        self.peer.create_subscription(
+            JointState, topics.JOINT_STATES, self.measurements.append, qos_for_topic(topics.JOINT_STATES)
+        )
+        self.peer.create_subscription(
+            JointState, topics.GROUND_TRUTH, self.truths.append, qos_for_topic(topics.GROUND_TRUTH)
+        )
+        self.commands = self.peer.create_publisher(
+            Float64MultiArray, topics.TORQUE_COMMAND, qos_for_topic(topics.TORQUE_COMMAND)
+        )
+        self.executor = make_executor(context)
+        self.executor.add_node(self.sim)
+        self.executor.add_node(self.peer)
+
+    def spin_until(self, predicate: Any, timeout_s: float = 10.0) -> bool:
+        from ros_harness import spin_until
+
+        return spin_until(self.executor, predicate, timeout_s)
+
+    def spin_for(self, seconds: float) -> None:
+        self.spin_until(lambda: False, seconds)
+
+    def wait_matched(self) -> None:
+        assert self.spin_until(lambda: self.commands.get_subscription_count() >= 1 and len(self.measurements) >= 1)
+
+    def send(self, tau: Any, stamp_ns: int) -> None:
+        from smm_msgs_py.conversions import torque_to_msg
+
+        self.commands.publish(torque_to_msg(np.asarray(tau, dtype=float), stamp_ns))
+
+    def send_raw(self, msg: Any) -> None:
+        self.commands.publish(msg)
+
+    def stamps(self) -> list[int]:
+        from smm_msgs_py.conversions import stamp_to_ns
+
+        return [stamp_to_ns(m.header.stamp) for m in self.measurements]
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.sim.destroy_node()
+        self.peer.destroy_node()
+
+
+@pytest.fixture
+def make_harness(ros_context: Any) -> Iterator[Any]:
+    created: list[Harness] = []
+
+    def make(**parameters: Any) -> Harness:
+        harness = Harness(ros_context, **parameters)
+        created.append(harness)
+        return harness
+
+    yield make
+    for harness in created:
+        harness.close()
+
+
+LOCKSTEP = {"clock_mode": "lockstep", "republish_period": 0.02}
+
+
+def test_lockstep_does_not_advance_without_the_answering_command(make_harness: Any) -> None:
+    h = make_harness(**LOCKSTEP)
+    h.wait_matched()
+    h.spin_until(lambda: len(h.measurements) >= 4)
+    assert h.sim.steps == 0
+    assert set(h.stamps()) == {0}, "an unanswered measurement must be re-published with the same stamp"
+    assert h.sim.republished >= 3
+
+    h.send([0.5, -0.5], 0)
+    assert h.spin_until(lambda: h.sim.steps == 1)
+    assert h.spin_until(lambda: PERIOD_NS in h.stamps())
+    h.spin_for(0.1)
+    assert h.sim.steps == 1, "one answer must give exactly one step"
+    assert max(h.stamps()) == PERIOD_NS
+
+
+def test_lockstep_ignores_commands_with_other_stamps(make_harness: Any) -> None:
+    h = make_harness(**LOCKSTEP)
+    h.wait_matched()
+    h.send([1.0, 1.0], 5 * PERIOD_NS)  # a stamp never published
+    h.send([1.0, 1.0], 1)  # off by one nanosecond
+    assert h.spin_until(lambda: h.sim.dropped_unknown_stamp == 2)
+    assert h.sim.steps == 0
+
+    h.send([0.25, 0.0], 0)
+    assert h.spin_until(lambda: h.sim.steps == 1)
+    h.send([9.0, 9.0], 0)  # a late re-transmission of the answer to stamp 0
+    assert h.spin_until(lambda: h.sim.ignored_late == 1)
+    assert h.sim.steps == 1
+    np.testing.assert_array_equal(h.sim.plant.internals["commanded_torque"], [0.25, 0.0])
+
+
+def _bad_commands() -> list[tuple[str, Any]]:
+    from smm_msgs_py.conversions import torque_to_msg
+
+    nan = torque_to_msg(np.array([1.0, 2.0]), 0)
+    nan.data = array.array("d", [math.nan, 2.0])
+    inf = torque_to_msg(np.array([1.0, 2.0]), 0)
+    inf.data = array.array("d", [1.0, math.inf])
+    too_long = torque_to_msg(np.array([1.0, 2.0]), 0)
+    too_long.data = array.array("d", [1.0, 2.0, 3.0])
+    swapped_labels = torque_to_msg(np.array([1.0, 2.0]), 0)
+    swapped_labels.layout.dim[0].label = "joint:beta,alpha"
+    no_stamp = torque_to_msg(np.array([1.0, 2.0]), 0)
+    no_stamp.layout.dim = no_stamp.layout.dim[:1]
+    offset = torque_to_msg(np.array([1.0, 2.0]), 0)
+    offset.layout.data_offset = 1
+    return [
+        ("nan", nan),
+        ("inf", inf),
+        ("too_long", too_long),
+        ("swapped_labels", swapped_labels),
+        ("no_stamp", no_stamp),
+        ("data_offset", offset),
+    ]
+
+
+@pytest.mark.parametrize("clock_mode", ["lockstep", "realtime"])
+def test_bad_commands_are_dropped_and_never_applied(make_harness: Any, clock_mode: str) -> None:
+    h = make_harness(clock_mode=clock_mode, republish_period=0.02, command_timeout=10.0)
+    h.wait_matched()
+    bad = _bad_commands()
+    for _, msg in bad:
+        h.send_raw(msg)
+    assert h.spin_until(lambda: h.sim.dropped_invalid == len(bad)), h.sim.statistics()
+    h.spin_for(0.05)
+    internals = h.sim.plant.internals
+    np.testing.assert_array_equal(internals["commanded_torque"], [0.0, 0.0])
+    truth = h.sim.plant.ground_truth
+    # At rest at q = 0 with zero torque the plant stays exactly at the unstable equilibrium.
+    np.testing.assert_array_equal(truth.position, [0.0, 0.0])
+    np.testing.assert_array_equal(truth.velocity, [0.0, 0.0])
+    if clock_mode == "lockstep":
+        assert h.sim.steps == 0
+
+
+def test_realtime_applies_zero_torque_once_the_command_is_stale(make_harness: Any, tmp_path: Path) -> None:
+    record = tmp_path / "rt.npz"
+    h = make_harness(clock_mode="realtime", command_timeout=0.02, record_file=str(record))
+    h.wait_matched()
+    h.spin_until(lambda: len(h.measurements) >= 3)
+    h.send([0.7, -0.3], h.stamps()[-1])
+    assert h.spin_until(lambda: h.sim.latency.count == 1)
+    applied_steps = h.sim.steps
+    h.spin_until(lambda: h.sim.steps >= applied_steps + 150, timeout_s=20.0)
+    h.sim.write_outputs()
+    commands = np.load(record)["command"]
+    nonzero = np.flatnonzero(np.any(commands != 0.0, axis=1))
+    assert nonzero.size >= 1, "the command was never applied"
+    np.testing.assert_array_equal(commands[nonzero], np.tile([0.7, -0.3], (nonzero.size, 1)))
+    assert np.all(commands[nonzero[-1] + 1 :] == 0.0)
+    assert commands.shape[0] - nonzero[-1] > 50, "zero torque must follow the timeout"
+    assert h.sim.stale_ticks > 50
+    np.testing.assert_array_equal(h.sim.plant.internals["commanded_torque"], [0.0, 0.0])
+
+
+def test_lockstep_run_ends_after_max_steps_with_a_complete_record(make_harness: Any, tmp_path: Path) -> None:
+    from smm_msgs_py.conversions import joint_state_to_sample
+
+    record = tmp_path / "run.npz"
+    stats = tmp_path / "stats.json"
+    h = make_harness(**LOCKSTEP, max_steps=20, record_file=str(record), stats_file=str(stats))
+    h.wait_matched()
+    answered: set[int] = set()
+
+    def answer_pending() -> bool:
+        for msg in h.measurements:
+            sample = joint_state_to_sample(msg, require_effort=True)
+            if sample.stamp_ns not in answered:
+                answered.add(sample.stamp_ns)
+                h.send(-2.0 * sample.position + 0.1, sample.stamp_ns)
+        return h.sim.finished
+
+    assert h.spin_until(answer_pending, timeout_s=20.0)
+    assert h.sim.done.done() and h.sim.done.result() == 20
+    data = np.load(record)
+    np.testing.assert_array_equal(data["stamp_ns"], np.arange(21) * PERIOD_NS)
+    np.testing.assert_array_equal(data["command_stamp_ns"], np.arange(20) * PERIOD_NS)
+    assert data["position"].shape == (21, 2) and data["command"].shape == (20, 2)
+    assert '"steps": 20' in stats.read_text()
+
+
+def _lockstep_record(make_harness: Any, path: Path, seed: int) -> dict[str, np.ndarray]:
+    from smm_msgs_py.conversions import joint_state_to_sample
+
+    h = make_harness(**LOCKSTEP, max_steps=30, seed=seed, noise_std=[0.01, 0.01], record_file=str(path))
+    answered: set[int] = set()
+
+    def answer_pending() -> bool:
+        for msg in h.measurements:
+            sample = joint_state_to_sample(msg, require_effort=True)
+            if sample.stamp_ns not in answered:
+                answered.add(sample.stamp_ns)
+                h.send(np.array([1.0, -1.0]) - 5.0 * sample.position, sample.stamp_ns)
+        return h.sim.finished
+
+    assert h.spin_until(answer_pending, timeout_s=20.0)
+    h.close()
+    return dict(np.load(path))
+
+
+def test_lockstep_is_deterministic_for_a_seed(make_harness: Any, tmp_path: Path) -> None:
+    first = _lockstep_record(make_harness, tmp_path / "a.npz", seed=3)
+    second = _lockstep_record(make_harness, tmp_path / "b.npz", seed=3)
+    other = _lockstep_record(make_harness, tmp_path / "c.npz", seed=4)
+    for key in first:
+        np.testing.assert_array_equal(first[key], second[key], err_msg=key)
+    assert not np.array_equal(first["measured_position"], other["measured_position"])
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "reason"),
+    [
+        ("clock_mode", "fast", "clock_mode"),
+        ("command_timeout", -1.0, "command_timeout"),
+        ("republish_period", 0.0, "republish_period"),
+        ("max_steps", -3, "max_steps"),
+        ("noise_std", [-0.1, 0.0], "noise_std"),
+        ("noise_std", [0.1], "noise_std"),
+        ("disturbance", "wind", "disturbance"),
+        ("joint_limits", [1.6, 1.0], "joint_limits"),
+        ("initial_position", [1.4, 0.0], "initial_position"),
+        ("torque_limit", [-1.0, 1.0], "torque_limit"),
+        ("substeps", 0, "substeps"),
+        ("params.I55", -0.1, "I55"),
+    ],
+)
+def test_invalid_start_up_parameters_are_rejected_with_reason(
+    ros_context: Any, name: str, value: Any, reason: str
+) -> None:
+    from rclpy.parameter import Parameter
+    from smm_sim.sim_node import SimNode
+
+    with pytest.raises(ValueError, match=reason):
+        SimNode(context=ros_context, parameter_overrides=[Parameter(name, value=value)])
+
+
+def test_live_parameter_changes_are_validated(make_harness: Any) -> None:
+    from rclpy.parameter import Parameter
+
+    h = make_harness(**LOCKSTEP)
+    bad = h.sim.set_parameters([Parameter("command_timeout", value=-0.5)])[0]
+    assert not bad.successful and "command_timeout" in bad.reason
+    assert h.sim.config.command_timeout == 0.05
+    mode = h.sim.set_parameters([Parameter("clock_mode", value="realtime")])[0]
+    assert not mode.successful and "clock_mode" in mode.reason
+    plant = h.sim.set_parameters([Parameter("noise_std", value=[0.5, 0.5])])[0]
+    assert not plant.successful
+    assert h.sim.plant_parameters.noise_std == (0.0, 0.0)
+    good = h.sim.set_parameters([Parameter("republish_period", value=0.5)])[0]
+    assert good.successful, good.reason
+    assert h.sim.config.republish_period == 0.5
+
+
+def test_console_script_exits_2_on_an_invalid_parameter(ros_domain_id: int) -> None:
+    from smm_controller.graph import NodeSpec
+    from smm_controller.launcher import resolve_executable
+
+    spec = NodeSpec("smm_sim", "smm_sim_node", "smm_sim_node", "smm_sim.sim_node:SimNode", parameters=(("substeps", 0),))
+    result = subprocess.run(
+        spec.command_line(resolve_executable(spec)), capture_output=True, text=True, timeout=60, check=False
+    )
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "substeps" in result.stderr
