@@ -1,4 +1,5 @@
 """Packaging of smm_analysis (ament_python: colcon build and pip install -e both work)."""
+
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -24,6 +25,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "smm-reproduce = smm_analysis.cli:main",
         ],
     },
 )

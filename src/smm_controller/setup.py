@@ -25,6 +25,10 @@ setup(
     entry_points={
         "console_scripts": [
             "smm-launch = smm_controller.launcher:main",
+            "reference_node = smm_controller.reference_node:main",
+            "td_node = smm_controller.td_node:main",
+            "fleso_node = smm_controller.fleso_node:main",
+            "controller_node = smm_controller.controller_node:main",
         ],
     },
 )

@@ -9,8 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
-from smm_dynamics import SMMParameters, end_effector_position
-
 from smm_analysis.errors import MetricsInputError
 from smm_analysis.metrics import (
     control_energy,
@@ -21,6 +19,8 @@ from smm_analysis.metrics import (
     rms_error,
     step_metrics,
 )
+
+from smm_dynamics import SMMParameters, end_effector_position
 
 PERIOD_NS = 100_000  # 0.1 ms: fine enough that interpolation errors stay far below the tolerances
 
@@ -146,7 +146,8 @@ def test_end_effector_errors_zero_when_on_reference_and_match_direct_kinematics(
     errors = end_effector_errors(t_ns, reference, offset, params)
     expected = np.array(
         [
-            (np.asarray(end_effector_position(a, params)) - np.asarray(end_effector_position(b, params))) * 1e3
+            (np.asarray(end_effector_position(a, params)) - np.asarray(end_effector_position(b, params)))
+            * 1e3
             for a, b in zip(reference, offset, strict=True)
         ]
     )

@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
-
 from smm_controller.baselines import (
     FPDConfig,
     FPDController,
@@ -86,7 +85,9 @@ class TestPID:
 
 class TestNPD:
     @settings(deadline=None)
-    @given(x=st.floats(-2.0, 2.0), k=st.floats(0.1, 50.0), delta=st.floats(0.01, 0.5), rho=st.floats(0.3, 2.0))
+    @given(
+        x=st.floats(-2.0, 2.0), k=st.floats(0.1, 50.0), delta=st.floats(0.01, 0.5), rho=st.floats(0.3, 2.0)
+    )
     def test_gain_is_piecewise_eq_39(self, x: float, k: float, delta: float, rho: float) -> None:
         expected = k * abs(x) ** (rho - 1.0) if abs(x) > delta else k * delta ** (rho - 1.0)
         assert npd_gain(x, k, delta, rho) == pytest.approx(expected, rel=1e-14)

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-from smm_dynamics import SMMParameters
-
 from smm_controller.baselines import FPDController, NPDController, PIDController
 from smm_controller.chain import CONTROLLER_NAMES, ControlChain, make_chain, make_controller
 from smm_controller.fleso import FLESO
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
 from smm_controller.reference import SineReference
 from smm_controller.td import TrackingDifferentiator
+
+from smm_dynamics import SMMParameters
 
 DT = 0.001
 PARAMS = SMMParameters()
@@ -49,7 +49,8 @@ def test_without_observer_the_disturbance_estimate_is_zero() -> None:
 
 
 @pytest.mark.parametrize(
-    ("name", "kind"), [("fpdeso", FPDESOController), ("fpd", FPDController), ("pid", PIDController), ("npd", NPDController)]
+    ("name", "kind"),
+    [("fpdeso", FPDESOController), ("fpd", FPDController), ("pid", PIDController), ("npd", NPDController)],
 )
 def test_make_controller(name: str, kind: type) -> None:
     assert isinstance(make_controller(name, PARAMS), kind)

@@ -6,7 +6,6 @@ import math
 from typing import Any
 
 import pytest
-
 from smm_controller.baselines import FPDConfig, NPDConfig, PIDConfig
 from smm_controller.fleso import FLESOConfig
 from smm_controller.fpdeso import FPDESOConfig
@@ -71,7 +70,9 @@ CASES: list[tuple[type[Any], str, object]] = [
 ]
 
 
-@pytest.mark.parametrize(("config", "field", "value"), CASES, ids=[f"{c.__name__}-{f}-{v!r}" for c, f, v in CASES])
+@pytest.mark.parametrize(
+    ("config", "field", "value"), CASES, ids=[f"{c.__name__}-{f}-{v!r}" for c, f, v in CASES]
+)
 def test_rejection(config: type[Any], field: str, value: object) -> None:
     with pytest.raises(ValueError, match=field):
         config(**{field: value})

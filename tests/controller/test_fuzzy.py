@@ -10,7 +10,6 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
-
 from smm_controller.fuzzy import (
     ZERO_AREA_FALLBACK,
     FuzzyVariable,
@@ -47,8 +46,10 @@ def brute_force_outputs(system: MamdaniSystem, rules: Rules, x: tuple[float, ...
     for o, output in enumerate(system.outputs):
         aggregated = np.zeros_like(grid)
         for antecedent in itertools.product(*(range(len(v.labels)) for v in system.inputs)):
-            firing = min(v.mfs[i].degree(value) for v, i, value in zip(system.inputs, antecedent, x))
-            labels = tuple(v.labels[i] for v, i in zip(system.inputs, antecedent))
+            firing = min(
+                v.mfs[i].degree(value) for v, i, value in zip(system.inputs, antecedent, x, strict=True)
+            )
+            labels = tuple(v.labels[i] for v, i in zip(system.inputs, antecedent, strict=True))
             consequent = rules.get(labels)
             if consequent is None:
                 continue
@@ -58,7 +59,7 @@ def brute_force_outputs(system: MamdaniSystem, rules: Rules, x: tuple[float, ...
         moment_area = sum(
             # exact integral of x * (linear interpolation) on each segment
             (x1 - x0) * (x0 * (m0 + m1) / 2 + (x1 - x0) * (m0 / 6 + m1 / 3))
-            for x0, x1, m0, m1 in zip(grid[:-1], grid[1:], aggregated[:-1], aggregated[1:])
+            for x0, x1, m0, m1 in zip(grid[:-1], grid[1:], aggregated[:-1], aggregated[1:], strict=True)
         )
         results.append(moment_area / area if area > 0 else ZERO_AREA_FALLBACK)
     return results
@@ -91,7 +92,7 @@ class TestMembershipFunctions:
 
     @pytest.mark.parametrize(("a", "b", "c"), [(0, 0, 1), (0, 1, 1), (1, 0, 2), (0, math.nan, 1)])
     def test_triangle_rejects_degenerate(self, a: float, b: float, c: float) -> None:
-        with pytest.raises(ValueError, match="a < b < c|finite"):
+        with pytest.raises(ValueError, match=r"a < b < c|finite"):
             TriangularMF(a, b, c)
 
     @pytest.mark.parametrize("sigma", [0.0, -1.0, math.inf])
@@ -105,7 +106,7 @@ class TestSpecMembershipShapes:
         variable = pd_input_variable()
         centres = [mf.b for mf in variable.mfs]  # type: ignore[attr-defined]
         assert_allclose(centres, np.linspace(-1, 1, 7), atol=1e-15)
-        for left, right in zip(variable.mfs[:-1], variable.mfs[1:]):
+        for left, right in zip(variable.mfs[:-1], variable.mfs[1:], strict=True):
             midpoint = 0.5 * (left.b + right.b)  # type: ignore[attr-defined]
             assert left.degree(midpoint) == pytest.approx(0.5)
             assert right.degree(midpoint) == pytest.approx(0.5)
@@ -115,9 +116,11 @@ class TestSpecMembershipShapes:
     def test_input_triangles_sum_to_one(self, x: float) -> None:
         assert sum(pd_input_variable().memberships(x)) == pytest.approx(1.0, abs=1e-12)
 
-    @pytest.mark.parametrize("variable", [pd_output_variable(), fleso_input_variable(), fleso_output_variable()])
+    @pytest.mark.parametrize(
+        "variable", [pd_output_variable(), fleso_input_variable(), fleso_output_variable()]
+    )
     def test_gaussians_cross_at_half_midway(self, variable: FuzzyVariable) -> None:
-        for left, right in zip(variable.mfs[:-1], variable.mfs[1:]):
+        for left, right in zip(variable.mfs[:-1], variable.mfs[1:], strict=True):
             midpoint = 0.5 * (left.mean + right.mean)  # type: ignore[attr-defined]
             assert left.degree(midpoint) == pytest.approx(0.5, abs=1e-12)
             assert right.degree(midpoint) == pytest.approx(0.5, abs=1e-12)
@@ -172,7 +175,9 @@ class TestCentroid:
         # skfuzzy divides by max(area, machine eps), so it deviates for areas below eps.
         assume(membership.max() > 1e-6)
         grid = np.linspace(-1.0, 1.0, membership.size)
-        assert centroid(grid, membership) == pytest.approx(skfuzzy.defuzz(grid, membership, "centroid"), abs=1e-12)
+        assert centroid(grid, membership) == pytest.approx(
+            skfuzzy.defuzz(grid, membership, "centroid"), abs=1e-12
+        )
 
     def test_zero_area_falls_back_to_zero(self) -> None:
         assert centroid(np.linspace(0.0, 1.0, 5), np.zeros(5)) == ZERO_AREA_FALLBACK == 0.0
@@ -193,7 +198,9 @@ class TestMamdani:
     @settings(max_examples=60, deadline=None)
     @given(e=unit, ce=unit)
     def test_pd_system_matches_brute_force(self, e: float, ce: float) -> None:
-        assert_allclose(PD_SYSTEM.evaluate((e, ce)), brute_force_outputs(PD_SYSTEM, PD_RULES, (e, ce)), atol=1e-12)
+        assert_allclose(
+            PD_SYSTEM.evaluate((e, ce)), brute_force_outputs(PD_SYSTEM, PD_RULES, (e, ce)), atol=1e-12
+        )
 
     @settings(max_examples=30, deadline=None)
     @given(s=unit)
@@ -221,11 +228,16 @@ class TestMamdani:
         n = PD_SYSTEM.n_labels
         for o, output in enumerate(PD_SYSTEM.outputs):
             expected = np.max(
-                [np.minimum(strengths[o * n + i], mf.sample(PD_SYSTEM.grid)) for i, mf in enumerate(output.mfs)],
+                [
+                    np.minimum(strengths[o * n + i], mf.sample(PD_SYSTEM.grid))
+                    for i, mf in enumerate(output.mfs)
+                ],
                 axis=0,
             )
             assert_allclose(aggregated[o], expected, atol=0)
-            assert PD_SYSTEM.evaluate((0.51, 0.2))[o] == pytest.approx(centroid(PD_SYSTEM.grid, expected), abs=1e-14)
+            assert PD_SYSTEM.evaluate((0.51, 0.2))[o] == pytest.approx(
+                centroid(PD_SYSTEM.grid, expected), abs=1e-14
+            )
 
     def test_no_rule_fires_gives_fallback(self) -> None:
         variable = pd_input_variable()

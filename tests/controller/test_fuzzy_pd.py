@@ -7,7 +7,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
-
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, PAPER_FPDESO_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
 from smm_controller.rules import TABLE_1, TABLE_7, pd_gain_system
 

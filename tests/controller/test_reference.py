@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-
 from smm_controller.reference import RampHoldReference, SineReference, StepReference, make_reference
 
 
@@ -27,7 +26,9 @@ def test_sine_is_eq_41_with_analytic_derivatives() -> None:
 
 @pytest.mark.parametrize("profile", ["linear", "quintic"])
 def test_ramp_hold(profile: str) -> None:
-    reference = RampHoldReference(target=(0.5, -0.2), ramp_time=0.4, start_time=0.1, initial=(0.1, 0.0), profile=profile)
+    reference = RampHoldReference(
+        target=(0.5, -0.2), ramp_time=0.4, start_time=0.1, initial=(0.1, 0.0), profile=profile
+    )
     assert_allclose(reference(0.0)[0], [0.1, 0.0])
     assert_allclose(reference(0.3)[0], [0.3, -0.1], atol=1e-12)
     assert_allclose(reference(1.0), [[0.5, -0.2], [0.0, 0.0], [0.0, 0.0]], atol=1e-12)

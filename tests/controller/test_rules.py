@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pytest
-
 from smm_controller.rules import (
     FLESO_BANDWIDTH_RULES,
     PD_LABELS,
@@ -91,8 +90,14 @@ def test_fleso_rules_as_in_the_paper() -> None:
     ("text", "message"),
     [
         ("ce\\e NB NM\nNB PB\\PB PB\\PB", "header"),
-        ("ce\\e " + " ".join(PD_LABELS) + "\n" + "\n".join(f"{r} " + "PB\\PB " * 6 for r in PD_LABELS), "cells"),
-        ("ce\\e " + " ".join(PD_LABELS) + "\n" + "\n".join(f"{r} " + "PB\\XX " * 7 for r in PD_LABELS), "unknown"),
+        (
+            "ce\\e " + " ".join(PD_LABELS) + "\n" + "\n".join(f"{r} " + "PB\\PB " * 6 for r in PD_LABELS),
+            "cells",
+        ),
+        (
+            "ce\\e " + " ".join(PD_LABELS) + "\n" + "\n".join(f"{r} " + "PB\\XX " * 7 for r in PD_LABELS),
+            "unknown",
+        ),
     ],
 )
 def test_parser_rejects_malformed_tables(text: str, message: str) -> None:

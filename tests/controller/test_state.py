@@ -8,8 +8,6 @@ from typing import Any
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-from smm_dynamics import SMMParameters
-
 from smm_controller.baselines import FPDController, NPDController, PIDController
 from smm_controller.chain import ControlChain, make_chain
 from smm_controller.fleso import FLESO
@@ -17,6 +15,8 @@ from smm_controller.fpdeso import FPDESOController
 from smm_controller.fuzzy_pd import FuzzyPDGainSchedule
 from smm_controller.reference import SineReference
 from smm_controller.td import TrackingDifferentiator
+
+from smm_dynamics import SMMParameters
 
 DT = 0.001
 PARAMS = SMMParameters()
@@ -61,7 +61,9 @@ CASES: list[tuple[str, Callable[[], Any], Callable[[Any, int], np.ndarray]]] = [
 
 
 @pytest.mark.parametrize(("name", "factory", "run"), CASES, ids=[c[0] for c in CASES])
-def test_reset_restores_initial_behaviour(name: str, factory: Callable[[], Any], run: Callable[[Any, int], np.ndarray]) -> None:
+def test_reset_restores_initial_behaviour(
+    name: str, factory: Callable[[], Any], run: Callable[[Any, int], np.ndarray]
+) -> None:
     algorithm = factory()
     first = np.array([run(algorithm, k) for k in range(60)])
     first_internals = {key: value.copy() for key, value in algorithm.internals.items()}
@@ -76,7 +78,9 @@ def test_reset_restores_initial_behaviour(name: str, factory: Callable[[], Any],
 
 
 @pytest.mark.parametrize(("name", "factory", "run"), CASES, ids=[c[0] for c in CASES])
-def test_internals_are_read_only_copies(name: str, factory: Callable[[], Any], run: Callable[[Any, int], np.ndarray]) -> None:
+def test_internals_are_read_only_copies(
+    name: str, factory: Callable[[], Any], run: Callable[[Any, int], np.ndarray]
+) -> None:
     algorithm = factory()
     run(algorithm, 0)
     run(algorithm, 1)

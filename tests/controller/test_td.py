@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
-
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig, fhan, fst
 
 errors = st.floats(-2.0, 2.0)

@@ -218,7 +218,7 @@ def test_disturbance_acts_as_negative_torque() -> None:
 
 def test_rigid_body_terms_match_the_array_functions() -> None:
     q, qd = np.array([0.4, -0.7]), np.array([1.3, -0.6])
-    m11, m12, m22, c1, c2, g1, g2 = rigid_body_terms(*q, *qd, DISTINCT)
+    m11, m12, m22, c1, c2, g1, g2 = rigid_body_terms(0.4, -0.7, 1.3, -0.6, DISTINCT)
     mass = mass_matrix(q, DISTINCT)
     np.testing.assert_allclose([m11, m12, m22], [mass[0, 0], mass[0, 1], mass[1, 1]], rtol=1e-15)
     np.testing.assert_allclose([c1, c2], coriolis_vector(q, qd, DISTINCT), rtol=1e-15)

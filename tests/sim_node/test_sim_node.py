@@ -24,11 +24,12 @@ class Harness:
         import rclpy
         from rclpy.parameter import Parameter
         from sensor_msgs.msg import JointState
-        from smm_msgs_py import topics
         from smm_msgs_py.node_support import make_executor
         from smm_msgs_py.qos import qos_for_topic
         from smm_sim.sim_node import SimNode
         from std_msgs.msg import Float64MultiArray
+
+        from smm_msgs_py import topics
 
         overrides = [Parameter(name, value=value) for name, value in parameters.items()]
         self.sim = SimNode(context=context, parameter_overrides=overrides)
@@ -57,7 +58,9 @@ class Harness:
         self.spin_until(lambda: False, seconds)
 
     def wait_matched(self) -> None:
-        assert self.spin_until(lambda: self.commands.get_subscription_count() >= 1 and len(self.measurements) >= 1)
+        assert self.spin_until(
+            lambda: self.commands.get_subscription_count() >= 1 and len(self.measurements) >= 1
+        )
 
     def send(self, tau: Any, stamp_ns: int) -> None:
         from smm_msgs_py.conversions import torque_to_msg
@@ -293,7 +296,9 @@ def test_console_script_exits_2_on_an_invalid_parameter(ros_domain_id: int) -> N
     from smm_controller.graph import NodeSpec
     from smm_controller.launcher import resolve_executable
 
-    spec = NodeSpec("smm_sim", "smm_sim_node", "smm_sim_node", "smm_sim.sim_node:SimNode", parameters=(("substeps", 0),))
+    spec = NodeSpec(
+        "smm_sim", "smm_sim_node", "smm_sim_node", "smm_sim.sim_node:SimNode", parameters=(("substeps", 0),)
+    )
     result = subprocess.run(
         spec.command_line(resolve_executable(spec)), capture_output=True, text=True, timeout=60, check=False
     )

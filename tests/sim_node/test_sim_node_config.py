@@ -9,10 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from smm_dynamics import SMMParameters
 from smm_msgs_py.parameters import config_fields, config_to_parameters
 from smm_sim.plant import PlantConfig
 from smm_sim.sim_node import LatencyStats, PlantParameters, SimNodeConfig
+
+from smm_dynamics import SMMParameters
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "src" / "smm_sim" / "config"
 
@@ -32,7 +33,9 @@ def test_zero_encodings_mean_off_and_values_pass_through() -> None:
     off = PlantParameters()
     assert off.plant_config.torque_limit == (math.inf, math.inf)
     assert off.plant_config.valve_time_constants is None
-    on = PlantParameters(torque_limit=(3.0, 2.0), valve_time_constants=(0.02, 0.01), inertia_scale=1.1, seed=7)
+    on = PlantParameters(
+        torque_limit=(3.0, 2.0), valve_time_constants=(0.02, 0.01), inertia_scale=1.1, seed=7
+    )
     assert on.plant_config.torque_limit == (3.0, 2.0)
     assert on.plant_config.valve_time_constants == (0.02, 0.01)
     assert on.plant_config.true_params == SMMParameters().with_inertia_scale(1.1)

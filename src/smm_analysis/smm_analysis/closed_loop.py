@@ -20,6 +20,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from smm_sim.plant import PlantConfig, SimulatedPlant
+
+from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError, UnknownControllerError
+from smm_analysis.scenarios import Scenario, get_scenario
 from smm_controller import (
     CONTROLLER_NAMES,
     FLESO,
@@ -31,10 +35,6 @@ from smm_controller import (
     make_controller,
 )
 from smm_dynamics import SMMParameters
-from smm_sim.plant import PlantConfig, SimulatedPlant
-
-from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError, UnknownControllerError
-from smm_analysis.scenarios import Scenario, get_scenario
 
 __all__ = [
     "DEFAULT_CONTROL_PERIOD",
@@ -114,7 +114,7 @@ class Trajectory:
 
     @property
     def tracking_error(self) -> FloatArray:
-        """e = q_d - q with the true position (rad), shape (N + 1, 2)."""
+        """E = q_d - q with the true position (rad), shape (N + 1, 2)."""
         return self.reference[:, 0, :] - self.position
 
 
@@ -237,7 +237,9 @@ def run_closed_loop(
     config = (
         plant_config
         if plant_config is not None
-        else scenario_plant_config(spec, seed=seed, control_period=control_period, substeps=substeps, params=nominal)
+        else scenario_plant_config(
+            spec, seed=seed, control_period=control_period, substeps=substeps, params=nominal
+        )
     )
     plant = SimulatedPlant(config)
     chain = build_chain(

@@ -14,7 +14,7 @@ class AnalysisError(ValueError):
 
 
 class MetricsInputError(AnalysisError):
-    """Arrays given to a metric are malformed: wrong shape, mismatched length, NaN/Inf, time not increasing."""
+    """Arrays given to a metric are malformed: wrong shape or length, NaN/Inf, time not increasing."""
 
 
 class UnknownScenarioError(AnalysisError):

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from smm_dynamics import SMMParameters, end_effector_position
 
 from smm_analysis.errors import MetricsInputError
+from smm_dynamics import SMMParameters, end_effector_position
 
 __all__ = [
     "CARTESIAN_AXES",
@@ -123,7 +123,8 @@ def validated_time(t_ns: ArrayLike, *, name: str = "t_ns") -> IntArray:
     if np.any(steps <= 0):
         bad = int(np.argmax(steps <= 0))
         raise MetricsInputError(
-            f"{name} must be strictly increasing, got {int(stamps[bad])} then {int(stamps[bad + 1])} at index {bad}"
+            f"{name} must be strictly increasing, got {int(stamps[bad])} then {int(stamps[bad + 1])} "
+            f"at index {bad}"
         )
     return stamps
 
@@ -158,7 +159,8 @@ def _integral(t_s: FloatArray, values: FloatArray) -> float:
 
 def _seconds(stamps: IntArray) -> FloatArray:
     """Seconds relative to the first stamp, exact in integer arithmetic before the conversion."""
-    return (stamps - stamps[0]).astype(np.float64) / _NS_PER_S
+    seconds: FloatArray = (stamps - stamps[0]).astype(np.float64) / _NS_PER_S
+    return seconds
 
 
 def max_abs_error(error: ArrayLike) -> float:

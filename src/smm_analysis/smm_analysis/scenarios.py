@@ -59,7 +59,9 @@ class Scenario:
         if len(self.amplitude) != 2 or not all(math.isfinite(value) for value in self.amplitude):
             raise ValueError(f"amplitude must be 2 finite floats (alpha, beta), got {self.amplitude!r}")
         if not math.isfinite(self.angular_frequency) or self.angular_frequency <= 0.0:
-            raise ValueError(f"angular_frequency must be a finite number > 0 rad/s, got {self.angular_frequency!r}")
+            raise ValueError(
+                f"angular_frequency must be a finite number > 0 rad/s, got {self.angular_frequency!r}"
+            )
         if len(self.noise_std) != 2 or not all(math.isfinite(v) and v >= 0.0 for v in self.noise_std):
             raise ValueError(f"noise_std must be 2 finite floats >= 0 rad, got {self.noise_std!r}")
         if self.disturbance not in DISTURBANCE_MODELS:

@@ -15,14 +15,21 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from smm_controller import TrackingDifferentiatorConfig
-
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD, run_closed_loop
 from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError
 from smm_analysis.metrics import rms_error
 from smm_analysis.scenarios import SCENARIOS, Scenario
+from smm_controller import TrackingDifferentiatorConfig
 
-__all__ = ["DEFAULT_FILTER_FACTORS", "DEFAULT_SPEEDS", "TDSweepPoint", "best_point", "format_table", "main", "sweep_td"]
+__all__ = [
+    "DEFAULT_FILTER_FACTORS",
+    "DEFAULT_SPEEDS",
+    "TDSweepPoint",
+    "best_point",
+    "format_table",
+    "main",
+    "sweep_td",
+]
 
 DEFAULT_SPEEDS: tuple[float, ...] = (1.0e3, 1.0e4, 1.0e5, 1.0e6)
 """Speed factors sigma of the default grid (rad/s^2)."""
@@ -146,7 +153,9 @@ def format_table(points: Sequence[TDSweepPoint]) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``python -m smm_analysis.tune_td``; returns the exit code."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--speeds", type=float, nargs="+", default=list(DEFAULT_SPEEDS), help="sigma values (rad/s^2)")
+    parser.add_argument(
+        "--speeds", type=float, nargs="+", default=list(DEFAULT_SPEEDS), help="sigma values (rad/s^2)"
+    )
     parser.add_argument(
         "--filter-factors", type=float, nargs="+", default=list(DEFAULT_FILTER_FACTORS), help="h values (s)"
     )
@@ -170,8 +179,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     print("case2 FPDESO RMS tracking error alpha / beta (mrad):")
     print(format_table(points))
     best = best_point(points)
-    print(f"\nbest: sigma = {best.speed:g} rad/s^2, h = {best.filter_factor:g} s "
-          f"(RMS {1e3 * best.rms_alpha:.3f} / {1e3 * best.rms_beta:.3f} mrad)")
+    print(
+        f"\nbest: sigma = {best.speed:g} rad/s^2, h = {best.filter_factor:g} s "
+        f"(RMS {1e3 * best.rms_alpha:.3f} / {1e3 * best.rms_beta:.3f} mrad)"
+    )
     return 0
 
 

@@ -1,11 +1,12 @@
-"""Start the SMM control graph on a full ROS 2 Jazzy install (``ros2 launch smm_controller bringup.launch.py``).
+"""Start the SMM control graph on a ROS 2 Jazzy install: ``ros2 launch smm_controller bringup.launch.py``.
 
 The node list comes from :func:`smm_controller.graph.build_graph`, the same description ``smm-launch`` uses,
 so the two cannot drift apart. Arguments:
 
 * ``plant:=sim|hw`` (hw: smm_hw_bridge, refused until that node exists),
 * ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``, ``scenario:=step|case1|case2|none``,
-* ``duration:=<s>`` (empty: the scenario's in lockstep, endless in realtime), ``seed:=<int>`` (empty: configured),
+* ``duration:=<s>`` (empty: the scenario's in lockstep, endless in realtime),
+* ``seed:=<int>`` (empty: as configured),
 * ``params_file:=<path>`` (empty: none), applied after the scenario's file.
 
 Every node's exit ends the launch: the plant exits 0 when its run is complete, any other exit is a failure.
@@ -16,6 +17,7 @@ from __future__ import annotations
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction
 from launch.events import Shutdown
+from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from smm_controller.graph import (
     ALGORITHMS,
@@ -75,15 +77,16 @@ def _nodes(context, *_args, **_kwargs):  # type: ignore[no-untyped-def]
     return [node_action(spec) for spec in build_graph(options_from_launch_arguments(values))]
 
 
-def _configuration(name: str):  # type: ignore[no-untyped-def]
-    from launch.substitutions import LaunchConfiguration
-
+def _configuration(name: str) -> LaunchConfiguration:
     return LaunchConfiguration(name)
 
 
 def generate_launch_description() -> LaunchDescription:
     """The launch description: the arguments, then the graph built from them."""
     return LaunchDescription(
-        [DeclareLaunchArgument(name, default_value=default, description=text) for name, default, text in ARGUMENTS]
+        [
+            DeclareLaunchArgument(name, default_value=default, description=text)
+            for name, default, text in ARGUMENTS
+        ]
         + [OpaqueFunction(function=_nodes)]
     )

@@ -96,6 +96,7 @@ __all__ = [
     "StepReference",
     "TrackingDifferentiator",
     "TrackingDifferentiatorConfig",
+    "TriangularMF",
     "centroid",
     "centroid_weights",
     "fhan",

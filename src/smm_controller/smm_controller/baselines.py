@@ -69,20 +69,22 @@ class _TorqueController:
         """
         check_dt(dt)
         ref = as_reference(reference).tolist()
-        q0, q1 = as_joint_vector("q", q)
-        qd0, qd1 = as_joint_vector("q_dot", q_dot)
-        xi0, xi1 = as_joint_vector("disturbance_estimate", disturbance_estimate)
-        return np.array(self.step_floats(ref, q0, q1, qd0, qd1, xi0, xi1, dt))
+        return np.array(
+            self.step_floats(
+                ref,
+                as_joint_vector("q", q),
+                as_joint_vector("q_dot", q_dot),
+                as_joint_vector("disturbance_estimate", disturbance_estimate),
+                dt,
+            )
+        )
 
     def step_floats(
         self,
         reference: Sequence[Sequence[float]],
-        q0: float,
-        q1: float,
-        qd0: float,
-        qd1: float,
-        xi0: float,
-        xi1: float,
+        q: tuple[float, float],
+        q_dot: tuple[float, float],
+        disturbance_estimate: tuple[float, float],
         dt: float,
     ) -> tuple[float, float]:
         """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
@@ -144,17 +146,14 @@ class PIDController(_TorqueController):
     def step_floats(
         self,
         reference: Sequence[Sequence[float]],
-        q0: float,
-        q1: float,
-        qd0: float,
-        qd1: float,
-        xi0: float,
-        xi1: float,
+        q: tuple[float, float],
+        q_dot: tuple[float, float],
+        disturbance_estimate: tuple[float, float],
         dt: float,
     ) -> tuple[float, float]:
         """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
         config = self.config
-        errors = (reference[0][0] - q0, reference[0][1] - q1)
+        errors = (reference[0][0] - q[0], reference[0][1] - q[1])
         previous = self._previous_error if self._previous_error is not None else list(errors)
         taus = []
         proportional = []
@@ -222,11 +221,21 @@ class NPDConfig:
 
 
 def npd_gain(x: float, coefficient: float, threshold: float, exponent: float) -> float:
-    """NPD gain of eq. 39 (and eq. 40 read with |e'|): k |x|^(rho-1) above the threshold, else k delta^(rho-1)."""
+    """NPD gain of eq. 39, and of eq. 40 read with |e'|.
+
+    Args:
+        x: The error e (rad) or error rate e' (rad/s).
+        coefficient: k_Np or k_Nd.
+        threshold: delta_p or delta_d, > 0.
+        exponent: rho_p or rho_d, > 0.
+
+    Returns:
+        k |x|^(rho - 1) if |x| > delta, else k delta^(rho - 1).
+    """
     magnitude = abs(x)
     if magnitude > threshold:
-        return coefficient * magnitude ** (exponent - 1.0)
-    return coefficient * threshold ** (exponent - 1.0)
+        return coefficient * math.pow(magnitude, exponent - 1.0)
+    return coefficient * math.pow(threshold, exponent - 1.0)
 
 
 class NPDController(_TorqueController):
@@ -247,20 +256,17 @@ class NPDController(_TorqueController):
     def step_floats(
         self,
         reference: Sequence[Sequence[float]],
-        q0: float,
-        q1: float,
-        qd0: float,
-        qd1: float,
-        xi0: float,
-        xi1: float,
+        q: tuple[float, float],
+        q_dot: tuple[float, float],
+        disturbance_estimate: tuple[float, float],
         dt: float,
     ) -> tuple[float, float]:
         """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
         c = self.config
-        e0 = reference[0][0] - q0
-        e1 = reference[0][1] - q1
-        ed0 = reference[1][0] - qd0
-        ed1 = reference[1][1] - qd1
+        e0 = reference[0][0] - q[0]
+        e1 = reference[0][1] - q[1]
+        ed0 = reference[1][0] - q_dot[0]
+        ed1 = reference[1][1] - q_dot[1]
         kp0 = npd_gain(e0, c.k_np[0], c.delta_p[0], c.rho_p[0])
         kp1 = npd_gain(e1, c.k_np[1], c.delta_p[1], c.rho_p[1])
         kd0 = npd_gain(ed0, c.k_nd[0], c.delta_d[0], c.rho_d[0])
@@ -311,19 +317,16 @@ class FPDController(_TorqueController):
     def step_floats(
         self,
         reference: Sequence[Sequence[float]],
-        q0: float,
-        q1: float,
-        qd0: float,
-        qd1: float,
-        xi0: float,
-        xi1: float,
+        q: tuple[float, float],
+        q_dot: tuple[float, float],
+        disturbance_estimate: tuple[float, float],
         dt: float,
     ) -> tuple[float, float]:
         """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
-        e0 = reference[0][0] - q0
-        e1 = reference[0][1] - q1
-        ed0 = reference[1][0] - qd0
-        ed1 = reference[1][1] - qd1
+        e0 = reference[0][0] - q[0]
+        e1 = reference[0][1] - q[1]
+        ed0 = reference[1][0] - q_dot[0]
+        ed1 = reference[1][1] - q_dot[1]
         kp0, kp1, kd0, kd1 = self.schedule.step_floats(e0, e1, ed0, ed1)
         tau0 = kp0 * e0 + kd0 * ed0
         tau1 = kp1 * e1 + kd1 * ed1

@@ -19,13 +19,13 @@ from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics import SMMParameters
 
 from smm_controller._validation import FloatArray, as_joint_vector, as_reference, check_dt
 from smm_controller.baselines import FPDController, NPDController, PIDController
 from smm_controller.fleso import FLESO
 from smm_controller.fpdeso import FPDESOController
 from smm_controller.td import TrackingDifferentiator
+from smm_dynamics import SMMParameters
 
 __all__ = ["CONTROLLER_NAMES", "ControlChain", "JointController", "make_chain", "make_controller"]
 
@@ -50,15 +50,12 @@ class JointController(Protocol):
     def step_floats(
         self,
         reference: Sequence[Sequence[float]],
-        q0: float,
-        q1: float,
-        qd0: float,
-        qd1: float,
-        xi0: float,
-        xi1: float,
+        q: tuple[float, float],
+        q_dot: tuple[float, float],
+        disturbance_estimate: tuple[float, float],
         dt: float,
     ) -> tuple[float, float]:
-        """Same on floats."""
+        """Same on floats: reference as nested 3x2 lists, joint pairs as tuples."""
         ...
 
     def reset(self) -> None:
@@ -80,9 +77,7 @@ class ControlChain:
         controller: FPDESO or a baseline.
     """
 
-    def __init__(
-        self, td: TrackingDifferentiator, fleso: FLESO | None, controller: JointController
-    ) -> None:
+    def __init__(self, td: TrackingDifferentiator, fleso: FLESO | None, controller: JointController) -> None:
         self.td = td
         self.fleso = fleso
         self.controller = controller
@@ -112,28 +107,30 @@ class ControlChain:
             Torque command tau (N m), shape (2,).
         """
         check_dt(dt)
-        y0, y1 = as_joint_vector("y", y)
-        tau0, tau1 = as_joint_vector("tau_applied", tau_applied)
-        ref = as_reference(reference).tolist()
-        return np.array(self.step_floats(y0, y1, tau0, tau1, ref, dt))
+        return np.array(
+            self.step_floats(
+                as_joint_vector("y", y),
+                as_joint_vector("tau_applied", tau_applied),
+                as_reference(reference).tolist(),
+                dt,
+            )
+        )
 
     def step_floats(
         self,
-        y0: float,
-        y1: float,
-        tau0: float,
-        tau1: float,
+        y: tuple[float, float],
+        tau_applied: tuple[float, float],
         reference: Sequence[Sequence[float]],
         dt: float,
     ) -> tuple[float, float]:
         """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
-        q0, q1, qd0, qd1 = self.td.step_floats(y0, y1, dt)
+        q0, q1, qd0, qd1 = self.td.step_floats(y[0], y[1], dt)
         if self.fleso is not None:
-            xi0, xi1 = self.fleso.step_floats(q0, q1, tau0, tau1, dt)
+            disturbance = self.fleso.step_floats(q0, q1, tau_applied[0], tau_applied[1], dt)
         else:
-            xi0 = xi1 = 0.0
-        self._disturbance = (xi0, xi1)
-        return self.controller.step_floats(reference, q0, q1, qd0, qd1, xi0, xi1, dt)
+            disturbance = (0.0, 0.0)
+        self._disturbance = disturbance
+        return self.controller.step_floats(reference, (q0, q1), (qd0, qd1), disturbance, dt)
 
     @property
     def internals(self) -> Mapping[str, FloatArray]:

@@ -38,7 +38,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics import SMMParameters
 
 from smm_controller._validation import (
     FloatArray,
@@ -51,6 +50,7 @@ from smm_controller._validation import (
 from smm_controller.fuzzy import MamdaniBatch
 from smm_controller.model import NominalModel
 from smm_controller.rules import fleso_bandwidth_system
+from smm_dynamics import SMMParameters
 
 __all__ = ["DEFAULT_FLESO_W_MIN", "FLESO", "FLESOConfig", "observer_gains"]
 
@@ -114,7 +114,7 @@ class FLESO:
 
     def __init__(self, config: FLESOConfig | None, params: SMMParameters) -> None:
         self.config = config if config is not None else FLESOConfig()
-        self.model = NominalModel(params)
+        self.model = NominalModel.shared(params)
         system = fleso_bandwidth_system(self.config.grid_points)
         self._batch = MamdaniBatch([system, system])
         self.reset()
@@ -144,9 +144,7 @@ class FLESO:
         tau0, tau1 = as_joint_vector("tau_applied", tau_applied)
         return np.array(self.step_floats(y0, y1, tau0, tau1, dt))
 
-    def step_floats(
-        self, y0: float, y1: float, tau0: float, tau1: float, dt: float
-    ) -> tuple[float, float]:
+    def step_floats(self, y0: float, y1: float, tau0: float, tau1: float, dt: float) -> tuple[float, float]:
         """Same as :meth:`step` on floats: returns (xi~_alpha, xi~_beta) in N m."""
         x1 = self._x1
         x2 = self._x2

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics import SMMParameters
 
 from smm_controller._validation import (
     FloatArray,
@@ -31,6 +30,7 @@ from smm_controller._validation import (
 )
 from smm_controller.fuzzy_pd import PAPER_FPDESO_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
 from smm_controller.model import NominalModel
+from smm_dynamics import SMMParameters
 
 __all__ = ["FPDESOConfig", "FPDESOController", "robust_switch"]
 
@@ -74,7 +74,7 @@ class FPDESOController:
 
     def __init__(self, config: FPDESOConfig | None, params: SMMParameters) -> None:
         self.config = config if config is not None else FPDESOConfig()
-        self.model = NominalModel(params)
+        self.model = NominalModel.shared(params)
         self.schedule = FuzzyPDGainSchedule(self.config.fuzzy)
         self.reset()
 
@@ -105,24 +105,29 @@ class FPDESOController:
         """
         check_dt(dt)
         ref = as_reference(reference).tolist()
-        q0, q1 = as_joint_vector("q", q)
-        qd0, qd1 = as_joint_vector("q_dot", q_dot)
-        xi0, xi1 = as_joint_vector("disturbance_estimate", disturbance_estimate)
-        return np.array(self.step_floats(ref, q0, q1, qd0, qd1, xi0, xi1, dt))
+        return np.array(
+            self.step_floats(
+                ref,
+                as_joint_vector("q", q),
+                as_joint_vector("q_dot", q_dot),
+                as_joint_vector("disturbance_estimate", disturbance_estimate),
+                dt,
+            )
+        )
 
     def step_floats(
         self,
         reference: Sequence[Sequence[float]],
-        q0: float,
-        q1: float,
-        qd0: float,
-        qd1: float,
-        xi0: float,
-        xi1: float,
+        q: tuple[float, float],
+        q_dot: tuple[float, float],
+        disturbance_estimate: tuple[float, float],
         dt: float,
     ) -> tuple[float, float]:
         """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
         position, velocity, acceleration = reference
+        q0, q1 = q
+        qd0, qd1 = q_dot
+        xi0, xi1 = disturbance_estimate
         e0 = position[0] - q0
         e1 = position[1] - q1
         ed0 = velocity[0] - qd0
@@ -151,8 +156,11 @@ class FPDESOController:
 
     @property
     def internals(self) -> Mapping[str, FloatArray]:
-        """Read-only copies, shape (2,): kp, kd, u (rad/s^2), feedforward (tau_c1), feedback (M u),
-        disturbance (xi~), robust (v), tau; torques in N m, tau = feedforward + feedback +
-        disturbance - robust.
+        """Read-only copies, shape (2,), of the terms of the last step.
+
+        Keys: kp, kd, u (rad/s^2), feedforward (tau_c1), feedback (M u), disturbance (xi~),
+        robust (v), tau; torques in N m, tau = feedforward + feedback + disturbance - robust.
         """
-        return internals_view(("kp", "kd", "u", "feedforward", "feedback", "disturbance", "robust", "tau"), self._last)
+        return internals_view(
+            ("kp", "kd", "u", "feedforward", "feedback", "disturbance", "robust", "tau"), self._last
+        )

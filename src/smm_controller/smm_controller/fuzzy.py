@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from itertools import product
+from itertools import pairwise, product
 from typing import Protocol
 
 import numpy as np
@@ -118,9 +118,7 @@ class TriangularMF:
         for name in ("a", "b", "c"):
             _require_finite(name, getattr(self, name))
         if not self.a < self.b < self.c:
-            raise ValueError(
-                f"TriangularMF needs a < b < c, got a={self.a!r}, b={self.b!r}, c={self.c!r}"
-            )
+            raise ValueError(f"TriangularMF needs a < b < c, got a={self.a!r}, b={self.b!r}, c={self.c!r}")
 
     def degree(self, x: float) -> float:
         """Membership degree of one crisp value (same formula as :func:`triangular_mf`)."""
@@ -195,8 +193,7 @@ class FuzzyVariable:
                 return None
         # Between peaks k and k+1 only labels k (falling side) and k+1 (rising side) are non-zero.
         self._sides = [
-            (left.c, left.c - left.b, right.a, right.b - right.a)
-            for left, right in zip(triangles[:-1], triangles[1:])
+            (left.c, left.c - left.b, right.a, right.b - right.a) for left, right in pairwise(triangles)
         ]
         return triangles[0].b, triangles[-1].b, spacing
 
@@ -327,10 +324,12 @@ class MamdaniSystem:
                     f"rule {antecedent!r} -> {consequent!r} does not match {len(self.inputs)} "
                     f"inputs and {len(self.outputs)} outputs"
                 )
-            flat = self._flat_index([var.index(label) for var, label in zip(self.inputs, antecedent)])
+            flat = self._flat_index(
+                [var.index(label) for var, label in zip(self.inputs, antecedent, strict=True)]
+            )
             targets[flat] = tuple(
                 o * self.n_labels + var.index(label)
-                for o, (var, label) in enumerate(zip(self.outputs, consequent))
+                for o, (var, label) in enumerate(zip(self.outputs, consequent, strict=True))
             )
         self._targets = targets
         # Output MF samples, shape (n_labels, n_outputs, grid); missing labels are zero rows.
@@ -343,7 +342,7 @@ class MamdaniSystem:
 
     def _flat_index(self, indices: Sequence[int]) -> int:
         flat = 0
-        for radix, i in zip(self._radix, indices):
+        for radix, i in zip(self._radix, indices, strict=True):
             flat = flat * radix + i
         return flat
 
@@ -395,25 +394,21 @@ class MamdaniSystem:
                 for j, degree_j in second:
                     firing = degree_i if degree_i < degree_j else degree_j
                     for slot in targets[base + j]:
-                        if firing > out[slot]:
-                            out[slot] = firing
+                        out[slot] = max(out[slot], firing)
             return
         if len(self.inputs) == 1:
             for i, firing in self.inputs[0].active(x[0]):
                 for slot in targets[i]:
-                    if firing > out[slot]:
-                        out[slot] = firing
+                    out[slot] = max(out[slot], firing)
             return
-        for combination in product(*(var.active(value) for var, value in zip(self.inputs, x))):
+        for combination in product(*(var.active(value) for var, value in zip(self.inputs, x, strict=True))):
             flat = 0
             firing = 1.0
-            for radix, (i, degree) in zip(self._radix, combination):
+            for radix, (i, degree) in zip(self._radix, combination, strict=True):
                 flat = flat * radix + i
-                if degree < firing:
-                    firing = degree
+                firing = min(firing, degree)
             for slot in targets[flat]:
-                if firing > out[slot]:
-                    out[slot] = firing
+                out[slot] = max(out[slot], firing)
 
     def aggregated_membership(self, x: Sequence[float]) -> FloatArray:
         """Aggregated output membership sampled on :attr:`grid`, shape (n_outputs, grid_points)."""
@@ -461,9 +456,7 @@ class MamdaniBatch:
             for s, system in enumerate(systems)
         ]
         self._shape = (n_labels, n_rows, 1)
-        self._samples = np.ascontiguousarray(
-            np.concatenate([first.output_samples] * len(systems), axis=1)
-        )
+        self._samples = np.ascontiguousarray(np.concatenate([first.output_samples] * len(systems), axis=1))
         self._clipped = np.empty((n_labels, n_rows, first.grid.size))
         self._aggregated = np.empty((n_rows, first.grid.size))
         self._weights = centroid_weights(first.grid)
@@ -486,7 +479,7 @@ class MamdaniBatch:
         if len(inputs) != len(self.systems):
             raise ValueError(f"expected {len(self.systems)} input vectors, got {len(inputs)}")
         strengths = [0.0] * self._n_slots
-        for system, x, targets in zip(self.systems, inputs, self._targets):
+        for system, x, targets in zip(self.systems, inputs, self._targets, strict=True):
             system.accumulate_strengths(x, strengths, targets)
         np.minimum(np.array(strengths).reshape(self._shape), self._samples, out=self._clipped)
         np.maximum.reduce(self._clipped, axis=0, out=self._aggregated)

@@ -74,7 +74,7 @@ class FuzzyPDConfig:
             ("k1", self.k1, "kp0", self.kp0),
             ("k2", self.k2, "kd0", self.kd0),
         ):
-            if any(s >= b for s, b in zip(scale, base)):
+            if any(s >= b for s, b in zip(scale, base, strict=True)):
                 raise ValueError(
                     f"{scale_name} must be < {base_name} per joint so the gain stays positive, "
                     f"got {scale_name}={scale!r}, {base_name}={base!r}"
@@ -107,9 +107,7 @@ class FuzzyPDGainSchedule:
         tables: tuple[RuleTable, RuleTable] = (TABLE_1, TABLE_7),
     ) -> None:
         self.config = config if config is not None else FuzzyPDConfig()
-        self._batch = MamdaniBatch(
-            [pd_gain_system(table, self.config.grid_points) for table in tables]
-        )
+        self._batch = MamdaniBatch([pd_gain_system(table, self.config.grid_points) for table in tables])
         self.reset()
 
     def reset(self) -> None:
@@ -131,9 +129,7 @@ class FuzzyPDGainSchedule:
         kp0, kp1, kd0, kd1 = self.step_floats(e0, e1, ed0, ed1)
         return np.array((kp0, kp1)), np.array((kd0, kd1))
 
-    def step_floats(
-        self, e0: float, e1: float, ed0: float, ed1: float
-    ) -> tuple[float, float, float, float]:
+    def step_floats(self, e0: float, e1: float, ed0: float, ed1: float) -> tuple[float, float, float, float]:
         """Same as :meth:`step` on floats: returns (kp_alpha, kp_beta, kd_alpha, kd_beta)."""
         config = self.config
         k_e = config.k_e

@@ -26,9 +26,12 @@ import importlib
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final, Literal
+
+import yaml
+from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 
 __all__ = [
     "ALGORITHMS",
@@ -56,7 +59,9 @@ __all__ = [
     "scenario_file",
 ]
 
-ParameterValue = bool | int | float | str | tuple[bool, ...] | tuple[int, ...] | tuple[float, ...] | tuple[str, ...]
+ParameterValue = (
+    bool | int | float | str | tuple[bool, ...] | tuple[int, ...] | tuple[float, ...] | tuple[str, ...]
+)
 """A ROS parameter value as the graph description holds it (lists as tuples so specs stay hashable)."""
 
 NAMESPACE: Final[str] = "smm"
@@ -138,7 +143,8 @@ class GraphOptions:
             or self.duration < 0.0
         ):
             raise ValueError(f"duration must be a finite number >= 0 s or None, got {self.duration!r}")
-        if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0):
+        seed = self.seed
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
             raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
 
 
@@ -222,7 +228,12 @@ def format_parameter_value(value: ParameterValue) -> str:
     if isinstance(value, float):
         if not math.isfinite(value):
             raise ValueError(f"cannot pass a non-finite parameter value {value!r} on the command line")
-        return repr(value)
+        text = repr(value)
+        # YAML 1.1 reads "5e-09" as a string; "5.0e-09" is a float to every YAML parser.
+        mantissa, exponent_mark, exponent = text.partition("e")
+        if exponent_mark and "." not in mantissa:
+            text = f"{mantissa}.0e{exponent}"
+        return text
     if isinstance(value, str):
         return json.dumps(value)
     raise ValueError(f"unsupported parameter value {value!r} of type {type(value).__name__}")
@@ -242,14 +253,9 @@ def package_file(package: str, relative: str) -> Path:
         ParameterFileError: The file exists in neither place.
     """
     candidates: list[Path] = []
-    try:
-        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-    except ImportError:  # pragma: no cover - ament_index_python ships with rclpy
-        pass
-    else:
-        # OSError: no AMENT_PREFIX_PATH at all (plain virtual environment).
-        with contextlib.suppress(PackageNotFoundError, OSError):
-            candidates.append(Path(get_package_share_directory(package)) / relative)
+    # OSError: no AMENT_PREFIX_PATH at all (plain virtual environment).
+    with contextlib.suppress(PackageNotFoundError, OSError):
+        candidates.append(Path(get_package_share_directory(package)) / relative)
     try:
         module = importlib.import_module(package)
     except ImportError:
@@ -345,7 +351,7 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
 
 
 def _node_key_matches(key: str, fully_qualified_name: str) -> bool:
-    """rcl's matching of a parameter-file node key: ``/**`` spans any namespaces, ``*`` one token."""
+    """Rcl's matching of a parameter-file node key: ``/**`` spans any namespaces, ``*`` one token."""
     if key == "/**":
         return True
     pattern = key if key.startswith("/") else "/" + key
@@ -390,8 +396,6 @@ def load_parameter_file(path: str | Path, fully_qualified_name: str) -> dict[str
     Raises:
         ParameterFileError: The file is missing, is not YAML, or is not a ROS 2 parameter file.
     """
-    import yaml
-
     try:
         content = yaml.safe_load(Path(path).read_text())
     except OSError as error:
@@ -404,7 +408,7 @@ def load_parameter_file(path: str | Path, fully_qualified_name: str) -> dict[str
     specific: dict[str, Any] = {}
     for key, section in content.items():
         if not isinstance(section, Mapping) or not isinstance(section.get("ros__parameters"), Mapping):
-            raise ParameterFileError(f"parameter file {path}: section {key!r} has no 'ros__parameters' mapping")
+            raise ParameterFileError(f"parameter file {path}: section {key!r} has no 'ros__parameters' map")
         if not _node_key_matches(str(key), fully_qualified_name):
             continue
         _flatten("", section["ros__parameters"], wildcard if "*" in str(key) else specific)

@@ -38,6 +38,13 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, Final, TextIO
 
+import rclpy
+from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException
+from rclpy.signals import SignalHandlerOptions
+from smm_msgs_py.node_support import as_parameter_list, ensure_localhost_discovery, make_executor
+
 from smm_controller.graph import (
     ALGORITHMS,
     CLOCK_MODES,
@@ -91,13 +98,8 @@ def executable_candidates(spec: NodeSpec) -> list[Path]:
     is the package's ament prefix on a colcon install and ``sys.prefix`` in this virtual environment.
     """
     prefixes: list[Path] = []
-    try:
-        from ament_index_python.packages import PackageNotFoundError, get_package_prefix
-    except ImportError:  # pragma: no cover - ships with rclpy
-        pass
-    else:
-        with contextlib.suppress(PackageNotFoundError, OSError):  # OSError: no AMENT_PREFIX_PATH
-            prefixes.append(Path(get_package_prefix(spec.package)))
+    with contextlib.suppress(PackageNotFoundError, OSError):  # OSError: no AMENT_PREFIX_PATH
+        prefixes.append(Path(get_package_prefix(spec.package)))
     prefixes.append(Path(sys.prefix))
     candidates = [prefix / "lib" / spec.package / spec.executable for prefix in prefixes]
     candidates.append(Path(sys.executable).parent / spec.executable)
@@ -193,7 +195,7 @@ class GraphProcesses:
             _say(f"started {spec.name} (pid {popen.pid}): {' '.join(command)}")
 
     def first_exit(self) -> tuple[NodeSpec, int] | None:
-        """The first child found exited, with its exit code (negative: killed by that signal); None if all run."""
+        """The first child found exited and its exit code (negative: killed by that signal); None if none."""
         for child in self.children:
             code = child.popen.poll()
             if code is not None:
@@ -291,14 +293,8 @@ def launch_composed(specs: Sequence[NodeSpec]) -> int:
         0 when the plant completed its run, 128 + signal number after Ctrl-C / SIGTERM, 1 when a node
         failed (its exception is reported).
     """
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
-    from rclpy.parameter import Parameter
-    from rclpy.signals import SignalHandlerOptions
-    from smm_msgs_py.node_support import ensure_localhost_discovery, make_executor
-
     ensure_localhost_discovery()
-    context = rclpy.Context()
+    context = Context()
     namespaces = {spec.namespace for spec in specs}
     if len(namespaces) != 1:
         raise GraphError(f"composed mode needs one namespace for all nodes, got {sorted(namespaces)}")
@@ -313,13 +309,15 @@ def launch_composed(specs: Sequence[NodeSpec]) -> int:
     request = _StopRequest()
     try:
         for spec in specs:
-            overrides = [Parameter(name, value=value) for name, value in parameter_overrides(spec).items()]
+            overrides = as_parameter_list(parameter_overrides(spec))
             try:
                 node = spec.load_class()(context=context, parameter_overrides=overrides)
             except ValueError as error:
                 raise GraphError(f"{spec.name}: invalid parameter: {error}") from error
             if node.get_name() != spec.name:
-                raise GraphError(f"{spec.node_class} created node {node.get_name()!r}, the graph expects {spec.name!r}")
+                raise GraphError(
+                    f"{spec.node_class} created node {node.get_name()!r}, the graph expects {spec.name!r}"
+                )
             nodes.append(node)
             _say(f"created {spec.name} ({spec.node_class}) in this process")
         executor = make_executor(context)
@@ -351,14 +349,14 @@ def launch_composed(specs: Sequence[NodeSpec]) -> int:
             executor.shutdown()
         for node in reversed(nodes):
             node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        context.try_shutdown()
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface of ``smm-launch``."""
     parser = argparse.ArgumentParser(
         prog="smm-launch",
-        description="Start the SMM control graph (simulator + TD + FLESO + reference + controller), one process "
+        description="Start the SMM control graph (simulator, TD, FLESO, reference, controller), one process "
         "per node like ros2 launch, or all in one process with --composed.",
     )
     parser.add_argument("--plant", choices=PLANTS, default="sim", help="plant node (hw: smm_hw_bridge)")

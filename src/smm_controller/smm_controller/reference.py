@@ -46,19 +46,22 @@ def _as_times(times: npt.ArrayLike) -> FloatArray:
 
 def _stack(position: FloatArray, velocity: FloatArray, acceleration: FloatArray) -> FloatArray:
     """Per-joint arrays of shape (n, 2) -> references of shape (n, 3, 2)."""
-    return np.stack((position, velocity, acceleration), axis=1)
+    stacked: FloatArray = np.stack((position, velocity, acceleration), axis=1)
+    return stacked
 
 
 class _Sampled:
     """evaluate(t) in terms of the vectorised sample(times) of each generator."""
 
     def sample(self, times: npt.ArrayLike) -> FloatArray:
+        """References at every time of ``times`` (s), shape (n, 3, 2)."""
         raise NotImplementedError
 
     def evaluate(self, t: float) -> FloatArray:
         """Position, velocity and acceleration at time t (s), shape (3, 2)."""
         check_scalar("t", t)
-        return self.sample(np.array((t,)))[0]
+        single: FloatArray = self.sample(np.array((t,)))[0]
+        return single
 
     def __call__(self, t: float) -> FloatArray:
         """Same as :meth:`evaluate`."""

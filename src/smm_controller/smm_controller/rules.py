@@ -1,4 +1,4 @@
-"""Fuzzy variables and rule bases of the paper, as data (SPEC section 4, Tables 1 and 7, Figs 5, 9).
+r"""Fuzzy variables and rule bases of the paper, as data (SPEC section 4, Tables 1 and 7, Figs 5, 9).
 
 Fuzzy PD gain schedule (eq. 12): inputs e~ (columns of the tables) and ce~ (rows), each with seven
 triangular labels NB..PB centred at -1, -2/3, ..., 1 with half-width 1/3 (adjacent labels cross at
@@ -6,7 +6,7 @@ triangular labels NB..PB centred at -1, -2/3, ..., 1 with half-width 1/3 (adjace
 (1/6)/sqrt(2 ln 2), so adjacent labels cross at 0.5 midway between centres.
 
 ROWS ARE ce, COLUMNS ARE e: the only orientation consistent with the worked example R1..R4 of Section
-III.B (e = 0.51, ce = 0.20 fires PS/PM x ZE/PS, giving PM\\NS, NM\\NS, PM\\NS, NM\\NS).
+III.B (e = 0.51, ce = 0.20 fires PS/PM x ZE/PS, giving PM\NS, NM\NS, PM\NS, NM\NS).
 
 FLESO bandwidth (Section III.C): one input k_s1 E + k_s2 E' with Gaussian labels NB NS ZE PS PB at
 -1, -0.5, 0, 0.5, 1 (sigma = 0.25/sqrt(2 ln 2)), one output f(w) with Gaussian labels S M B at -1, 0, 1
@@ -44,7 +44,7 @@ FLESO_OUTPUT_LABELS: tuple[str, ...] = ("S", "M", "B")
 #: Standard deviation at which a Gaussian is 0.5 at distance ``d`` from its centre is d/sqrt(2 ln 2).
 _HALF_CROSSING = math.sqrt(2.0 * math.log(2.0))
 
-#: Cell text "A\\B": A is the label of f(k_e), B the label of f(k_de).
+#: Cell text "A\B": A is the label of f(k_e), B the label of f(k_de).
 #: Rows and columns both in PD_LABELS order.
 RuleTable = tuple[tuple[tuple[str, str], ...], ...]
 
@@ -74,10 +74,10 @@ PB    ZE\ZE  NS\NS  NM\NM  PM\PM  NB\NB  NB\NB  NB\NB
 
 
 def parse_rule_table(text: str) -> RuleTable:
-    """Parses a 7x7 rule table whose header row and first column list PD_LABELS in order.
+    r"""Parses a 7x7 rule table whose header row and first column list PD_LABELS in order.
 
     Args:
-        text: Header line ``ce\\e NB ... PB`` then one line per ce label with seven ``A\\B`` cells.
+        text: Header line ``ce\e NB ... PB`` then one line per ce label with seven ``A\B`` cells.
 
     Returns:
         ``table[row][column] = (f(k_e) label, f(k_de) label)``, rows ce, columns e.
@@ -154,7 +154,7 @@ def pd_gain_system(table: RuleTable, grid_points: int = 201) -> MamdaniSystem:
     Returns:
         The system; ``evaluate((e~, ce~))`` returns ``(f(k_e), f(k_de))``.
     """
-    rules = {
+    rules: dict[tuple[str, ...], tuple[str, ...]] = {
         (e_label, ce_label): table[row][column]
         for row, ce_label in enumerate(PD_LABELS)
         for column, e_label in enumerate(PD_LABELS)
@@ -166,7 +166,9 @@ def pd_gain_system(table: RuleTable, grid_points: int = 201) -> MamdaniSystem:
 
 def fleso_bandwidth_system(grid_points: int = 201) -> MamdaniSystem:
     """FLESO bandwidth system: input k_s1 E + k_s2 E' (clipped), output f(w)."""
-    rules = {(label,): (FLESO_BANDWIDTH_RULES[label],) for label in FLESO_INPUT_LABELS}
+    rules: dict[tuple[str, ...], tuple[str, ...]] = {
+        (label,): (FLESO_BANDWIDTH_RULES[label],) for label in FLESO_INPUT_LABELS
+    }
     return MamdaniSystem(
         (fleso_input_variable(),), (fleso_output_variable(),), rules, grid_points=grid_points
     )

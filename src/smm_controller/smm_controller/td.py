@@ -95,10 +95,7 @@ def fhan(x1: float, x2: float, r: float, h0: float) -> float:
     d = r * h0
     d0 = h0 * d
     y = x1 + h0 * x2
-    if abs(y) > d0:
-        a = x2 + math.copysign(0.5 * (math.sqrt(d * d + 8.0 * r * abs(y)) - d), y)
-    else:
-        a = x2 + y / h0
+    a = x2 + (math.copysign(0.5 * (math.sqrt(d * d + 8.0 * r * abs(y)) - d), y) if abs(y) > d0 else y / h0)
     return -r * math.copysign(1.0, a) if abs(a) > d else -r * a / d
 
 
@@ -187,6 +184,4 @@ class TrackingDifferentiator:
     @property
     def internals(self) -> Mapping[str, FloatArray]:
         """Read-only copies: x1 (rad), x2 (rad/s), input (rad), each shape (2,)."""
-        return types.MappingProxyType(
-            readonly_copies({"x1": self._x1, "x2": self._x2, "input": self._input})
-        )
+        return types.MappingProxyType(readonly_copies({"x1": self._x1, "x2": self._x2, "input": self._input}))

@@ -12,8 +12,12 @@ from collections.abc import Sequence
 
 from rclpy.context import Context
 from sensor_msgs.msg import JointState
-from smm_msgs_py import topics
-from smm_msgs_py.conversions import JointSample, internals_to_msg, joint_state_to_sample, sample_to_joint_state
+from smm_msgs_py.conversions import (
+    JointSample,
+    internals_to_msg,
+    joint_state_to_sample,
+    sample_to_joint_state,
+)
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.node_support import (
     ControlPeriodConfig,
@@ -27,6 +31,7 @@ from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
 from std_msgs.msg import Float64MultiArray
 
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
+from smm_msgs_py import topics
 
 __all__ = ["INTERNALS_TOPIC", "NODE_NAME", "TD_PREFIX", "TdNode", "main"]
 
@@ -79,14 +84,16 @@ class TdNode(MeasurementDrivenNode):
         self._filtered_publisher = self.create_publisher(
             JointState, topics.JOINT_STATES_FILTERED, qos_for_topic(topics.JOINT_STATES_FILTERED)
         )
-        self._internals_publisher = self.create_publisher(Float64MultiArray, INTERNALS_TOPIC, diagnostic_qos())
+        self._internals_publisher = self.create_publisher(
+            Float64MultiArray, INTERNALS_TOPIC, diagnostic_qos()
+        )
         self.create_subscription(
             JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
         )
 
     @property
     def control_period(self) -> float:
-        """dt of every step (s)."""
+        """Step size dt of every step (s)."""
         return self.timing.config.control_period
 
     def _check_td_config(self, config: TrackingDifferentiatorConfig) -> None:
@@ -108,7 +115,8 @@ class TdNode(MeasurementDrivenNode):
             self.reject(topics.JOINT_STATES, error)
             return
         if self.admit(topics.JOINT_STATES, sample.stamp_ns):
-            self.answer(sample.stamp_ns, lambda: self._step(sample), lambda: self._diagnostics(sample.stamp_ns))
+            stamp_ns = sample.stamp_ns
+            self.answer(stamp_ns, lambda: self._step(sample), lambda: self._diagnostics(stamp_ns))
 
     def _step(self, sample: JointSample) -> list[Output]:
         position, velocity = self.td.step(sample.position, self.control_period)

@@ -43,12 +43,13 @@ from typing import Final, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from smm_dynamics import SMMParameters, rk4_step
 
 __all__ = [
     "DISTURBANCE_MODELS",
-    "DisturbanceModel",
     "PAPER_VALVE_RESPONSE_TIMES",
+    "DisturbanceModel",
     "GroundTruth",
     "Measurement",
     "PlantConfig",
@@ -297,7 +298,9 @@ class SimulatedPlant:
         self._params = config.true_params
         self._limits = config.joint_limits
         self._saturation = config.torque_limit
-        self._quantum = 2.0 * math.pi / config.encoder_counts_per_rev if config.encoder_counts_per_rev else 0.0
+        self._quantum = (
+            2.0 * math.pi / config.encoder_counts_per_rev if config.encoder_counts_per_rev else 0.0
+        )
         self._rng = np.random.default_rng(config.seed)
         self._q = np.zeros(2)
         self._qd = np.zeros(2)
@@ -376,7 +379,9 @@ class SimulatedPlant:
             "saturated_torque": np.array(saturated),
             "valve_torque": np.array(self._valve),
             "applied_torque": np.array(self._applied),
-            "disturbance_torque": np.array(disturbance_torque(self._config.disturbance, self._t_ns / _NS_PER_S)),
+            "disturbance_torque": np.array(
+                disturbance_torque(self._config.disturbance, self._t_ns / _NS_PER_S)
+            ),
             "measurement_noise": self._noise.copy(),
         }
 

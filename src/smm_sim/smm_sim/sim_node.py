@@ -49,26 +49,24 @@ from typing import Any, Final, Literal
 
 import numpy as np
 import numpy.typing as npt
-import rclpy
-from rclpy.clock import Clock, ClockType
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.context import Context
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from rclpy.timer import Timer
-from rcl_interfaces.msg import SetParametersResult
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
-from smm_dynamics import SMMParameters
-from smm_msgs_py import topics
 from smm_msgs_py.conversions import JointSample, clock_msg, msg_to_torque, sample_to_joint_state
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.node_support import WARN_THROTTLE_S, ensure_localhost_discovery, make_executor
+from smm_msgs_py.node_support import WARN_THROTTLE_S, run_node
 from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import qos_for_topic
 from std_msgs.msg import Float64MultiArray
 
+from smm_dynamics import SMMParameters
+from smm_msgs_py import topics
 from smm_sim.plant import GroundTruth, Measurement, PlantConfig, SimulatedPlant
 
 __all__ = [
@@ -78,6 +76,7 @@ __all__ = [
     "PlantParameters",
     "SimNode",
     "SimNodeConfig",
+    "SimParameterError",
     "main",
 ]
 
@@ -219,6 +218,10 @@ class SimNodeConfig:
         return min(limits) if limits else None
 
 
+class SimParameterError(ValueError):
+    """A parameter of smm_sim_node has an invalid value (the message names the parameter and the value)."""
+
+
 class LatencyStats:
     """Measurement-to-command latencies (ns), kept whole for exact percentiles (8 bytes per sample)."""
 
@@ -296,9 +299,12 @@ class SimNode(Node):
         parameter_overrides: Parameter values overriding the defaults (as ``rclpy.node.Node``).
         node_name: Node name.
         namespace: Node namespace (None: from the command line, else the root).
+        shutdown_when_done: Shut the context down when the run is complete, which ends the spin of
+            :func:`smm_msgs_py.node_support.run_node` (the console script); a launcher that composes
+            nodes waits for :attr:`done` instead.
 
     Raises:
-        ValueError: A parameter value is invalid (the message names the parameter and the value).
+        SimParameterError: A parameter value is invalid (the message names the parameter and the value).
     """
 
     def __init__(
@@ -308,6 +314,7 @@ class SimNode(Node):
         parameter_overrides: Sequence[Parameter] | None = None,
         node_name: str = NODE_NAME,
         namespace: str | None = None,
+        shutdown_when_done: bool = False,
     ) -> None:
         super().__init__(
             node_name,
@@ -315,8 +322,16 @@ class SimNode(Node):
             parameter_overrides=None if parameter_overrides is None else list(parameter_overrides),
             namespace=namespace,
         )
-        self._plant_parameters = ConfigParameters(self, "", PlantParameters(), read_only=True)
-        self._node_parameters = ConfigParameters(self, "", SimNodeConfig(), on_change=self._on_config_change)
+        try:
+            self._plant_parameters = ConfigParameters(self, "", PlantParameters(), read_only=True)
+            self._node_parameters = ConfigParameters(
+                self, "", SimNodeConfig(), on_change=self._on_config_change
+            )
+        except ValueError as error:
+            self.destroy_node()
+            raise SimParameterError(str(error)) from error
+        self._shutdown_when_done = shutdown_when_done
+        self._log = self.get_logger()  # type: ignore[no-untyped-call]
         # Registered after the declarations, which run the set-parameters callbacks too.
         self.add_on_set_parameters_callback(self._refuse_startup_only)
         plant_parameters = self._plant_parameters.config
@@ -326,7 +341,7 @@ class SimNode(Node):
         self._period_ns = plant_parameters.plant_config.period_ns
         self._dt = self._period_ns / _NS_PER_S
 
-        self.done: Future = Future()
+        self.done: Future = Future()  # type: ignore[no-untyped-call]
         """Completed (result: number of steps) when the run reached ``max_steps`` / ``duration``."""
         self.steps = 0
         self.dropped_invalid = 0
@@ -337,6 +352,8 @@ class SimNode(Node):
         self.deadline_misses = 0
         self.late_ticks = 0
         self.latency = LatencyStats()
+        self._first_step_ns: int | None = None
+        self._last_step_ns = 0
         self._measurement = self._plant.measure()
         self._truth = self._plant.ground_truth
         self._recorder = _Recorder()
@@ -380,18 +397,19 @@ class SimNode(Node):
             self._next_tick_ns = time.monotonic_ns() + self._period_ns
             self._restart_stats_timer(self._node_parameters.config.stats_period)
             self._publish_measurement()
-        self.get_logger().info(
+        self._log.info(
             f"{self._clock_mode} simulation, period {self._dt * 1e3:g} ms, "
             f"{'no step limit' if self._step_limit is None else f'{self._step_limit} steps'}, "
             f"seed {plant_parameters.seed}, disturbance {plant_parameters.disturbance}, "
-            f"inertia scale {plant_parameters.inertia_scale:g}, noise std {list(plant_parameters.noise_std)} rad"
+            f"inertia scale {plant_parameters.inertia_scale:g}, "
+            f"noise std {list(plant_parameters.noise_std)} rad"
         )
 
     # ------------------------------------------------------------------------------------- properties
 
     @property
     def clock_mode(self) -> str:
-        """"lockstep" or "realtime" (fixed at start-up)."""
+        """The clock mode, "lockstep" or "realtime" (fixed at start-up)."""
         return self._clock_mode
 
     @property
@@ -420,7 +438,13 @@ class SimNode(Node):
         return self._finished
 
     def statistics(self) -> dict[str, Any]:
-        """Counters and latency figures of the run so far (JSON-serialisable)."""
+        """Counters, latency figures and stepping rate of the run so far (JSON-serialisable).
+
+        ``steps_per_wall_second`` counts from the first step to the last, so start-up and discovery are
+        not in it.
+        """
+        first = self._first_step_ns
+        stepping_s = 0.0 if first is None else (self._last_step_ns - first) / _NS_PER_S
         return {
             "clock_mode": self._clock_mode,
             "steps": self.steps,
@@ -433,6 +457,8 @@ class SimNode(Node):
             "deadline_misses": self.deadline_misses,
             "late_ticks": self.late_ticks,
             "latency": self.latency.summary(),
+            "stepping_wall_s": stepping_s,
+            "steps_per_wall_second": (self.steps - 1) / stepping_s if stepping_s > 0.0 else math.nan,
         }
 
     # ------------------------------------------------------------------------------------- parameters
@@ -441,15 +467,18 @@ class SimNode(Node):
         for parameter in parameters:
             if parameter.name in _STARTUP_ONLY and parameter.value != getattr(self.config, parameter.name):
                 return SetParametersResult(
-                    successful=False, reason=f"{parameter.name} is fixed at start-up; restart the node to change it"
+                    successful=False,
+                    reason=f"{parameter.name} is fixed at start-up; restart the node to change it",
                 )
         return SetParametersResult(successful=True)
 
     def _on_config_change(self, config: SimNodeConfig) -> None:
         self._step_limit = config.step_limit(self._period_ns)
         if self._clock_mode == "lockstep":
-            self._timer.destroy()
-            self._timer = self.create_timer(config.republish_period, self._on_republish_timer, clock=self._steady)
+            self._timer.destroy()  # type: ignore[no-untyped-call]
+            self._timer = self.create_timer(
+                config.republish_period, self._on_republish_timer, clock=self._steady
+            )
         else:
             self._restart_stats_timer(config.stats_period)
         if self._step_limit is not None and self.steps >= self._step_limit:
@@ -457,7 +486,7 @@ class SimNode(Node):
 
     def _restart_stats_timer(self, period: float) -> None:
         if self._stats_timer is not None:
-            self._stats_timer.destroy()
+            self._stats_timer.destroy()  # type: ignore[no-untyped-call]
             self._stats_timer = None
         if period > 0.0:
             self._stats_timer = self.create_timer(period, self._log_statistics, clock=self._steady)
@@ -465,7 +494,7 @@ class SimNode(Node):
     # ---------------------------------------------------------------------------------------- commands
 
     def _warn(self, message: str) -> None:
-        self.get_logger().warning(message, throttle_duration_sec=WARN_THROTTLE_S)
+        self._log.warning(message, throttle_duration_sec=WARN_THROTTLE_S)
 
     def _on_command(self, msg: Float64MultiArray) -> None:
         received_ns = time.monotonic_ns()
@@ -510,7 +539,9 @@ class SimNode(Node):
     def _realtime_command(self, stamp_ns: int, values: tuple[float, float], received_ns: int) -> None:
         published_ns = self._published_at.get(stamp_ns)
         if published_ns is None:
-            if stamp_ns <= self._command_stamp_ns or (self._published_at and stamp_ns < next(iter(self._published_at))):
+            if stamp_ns <= self._command_stamp_ns or (
+                self._published_at and stamp_ns < next(iter(self._published_at))
+            ):
                 self.ignored_late += 1
             else:
                 self._drop_unknown_stamp(stamp_ns)
@@ -531,6 +562,9 @@ class SimNode(Node):
     def _step(self, command: tuple[float, float], command_stamp_ns: int) -> None:
         self._plant.step(command, self._dt)
         self.steps += 1
+        self._last_step_ns = time.monotonic_ns()
+        if self._first_step_ns is None:
+            self._first_step_ns = self._last_step_ns
         self._recorder.command_applied(command_stamp_ns, command)
         self._measurement = self._plant.measure()
         self._truth = self._plant.ground_truth
@@ -549,7 +583,9 @@ class SimNode(Node):
         )
         now_ns = time.monotonic_ns()
         self._joint_states_pub.publish(
-            sample_to_joint_state(JointSample(stamp_ns, measurement.position, None, measurement.applied_torque))
+            sample_to_joint_state(
+                JointSample(stamp_ns, measurement.position, None, measurement.applied_torque)
+            )
         )
         self._last_publish_ns = now_ns
         if self._clock_mode == "realtime":
@@ -597,10 +633,11 @@ class SimNode(Node):
     def _log_statistics(self) -> None:
         stats = self.statistics()
         latency = stats["latency"]
-        self.get_logger().info(
+        self._log.info(
             f"{stats['steps']} steps; latency p50 {latency['p50_us']:.0f} us, p99 {latency['p99_us']:.0f} us "
             f"({int(latency['count'])} answers); deadline misses {stats['deadline_misses']}, late ticks "
-            f"{stats['late_ticks']}, zero-torque ticks {stats['stale_ticks']}; dropped {stats['dropped_invalid']} "
+            f"{stats['late_ticks']}, zero-torque ticks {stats['stale_ticks']}; "
+            f"dropped {stats['dropped_invalid']} "
             f"invalid, {stats['dropped_unknown_stamp']} unknown-stamp commands"
         )
 
@@ -618,17 +655,25 @@ class SimNode(Node):
         if self._finished:
             return
         self._finished = True
-        self._timer.cancel()
+        self._timer.cancel()  # type: ignore[no-untyped-call]
         if self._stats_timer is not None:
-            self._stats_timer.cancel()
+            self._stats_timer.cancel()  # type: ignore[no-untyped-call]
         self.write_outputs()
         self._log_statistics()
-        self.get_logger().info(f"run complete after {self.steps} steps ({self._plant.time_ns / _NS_PER_S:g} s)")
-        self.done.set_result(self.steps)
+        self._log.info(f"run complete after {self.steps} steps ({self._plant.time_ns / _NS_PER_S:g} s)")
+        self.done.set_result(self.steps)  # type: ignore[no-untyped-call]
+        if self._shutdown_when_done:
+            self.context.try_shutdown()
+
+    def destroy_node(self) -> None:
+        """Write the outputs of an unfinished run (stopped by Ctrl-C), then destroy the node."""
+        if hasattr(self, "_recorder") and not self._finished:
+            self.write_outputs()
+        super().destroy_node()  # type: ignore[no-untyped-call]
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Console script ``smm_sim_node``: run until the step limit (exit 0), Ctrl-C (0) or a bad parameter (2).
+    """Console script ``smm_sim_node``: exit 0 at the step limit or on Ctrl-C / SIGTERM, 2 on a bad parameter.
 
     Args:
         args: Command line (``--ros-args ...``); None for ``sys.argv``.
@@ -636,30 +681,11 @@ def main(args: Sequence[str] | None = None) -> int:
     Returns:
         The exit code.
     """
-    ensure_localhost_discovery()
-    context = Context()
-    rclpy.init(args=None if args is None else list(args), context=context)
-    node: SimNode | None = None
-    executor = None
     try:
-        try:
-            node = SimNode(context=context)
-        except ValueError as error:
-            print(f"{NODE_NAME}: invalid parameter: {error}", file=sys.stderr)
-            return 2
-        executor = make_executor(context)
-        executor.add_node(node)
-        executor.spin_until_future_complete(node.done)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if executor is not None:
-            executor.shutdown()
-        if node is not None:
-            if not node.finished:
-                node.write_outputs()
-            node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        run_node(lambda context: SimNode(context=context, shutdown_when_done=True), args)
+    except SimParameterError as error:
+        print(f"{NODE_NAME}: invalid parameter: {error}", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -1,0 +1,297 @@
+"""Benchmark of the ROS graph: real-time latency and deadline misses, lockstep throughput.
+
+Figures, not pass/fail (``make bench``; never a test): every ROS process runs inside a private network
+namespace (this script re-executes itself under ``unshare --net`` with ``lo`` up, through
+``tests/netns_exec.py``), with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ROS_DOMAIN_ID of its own.
+
+1. Raw rclpy ping-pong between two processes (JointState out, echoed back, 1 kHz, EventsExecutor): the
+   round-trip latency floor of this machine and middleware, measured in the same run.
+2. Real time, separate processes (``smm-launch --clock-mode realtime``, case2, 1 kHz for 30 s): deadline-miss
+   rate (ticks at which the answer to the previous measurement had not arrived) and measurement-to-command
+   latency p50/p99 (four hops: sim -> td -> fleso -> controller -> sim). Targets: p99 < 1 ms, misses < 1 %.
+3. Lockstep throughput (case2), separate processes and ``--composed``, in steps per wall second from the
+   first step to the last (start-up excluded). Target: >= 2000 steps/s composed.
+
+Exit code 0 whenever the measurements ran, even if a target is MISSED; non-zero only if a run failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+NETNS_EXEC = REPO / "tests" / "netns_exec.py"
+PING_TOPIC = "bench_ping"
+PONG_TOPIC = "bench_pong"
+LATENCY_P99_TARGET_US = 1000.0
+MISS_RATE_TARGET = 0.01
+COMPOSED_TARGET_STEPS_PER_S = 2000.0
+
+
+def verdict(met: bool) -> str:
+    return "met" if met else "MISSED"
+
+
+# ------------------------------------------------------------------------------------ namespace re-exec
+
+
+def reexec_in_private_netns(argv: list[str]) -> int:
+    command = ["unshare", "--net"]
+    if os.geteuid() != 0:
+        command.append("--map-root-user")
+    command += [
+        "--",
+        sys.executable,
+        str(NETNS_EXEC),
+        sys.executable,
+        str(Path(__file__).resolve()),
+        "--inner",
+    ]
+    env = dict(os.environ)
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    env.setdefault("ROS_DOMAIN_ID", str(200 + os.getpid() % 30))
+    try:
+        return subprocess.run([*command, *argv], env=env, check=False).returncode
+    except FileNotFoundError:
+        print(
+            "bench_graph: 'unshare' (util-linux) is missing; cannot isolate the ROS processes",
+            file=sys.stderr,
+        )
+        return 1
+
+
+# ------------------------------------------------------------------------------------------- ping-pong
+
+
+def pong(seconds: float) -> int:
+    """Echo every ping back until ``seconds`` passed (run as its own process)."""
+    import rclpy
+    from rclpy.context import Context
+    from sensor_msgs.msg import JointState
+    from smm_msgs_py.node_support import make_executor
+    from smm_msgs_py.qos import control_qos
+
+    context = Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("bench_pong", context=context)
+    publisher = node.create_publisher(JointState, PONG_TOPIC, control_qos())
+    node.create_subscription(JointState, PING_TOPIC, publisher.publish, control_qos())
+    executor = make_executor(context)
+    executor.add_node(node)
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    executor.shutdown()
+    node.destroy_node()
+    context.try_shutdown()
+    return 0
+
+
+def ping_pong(seconds: float) -> dict[str, float]:
+    """Round trips of a JointState at 1 kHz to a pong process and back (us)."""
+    import rclpy
+    from rclpy.clock import Clock, ClockType
+    from rclpy.context import Context
+    from sensor_msgs.msg import JointState
+    from smm_msgs_py.node_support import make_executor
+    from smm_msgs_py.qos import control_qos
+
+    partner = subprocess.Popen(
+        [
+            sys.executable,
+            str(Path(__file__).resolve()),
+            "--inner",
+            "--role",
+            "pong",
+            "--seconds",
+            str(seconds + 30),
+        ]
+    )
+    context = Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("bench_ping", context=context)
+    sent: dict[int, int] = {}
+    round_trips: list[int] = []
+
+    def on_pong(msg: JointState) -> None:
+        start = sent.pop(msg.header.stamp.nanosec, None)
+        if start is not None:
+            round_trips.append(time.monotonic_ns() - start)
+
+    publisher = node.create_publisher(JointState, PING_TOPIC, control_qos())
+    node.create_subscription(JointState, PONG_TOPIC, on_pong, control_qos())
+    counter = [0]
+
+    def tick() -> None:
+        counter[0] += 1
+        msg = JointState()
+        msg.header.stamp.nanosec = counter[0]
+        msg.name = ["alpha", "beta"]
+        msg.position = [0.1, 0.2]
+        msg.effort = [0.0, 0.0]
+        sent[counter[0]] = time.monotonic_ns()
+        publisher.publish(msg)
+
+    executor = make_executor(context)
+    executor.add_node(node)
+    deadline = time.monotonic() + 30.0
+    while publisher.get_subscription_count() == 0 or node.count_publishers(PONG_TOPIC) == 0:
+        executor.spin_once(timeout_sec=0.05)
+        if time.monotonic() > deadline:
+            break
+    time.sleep(0.5)  # let the reverse direction match too
+    node.create_timer(1e-3, tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    executor.shutdown()
+    node.destroy_node()
+    context.try_shutdown()
+    partner.terminate()
+    partner.wait(timeout=30)
+    samples = np.asarray(round_trips, dtype=np.float64) / 1e3
+    return {
+        "sent": float(counter[0]),
+        "answered": float(samples.size),
+        "p50_us": float(np.percentile(samples, 50)) if samples.size else float("nan"),
+        "p99_us": float(np.percentile(samples, 99)) if samples.size else float("nan"),
+    }
+
+
+# ---------------------------------------------------------------------------------------------- graph
+
+
+def run_graph(workdir: Path, label: str, arguments: list[str], timeout_s: float) -> dict[str, Any] | None:
+    """Run smm-launch with a stats file; return the simulator's statistics (None if the run failed)."""
+    stats = workdir / f"{label}.json"
+    params = workdir / f"{label}.yaml"
+    params.write_text(
+        f'/**/smm_sim_node:\n  ros__parameters:\n    stats_file: "{stats}"\n    stats_period: 0.0\n'
+    )
+    log = workdir / f"{label}.log"
+    command = [sys.executable, "-m", "smm_controller.launcher", *arguments, "--params-file", str(params)]
+    start = time.monotonic()
+    with log.open("wb") as out:
+        try:
+            code = subprocess.run(
+                command, stdout=out, stderr=subprocess.STDOUT, timeout=timeout_s, check=False
+            ).returncode
+        except subprocess.TimeoutExpired:
+            code = -1
+    if code != 0 or not stats.is_file():
+        print(f"  {label}: smm-launch failed (exit {code}); log:\n{log.read_text(errors='replace')[-3000:]}")
+        return None
+    result: dict[str, Any] = json.loads(stats.read_text())
+    result["launch_wall_s"] = time.monotonic() - start
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--role", choices=("bench", "pong"), default="bench", help=argparse.SUPPRESS)
+    parser.add_argument("--seconds", type=float, default=5.0, help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--realtime-seconds", type=float, default=30.0, help="length of the real-time run (s)"
+    )
+    parser.add_argument(
+        "--lockstep-seconds", type=float, default=5.0, help="simulated length of lockstep runs (s)"
+    )
+    arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if arguments.role == "pong":
+        return pong(arguments.seconds)
+    if not arguments.inner:
+        forwarded = ["--realtime-seconds", str(arguments.realtime_seconds)]
+        forwarded += ["--lockstep-seconds", str(arguments.lockstep_seconds)]
+        return reexec_in_private_netns(forwarded)
+
+    print(
+        f"network interfaces: {[name for _, name in __import__('socket').if_nameindex()]}, "
+        f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')}, "
+        f"ROS_AUTOMATIC_DISCOVERY_RANGE={os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')}"
+    )
+    failures = 0
+    raw = ping_pong(5.0)
+    print(
+        f"raw rclpy ping-pong (2 processes, JointState, 1 kHz): round trip p50 {raw['p50_us']:.0f} us, "
+        f"p99 {raw['p99_us']:.0f} us ({raw['answered']:.0f}/{raw['sent']:.0f} answered)"
+    )
+    with tempfile.TemporaryDirectory(prefix="bench_graph_") as tmp:
+        workdir = Path(tmp)
+        seconds = arguments.realtime_seconds
+        realtime = run_graph(
+            workdir,
+            "realtime",
+            ["--clock-mode", "realtime", "--scenario", "case2", "--duration", str(seconds)],
+            timeout_s=seconds + 120,
+        )
+        if realtime is None:
+            failures += 1
+        else:
+            steps = realtime["steps"]
+            misses = realtime["deadline_misses"]
+            rate = misses / steps if steps else float("nan")
+            latency = realtime["latency"]
+            p99 = latency["p99_us"]
+            print(
+                f"real time, separate processes, 1 kHz for {seconds:g} s: {steps} steps, "
+                f"deadline misses {misses} ({100 * rate:.2f} %, "
+                f"target < {100 * MISS_RATE_TARGET:g} %: {verdict(rate < MISS_RATE_TARGET)}), "
+                f"late ticks {realtime['late_ticks']}, zero-torque ticks {realtime['stale_ticks']}"
+            )
+            print(
+                f"  measurement-to-command latency (4 hops): p50 {latency['p50_us']:.0f} us, "
+                f"p99 {p99:.0f} us "
+                f"(target p99 < {LATENCY_P99_TARGET_US:.0f} us: {verdict(p99 < LATENCY_P99_TARGET_US)}), "
+                f"max {latency['max_us']:.0f} us, {latency['count']:.0f} answers"
+            )
+            print(
+                f"  ratio to the raw ping-pong round trip (2 hops): "
+                f"p50 x{latency['p50_us'] / raw['p50_us']:.1f}, "
+                f"p99 x{p99 / raw['p99_us']:.1f}"
+            )
+        lockstep_seconds = arguments.lockstep_seconds
+        rates: dict[str, float] = {}
+        for label, extra in (("separate processes", []), ("composed", ["--composed"])):
+            stats = run_graph(
+                workdir,
+                "lockstep_" + label.split()[0],
+                [
+                    "--clock-mode",
+                    "lockstep",
+                    "--scenario",
+                    "case2",
+                    "--duration",
+                    str(lockstep_seconds),
+                    *extra,
+                ],
+                timeout_s=600,
+            )
+            if stats is None:
+                failures += 1
+                continue
+            rates[label] = stats["steps_per_wall_second"]
+            line = f"lockstep, {label}: {stats['steps']} steps at {rates[label]:.0f} steps/s"
+            if label == "composed":
+                met = rates[label] >= COMPOSED_TARGET_STEPS_PER_S
+                line += f" (target >= {COMPOSED_TARGET_STEPS_PER_S:.0f}: {verdict(met)})"
+            line += f" ({rates[label] / 1000:.2f}x real time; launch to exit {stats['launch_wall_s']:.1f} s)"
+            print(line)
+        if len(rates) == 2:
+            print(f"  composed / separate: x{rates['composed'] / rates['separate processes']:.2f}")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,292 @@
+"""``controller_node``: the control law (FPDESO or a baseline) on the matched inputs of each stamp.
+
+Matches, by exact stamp, ``joint_states_filtered`` (TD position rad and velocity rad/s), ``reference``
+(3x2) and, for ``fpdeso`` only, ``disturbance_estimate`` (row ``xi_tilde``, N m); steps the law once per
+stamp with dt = ``control_period`` and publishes ``torque_command`` ([tau_alpha, tau_beta] N m), then
+``controller_internals`` (the law's internals + the node counters), both stamped with the measurement's
+stamp. The baselines get xi~ = 0 and ``disturbance_estimate`` is then not read.
+
+Parameters: ``algorithm`` (fpdeso | fpd | pid | npd) and ``switch_idle_time``; the gains of every law,
+``fpdeso.<field>`` (nested ``fpdeso.fuzzy.<field>``), ``fpd.fuzzy.<field>``, ``pid.<field>``,
+``npd.<field>``; the nominal model ``model.<field>`` (FPDESO). A change of ``algorithm`` is refused while
+the loop is active (any input within the last ``switch_idle_time`` s of wall-clock time): none of the laws
+can be started so that its first torque equals the last one (FPDESO, FPD and NPD are memoryless, so their
+torque is fixed by the inputs; the PID's integrator is not settable), so a switch under load would be a
+torque step. When idle, the switch is accepted and the new law, with fresh state, runs from the next
+stamp. See ``docs/NODES.md``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Final, Generic, TypeVar
+
+import numpy as np
+import numpy.typing as npt
+from rclpy.context import Context
+from sensor_msgs.msg import JointState
+from smm_msgs_py.conversions import (
+    internals_to_msg,
+    joint_state_to_sample,
+    msg_to_labelled,
+    msg_to_reference,
+    torque_to_msg,
+)
+from smm_msgs_py.errors import InterfaceError
+from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS
+from smm_msgs_py.node_support import (
+    ControlPeriodConfig,
+    MeasurementDrivenNode,
+    Output,
+    ParameterOverrides,
+    run_node,
+)
+from smm_msgs_py.parameters import ConfigParameters
+from smm_msgs_py.qos import qos_for_topic
+from std_msgs.msg import Float64MultiArray
+
+from smm_controller.baselines import (
+    FPDConfig,
+    FPDController,
+    NPDConfig,
+    NPDController,
+    PIDConfig,
+    PIDController,
+)
+from smm_controller.chain import CONTROLLER_NAMES, JointController
+from smm_controller.fpdeso import FPDESOConfig, FPDESOController
+from smm_controller.sync import ExactTimeSynchronizer, Matched
+from smm_dynamics import SMMParameters
+from smm_msgs_py import topics
+
+__all__ = [
+    "DEFAULT_SWITCH_IDLE_TIME",
+    "MODEL_PREFIX",
+    "NODE_NAME",
+    "ControllerNode",
+    "ControllerSelection",
+    "main",
+]
+
+NODE_NAME: Final[str] = "controller_node"
+MODEL_PREFIX: Final[str] = "model"
+"""Parameters of the nominal model :class:`smm_dynamics.SMMParameters` are ``model.<field>``."""
+DEFAULT_SWITCH_IDLE_TIME: Final[float] = 0.5
+"""Default quiet time before ``algorithm`` may change (s)."""
+
+FloatArray = npt.NDArray[np.float64]
+ConfigT = TypeVar("ConfigT")
+
+
+@dataclass(frozen=True)
+class ControllerSelection:
+    """Which control law runs, and when it may change.
+
+    Attributes:
+        algorithm: Control law, "fpdeso", "fpd", "pid" or "npd"; its gains are the parameters
+            ``<algorithm>.<field>``.
+        switch_idle_time: A change of ``algorithm`` is accepted only when no input arrived during the last
+            this many seconds of wall-clock time (s), >= 0; 0 accepts it at any time.
+    """
+
+    algorithm: str = "fpdeso"
+    switch_idle_time: float = DEFAULT_SWITCH_IDLE_TIME
+
+    def __post_init__(self) -> None:
+        if self.algorithm not in CONTROLLER_NAMES:
+            raise ValueError(f"algorithm must be one of {CONTROLLER_NAMES}, got {self.algorithm!r}")
+        if not (math.isfinite(self.switch_idle_time) and self.switch_idle_time >= 0.0):
+            raise ValueError(
+                f"switch_idle_time must be a finite number >= 0 s, got {self.switch_idle_time!r}"
+            )
+
+
+@dataclass(frozen=True)
+class _Law(Generic[ConfigT]):
+    """A control law: its default gains and how to build it from gains and the nominal model."""
+
+    default: ConfigT
+    build: Callable[[ConfigT, SMMParameters], JointController]
+    uses_disturbance_estimate: bool = False
+
+
+_LAWS: Final[Mapping[str, _Law[Any]]] = {
+    "fpdeso": _Law(FPDESOConfig(), FPDESOController, uses_disturbance_estimate=True),
+    "fpd": _Law(FPDConfig(), lambda config, _model: FPDController(config)),
+    "pid": _Law(PIDConfig(), lambda config, _model: PIDController(config)),
+    "npd": _Law(NPDConfig(), lambda config, _model: NPDController(config)),
+}
+
+
+class ControllerNode(MeasurementDrivenNode):
+    """Controller node.
+
+    Args:
+        context: rclpy context (None: the default one).
+        parameter_overrides: Parameter values overriding defaults and parameter files.
+        namespace: Node namespace (None: from the command line).
+        cli_args: Node-specific command-line arguments.
+        node_name: Node name.
+
+    Raises:
+        ValueError: invalid initial parameters (message names the parameter).
+    """
+
+    def __init__(
+        self,
+        *,
+        context: Context | None = None,
+        parameter_overrides: ParameterOverrides | None = None,
+        namespace: str | None = None,
+        cli_args: Sequence[str] | None = None,
+        node_name: str = NODE_NAME,
+    ) -> None:
+        super().__init__(
+            node_name,
+            context=context,
+            parameter_overrides=parameter_overrides,
+            namespace=namespace,
+            cli_args=cli_args,
+        )
+        self._last_input_time: float | None = None
+        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
+        self.selection = ConfigParameters(
+            self, "", ControllerSelection(), check=self._check_selection, on_change=self._on_selection
+        )
+        self.law_parameters: dict[str, ConfigParameters[Any]] = {
+            name: ConfigParameters(self, name, law.default, on_change=self._on_gains(name))
+            for name, law in _LAWS.items()
+        }
+        # Only FPDESO uses the nominal model.
+        self.model_parameters = ConfigParameters(
+            self, MODEL_PREFIX, SMMParameters(), on_change=self._on_gains("fpdeso")
+        )
+        self._algorithm = self.selection.config.algorithm
+        self.controller = self._build(self._algorithm)
+        self.sync: ExactTimeSynchronizer[Any] = ExactTimeSynchronizer(self._inputs(self._algorithm))
+        self._torque_publisher = self.create_publisher(
+            Float64MultiArray, topics.TORQUE_COMMAND, qos_for_topic(topics.TORQUE_COMMAND)
+        )
+        self._internals_publisher = self.create_publisher(
+            Float64MultiArray, topics.CONTROLLER_INTERNALS, qos_for_topic(topics.CONTROLLER_INTERNALS)
+        )
+        self.create_subscription(
+            JointState,
+            topics.JOINT_STATES_FILTERED,
+            self._on_filtered,
+            qos_for_topic(topics.JOINT_STATES_FILTERED),
+        )
+        self.create_subscription(
+            Float64MultiArray, topics.REFERENCE, self._on_reference, qos_for_topic(topics.REFERENCE)
+        )
+        self.create_subscription(
+            Float64MultiArray,
+            topics.DISTURBANCE_ESTIMATE,
+            self._on_disturbance_estimate,
+            qos_for_topic(topics.DISTURBANCE_ESTIMATE),
+        )
+
+    @property
+    def control_period(self) -> float:
+        """Step size dt of every step (s)."""
+        return self.timing.config.control_period
+
+    @property
+    def algorithm(self) -> str:
+        """Name of the running law."""
+        return self._algorithm
+
+    # ------------------------------------------------------------------------------ laws and switching
+
+    def _build(self, name: str) -> JointController:
+        return _LAWS[name].build(self.law_parameters[name].config, self.model_parameters.config)
+
+    @staticmethod
+    def _inputs(name: str) -> tuple[str, ...]:
+        required = (topics.JOINT_STATES_FILTERED, topics.REFERENCE)
+        return (*required, topics.DISTURBANCE_ESTIMATE) if _LAWS[name].uses_disturbance_estimate else required
+
+    def _check_selection(self, candidate: ControllerSelection) -> None:
+        if self._last_input_time is None or candidate.algorithm == self._algorithm:
+            return
+        quiet = time.monotonic() - self._last_input_time
+        if quiet < candidate.switch_idle_time:
+            raise ValueError(
+                f"algorithm cannot change from {self._algorithm!r} to {candidate.algorithm!r} while the loop "
+                f"is active: last input {quiet:.3f} s ago, switch_idle_time = {candidate.switch_idle_time} s "
+                "(no law can take over bumplessly; stop the plant first)"
+            )
+
+    def _on_selection(self, selection: ControllerSelection) -> None:
+        if selection.algorithm != self._algorithm:
+            self._algorithm = selection.algorithm
+            self.controller = self._build(self._algorithm)
+            self.sync.set_inputs(self._inputs(self._algorithm))
+
+    def _on_gains(self, name: str) -> Callable[[Any], None]:
+        def rebuild_if_running(_config: Any) -> None:
+            # The laws take no new config in place: the running one is rebuilt (memoryless laws are
+            # unaffected; the PID restarts with a zero integrator, see docs/NODES.md).
+            if name == self._algorithm:
+                self.controller = self._build(name)
+
+        return rebuild_if_running
+
+    # --------------------------------------------------------------------------------------- inputs
+
+    def _on_filtered(self, msg: JointState) -> None:
+        self._on_input(
+            topics.JOINT_STATES_FILTERED, msg, lambda m: joint_state_to_sample(m, require_velocity=True)
+        )
+
+    def _on_reference(self, msg: Float64MultiArray) -> None:
+        self._on_input(topics.REFERENCE, msg, msg_to_reference)
+
+    def _on_disturbance_estimate(self, msg: Float64MultiArray) -> None:
+        if topics.DISTURBANCE_ESTIMATE in self.sync.inputs:
+            self._on_input(
+                topics.DISTURBANCE_ESTIMATE,
+                msg,
+                lambda m: msg_to_labelled(m, expected_rows=DISTURBANCE_ESTIMATE_ROWS),
+            )
+
+    def _on_input(self, topic: str, msg: Any, parse: Callable[[Any], Any]) -> None:
+        self._last_input_time = time.monotonic()
+        try:
+            item = parse(msg)
+        except InterfaceError as error:
+            self.reject(topic, error)
+            return
+        if not self.admit(topic, item.stamp_ns):
+            return
+        matched = self.sync.add(topic, item.stamp_ns, item)
+        self.counters.dropped_unmatched = self.sync.dropped
+        if matched is not None:
+            stamp_ns = matched.stamp_ns
+            self.answer(stamp_ns, lambda: self._step(matched), lambda: self._diagnostics(stamp_ns))
+
+    # ----------------------------------------------------------------------------------------- step
+
+    def _step(self, matched: Matched[Any]) -> list[Output]:
+        filtered = matched.items[topics.JOINT_STATES_FILTERED]
+        reference = matched.items[topics.REFERENCE].values
+        estimate = matched.items.get(topics.DISTURBANCE_ESTIMATE)
+        xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
+        tau = self.controller.step(reference, filtered.position, filtered.velocity, xi, self.control_period)
+        return [(self._torque_publisher, torque_to_msg(tau, matched.stamp_ns))]
+
+    def _diagnostics(self, stamp_ns: int) -> list[Output]:
+        rows = {**self.controller.internals, **self.counter_rows()}
+        return [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
+
+
+def main(args: Sequence[str] | None = None) -> None:
+    """Console script ``controller_node``."""
+    run_node(lambda context: ControllerNode(context=context), args)
+
+
+if __name__ == "__main__":
+    main()

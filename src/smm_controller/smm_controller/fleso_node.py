@@ -1,0 +1,162 @@
+"""``fleso_node``: the fuzzy linear extended state observer (:mod:`smm_controller.fleso`).
+
+Matches, by exact stamp, ``joint_states_filtered`` (TD position, rad) and ``joint_states`` (effort = torque
+applied over the previous interval, N m; required); steps the FLESO once per stamp with dt =
+``control_period`` and publishes ``disturbance_estimate`` (row ``xi_tilde``, N m), then the diagnostics
+``observer_state`` (x1_hat, x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node
+counters), all stamped with the measurement's stamp. Parameters ``fleso.<field>`` (observer gains) and
+``model.<field>`` (the nominal model, :class:`smm_dynamics.SMMParameters`). See ``docs/NODES.md``.
+"""
+
+from __future__ import annotations
+
+import typing
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from rclpy.context import Context
+from sensor_msgs.msg import JointState
+from smm_msgs_py.conversions import JointSample, internals_to_msg, joint_state_to_sample, labelled_to_msg
+from smm_msgs_py.errors import InterfaceError
+from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
+from smm_msgs_py.node_support import (
+    ControlPeriodConfig,
+    MeasurementDrivenNode,
+    Output,
+    ParameterOverrides,
+    run_node,
+)
+from smm_msgs_py.parameters import ConfigParameters
+from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
+from std_msgs.msg import Float64MultiArray
+
+from smm_controller.fleso import FLESO, FLESOConfig
+from smm_controller.sync import ExactTimeSynchronizer, Matched
+from smm_dynamics import SMMParameters
+from smm_msgs_py import topics
+
+FloatArray = npt.NDArray[np.float64]
+
+__all__ = ["FLESO_PREFIX", "INTERNALS_TOPIC", "MODEL_PREFIX", "NODE_NAME", "FlesoNode", "main"]
+
+NODE_NAME = "fleso_node"
+FLESO_PREFIX = "fleso"
+"""Parameters of :class:`~smm_controller.fleso.FLESOConfig` are ``fleso.<field>``."""
+MODEL_PREFIX = "model"
+"""Parameters of the nominal model :class:`smm_dynamics.SMMParameters` are ``model.<field>``."""
+INTERNALS_TOPIC = "~/internals"
+"""Private diagnostics topic: every FLESO internal and the node counters, labelled rows."""
+
+
+class FlesoNode(MeasurementDrivenNode):
+    """Disturbance observer node.
+
+    Args:
+        context: rclpy context (None: the default one).
+        parameter_overrides: Parameter values overriding defaults and parameter files.
+        namespace: Node namespace (None: from the command line).
+        cli_args: Node-specific command-line arguments.
+        node_name: Node name.
+
+    Raises:
+        ValueError: invalid initial parameters (message names the parameter).
+    """
+
+    def __init__(
+        self,
+        *,
+        context: Context | None = None,
+        parameter_overrides: ParameterOverrides | None = None,
+        namespace: str | None = None,
+        cli_args: Sequence[str] | None = None,
+        node_name: str = NODE_NAME,
+    ) -> None:
+        super().__init__(
+            node_name,
+            context=context,
+            parameter_overrides=parameter_overrides,
+            namespace=namespace,
+            cli_args=cli_args,
+        )
+        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
+        self.fleso_parameters = ConfigParameters(self, FLESO_PREFIX, FLESOConfig(), on_change=self._rebuild)
+        self.model_parameters = ConfigParameters(self, MODEL_PREFIX, SMMParameters(), on_change=self._rebuild)
+        self.fleso = FLESO(self.fleso_parameters.config, self.model_parameters.config)
+        self.sync: ExactTimeSynchronizer[JointSample] = ExactTimeSynchronizer(
+            (topics.JOINT_STATES_FILTERED, topics.JOINT_STATES)
+        )
+        self._estimate_publisher = self.create_publisher(
+            Float64MultiArray, topics.DISTURBANCE_ESTIMATE, qos_for_topic(topics.DISTURBANCE_ESTIMATE)
+        )
+        self._observer_publisher = self.create_publisher(
+            Float64MultiArray, topics.OBSERVER_STATE, qos_for_topic(topics.OBSERVER_STATE)
+        )
+        self._internals_publisher = self.create_publisher(
+            Float64MultiArray, INTERNALS_TOPIC, diagnostic_qos()
+        )
+        self.create_subscription(
+            JointState,
+            topics.JOINT_STATES_FILTERED,
+            self._on_filtered,
+            qos_for_topic(topics.JOINT_STATES_FILTERED),
+        )
+        self.create_subscription(
+            JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
+        )
+
+    @property
+    def control_period(self) -> float:
+        """Step size dt of every step (s)."""
+        return self.timing.config.control_period
+
+    def _rebuild(self, _config: Any) -> None:
+        # FLESO has no way to take a new config and keep its state: the new observer re-initialises on the
+        # next sample (x1^ = y, x2^ = x3^ = 0, estimate 0), see docs/NODES.md.
+        self.fleso = FLESO(self.fleso_parameters.config, self.model_parameters.config)
+
+    def _on_filtered(self, msg: JointState) -> None:
+        self._on_input(topics.JOINT_STATES_FILTERED, msg, require_effort=False)
+
+    def _on_measurement(self, msg: JointState) -> None:
+        self._on_input(topics.JOINT_STATES, msg, require_effort=True)
+
+    def _on_input(self, topic: str, msg: JointState, require_effort: bool) -> None:
+        try:
+            sample = joint_state_to_sample(msg, require_effort=require_effort)
+        except InterfaceError as error:
+            self.reject(topic, error)
+            return
+        if not self.admit(topic, sample.stamp_ns):
+            return
+        matched = self.sync.add(topic, sample.stamp_ns, sample)
+        self.counters.dropped_unmatched = self.sync.dropped
+        if matched is not None:
+            stamp_ns = matched.stamp_ns
+            self.answer(stamp_ns, lambda: self._step(matched), lambda: self._diagnostics(stamp_ns))
+
+    def _step(self, matched: Matched[JointSample]) -> list[Output]:
+        position = matched.items[topics.JOINT_STATES_FILTERED].position
+        # require_effort=True on joint_states guarantees the effort.
+        applied_torque = typing.cast(FloatArray, matched.items[topics.JOINT_STATES].effort)
+        estimate = self.fleso.step(position, applied_torque, self.control_period)
+        message = labelled_to_msg(estimate[np.newaxis, :], DISTURBANCE_ESTIMATE_ROWS, matched.stamp_ns)
+        return [(self._estimate_publisher, message)]
+
+    def _diagnostics(self, stamp_ns: int) -> list[Output]:
+        internals = self.fleso.internals
+        observer = np.stack([internals[row] for row in OBSERVER_STATE_ROWS])
+        return [
+            (self._observer_publisher, labelled_to_msg(observer, OBSERVER_STATE_ROWS, stamp_ns)),
+            (self._internals_publisher, internals_to_msg({**internals, **self.counter_rows()}, stamp_ns)),
+        ]
+
+
+def main(args: Sequence[str] | None = None) -> None:
+    """Console script ``fleso_node``."""
+    run_node(lambda context: FlesoNode(context=context), args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,142 @@
+"""``reference_node``: the reference trajectory (:mod:`smm_controller.reference`) sampled at each measurement.
+
+Subscribes ``joint_states`` (only its stamp is used, but the message must be valid); for each new stamp
+publishes ``reference`` (3x2: position rad, velocity rad/s, acceleration rad/s^2; columns alpha, beta)
+evaluated at t = (stamp - first stamp) / 1e9 s, and ``~/internals`` (row ``time`` = t in both columns, and
+the node counters). The generator is a pure function of t, so a parameter change takes effect exactly at
+the next measurement. Parameters: ``kind`` selects the generator; every generator's fields are parameters
+``<kind>.<field>`` (e.g. ``sine.amplitude``). See ``docs/NODES.md``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from rclpy.context import Context
+from sensor_msgs.msg import JointState
+from smm_msgs_py.conversions import (
+    NANOSECONDS_PER_SECOND,
+    internals_to_msg,
+    joint_state_to_sample,
+    reference_to_msg,
+)
+from smm_msgs_py.errors import InterfaceError
+from smm_msgs_py.node_support import MeasurementDrivenNode, Output, ParameterOverrides, run_node
+from smm_msgs_py.parameters import ConfigParameters
+from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
+from std_msgs.msg import Float64MultiArray
+
+from smm_controller.reference import REFERENCE_KINDS, RampHoldReference, SineReference, StepReference
+from smm_msgs_py import topics
+
+__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "ReferenceNode", "ReferenceSelection", "main"]
+
+NODE_NAME = "reference_node"
+INTERNALS_TOPIC = "~/internals"
+"""Private diagnostics topic: row ``time`` (s) and the node counters."""
+
+
+@dataclass(frozen=True)
+class ReferenceSelection:
+    """Which reference generator the node samples.
+
+    Attributes:
+        kind: "step", "sine" or "ramp_hold"; its fields are the parameters ``<kind>.<field>``.
+    """
+
+    kind: str = "sine"
+
+    def __post_init__(self) -> None:
+        if self.kind not in REFERENCE_KINDS:
+            raise ValueError(f"kind must be one of {sorted(REFERENCE_KINDS)}, got {self.kind!r}")
+
+
+class ReferenceNode(MeasurementDrivenNode):
+    """Reference generator node.
+
+    Args:
+        context: rclpy context (None: the default one).
+        parameter_overrides: Parameter values overriding defaults and parameter files.
+        namespace: Node namespace (None: from the command line).
+        cli_args: Node-specific command-line arguments.
+        node_name: Node name.
+
+    Raises:
+        ValueError: invalid initial parameters (message names the parameter).
+    """
+
+    def __init__(
+        self,
+        *,
+        context: Context | None = None,
+        parameter_overrides: ParameterOverrides | None = None,
+        namespace: str | None = None,
+        cli_args: Sequence[str] | None = None,
+        node_name: str = NODE_NAME,
+    ) -> None:
+        super().__init__(
+            node_name,
+            context=context,
+            parameter_overrides=parameter_overrides,
+            namespace=namespace,
+            cli_args=cli_args,
+        )
+        self.selection = ConfigParameters(self, "", ReferenceSelection())
+        self.generators: dict[str, ConfigParameters[StepReference | SineReference | RampHoldReference]] = {
+            "step": ConfigParameters(self, "step", StepReference()),
+            "sine": ConfigParameters(self, "sine", SineReference()),
+            "ramp_hold": ConfigParameters(self, "ramp_hold", RampHoldReference()),
+        }
+        self._first_stamp_ns: int | None = None
+        self._time_s = 0.0
+        self._reference_publisher = self.create_publisher(
+            Float64MultiArray, topics.REFERENCE, qos_for_topic(topics.REFERENCE)
+        )
+        self._internals_publisher = self.create_publisher(
+            Float64MultiArray, INTERNALS_TOPIC, diagnostic_qos()
+        )
+        self.create_subscription(
+            JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
+        )
+
+    @property
+    def generator(self) -> StepReference | SineReference | RampHoldReference:
+        """The generator sampled at the next measurement (per ``kind`` and its parameters)."""
+        return self.generators[self.selection.config.kind].config
+
+    @property
+    def first_stamp_ns(self) -> int | None:
+        """Stamp (ns) of the first answered measurement: t = 0 of the reference; None before it."""
+        return self._first_stamp_ns
+
+    def _on_measurement(self, msg: JointState) -> None:
+        try:
+            stamp_ns = joint_state_to_sample(msg).stamp_ns
+        except InterfaceError as error:
+            self.reject(topics.JOINT_STATES, error)
+            return
+        if self.admit(topics.JOINT_STATES, stamp_ns):
+            self.answer(stamp_ns, lambda: self._step(stamp_ns), lambda: self._diagnostics(stamp_ns))
+
+    def _step(self, stamp_ns: int) -> list[Output]:
+        if self._first_stamp_ns is None:
+            self._first_stamp_ns = stamp_ns
+        # Exact integer difference, then one rounding: the offline loop's t_ns / 1e9 for the same stamps.
+        self._time_s = (stamp_ns - self._first_stamp_ns) / NANOSECONDS_PER_SECOND
+        reference = self.generator.evaluate(self._time_s)
+        return [(self._reference_publisher, reference_to_msg(reference, stamp_ns))]
+
+    def _diagnostics(self, stamp_ns: int) -> list[Output]:
+        rows = {"time": np.full(2, self._time_s), **self.counter_rows()}
+        return [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
+
+
+def main(args: Sequence[str] | None = None) -> None:
+    """Console script ``reference_node``."""
+    run_node(lambda context: ReferenceNode(context=context), args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,334 @@
+"""fleso_node and controller_node in-process: matching by stamp, outputs, duplicates, bad input, parameters."""
+
+from __future__ import annotations
+
+import array
+import math
+import re
+import time
+from typing import Any
+
+import numpy as np
+import pytest
+from nodes.node_rig import filtered, measurement
+from rclpy.parameter import Parameter
+
+from smm_controller.baselines import NPDController, PIDConfig, PIDController
+from smm_controller.controller_node import ControllerNode
+from smm_controller.fleso import FLESO, FLESOConfig
+from smm_controller.fleso_node import FlesoNode
+from smm_controller.fpdeso import FPDESOConfig, FPDESOController
+from smm_controller.fuzzy_pd import FuzzyPDConfig
+from smm_controller.reference import SineReference
+from smm_dynamics import SMMParameters
+from smm_msgs_py import topics
+from smm_msgs_py.conversions import labelled_to_msg, msg_to_labelled, msg_to_torque, reference_to_msg
+from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
+from std_msgs.msg import Float64MultiArray
+
+pytestmark = pytest.mark.ros
+
+MS = 1_000_000
+DT = 1e-3
+
+
+def estimate_msg(stamp_ns: int, xi: tuple[float, float] = (0.2, -0.1)) -> Float64MultiArray:
+    return labelled_to_msg([xi], DISTURBANCE_ESTIMATE_ROWS, stamp_ns)
+
+
+def reference_msg(stamp_ns: int) -> Float64MultiArray:
+    return reference_to_msg(SineReference().evaluate(stamp_ns / 1e9), stamp_ns)
+
+
+def with_data(msg: Float64MultiArray, values: list[float]) -> Float64MultiArray:
+    msg.data = array.array("d", values)
+    return msg
+
+
+def bad_arrays(good: Any, stamp_ns: int) -> dict[str, Float64MultiArray]:
+    """One Float64MultiArray per kind of contract violation, built from a good one."""
+    nan = good(stamp_ns)
+    nan.data[0] = math.nan
+    short = with_data(good(stamp_ns), [0.0])
+    wrong_label = good(stamp_ns)
+    wrong_label.layout.dim[-2].label = "joint:alpha,gamma"
+    no_stamp = good(stamp_ns)
+    no_stamp.layout.dim.pop()
+    offset = good(stamp_ns)
+    offset.layout.data_offset = 1
+    return {"nan": nan, "short": short, "wrong_label": wrong_label, "no_stamp": no_stamp, "offset": offset}
+
+
+def bad_filtered(stamp_ns: int) -> dict[str, Any]:
+    nan = filtered(stamp_ns)
+    nan.velocity[1] = math.nan
+    no_velocity = filtered(stamp_ns)
+    no_velocity.velocity = []
+    unknown = filtered(stamp_ns)
+    unknown.name = ["beta", "gamma"]
+    return {"nan": nan, "no_velocity": no_velocity, "unknown_joint": unknown}
+
+
+# --------------------------------------------------------------------------------------------- FLESO
+
+
+def test_fleso_node_matches_filtered_position_and_applied_torque_by_stamp(make_rig: Any, ros_context: Any) -> None:
+    rig = make_rig(FlesoNode(context=ros_context))
+    estimates = rig.record(topics.DISTURBANCE_ESTIMATE)
+    observer = rig.record(topics.OBSERVER_STATE)
+    direct = FLESO(FLESOConfig(), SMMParameters())
+    inputs = [((0.0, 0.0), (0.0, 0.0)), ((0.001, 0.002), (0.5, -0.3)), ((0.003, 0.001), (0.7, -0.1))]
+    for k, (position, torque) in enumerate(inputs):
+        rig.publish(topics.JOINT_STATES_FILTERED, filtered(k * MS, position))
+        rig.settle(0.05)
+        assert len(estimates) == k  # half a pair is never answered
+        rig.publish(topics.JOINT_STATES, measurement(k * MS, (9.0, 9.0), torque))
+        rig.wait_for(topics.DISTURBANCE_ESTIMATE, k + 1)
+        expected = direct.step(np.array(position), np.array(torque), DT)
+        parsed = msg_to_labelled(estimates[k], expected_rows=DISTURBANCE_ESTIMATE_ROWS)
+        assert parsed.stamp_ns == k * MS
+        np.testing.assert_array_equal(parsed.row("xi_tilde"), expected)
+    rig.wait_for(topics.OBSERVER_STATE, len(inputs))
+    state = msg_to_labelled(observer[-1], expected_rows=OBSERVER_STATE_ROWS)
+    for row in OBSERVER_STATE_ROWS:
+        np.testing.assert_array_equal(state.row(row), direct.internals[row])
+
+
+def test_fleso_bad_input_on_either_subscription_is_dropped(make_rig: Any, ros_context: Any) -> None:
+    node = FlesoNode(context=ros_context)
+    rig = make_rig(node)
+    estimates = rig.record(topics.DISTURBANCE_ESTIMATE)
+    no_effort = measurement(2 * MS)
+    no_effort.effort = []
+    nan_effort = measurement(2 * MS)
+    nan_effort.effort[0] = math.nan
+    bad = [(topics.JOINT_STATES_FILTERED, m) for m in bad_filtered(2 * MS).values() if m.velocity]
+    bad += [(topics.JOINT_STATES, no_effort), (topics.JOINT_STATES, nan_effort)]
+    for topic, msg in bad:
+        rig.publish(topic, msg)
+    # A good half pairs with nothing bad: stamp 2 ms has one good input only and is never answered.
+    rig.publish(topics.JOINT_STATES_FILTERED, filtered(2 * MS))
+    rig.publish(topics.JOINT_STATES_FILTERED, filtered(3 * MS))
+    rig.publish(topics.JOINT_STATES, measurement(3 * MS))
+    rig.wait_for(topics.DISTURBANCE_ESTIMATE, 1)
+    rig.settle()
+    assert [msg_to_labelled(m).stamp_ns for m in estimates] == [3 * MS]
+    assert node.counters.dropped_invalid == len(bad)
+    assert node.counters.dropped_unmatched == 1
+
+
+def test_fleso_duplicate_re_publishes_the_estimate_without_stepping(make_rig: Any, ros_context: Any) -> None:
+    node = FlesoNode(context=ros_context)
+    rig = make_rig(node)
+    estimates = rig.record(topics.DISTURBANCE_ESTIMATE)
+    direct = FLESO(FLESOConfig(), SMMParameters())
+    for k in range(2):
+        rig.publish(topics.JOINT_STATES_FILTERED, filtered(k * MS, (0.001 * k, 0.0)))
+        rig.publish(topics.JOINT_STATES, measurement(k * MS, effort=(1.0, -1.0)))
+        rig.wait_for(topics.DISTURBANCE_ESTIMATE, k + 1)
+        direct.step(np.array((0.001 * k, 0.0)), np.array((1.0, -1.0)), DT)
+    rig.publish(topics.JOINT_STATES, measurement(MS, effort=(50.0, 50.0)))
+    rig.wait_for(topics.DISTURBANCE_ESTIMATE, 3)
+    assert list(estimates[2].data) == list(estimates[1].data)
+    assert estimates[2].layout.dim[-1].label == estimates[1].layout.dim[-1].label
+    rig.publish(topics.JOINT_STATES_FILTERED, filtered(2 * MS, (0.004, 0.001)))
+    rig.publish(topics.JOINT_STATES, measurement(2 * MS, effort=(1.0, -1.0)))
+    rig.wait_for(topics.DISTURBANCE_ESTIMATE, 4)
+    expected = direct.step(np.array((0.004, 0.001)), np.array((1.0, -1.0)), DT)
+    np.testing.assert_array_equal(msg_to_labelled(estimates[3]).row("xi_tilde"), expected)
+    assert node.counters.duplicates_answered == 1
+
+
+def test_fleso_gain_change_is_validated_and_rebuilds_the_observer(make_rig: Any, ros_context: Any) -> None:
+    node = FlesoNode(context=ros_context)
+    make_rig(node)
+    (rejected,) = node.set_parameters([Parameter("fleso.w0", value=[-20.0, 28.0])])
+    assert not rejected.successful and "w0 must be > 0" in rejected.reason
+    (rejected,) = node.set_parameters([Parameter("model.I55", value=0.0)])
+    assert not rejected.successful and "I55 must be > 0" in rejected.reason
+    (accepted,) = node.set_parameters([Parameter("fleso.w0", value=[30.0, 40.0])])
+    assert accepted.successful
+    assert node.fleso.config == FLESOConfig(w0=(30.0, 40.0))
+
+
+# ---------------------------------------------------------------------------------------- controller
+
+
+def feed_controller(rig: Any, stamp_ns: int, with_estimate: bool, xi: tuple[float, float] = (0.2, -0.1)) -> None:
+    rig.publish(topics.JOINT_STATES_FILTERED, filtered(stamp_ns))
+    rig.publish(topics.REFERENCE, reference_msg(stamp_ns))
+    if with_estimate:
+        rig.publish(topics.DISTURBANCE_ESTIMATE, estimate_msg(stamp_ns, xi))
+
+
+def direct_torque(controller: Any, stamp_ns: int, xi: tuple[float, float] = (0.2, -0.1)) -> np.ndarray:
+    sample = filtered(stamp_ns)
+    return controller.step(
+        SineReference().evaluate(stamp_ns / 1e9), np.array(sample.position), np.array(sample.velocity), np.array(xi), DT
+    )
+
+
+def test_fpdeso_waits_for_all_three_inputs_and_answers_with_the_law_output(make_rig: Any, ros_context: Any) -> None:
+    node = ControllerNode(context=ros_context)
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    internals = rig.record(topics.CONTROLLER_INTERNALS)
+    direct = FPDESOController(FPDESOConfig(), SMMParameters())
+    rig.publish(topics.JOINT_STATES_FILTERED, filtered(0))
+    rig.publish(topics.REFERENCE, reference_msg(0))
+    rig.settle(0.1)
+    assert torques == []
+    rig.publish(topics.DISTURBANCE_ESTIMATE, estimate_msg(0))
+    rig.wait_for(topics.TORQUE_COMMAND, 1)
+    command = msg_to_torque(torques[0])
+    assert command.stamp_ns == 0
+    np.testing.assert_array_equal(command.values, direct_torque(direct, 0))
+    rig.wait_for(topics.CONTROLLER_INTERNALS, 1)
+    rows = msg_to_labelled(internals[0])
+    np.testing.assert_array_equal(rows.row("tau"), command.values)
+    assert "dropped_invalid" in rows.row_labels
+
+
+@pytest.mark.parametrize(("algorithm", "law"), [("pid", PIDController), ("npd", NPDController)])
+def test_baselines_need_no_disturbance_estimate(make_rig: Any, ros_context: Any, algorithm: str, law: Any) -> None:
+    node = ControllerNode(context=ros_context, parameter_overrides={"algorithm": algorithm})
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    direct = law()
+    for k in range(3):
+        feed_controller(rig, k * MS, with_estimate=False)
+        rig.wait_for(topics.TORQUE_COMMAND, k + 1)
+        np.testing.assert_array_equal(msg_to_torque(torques[k]).values, direct_torque(direct, k * MS))
+
+
+def test_controller_bad_input_on_every_subscription_produces_no_torque(make_rig: Any, ros_context: Any) -> None:
+    node = ControllerNode(context=ros_context)
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    bad = [(topics.JOINT_STATES_FILTERED, m) for m in bad_filtered(MS).values()]
+    bad += [(topics.REFERENCE, m) for m in bad_arrays(reference_msg, MS).values()]
+    bad += [(topics.DISTURBANCE_ESTIMATE, m) for m in bad_arrays(estimate_msg, MS).values()]
+    wrong_rows = labelled_to_msg([[0.1, 0.2]], ("something_else",), MS)
+    bad.append((topics.DISTURBANCE_ESTIMATE, wrong_rows))
+    not_a_reference = estimate_msg(MS)  # a valid labelled array, but not a 3x2 reference
+    bad.append((topics.REFERENCE, not_a_reference))
+    for topic, msg in bad:
+        rig.publish(topic, msg)
+    rig.settle(0.1)
+    assert torques == []
+    feed_controller(rig, 2 * MS, with_estimate=True)
+    rig.wait_for(topics.TORQUE_COMMAND, 1)
+    rig.settle()
+    assert [msg_to_torque(m).stamp_ns for m in torques] == [2 * MS]
+    assert node.counters.dropped_invalid == len(bad)
+    assert node.last_answered_stamp_ns == 2 * MS
+
+
+def test_controller_duplicate_and_stale_inputs(make_rig: Any, ros_context: Any) -> None:
+    node = ControllerNode(context=ros_context, parameter_overrides={"algorithm": "pid"})
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    direct = PIDController()
+    for k in (1, 2):
+        feed_controller(rig, k * MS, with_estimate=False)
+        rig.wait_for(topics.TORQUE_COMMAND, k)
+        direct_torque(direct, k * MS)
+    rig.publish(topics.REFERENCE, reference_msg(2 * MS))  # re-transmission: re-published, PID not stepped
+    rig.wait_for(topics.TORQUE_COMMAND, 3)
+    assert list(torques[2].data) == list(torques[1].data)
+    rig.publish(topics.JOINT_STATES_FILTERED, filtered(MS))  # stale: dropped
+    feed_controller(rig, 3 * MS, with_estimate=False)
+    rig.wait_for(topics.TORQUE_COMMAND, 4)
+    rig.settle()
+    assert len(torques) == 4
+    np.testing.assert_array_equal(msg_to_torque(torques[3]).values, direct_torque(direct, 3 * MS))
+    assert node.counters.duplicates_answered == 1
+    assert node.counters.dropped_stale == 1
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "reason"),
+    [
+        ("fpdeso.fuzzy.kp0", [-4050.0, 4150.0], "kp0 must be > 0 for both joints"),
+        ("fpdeso.fuzzy.k_e", [2.0, 6.0, 1.0], "fpdeso.fuzzy.k_e must have 2 values (alpha, beta), got 3"),
+        ("fpdeso.robust_gain", [0.1], "fpdeso.robust_gain must have 2 values (alpha, beta), got 1"),
+        ("pid.kd", [-1.5, 0.5], "kd must be >= 0 for both joints"),
+        ("npd.rho_p", [0.0, 0.6], "rho_p must be > 0 for both joints"),
+        ("fpd.fuzzy.k1", [100.0, 5.0], "k1 must be < kp0"),
+        ("model.I11", -0.1, "I11 must be > 0"),
+        ("algorithm", "lqr", "algorithm must be one of"),
+        ("switch_idle_time", -1.0, "switch_idle_time must be a finite number >= 0"),
+    ],
+)
+def test_invalid_gains_are_rejected_with_the_reason_and_change_nothing(
+    make_rig: Any, ros_context: Any, name: str, value: Any, reason: str
+) -> None:
+    node = ControllerNode(context=ros_context)
+    make_rig(node)
+    controller_before = node.controller
+    value_before = node.get_parameter(name).value
+    (result,) = node.set_parameters([Parameter(name, value=value)])
+    assert not result.successful
+    assert reason in result.reason
+    assert node.controller is controller_before
+    assert node.get_parameter(name).value == value_before
+
+
+def test_a_valid_gain_change_acts_on_the_next_step(make_rig: Any, ros_context: Any) -> None:
+    node = ControllerNode(context=ros_context)
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    feed_controller(rig, 0, with_estimate=True)
+    rig.wait_for(topics.TORQUE_COMMAND, 1)
+    results = node.set_parameters(
+        [Parameter("fpdeso.fuzzy.kp0", value=[2000.0, 2500.0]), Parameter("fpdeso.robust_gain", value=[0.0, 0.0])]
+    )
+    assert all(r.successful for r in results)
+    feed_controller(rig, MS, with_estimate=True)
+    rig.wait_for(topics.TORQUE_COMMAND, 2)
+    new_config = FPDESOConfig(fuzzy=FuzzyPDConfig(kp0=(2000.0, 2500.0)), robust_gain=(0.0, 0.0))
+    old_law = FPDESOController(FPDESOConfig(), SMMParameters())
+    new_law = FPDESOController(new_config, SMMParameters())
+    np.testing.assert_array_equal(msg_to_torque(torques[1]).values, direct_torque(new_law, MS))
+    assert not np.allclose(direct_torque(old_law, MS), direct_torque(new_law, MS))
+
+
+def test_pid_gain_change_restarts_the_pid_with_the_new_gains(make_rig: Any, ros_context: Any) -> None:
+    node = ControllerNode(context=ros_context, parameter_overrides={"algorithm": "pid"})
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    feed_controller(rig, 0, with_estimate=False)
+    rig.wait_for(topics.TORQUE_COMMAND, 1)
+    (result,) = node.set_parameters([Parameter("pid.ki", value=[100.0, 200.0])])
+    assert result.successful
+    feed_controller(rig, MS, with_estimate=False)
+    rig.wait_for(topics.TORQUE_COMMAND, 2)
+    restarted = PIDController(PIDConfig(ki=(100.0, 200.0)))
+    np.testing.assert_array_equal(msg_to_torque(torques[1]).values, direct_torque(restarted, MS))
+
+
+def test_algorithm_switch_is_refused_while_the_loop_runs_and_accepted_when_idle(
+    make_rig: Any, ros_context: Any
+) -> None:
+    node = ControllerNode(context=ros_context, parameter_overrides={"switch_idle_time": 0.2})
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    (accepted,) = node.set_parameters([Parameter("algorithm", value="npd")])  # nothing received yet: idle
+    assert accepted.successful and node.algorithm == "npd"
+    feed_controller(rig, 0, with_estimate=False)
+    rig.wait_for(topics.TORQUE_COMMAND, 1)
+    (refused,) = node.set_parameters([Parameter("algorithm", value="fpdeso")])
+    assert not refused.successful
+    assert re.search(r"cannot change from 'npd' to 'fpdeso' while the loop is active", refused.reason)
+    assert node.algorithm == "npd" and node.get_parameter("algorithm").value == "npd"
+    time.sleep(0.25)
+    (accepted,) = node.set_parameters([Parameter("algorithm", value="fpdeso")])
+    assert accepted.successful and node.algorithm == "fpdeso"
+    # The new law runs from the next stamp, and now waits for the disturbance estimate too.
+    feed_controller(rig, MS, with_estimate=False)
+    rig.settle(0.1)
+    assert len(torques) == 1
+    rig.publish(topics.DISTURBANCE_ESTIMATE, estimate_msg(MS))
+    rig.wait_for(topics.TORQUE_COMMAND, 2)
+    fresh = FPDESOController(FPDESOConfig(), SMMParameters())
+    np.testing.assert_array_equal(msg_to_torque(torques[1]).values, direct_torque(fresh, MS))
