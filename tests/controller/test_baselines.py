@@ -31,7 +31,7 @@ def reference(position: tuple[float, float], velocity: tuple[float, float] = (0.
 def pid(**overrides: tuple[float, float]) -> PIDController:
     fields = {"kp": (0.0, 0.0), "ki": (0.0, 0.0), "kd": (0.0, 0.0)}
     fields.update(overrides)
-    return PIDController(PIDConfig(**fields))  # type: ignore[arg-type]
+    return PIDController(PIDConfig(**fields))
 
 
 class TestPID:

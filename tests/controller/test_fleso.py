@@ -64,7 +64,7 @@ def test_one_step_follows_the_documented_update() -> None:
     s = np.clip(np.array(config.k_s1) * innovation + np.array(config.k_s2) * innovation / DT, -1, 1)
     system = fleso_bandwidth_system()
     w = np.array(config.w0) + np.array(config.k_w) * np.array([system.evaluate((v,))[0] for v in s])
-    l1, l2, l3 = observer_gains(w)  # type: ignore[arg-type]
+    l1, l2, l3 = observer_gains(w)
     internals = fleso.internals
     assert_allclose(internals["bandwidth"], w, rtol=1e-13)
     assert_allclose(internals["fuzzy_input"], s, rtol=1e-13)

@@ -92,7 +92,7 @@ def test_internals_are_read_only_copies(
         with pytest.raises(ValueError, match="read-only"):
             value[0] = 123.0
     with pytest.raises(TypeError):
-        internals["new"] = np.zeros(2)  # type: ignore[index]
+        internals["new"] = np.zeros(2)
     for k in range(2, 10):
         run(algorithm, k)
     for key, value in internals.items():

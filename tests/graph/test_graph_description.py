@@ -38,6 +38,11 @@ def test_options_reach_the_right_nodes() -> None:
     assert by_name["td_node"] == {}
 
 
+def test_control_period_goes_to_every_node() -> None:
+    for spec in build_graph(GraphOptions(control_period=0.005)):
+        assert dict(spec.parameters)["control_period"] == 0.005, spec.name
+
+
 def test_realtime_with_a_scenario_runs_without_end_unless_asked() -> None:
     sim = build_graph(GraphOptions(clock_mode="realtime", scenario="case1"))[0]
     assert dict(sim.parameters)["duration"] == 0.0
@@ -72,6 +77,7 @@ def test_hw_plant_is_refused_clearly() -> None:
         ({"scenario": "case9"}, "scenario"),
         ({"duration": -1.0}, "duration"),
         ({"seed": -2}, "seed"),
+        ({"control_period": 0.0}, "control_period"),
     ],
 )
 def test_invalid_options_name_the_field(changes: dict[str, Any], message: str) -> None:
@@ -189,10 +195,12 @@ def test_launcher_arguments_map_onto_graph_options() -> None:
             "3",
             "--seed",
             "4",
+            "--control-period",
+            "0.002",
         ]
     )
     assert options_from_arguments(arguments) == GraphOptions(
-        clock_mode="realtime", algorithm="pid", scenario=None, duration=3.0, seed=4
+        clock_mode="realtime", algorithm="pid", scenario=None, duration=3.0, seed=4, control_period=0.002
     )
 
 
@@ -286,8 +294,22 @@ def _launched_nodes(monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str]) 
     [
         ({}, GraphOptions()),
         (
-            {"clock_mode": "realtime", "algorithm": "fpd", "scenario": "case1", "duration": "2", "seed": "5"},
-            GraphOptions(clock_mode="realtime", algorithm="fpd", scenario="case1", duration=2.0, seed=5),
+            {
+                "clock_mode": "realtime",
+                "algorithm": "fpd",
+                "scenario": "case1",
+                "duration": "2",
+                "seed": "5",
+                "control_period": "0.002",
+            },
+            GraphOptions(
+                clock_mode="realtime",
+                algorithm="fpd",
+                scenario="case1",
+                duration=2.0,
+                seed=5,
+                control_period=0.002,
+            ),
         ),
         ({"scenario": "none"}, GraphOptions(scenario=None)),
     ],
@@ -359,3 +381,30 @@ def test_rcl_parses_the_command_line_parameters_with_their_types(ros_context: An
         assert list(node.get_parameter("noise_std").value) == [0.001, 0.0]
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize("name", graph.SCENARIO_NAMES)
+def test_scenario_files_agree_with_smm_analysis(name: str) -> None:
+    import numpy as np
+    from smm_analysis.scenarios import get_scenario
+    from smm_controller.reference import make_reference
+
+    scenario = get_scenario(name)
+    path = graph.scenario_file(name)
+    sim = graph.load_parameter_file(path, "/smm/smm_sim_node")
+    assert sim == {
+        "noise_std": list(scenario.noise_std),
+        "disturbance": scenario.disturbance,
+        "inertia_scale": scenario.inertia_scale,
+        "duration": scenario.duration,
+    }
+    assert all(type(value) is float for value in (sim["inertia_scale"], sim["duration"], *sim["noise_std"]))
+    reference = graph.load_parameter_file(path, "/smm/reference_node")
+    kind = reference.pop("kind")
+    assert kind == scenario.reference_kind
+    fields = {key.split(".", 1)[1]: value for key, value in reference.items() if key.startswith(f"{kind}.")}
+    assert len(fields) == len(reference), "parameters of another reference kind in the file"
+    times = np.linspace(0.0, scenario.duration, 501)
+    expected = scenario.reference().sample(times)
+    np.testing.assert_array_equal(make_reference(kind, **fields).sample(times), expected)
+    assert graph.load_parameter_file(path, "/smm/td_node") == {}

@@ -73,7 +73,9 @@ def test_lockstep_case2_through_separate_processes_matches_the_offline_loop(
     params, record = record_parameters(tmp_path)
     launcher = ros_processes.start(
         "smm-launch",
-        launcher_argv("--scenario", "case2", "--algorithm", "fpdeso", "--seed", str(SEED), "--params-file", str(params)),
+        launcher_argv(
+            "--scenario", "case2", "--algorithm", "fpdeso", "--seed", str(SEED), "--params-file", str(params)
+        ),
     )
     code = wait_exit(launcher, LAUNCH_TIMEOUT_S)
     assert code == 0, launcher.logs()
@@ -86,7 +88,15 @@ def test_lockstep_composed_matches_the_offline_loop(ros_processes: Any, tmp_path
     launcher = ros_processes.start(
         "smm-launch-composed",
         launcher_argv(
-            "--composed", "--scenario", "case2", "--duration", "1.0", "--seed", str(SEED), "--params-file", str(params)
+            "--composed",
+            "--scenario",
+            "case2",
+            "--duration",
+            "1.0",
+            "--seed",
+            str(SEED),
+            "--params-file",
+            str(params),
         ),
     )
     code = wait_exit(launcher, LAUNCH_TIMEOUT_S)
@@ -130,7 +140,9 @@ def assert_gone(pids: dict[str, int]) -> None:
             pytest.fail(f"{name} (pid {pid}) outlived smm-launch")
 
 
-def test_a_node_killed_mid_run_stops_the_graph_with_a_non_zero_exit(ros_processes: Any, ros_context: Any) -> None:
+def test_a_node_killed_mid_run_stops_the_graph_with_a_non_zero_exit(
+    ros_processes: Any, ros_context: Any
+) -> None:
     launcher = ros_processes.start("smm-launch", launcher_argv("--scenario", "case1", "--duration", "600"))
     children = started_children(launcher, 5)
     wait_until_stepping(ros_context, launcher)
@@ -150,3 +162,40 @@ def test_sigint_stops_every_child(ros_processes: Any, ros_context: Any) -> None:
     assert code == 128 + signal.SIGINT, launcher.logs()
     assert "did not stop cleanly" not in launcher.logs()
     assert_gone(children)
+
+
+def test_realtime_graph_runs_for_its_duration_and_answers(ros_processes: Any, tmp_path: Path) -> None:
+    import json
+
+    stats = tmp_path / "stats.json"
+    params = tmp_path / "stats.yaml"
+    # The TD's filter factor h must be >= the control period.
+    params.write_text(
+        f'/**/smm_sim_node:\n  ros__parameters:\n    stats_file: "{stats}"\n'
+        "/**/td_node:\n  ros__parameters:\n    td:\n      filter_factor: [0.01, 0.01]\n"
+    )
+    # 100 Hz: slow enough that even a loaded two-core machine answers most measurements.
+    launcher = ros_processes.start(
+        "smm-launch-realtime",
+        launcher_argv(
+            "--clock-mode",
+            "realtime",
+            "--scenario",
+            "case1",
+            "--algorithm",
+            "pid",
+            "--control-period",
+            "0.01",
+            "--duration",
+            "2",
+            "--params-file",
+            str(params),
+        ),
+    )
+    code = wait_exit(launcher, LAUNCH_TIMEOUT_S)
+    assert code == 0, launcher.logs()
+    figures = json.loads(stats.read_text())
+    assert figures["clock_mode"] == "realtime"
+    assert figures["steps"] == 200
+    assert figures["latency"]["count"] > 0, figures
+    assert figures["dropped_invalid"] == 0 and figures["dropped_unknown_stamp"] == 0, figures

@@ -1,4 +1,4 @@
-"""In-process rig for node tests (imported as ``nodes.node_rig``): the nodes under test and a probe node in one private context.
+"""In-process rig for node tests: the nodes under test and a probe node in one private context.
 
 The probe publishes the inputs and records every output; everything spins in one executor (the one the
 stack uses, :func:`smm_msgs_py.node_support.make_executor`), so a test is a sequence of "publish, spin until
@@ -85,11 +85,15 @@ class Rig:
             node.destroy_node()
 
 
-def measurement(stamp_ns: int, position: Sequence[float] = (0.1, -0.2), effort: Sequence[float] = (0.5, -0.25)) -> Any:
+def measurement(
+    stamp_ns: int, position: Sequence[float] = (0.1, -0.2), effort: Sequence[float] = (0.5, -0.25)
+) -> Any:
     """A raw joint_states message (position rad, effort N m) stamped ``stamp_ns``."""
     return sample_to_joint_state(JointSample(stamp_ns, np.array(position), None, np.array(effort)))
 
 
-def filtered(stamp_ns: int, position: Sequence[float] = (0.1, -0.2), velocity: Sequence[float] = (0.3, 0.4)) -> Any:
+def filtered(
+    stamp_ns: int, position: Sequence[float] = (0.1, -0.2), velocity: Sequence[float] = (0.3, 0.4)
+) -> Any:
     """A joint_states_filtered message (position rad, velocity rad/s) stamped ``stamp_ns``."""
     return sample_to_joint_state(JointSample(stamp_ns, np.array(position), np.array(velocity)))

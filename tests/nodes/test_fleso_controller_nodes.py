@@ -1,4 +1,4 @@
-"""fleso_node and controller_node in-process: matching by stamp, outputs, duplicates, bad input, parameters."""
+"""fleso_node and controller_node in-process: stamp matching, outputs, duplicates, bad input, parameters."""
 
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from nodes.node_rig import filtered, measurement
 from rclpy.parameter import Parameter
-
 from smm_controller.baselines import NPDController, PIDConfig, PIDController
 from smm_controller.controller_node import ControllerNode
 from smm_controller.fleso import FLESO, FLESOConfig
@@ -20,11 +19,12 @@ from smm_controller.fleso_node import FlesoNode
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
 from smm_controller.fuzzy_pd import FuzzyPDConfig
 from smm_controller.reference import SineReference
-from smm_dynamics import SMMParameters
-from smm_msgs_py import topics
 from smm_msgs_py.conversions import labelled_to_msg, msg_to_labelled, msg_to_torque, reference_to_msg
 from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
 from std_msgs.msg import Float64MultiArray
+
+from smm_dynamics import SMMParameters
+from smm_msgs_py import topics
 
 pytestmark = pytest.mark.ros
 
@@ -72,7 +72,9 @@ def bad_filtered(stamp_ns: int) -> dict[str, Any]:
 # --------------------------------------------------------------------------------------------- FLESO
 
 
-def test_fleso_node_matches_filtered_position_and_applied_torque_by_stamp(make_rig: Any, ros_context: Any) -> None:
+def test_fleso_node_matches_filtered_position_and_applied_torque_by_stamp(
+    make_rig: Any, ros_context: Any
+) -> None:
     rig = make_rig(FlesoNode(context=ros_context))
     estimates = rig.record(topics.DISTURBANCE_ESTIMATE)
     observer = rig.record(topics.OBSERVER_STATE)
@@ -154,7 +156,9 @@ def test_fleso_gain_change_is_validated_and_rebuilds_the_observer(make_rig: Any,
 # ---------------------------------------------------------------------------------------- controller
 
 
-def feed_controller(rig: Any, stamp_ns: int, with_estimate: bool, xi: tuple[float, float] = (0.2, -0.1)) -> None:
+def feed_controller(
+    rig: Any, stamp_ns: int, with_estimate: bool, xi: tuple[float, float] = (0.2, -0.1)
+) -> None:
     rig.publish(topics.JOINT_STATES_FILTERED, filtered(stamp_ns))
     rig.publish(topics.REFERENCE, reference_msg(stamp_ns))
     if with_estimate:
@@ -164,11 +168,17 @@ def feed_controller(rig: Any, stamp_ns: int, with_estimate: bool, xi: tuple[floa
 def direct_torque(controller: Any, stamp_ns: int, xi: tuple[float, float] = (0.2, -0.1)) -> np.ndarray:
     sample = filtered(stamp_ns)
     return controller.step(
-        SineReference().evaluate(stamp_ns / 1e9), np.array(sample.position), np.array(sample.velocity), np.array(xi), DT
+        SineReference().evaluate(stamp_ns / 1e9),
+        np.array(sample.position),
+        np.array(sample.velocity),
+        np.array(xi),
+        DT,
     )
 
 
-def test_fpdeso_waits_for_all_three_inputs_and_answers_with_the_law_output(make_rig: Any, ros_context: Any) -> None:
+def test_fpdeso_waits_for_all_three_inputs_and_answers_with_the_law_output(
+    make_rig: Any, ros_context: Any
+) -> None:
     node = ControllerNode(context=ros_context)
     rig = make_rig(node)
     torques = rig.record(topics.TORQUE_COMMAND)
@@ -190,7 +200,9 @@ def test_fpdeso_waits_for_all_three_inputs_and_answers_with_the_law_output(make_
 
 
 @pytest.mark.parametrize(("algorithm", "law"), [("pid", PIDController), ("npd", NPDController)])
-def test_baselines_need_no_disturbance_estimate(make_rig: Any, ros_context: Any, algorithm: str, law: Any) -> None:
+def test_baselines_need_no_disturbance_estimate(
+    make_rig: Any, ros_context: Any, algorithm: str, law: Any
+) -> None:
     node = ControllerNode(context=ros_context, parameter_overrides={"algorithm": algorithm})
     rig = make_rig(node)
     torques = rig.record(topics.TORQUE_COMMAND)
@@ -201,7 +213,9 @@ def test_baselines_need_no_disturbance_estimate(make_rig: Any, ros_context: Any,
         np.testing.assert_array_equal(msg_to_torque(torques[k]).values, direct_torque(direct, k * MS))
 
 
-def test_controller_bad_input_on_every_subscription_produces_no_torque(make_rig: Any, ros_context: Any) -> None:
+def test_controller_bad_input_on_every_subscription_produces_no_torque(
+    make_rig: Any, ros_context: Any
+) -> None:
     node = ControllerNode(context=ros_context)
     rig = make_rig(node)
     torques = rig.record(topics.TORQUE_COMMAND)
@@ -281,7 +295,10 @@ def test_a_valid_gain_change_acts_on_the_next_step(make_rig: Any, ros_context: A
     feed_controller(rig, 0, with_estimate=True)
     rig.wait_for(topics.TORQUE_COMMAND, 1)
     results = node.set_parameters(
-        [Parameter("fpdeso.fuzzy.kp0", value=[2000.0, 2500.0]), Parameter("fpdeso.robust_gain", value=[0.0, 0.0])]
+        [
+            Parameter("fpdeso.fuzzy.kp0", value=[2000.0, 2500.0]),
+            Parameter("fpdeso.robust_gain", value=[0.0, 0.0]),
+        ]
     )
     assert all(r.successful for r in results)
     feed_controller(rig, MS, with_estimate=True)

@@ -137,7 +137,9 @@ def test_nested_override_builds_a_new_config_and_keeps_the_rest() -> None:
 
 def test_names_outside_the_prefix_or_unknown_are_ignored() -> None:
     current = FLESOConfig()
-    new = config_from_parameters(FLESOConfig, current, {"other.w0": [1.0, 1.0], "fleso.nope": 3}, prefix="fleso")
+    new = config_from_parameters(
+        FLESOConfig, current, {"other.w0": [1.0, 1.0], "fleso.nope": 3}, prefix="fleso"
+    )
     assert new is current
 
 
@@ -167,7 +169,9 @@ def test_infinity_reaches_the_dataclass_which_decides() -> None:
         ({"robust_gain": [-0.1, 0.1]}, r"robust_gain must be >= 0"),
     ],
 )
-def test_bad_values_are_refused_with_a_message_naming_the_field(overrides: dict[str, Any], message: str) -> None:
+def test_bad_values_are_refused_with_a_message_naming_the_field(
+    overrides: dict[str, Any], message: str
+) -> None:
     with pytest.raises(ValueError, match=message):
         config_from_parameters(FPDESOConfig, FPDESOConfig(), overrides)
 

@@ -14,7 +14,9 @@ def test_every_stamp_is_new_before_the_first_answer() -> None:
     assert gate.classify(10**18) is Admission.NEW
 
 
-@pytest.mark.parametrize(("stamp", "expected"), [(99, Admission.STALE), (100, Admission.DUPLICATE), (101, Admission.NEW)])
+@pytest.mark.parametrize(
+    ("stamp", "expected"), [(99, Admission.STALE), (100, Admission.DUPLICATE), (101, Admission.NEW)]
+)
 def test_stamps_are_classified_against_the_last_answered(stamp: int, expected: Admission) -> None:
     gate = StampGate()
     gate.mark_answered(100)

@@ -94,7 +94,12 @@ def test_single_input_matches_immediately() -> None:
 
 @pytest.mark.parametrize(
     ("inputs", "max_pending", "message"),
-    [((), 10, "at least one input"), (("a", "a"), 10, "unique"), (("a",), 0, "max_pending"), (("a",), True, "max_pending")],
+    [
+        ((), 10, "at least one input"),
+        (("a", "a"), 10, "unique"),
+        (("a",), 0, "max_pending"),
+        (("a",), True, "max_pending"),
+    ],
 )
 def test_invalid_construction_is_refused(inputs: tuple[str, ...], max_pending: int, message: str) -> None:
     with pytest.raises(ValueError, match=message):
@@ -112,9 +117,7 @@ def test_clear_forgets_pending_and_last_match() -> None:
     assert sync.pending_stamps == (1,)
 
 
-@given(
-    st.lists(st.tuples(st.sampled_from(("a", "b")), st.integers(min_value=0, max_value=30)), max_size=80)
-)
+@given(st.lists(st.tuples(st.sampled_from(("a", "b")), st.integers(min_value=0, max_value=30)), max_size=80))
 def test_matches_come_out_in_increasing_stamp_order_with_all_inputs(events: list[tuple[str, int]]) -> None:
     sync: ExactTimeSynchronizer[tuple[str, int]] = ExactTimeSynchronizer(("a", "b"), max_pending=4)
     stamps = []

@@ -58,7 +58,9 @@ def counter(message: Float64MultiArray, name: str) -> float:
 # ----------------------------------------------------------------------------------------------- TD
 
 
-def test_td_node_answers_each_measurement_with_the_td_output_and_its_stamp(make_rig: Any, ros_context: Any) -> None:
+def test_td_node_answers_each_measurement_with_the_td_output_and_its_stamp(
+    make_rig: Any, ros_context: Any
+) -> None:
     rig = make_rig(TdNode(context=ros_context))
     out = rig.record(topics.JOINT_STATES_FILTERED)
     internals = rig.record("/td_node/internals", Float64MultiArray, diagnostic_qos())
@@ -136,7 +138,11 @@ def test_bad_measurements_are_dropped_and_only_the_good_one_is_answered(
     rig.wait_for(output_topic, 1)
     rig.settle()
     assert len(out) == 1
-    stamp = joint_state_to_sample(out[0]).stamp_ns if isinstance(node, TdNode) else msg_to_reference(out[0]).stamp_ns
+    stamp = (
+        joint_state_to_sample(out[0]).stamp_ns
+        if isinstance(node, TdNode)
+        else msg_to_reference(out[0]).stamp_ns
+    )
     assert stamp == 7 * MS
     assert node.counters.dropped_invalid == len(bad)
     assert node.last_answered_stamp_ns == 7 * MS
@@ -202,7 +208,9 @@ def test_reference_is_sampled_at_the_time_since_the_first_stamp(make_rig: Any, r
 def test_reference_kind_and_generator_parameters_act_on_the_next_measurement(
     make_rig: Any, ros_context: Any
 ) -> None:
-    node = ReferenceNode(context=ros_context, parameter_overrides={"kind": "step", "step.amplitude": [0.5, 0.25]})
+    node = ReferenceNode(
+        context=ros_context, parameter_overrides={"kind": "step", "step.amplitude": [0.5, 0.25]}
+    )
     rig = make_rig(node)
     out = rig.record(topics.REFERENCE)
     rig.publish(topics.JOINT_STATES, measurement(0))

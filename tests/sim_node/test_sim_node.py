@@ -304,3 +304,19 @@ def test_console_script_exits_2_on_an_invalid_parameter(ros_domain_id: int) -> N
     )
     assert result.returncode == 2, result.stdout + result.stderr
     assert "substeps" in result.stderr
+
+
+def test_a_diverging_plant_ends_the_run_as_failed(make_harness: Any, tmp_path: Path) -> None:
+    from smm_sim.sim_node import PlantDivergedError
+
+    record = tmp_path / "diverged.npz"
+    h = make_harness(**LOCKSTEP, record_file=str(record))
+    h.wait_matched()
+    h.send([1e300, -1e300], 0)  # finite, so accepted, but no integrator survives it
+    assert h.spin_until(lambda: h.sim.finished)
+    failure = h.sim.done.exception()
+    assert isinstance(failure, PlantDivergedError)
+    assert "non-finite" in str(failure)
+    h.spin_for(0.1)
+    assert h.sim.steps == 1, "a diverged plant must not step again"
+    assert np.load(record)["command"].shape == (1, 2)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
+from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD
 from smm_analysis.errors import AnalysisError
 from smm_analysis.plots import write_plots
 from smm_analysis.report import render_report
@@ -204,27 +205,33 @@ def _td_config(options: ReproduceOptions) -> TrackingDifferentiatorConfig:
         if options.td_filter_factor is None
         else (options.td_filter_factor, options.td_filter_factor)
     )
+    if min(factor) < DEFAULT_CONTROL_PERIOD:
+        raise AnalysisError(
+            f"TD filter factor {factor!r} s must be >= the control period {DEFAULT_CONTROL_PERIOD} s"
+        )
     try:
         return TrackingDifferentiatorConfig(speed=speed, filter_factor=factor)
     except ValueError as error:
         raise AnalysisError(f"invalid TD setting: {error}") from error
 
 
-def reproduce(options: ReproduceOptions, stdout: TextIO = sys.stdout, stderr: TextIO = sys.stderr) -> int:
+def reproduce(options: ReproduceOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
     """Runs the reproduction and writes its outputs.
 
     Args:
         options: Parsed options.
-        stdout: Stream for progress and tables.
-        stderr: Stream for errors.
+        stdout: Stream for progress and tables (default: sys.stdout at call time).
+        stderr: Stream for errors (default: sys.stderr at call time).
 
     Returns:
         The exit code (0, 1 or 2; see the module docstring).
     """
+    out_stream = sys.stdout if stdout is None else stdout
+    err_stream = sys.stderr if stderr is None else stderr
 
     def say(text: str) -> None:
         if not options.quiet:
-            print(text, file=stdout, flush=True)
+            print(text, file=out_stream, flush=True)
 
     try:
         scenarios = resolve_scenarios(options.scenarios, options.duration)
@@ -254,7 +261,7 @@ def reproduce(options: ReproduceOptions, stdout: TextIO = sys.stdout, stderr: Te
             _write_outputs(options, result, sweep)
             say(f"\nwrote {options.out / 'metrics.json'} and the report")
     except AnalysisError as error:
-        print(f"smm-reproduce: error: {error}", file=stderr)
+        print(f"smm-reproduce: error: {error}", file=err_stream)
         return EXIT_ERROR
     if options.check and not all(check.passed for check in result.checks):
         return EXIT_CHECK_FAILED

@@ -332,8 +332,8 @@ def end_effector_errors(
     stamps = validated_time(t_ns)
     desired = _validated_joint_array("reference", reference, stamps.size)
     actual = _validated_joint_array("position", position, stamps.size)
-    desired_xyz = np.array([end_effector_position(row, params) for row in desired], dtype=np.float64)
-    actual_xyz = np.array([end_effector_position(row, params) for row in actual], dtype=np.float64)
+    desired_xyz = np.asarray(end_effector_position(desired, params), dtype=np.float64)
+    actual_xyz = np.asarray(end_effector_position(actual, params), dtype=np.float64)
     error_mm = (desired_xyz - actual_xyz) * _MM_PER_M
     return {
         axis: AxisError(

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD, run_closed_loop
 from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError
-from smm_analysis.metrics import rms_error
+from smm_analysis.metrics import control_energy, rms_error
 from smm_analysis.scenarios import SCENARIOS, Scenario
 from smm_controller import TrackingDifferentiatorConfig
 
@@ -26,6 +26,7 @@ __all__ = [
     "DEFAULT_SPEEDS",
     "TDSweepPoint",
     "best_point",
+    "chosen_point",
     "format_table",
     "main",
     "sweep_td",
@@ -34,7 +35,7 @@ __all__ = [
 DEFAULT_SPEEDS: tuple[float, ...] = (1.0e3, 1.0e4, 1.0e5, 1.0e6)
 """Speed factors sigma of the default grid (rad/s^2)."""
 
-DEFAULT_FILTER_FACTORS: tuple[float, ...] = (0.001, 0.002, 0.003, 0.005, 0.008, 0.012)
+DEFAULT_FILTER_FACTORS: tuple[float, ...] = (0.001, 0.0015, 0.002, 0.003, 0.005, 0.008)
 """Filter factors h of the default grid (s)."""
 
 
@@ -47,12 +48,16 @@ class TDSweepPoint:
         filter_factor: h (s), both joints.
         rms_alpha: case2 RMS tracking error of alpha (rad); inf if the loop went unstable.
         rms_beta: case2 RMS tracking error of beta (rad); inf if the loop went unstable.
+        energy_alpha: Control energy eps_u of alpha (N^2 m^2 s); inf if the loop went unstable.
+        energy_beta: Control energy eps_u of beta (N^2 m^2 s); inf if the loop went unstable.
     """
 
     speed: float
     filter_factor: float
     rms_alpha: float
     rms_beta: float
+    energy_alpha: float = math.inf
+    energy_beta: float = math.inf
 
     @property
     def rms_sum(self) -> float:
@@ -107,7 +112,7 @@ def sweep_td(
                     record_internals=False,
                 )
             except ClosedLoopDivergedError:
-                point = TDSweepPoint(speed, factor, math.inf, math.inf)
+                point = TDSweepPoint(speed, factor, math.inf, math.inf, math.inf, math.inf)
             else:
                 error = run.tracking_error
                 point = TDSweepPoint(
@@ -115,6 +120,8 @@ def sweep_td(
                     filter_factor=factor,
                     rms_alpha=rms_error(run.t_ns, error[:, 0]),
                     rms_beta=rms_error(run.t_ns, error[:, 1]),
+                    energy_alpha=control_energy(run.t_ns, run.command_torque[:, 0]),
+                    energy_beta=control_energy(run.t_ns, run.command_torque[:, 1]),
                 )
             points.append(point)
             if progress is not None:
@@ -129,8 +136,43 @@ def best_point(points: Sequence[TDSweepPoint]) -> TDSweepPoint:
     return min(points, key=lambda point: point.rms_sum)
 
 
-def format_table(points: Sequence[TDSweepPoint]) -> str:
-    """Markdown table: rows sigma, columns h, cells 'RMS alpha / RMS beta' in mrad."""
+def chosen_point(points: Sequence[TDSweepPoint], tolerance: float = 1e-3) -> TDSweepPoint:
+    """The recommended pair: the best h, and the middle sigma of the plateau at that h.
+
+    Once sigma is large enough for the TD to stay linear, the RMS no longer depends on it, so several
+    sigma tie. Among the points at the best h whose RMS sum is within ``tolerance`` (relative) of the best,
+    the middle one in sigma is chosen: it keeps a margin both to TD saturation (sigma too small) and to
+    an unnecessarily narrow nonlinear zone (sigma larger than needed).
+
+    Args:
+        points: Sweep points.
+        tolerance: Relative tolerance on the RMS sum that counts as a tie.
+
+    Returns:
+        The recommended point.
+    """
+    best = best_point(points)
+    ties = sorted(
+        (
+            point
+            for point in points
+            if point.filter_factor == best.filter_factor and point.rms_sum <= best.rms_sum * (1.0 + tolerance)
+        ),
+        key=lambda point: point.speed,
+    )
+    return ties[len(ties) // 2]
+
+
+def format_table(points: Sequence[TDSweepPoint], *, energy: bool = False) -> str:
+    """Markdown table: rows sigma, columns h; cells 'alpha / beta'.
+
+    Args:
+        points: Sweep points.
+        energy: Tabulate the control energy eps_u (N^2 m^2 s) instead of the RMS error (mrad).
+
+    Returns:
+        The table; the best pair (lowest RMS sum) in bold.
+    """
     speeds = sorted({point.speed for point in points})
     factors = sorted({point.filter_factor for point in points})
     lookup = {(point.speed, point.filter_factor): point for point in points}
@@ -144,7 +186,10 @@ def format_table(points: Sequence[TDSweepPoint]) -> str:
             if point is None:
                 cells.append("")
                 continue
-            cell = f"{1e3 * point.rms_alpha:.3f} / {1e3 * point.rms_beta:.3f}"
+            if energy:
+                cell = f"{point.energy_alpha:.4g} / {point.energy_beta:.4g}"
+            else:
+                cell = f"{1e3 * point.rms_alpha:.3f} / {1e3 * point.rms_beta:.3f}"
             cells.append(f"**{cell}**" if point is best else cell)
         lines.append(f"| {speed:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -160,11 +205,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--filter-factors", type=float, nargs="+", default=list(DEFAULT_FILTER_FACTORS), help="h values (s)"
     )
     parser.add_argument("--seed", type=int, default=0, help="noise seed")
+    parser.add_argument("--duration", type=float, help="shorten case2 to this length (s), for a quick look")
     args = parser.parse_args(argv)
     try:
+        scenario = (
+            SCENARIOS["case2"] if args.duration is None else SCENARIOS["case2"].with_duration(args.duration)
+        )
         points = sweep_td(
             args.speeds,
             args.filter_factors,
+            scenario=scenario,
             seed=args.seed,
             progress=lambda p: print(
                 f"sigma {p.speed:g} h {1e3 * p.filter_factor:g} ms: RMS {1e3 * p.rms_alpha:.3f} / "
@@ -172,16 +222,23 @@ def main(argv: Sequence[str] | None = None) -> int:
                 flush=True,
             ),
         )
-    except AnalysisError as error:
+    except (AnalysisError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     print()
     print("case2 FPDESO RMS tracking error alpha / beta (mrad):")
     print(format_table(points))
+    print("\ncase2 FPDESO control energy eps_u alpha / beta (N^2 m^2 s):")
+    print(format_table(points, energy=True))
     best = best_point(points)
+    chosen = chosen_point(points)
     print(
         f"\nbest: sigma = {best.speed:g} rad/s^2, h = {best.filter_factor:g} s "
         f"(RMS {1e3 * best.rms_alpha:.3f} / {1e3 * best.rms_beta:.3f} mrad)"
+    )
+    print(
+        f"chosen: sigma = {chosen.speed:g} rad/s^2, h = {chosen.filter_factor:g} s "
+        "(middle of the sigma plateau within 0.1 % of the best RMS sum)"
     )
     return 0
 

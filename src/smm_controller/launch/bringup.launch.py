@@ -7,7 +7,8 @@ so the two cannot drift apart. Arguments:
 * ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``, ``scenario:=step|case1|case2|none``,
 * ``duration:=<s>`` (empty: the scenario's in lockstep, endless in realtime),
 * ``seed:=<int>`` (empty: as configured),
-* ``params_file:=<path>`` (empty: none), applied after the scenario's file.
+* ``params_file:=<path>`` (empty: none), applied after the scenario's file,
+* ``control_period:=<s>`` (empty: as configured, 1 ms), for every node.
 
 Every node's exit ends the launch: the plant exits 0 when its run is complete, any other exit is a failure.
 """
@@ -37,6 +38,7 @@ ARGUMENTS = (
     ("duration", "", "simulated seconds until the simulator stops (empty: scenario / endless; 0: endless)"),
     ("seed", "", "noise seed of the simulator (empty: as configured)"),
     ("params_file", "", "extra ROS 2 parameter file for every node (empty: none)"),
+    ("control_period", "", "control period of every node, s (empty: as configured, 0.001)"),
 )
 
 
@@ -51,6 +53,7 @@ def options_from_launch_arguments(values: dict[str, str]) -> GraphOptions:
         duration=float(values["duration"]) if values["duration"] else None,
         seed=int(values["seed"]) if values["seed"] else None,
         params_files=(values["params_file"],) if values["params_file"] else (),
+        control_period=float(values["control_period"]) if values["control_period"] else None,
     )
 
 

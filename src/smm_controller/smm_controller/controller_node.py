@@ -19,6 +19,7 @@ stamp. See ``docs/NODES.md``.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -42,7 +43,7 @@ from smm_msgs_py.node_support import (
     MeasurementDrivenNode,
     Output,
     ParameterOverrides,
-    run_node,
+    node_main,
 )
 from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import qos_for_topic
@@ -283,10 +284,10 @@ class ControllerNode(MeasurementDrivenNode):
         return [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
 
 
-def main(args: Sequence[str] | None = None) -> None:
-    """Console script ``controller_node``."""
-    run_node(lambda context: ControllerNode(context=context), args)
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``controller_node``: exit status 0 after Ctrl-C/SIGTERM, 2 for invalid parameters."""
+    return node_main(lambda context: ControllerNode(context=context), args)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

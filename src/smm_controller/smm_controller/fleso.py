@@ -180,7 +180,7 @@ class FLESO:
         config = self.config
         s0 = _clip_unit(config.k_s1[0] * e0 + config.k_s2[0] * rate0)
         s1 = _clip_unit(config.k_s1[1] * e1 + config.k_s2[1] * rate1)
-        (f0,), (f1,) = self._batch.evaluate(((s0,), (s1,)))
+        f0, f1 = self._batch.evaluate_flat(((s0,), (s1,)))
         w0 = max(config.w0[0] + config.k_w[0] * f0, config.w_min[0])
         w1 = max(config.w0[1] + config.k_w[1] * f1, config.w_min[1])
         l10, l20, l30 = observer_gains(w0)

@@ -10,6 +10,7 @@ counters), all stamped with the measurement's stamp. Parameters ``fleso.<field>`
 
 from __future__ import annotations
 
+import sys
 import typing
 from collections.abc import Sequence
 from typing import Any
@@ -26,7 +27,7 @@ from smm_msgs_py.node_support import (
     MeasurementDrivenNode,
     Output,
     ParameterOverrides,
-    run_node,
+    node_main,
 )
 from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
@@ -153,10 +154,10 @@ class FlesoNode(MeasurementDrivenNode):
         ]
 
 
-def main(args: Sequence[str] | None = None) -> None:
-    """Console script ``fleso_node``."""
-    run_node(lambda context: FlesoNode(context=context), args)
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``fleso_node``: exit status 0 after Ctrl-C/SIGTERM, 2 for invalid parameters."""
+    return node_main(lambda context: FlesoNode(context=context), args)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -30,6 +30,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from itertools import pairwise, product
+from math import exp
 from typing import Protocol
 
 import numpy as np
@@ -154,9 +155,10 @@ class GaussianMF:
 class FuzzyVariable:
     """A linguistic variable: ordered labels, one membership function each.
 
-    If the MFs are triangles forming a uniform partition (peaks equally spaced by ``d`` and every
-    triangle's feet at its neighbours' peaks), then at most two adjacent labels are non-zero at any
-    point, and :meth:`active` only evaluates those two (same formula, same result as evaluating all).
+    If the MFs are triangles forming a uniform partition (peaks equally spaced and every triangle's
+    feet at its neighbours' peaks), at most two adjacent labels are non-zero at any point and
+    :meth:`active` only evaluates those two (equal to evaluating all labels up to rounding). If all
+    MFs are Gaussian, :meth:`active` evaluates them inline (bit-identical to GaussianMF.degree).
 
     Args:
         labels: Label names, e.g. ("NB", ..., "PB").
@@ -176,6 +178,16 @@ class FuzzyVariable:
         self._index = {label: i for i, label in enumerate(self.labels)}
         self._sides: list[tuple[float, float, float, float]] = []
         self._lattice = self._uniform_triangle_lattice()
+        # All-Gaussian variables: (index, mean, 2 sigma^2) for an inlined GaussianMF.degree.
+        self._gaussians = (
+            [
+                (i, mf.mean, 2.0 * mf.sigma * mf.sigma)
+                for i, mf in enumerate(self.mfs)
+                if isinstance(mf, GaussianMF)
+            ]
+            if all(isinstance(mf, GaussianMF) for mf in self.mfs)
+            else None
+        )
 
     def _uniform_triangle_lattice(self) -> tuple[float, float, float] | None:
         if len(self.mfs) < 2 or not all(isinstance(mf, TriangularMF) for mf in self.mfs):
@@ -209,7 +221,7 @@ class FuzzyVariable:
         return tuple(mf.degree(x) for mf in self.mfs)
 
     def active(self, x: float) -> list[tuple[int, float]]:
-        """(label index, degree) for every label with degree > 0 at ``x``, in label order.
+        """(label index, degree) for every label that can be non-zero at ``x``, in label order.
 
         On a uniform triangular partition only the falling side of the label left of x and the rising
         side of the label right of x are evaluated; they equal the full triangle formula up to
@@ -228,6 +240,10 @@ class FuzzyVariable:
                     return [(left, falling), (left + 1, rising)]
                 return [(left, falling)]
             return [(left + 1, rising)] if rising > 0.0 else []
+        if self._gaussians is not None:
+            # Same expression as GaussianMF.degree; every label is active (a degree that underflows
+            # to 0.0 is returned too: it fires no rule).
+            return [(i, exp(-((x - mean) ** 2) / width)) for i, mean, width in self._gaussians]
         pairs = []
         for i, mf in enumerate(self.mfs):
             degree = mf.degree(x)

@@ -138,7 +138,7 @@ class FuzzyPDGainSchedule:
         x1 = _clip_unit(k_e[1] * e1)
         c0 = _clip_unit(k_de[0] * ed0)
         c1 = _clip_unit(k_de[1] * ed1)
-        (fe0, fde0), (fe1, fde1) = self._batch.evaluate(((x0, c0), (x1, c1)))
+        fe0, fde0, fe1, fde1 = self._batch.evaluate_flat(((x0, c0), (x1, c1)))
         kp0 = config.kp0[0] + config.k1[0] * fe0
         kp1 = config.kp0[1] + config.k1[1] * fe1
         kd0 = config.kd0[0] + config.k2[0] * fde0

@@ -117,6 +117,8 @@ class GraphOptions:
             length in lockstep and runs without end in real time; 0 runs without end.
         seed: Seed of the simulator's noise generator, >= 0; ``None`` keeps the configured one.
         params_files: Extra ROS 2 parameter files, applied after the scenario file, in order.
+        control_period: Control period of every node (s), > 0; ``None`` keeps the configured one (1 ms).
+            The plant and the controller nodes must agree on it: each node steps once per measurement.
     """
 
     plant: Literal["sim", "hw"] = "sim"
@@ -126,6 +128,7 @@ class GraphOptions:
     duration: float | None = None
     seed: int | None = None
     params_files: tuple[str, ...] = ()
+    control_period: float | None = None
 
     def __post_init__(self) -> None:
         if self.plant not in PLANTS:
@@ -143,6 +146,14 @@ class GraphOptions:
             or self.duration < 0.0
         ):
             raise ValueError(f"duration must be a finite number >= 0 s or None, got {self.duration!r}")
+        period = self.control_period
+        if period is not None and (
+            isinstance(period, bool)
+            or not isinstance(period, (int, float))
+            or not math.isfinite(period)
+            or round(period * 1e9) < 1
+        ):
+            raise ValueError(f"control_period must be a finite number >= 1 ns or None, got {period!r}")
         seed = self.seed
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
             raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
@@ -291,7 +302,11 @@ def _sim_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], 
         parameters.append(("duration", 0.0))
     if options.seed is not None:
         parameters.append(("seed", options.seed))
-    return tuple(parameters)
+    return tuple(parameters) + _period_parameters(options)
+
+
+def _period_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], ...]:
+    return () if options.control_period is None else (("control_period", float(options.control_period)),)
 
 
 def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
@@ -331,9 +346,9 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
     )
     controller_side = []
     for name, class_name in _CONTROLLER_NODES:
-        parameters: tuple[tuple[str, ParameterValue], ...] = ()
+        parameters = _period_parameters(options)
         if name == CONTROLLER_NODE:
-            parameters = (("algorithm", options.algorithm),)
+            parameters = (("algorithm", options.algorithm), *parameters)
         controller_side.append(
             NodeSpec(
                 package="smm_controller",

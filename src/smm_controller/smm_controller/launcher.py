@@ -330,6 +330,9 @@ def launch_composed(specs: Sequence[NodeSpec]) -> int:
                 if done is not None:
                     executor.spin_until_future_complete(done, timeout_sec=_POLL_S * 4)
                     if done.done():
+                        if done.exception() is not None:
+                            _say(f"the plant failed: {done.exception()}", sys.stderr)
+                            return EXIT_NODE_FAILED
                         _say("the plant completed its run; stopping the graph")
                         return EXIT_OK
                 else:
@@ -377,6 +380,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--seed", type=int, default=None, help="seed of the simulator's noise")
     parser.add_argument(
+        "--control-period",
+        type=float,
+        default=None,
+        metavar="S",
+        help="control period of every node in seconds (default: as configured, 0.001)",
+    )
+    parser.add_argument(
         "--params-file",
         action="append",
         default=[],
@@ -409,6 +419,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         duration=arguments.duration,
         seed=arguments.seed,
         params_files=tuple(arguments.params_file),
+        control_period=arguments.control_period,
     )
 
 

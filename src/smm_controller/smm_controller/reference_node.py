@@ -10,6 +10,7 @@ the next measurement. Parameters: ``kind`` selects the generator; every generato
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -23,7 +24,7 @@ from smm_msgs_py.conversions import (
     reference_to_msg,
 )
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.node_support import MeasurementDrivenNode, Output, ParameterOverrides, run_node
+from smm_msgs_py.node_support import MeasurementDrivenNode, Output, ParameterOverrides, node_main
 from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
 from std_msgs.msg import Float64MultiArray
@@ -133,10 +134,10 @@ class ReferenceNode(MeasurementDrivenNode):
         return [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
 
 
-def main(args: Sequence[str] | None = None) -> None:
-    """Console script ``reference_node``."""
-    run_node(lambda context: ReferenceNode(context=context), args)
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``reference_node``: exit status 0 after Ctrl-C/SIGTERM, 2 for invalid parameters."""
+    return node_main(lambda context: ReferenceNode(context=context), args)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

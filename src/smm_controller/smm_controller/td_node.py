@@ -8,6 +8,7 @@ bad input and parameters: see ``docs/NODES.md`` and :mod:`smm_msgs_py.node_suppo
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 
 from rclpy.context import Context
@@ -24,7 +25,7 @@ from smm_msgs_py.node_support import (
     MeasurementDrivenNode,
     Output,
     ParameterOverrides,
-    run_node,
+    node_main,
 )
 from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
@@ -128,10 +129,10 @@ class TdNode(MeasurementDrivenNode):
         return [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
 
 
-def main(args: Sequence[str] | None = None) -> None:
-    """Console script ``td_node``."""
-    run_node(lambda context: TdNode(context=context), args)
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``td_node``: exit status 0 after Ctrl-C/SIGTERM, 2 for invalid parameters."""
+    return node_main(lambda context: TdNode(context=context), args)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

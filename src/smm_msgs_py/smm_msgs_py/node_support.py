@@ -35,6 +35,7 @@ from __future__ import annotations
 import enum
 import os
 import signal
+import sys
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -44,6 +45,7 @@ import numpy as np
 import numpy.typing as npt
 import rclpy
 from rclpy.context import Context
+from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
@@ -55,6 +57,8 @@ __all__ = [
     "COUNTER_ROWS",
     "DEFAULT_CONTROL_PERIOD",
     "DISCOVERY_RANGE_VARIABLE",
+    "EXIT_INVALID_PARAMETER",
+    "EXIT_OK",
     "SPIN_POLL_S",
     "WARN_THROTTLE_S",
     "Admission",
@@ -68,12 +72,19 @@ __all__ = [
     "as_parameter_list",
     "ensure_localhost_discovery",
     "make_executor",
+    "node_main",
     "run_node",
     "run_nodes",
     "spin_until_shutdown",
 ]
 
 DISCOVERY_RANGE_VARIABLE: Final[str] = "ROS_AUTOMATIC_DISCOVERY_RANGE"
+EXIT_OK: Final[int] = 0
+"""Exit status of a node process stopped by a signal or a shutdown."""
+
+EXIT_INVALID_PARAMETER: Final[int] = 2
+"""Exit status of a node process whose initial parameters were refused (as smm_sim_node)."""
+
 SPIN_POLL_S: Final[float] = 0.1
 """Longest wait of one ``spin_once`` (s): how late a shutdown can be noticed when nothing arrives."""
 
@@ -215,8 +226,8 @@ def run_nodes(node_factories: Sequence[NodeFactory], args: Sequence[str] | None 
 
     SIGINT (Ctrl-C) and SIGTERM end the spin between two callbacks; then the executor is shut down, the
     nodes destroyed (in reverse order) and the context shut down, and the function returns normally.
-    ``ExternalShutdownException`` (context shut down elsewhere) ends it the same way. Any other exception
-    propagates after the same clean-up.
+    ``ExternalShutdownException`` (context shut down elsewhere) ends it the same way. Any other exception,
+    e.g. a node refusing its initial parameters, propagates after the same clean-up.
 
     Args:
         node_factories: One factory per node; all nodes share one context and one executor (composition).
@@ -252,8 +263,27 @@ def run_nodes(node_factories: Sequence[NodeFactory], args: Sequence[str] | None 
 
 
 def run_node(node_factory: NodeFactory, args: Sequence[str] | None = None) -> None:
-    """Run one node: :func:`run_nodes` with a single factory (the body of every ``main``)."""
+    """Run one node: :func:`run_nodes` with a single factory."""
     run_nodes([node_factory], args)
+
+
+def node_main(node_factory: NodeFactory, args: Sequence[str] | None = None) -> int:
+    """Body of a node's console script: :func:`run_node`, with invalid parameters as exit status 2.
+
+    A node that refuses its initial parameters (a config ``ValueError``, or rclpy's
+    ``ParameterException``, e.g. an integer array for a double-array parameter) is reported on stderr as
+    ``<node>: invalid parameter: <reason>`` in one line, without a traceback.
+
+    Returns:
+        :data:`EXIT_OK` after a shutdown, :data:`EXIT_INVALID_PARAMETER` when the node refused its
+        parameters.
+    """
+    try:
+        run_node(node_factory, args)
+    except (ValueError, ParameterException) as error:
+        print(f"invalid parameter: {error}", file=sys.stderr)
+        return EXIT_INVALID_PARAMETER
+    return EXIT_OK
 
 
 def as_parameter_list(overrides: ParameterOverrides | None) -> list[Parameter] | None:

@@ -13,7 +13,9 @@ What happens to a torque command in :meth:`SimulatedPlant.step` (in this order):
    first-order lag reaches 90 % of a step after ``T ln 10``; reading the catalogue response time as
    that 90 % time gives ``T_rise = 0.050 / ln 10 = 21.7 ms`` and ``T_fall = 0.025 / ln 10 = 10.9 ms``
    (:func:`valve_time_constants_from_response_times`). The lag is integrated exactly over each RK4
-   sub-step, and the torque held over that sub-step is the lag's exact mean over it.
+   sub-step, and the torque held over that sub-step is the lag's exact mean over it. The time constant
+   is chosen at the start of each sub-step, so a reversal switches from T_fall to T_rise at the first
+   sub-step boundary after the output crosses zero.
 4. **RK4 integration** of eq. 2 with the true parameters (``params`` with inertias scaled by
    ``inertia_scale``) and the external disturbance ``tau_dist`` (eq. 46 or none), in ``substeps``
    equal sub-steps per call; the disturbance is evaluated at each sub-step's midpoint.
@@ -265,6 +267,10 @@ class GroundTruth:
 
 
 def _validated_command(tau_command: ArrayLike) -> tuple[float, float]:
+    if isinstance(tau_command, tuple) and len(tau_command) == 2:
+        first, second = tau_command
+        if type(first) is float and type(second) is float and math.isfinite(first) and math.isfinite(second):
+            return first, second  # fast path for the offline loop, which passes a pair of floats
     try:
         command = np.asarray(tau_command, dtype=np.float64)
     except (TypeError, ValueError) as error:

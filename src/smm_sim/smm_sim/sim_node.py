@@ -73,6 +73,7 @@ __all__ = [
     "CLOCK_MODES",
     "NODE_NAME",
     "LatencyStats",
+    "PlantDivergedError",
     "PlantParameters",
     "SimNode",
     "SimNodeConfig",
@@ -220,6 +221,10 @@ class SimNodeConfig:
 
 class SimParameterError(ValueError):
     """A parameter of smm_sim_node has an invalid value (the message names the parameter and the value)."""
+
+
+class PlantDivergedError(RuntimeError):
+    """The simulated plant's state became non-finite (the closed loop is unstable); the run is over."""
 
 
 class LatencyStats:
@@ -569,25 +574,46 @@ class SimNode(Node):
         self._measurement = self._plant.measure()
         self._truth = self._plant.ground_truth
         self._recorder.sample(self._truth, self._measurement)
+        state = (*self._truth.position.tolist(), *self._truth.velocity.tolist())
+        if not all(map(math.isfinite, state)):
+            self._diverged(command)
         if self._step_limit is not None and self.steps >= self._step_limit:
             self._finish()
+
+    def _diverged(self, command: tuple[float, float]) -> None:
+        """The integration blew up (an unstable loop drove the state to Inf/NaN): end the run as failed.
+
+        :attr:`done` completes with a :class:`PlantDivergedError`; the console script exits 1.
+        """
+        message = (
+            f"plant state became non-finite at t = {self._plant.time_ns / _NS_PER_S:g} s after torque "
+            f"{list(command)} N m (unstable closed loop?); stopping the simulation"
+        )
+        self._log.error(message)
+        self._finished = True
+        self._timer.cancel()  # type: ignore[no-untyped-call]
+        self.write_outputs()
+        self.done.set_exception(PlantDivergedError(message))  # type: ignore[no-untyped-call]
+        if self._shutdown_when_done:
+            self.context.try_shutdown()
 
     def _publish_measurement(self) -> None:
         measurement = self._measurement
         truth = self._truth
         stamp_ns = measurement.stamp_ns
+        message = sample_to_joint_state(
+            JointSample(stamp_ns, measurement.position, None, measurement.applied_torque)
+        )
+        # The measurement goes first: the controller-side nodes (other processes) start on it while this node
+        # publishes the clock and the ground truth. Nothing in the loop reads /clock (stamps carry the time).
+        now_ns = time.monotonic_ns()
+        self._joint_states_pub.publish(message)
+        self._last_publish_ns = now_ns
         if self._clock_pub is not None:
             self._clock_pub.publish(clock_msg(stamp_ns))
         self._ground_truth_pub.publish(
             sample_to_joint_state(JointSample(stamp_ns, truth.position, truth.velocity, truth.applied_torque))
         )
-        now_ns = time.monotonic_ns()
-        self._joint_states_pub.publish(
-            sample_to_joint_state(
-                JointSample(stamp_ns, measurement.position, None, measurement.applied_torque)
-            )
-        )
-        self._last_publish_ns = now_ns
         if self._clock_mode == "realtime":
             self._published_at[stamp_ns] = now_ns
             while len(self._published_at) > _PUBLISHED_STAMPS_KEPT:
@@ -673,7 +699,9 @@ class SimNode(Node):
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Console script ``smm_sim_node``: exit 0 at the step limit or on Ctrl-C / SIGTERM, 2 on a bad parameter.
+    """Console script ``smm_sim_node``.
+
+    Exit codes: 0 at the step limit or on Ctrl-C / SIGTERM, 1 when the plant diverged, 2 on a bad parameter.
 
     Args:
         args: Command line (``--ros-args ...``); None for ``sys.argv``.
@@ -681,11 +709,22 @@ def main(args: Sequence[str] | None = None) -> int:
     Returns:
         The exit code.
     """
+    nodes: list[SimNode] = []
+
+    def create(context: Context) -> SimNode:
+        node = SimNode(context=context, shutdown_when_done=True)
+        nodes.append(node)
+        return node
+
     try:
-        run_node(lambda context: SimNode(context=context, shutdown_when_done=True), args)
+        run_node(create, args)
     except SimParameterError as error:
         print(f"{NODE_NAME}: invalid parameter: {error}", file=sys.stderr)
         return 2
+    failure = nodes[0].done.exception() if nodes and nodes[0].done.done() else None  # type: ignore[no-untyped-call]
+    if failure is not None:
+        print(f"{NODE_NAME}: {failure}", file=sys.stderr)
+        return 1
     return 0
 
 
