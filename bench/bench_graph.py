@@ -38,6 +38,8 @@ PONG_TOPIC = "bench_pong"
 LATENCY_P99_TARGET_US = 1000.0
 MISS_RATE_TARGET = 0.01
 COMPOSED_TARGET_STEPS_PER_S = 2000.0
+REALTIME_TORQUE_LIMIT = 20.0
+"""Torque saturation of the plant in the real-time runs (N m; case2 needs a few N m)."""
 
 
 def verdict(met: bool) -> str:
@@ -174,13 +176,22 @@ def ping_pong(seconds: float) -> dict[str, float]:
 
 
 def run_graph(
-    workdir: Path, label: str, arguments: list[str], timeout_s: float, extra_yaml: str = ""
+    workdir: Path,
+    label: str,
+    arguments: list[str],
+    timeout_s: float,
+    sim_yaml: str = "",
+    extra_yaml: str = "",
 ) -> dict[str, Any] | None:
-    """Run smm-launch with a stats file; return the simulator's statistics (None if the run failed)."""
+    """Run smm-launch with a stats file; return the simulator's statistics (None if the run failed).
+
+    ``sim_yaml`` adds lines to the simulator's section of the parameter file, ``extra_yaml`` other sections.
+    """
     stats = workdir / f"{label}.json"
     params = workdir / f"{label}.yaml"
     params.write_text(
         f'/**/smm_sim_node:\n  ros__parameters:\n    stats_file: "{stats}"\n    stats_period: 0.0\n'
+        + sim_yaml
         + extra_yaml
     )
     log = workdir / f"{label}.log"
@@ -288,12 +299,14 @@ def main(argv: list[str] | None = None) -> int:
                 f"realtime_{round(1 / period)}hz",
                 command,
                 timeout_s=seconds + 120,
+                # A real plant saturates; without it a loop run on late commands can drive the plant to Inf.
+                sim_yaml=f"    torque_limit: [{REALTIME_TORQUE_LIMIT}, {REALTIME_TORQUE_LIMIT}]\n",
                 extra_yaml=td_filter_yaml(period),
             )
             if stats is None:
                 failures += 1
                 continue
-            print(f"[{algorithm}, {scenario}]")
+            print(f"[{algorithm}, {scenario}, torque limit +-{REALTIME_TORQUE_LIMIT:g} N m]")
             report_realtime(stats, period, seconds, raw, targets=period == 1e-3)
         rates: dict[str, float] = {}
         for label, extra in (("separate processes", []), ("composed", ["--composed"])):
