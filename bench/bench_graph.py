@@ -179,6 +179,7 @@ def run_graph(
     workdir: Path,
     label: str,
     arguments: list[str],
+    *,
     timeout_s: float,
     sim_yaml: str = "",
     extra_yaml: str = "",

@@ -408,3 +408,14 @@ def test_scenario_files_agree_with_smm_analysis(name: str) -> None:
     expected = scenario.reference().sample(times)
     np.testing.assert_array_equal(make_reference(kind, **fields).sample(times), expected)
     assert graph.load_parameter_file(path, "/smm/td_node") == {}
+
+
+def test_a_missing_executable_is_reported_before_anything_starts() -> None:
+    from smm_controller.launcher import ExecutableNotFoundError, launch_processes, resolve_executable
+
+    missing = NodeSpec("smm_sim", "no_such_node", "ghost", "m:C")
+    with pytest.raises(ExecutableNotFoundError, match="no_such_node"):
+        resolve_executable(missing)
+    real = build_graph(GraphOptions(scenario=None))[0]
+    with pytest.raises(ExecutableNotFoundError):
+        launch_processes([real, missing])

@@ -199,3 +199,19 @@ def test_realtime_graph_runs_for_its_duration_and_answers(ros_processes: Any, tm
     assert figures["steps"] == 200
     assert figures["latency"]["count"] > 0, figures
     assert figures["dropped_invalid"] == 0 and figures["dropped_unknown_stamp"] == 0, figures
+
+
+def test_composed_mode_reports_an_invalid_parameter_and_exits_2(ros_domain_id: int, tmp_path: Path) -> None:
+    import subprocess
+
+    params = tmp_path / "bad.yaml"
+    params.write_text("/**/smm_sim_node:\n  ros__parameters:\n    noise_std: [-1.0, 0.0]\n")
+    result = subprocess.run(
+        launcher_argv("--composed", "--params-file", str(params)),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "smm_sim_node: invalid parameter" in result.stderr and "noise_std" in result.stderr

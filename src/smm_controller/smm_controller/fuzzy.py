@@ -400,9 +400,11 @@ class MamdaniSystem:
             out: Strength slots, initialised to 0.0 by the caller.
             targets: Slots set by each flattened antecedent combination (see :meth:`slot_table`).
         """
-        if len(x) != len(self.inputs):
-            raise ValueError(f"expected {len(self.inputs)} inputs, got {len(x)}")
-        if len(self.inputs) == 2:
+        # Hot path (every control step): explicit comparisons are faster than builtin max/min calls.
+        n_inputs = len(self.inputs)
+        if len(x) != n_inputs:
+            raise ValueError(f"expected {n_inputs} inputs, got {len(x)}")
+        if n_inputs == 2:
             second = self.inputs[1].active(x[1])
             radix = self._radix[1]
             for i, degree_i in self.inputs[0].active(x[0]):
@@ -410,21 +412,35 @@ class MamdaniSystem:
                 for j, degree_j in second:
                     firing = degree_i if degree_i < degree_j else degree_j
                     for slot in targets[base + j]:
-                        out[slot] = max(out[slot], firing)
+                        if firing > out[slot]:  # noqa: PLR1730
+                            out[slot] = firing
             return
-        if len(self.inputs) == 1:
-            for i, firing in self.inputs[0].active(x[0]):
+        if n_inputs == 1:
+            variable = self.inputs[0]
+            value = x[0]
+            gaussians = variable._gaussians
+            if gaussians is not None:
+                # FuzzyVariable.active inlined for Gaussian labels (same expression).
+                for i, mean, width in gaussians:
+                    firing = exp(-((value - mean) ** 2) / width)
+                    for slot in targets[i]:
+                        if firing > out[slot]:  # noqa: PLR1730
+                            out[slot] = firing
+                return
+            for i, firing in variable.active(value):
                 for slot in targets[i]:
-                    out[slot] = max(out[slot], firing)
+                    if firing > out[slot]:  # noqa: PLR1730
+                        out[slot] = firing
             return
-        for combination in product(*(var.active(value) for var, value in zip(self.inputs, x, strict=True))):
+        for combination in product(*(var.active(v) for var, v in zip(self.inputs, x, strict=True))):
             flat = 0
             firing = 1.0
             for radix, (i, degree) in zip(self._radix, combination, strict=True):
                 flat = flat * radix + i
                 firing = min(firing, degree)
             for slot in targets[flat]:
-                out[slot] = max(out[slot], firing)
+                if firing > out[slot]:  # noqa: PLR1730
+                    out[slot] = firing
 
     def aggregated_membership(self, x: Sequence[float]) -> FloatArray:
         """Aggregated output membership sampled on :attr:`grid`, shape (n_outputs, grid_points)."""
@@ -471,6 +487,7 @@ class MamdaniBatch:
             )
             for s, system in enumerate(systems)
         ]
+        self._pairs = tuple(zip(self.systems, self._targets, strict=True))
         self._shape = (n_labels, n_rows, 1)
         self._samples = np.ascontiguousarray(np.concatenate([first.output_samples] * len(systems), axis=1))
         self._clipped = np.empty((n_labels, n_rows, first.grid.size))
@@ -495,8 +512,8 @@ class MamdaniBatch:
         if len(inputs) != len(self.systems):
             raise ValueError(f"expected {len(self.systems)} input vectors, got {len(inputs)}")
         strengths = [0.0] * self._n_slots
-        for system, x, targets in zip(self.systems, inputs, self._targets, strict=True):
-            system.accumulate_strengths(x, strengths, targets)
+        for k, (system, targets) in enumerate(self._pairs):
+            system.accumulate_strengths(inputs[k], strengths, targets)
         np.minimum(np.array(strengths).reshape(self._shape), self._samples, out=self._clipped)
         np.maximum.reduce(self._clipped, axis=0, out=self._aggregated)
         return [

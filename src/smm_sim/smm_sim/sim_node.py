@@ -175,7 +175,8 @@ class SimNodeConfig:
         max_steps: Stop after this many steps, >= 0; 0 = no limit.
         duration: Stop after this much plant time (s), >= 0; 0 = no limit.
         record_file: Write the run (.npz: stamps, true and measured position, velocity, applied and
-            commanded torque) here at the end; "" = no record.
+            commanded torque) here at the end; "" = no record. The run is recorded only when this is
+            set at start-up; a later change only moves where the record goes.
         stats_file: Write the run statistics (JSON: steps, drops, latency percentiles, deadline misses)
             here at the end; "" = none.
         stats_period: Realtime: log the latency statistics every this many wall seconds (s), >= 0;
@@ -361,8 +362,10 @@ class SimNode(Node):
         self._last_step_ns = 0
         self._measurement = self._plant.measure()
         self._truth = self._plant.ground_truth
-        self._recorder = _Recorder()
-        self._recorder.sample(self._truth, self._measurement)
+        # Kept only when asked for at start-up: a record grows by about 0.5 kB per step.
+        self._recorder = _Recorder() if self._node_parameters.config.record_file else None
+        if self._recorder is not None:
+            self._recorder.sample(self._truth, self._measurement)
         self._finished = False
 
         self._joint_states_pub = self.create_publisher(
@@ -570,10 +573,11 @@ class SimNode(Node):
         self._last_step_ns = time.monotonic_ns()
         if self._first_step_ns is None:
             self._first_step_ns = self._last_step_ns
-        self._recorder.command_applied(command_stamp_ns, command)
         self._measurement = self._plant.measure()
         self._truth = self._plant.ground_truth
-        self._recorder.sample(self._truth, self._measurement)
+        if self._recorder is not None:
+            self._recorder.command_applied(command_stamp_ns, command)
+            self._recorder.sample(self._truth, self._measurement)
         state = (*self._truth.position.tolist(), *self._truth.velocity.tolist())
         if not all(map(math.isfinite, state)):
             self._diverged(command)
@@ -670,7 +674,7 @@ class SimNode(Node):
     def write_outputs(self) -> None:
         """Write ``record_file`` and ``stats_file`` (when set) with the run so far."""
         config = self.config
-        if config.record_file:
+        if config.record_file and self._recorder is not None:
             self._recorder.save(Path(config.record_file))
         if config.stats_file:
             path = Path(config.stats_file)
@@ -693,7 +697,7 @@ class SimNode(Node):
 
     def destroy_node(self) -> None:
         """Write the outputs of an unfinished run (stopped by Ctrl-C), then destroy the node."""
-        if hasattr(self, "_recorder") and not self._finished:
+        if hasattr(self, "_finished") and not self._finished:
             self.write_outputs()
         super().destroy_node()  # type: ignore[no-untyped-call]
 
