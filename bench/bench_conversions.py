@@ -10,7 +10,6 @@ import timeit
 from collections.abc import Callable
 
 import numpy as np
-
 from smm_msgs_py.conversions import (
     JointSample,
     joint_state_to_sample,

@@ -83,7 +83,9 @@ def ros_domain_id(ros_netns: None, monkeypatch: pytest.MonkeyPatch) -> Iterator[
     """A ROS_DOMAIN_ID of this test's own, exported to the environment of everything it starts."""
     domain_id = next(_domain_ids)
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain_id))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST"))
+    monkeypatch.setenv(
+        "ROS_AUTOMATIC_DISCOVERY_RANGE", os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    )
     yield domain_id
 
 

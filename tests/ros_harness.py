@@ -34,9 +34,7 @@ def private_context(domain_id: int) -> Iterator[Any]:
         context.try_shutdown()
 
 
-def spin_until(
-    executor: Any, predicate: Callable[[], bool], timeout_s: float, poll_s: float = 0.01
-) -> bool:
+def spin_until(executor: Any, predicate: Callable[[], bool], timeout_s: float, poll_s: float = 0.01) -> bool:
     """Spin ``executor`` until ``predicate()`` holds; False if ``timeout_s`` passes first."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -114,7 +112,12 @@ class ProcessGroup:
         stderr_path = self.log_dir / f"{name}.err"
         with stdout_path.open("wb") as out, stderr_path.open("wb") as err:
             popen = subprocess.Popen(
-                list(argv), stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=full_env, start_new_session=True
+                list(argv),
+                stdout=out,
+                stderr=err,
+                stdin=subprocess.DEVNULL,
+                env=full_env,
+                start_new_session=True,
             )
         process = NodeProcess(name, popen, stdout_path, stderr_path)
         self.processes.append(process)

@@ -1,4 +1,5 @@
 """Packaging of smm_dynamics (ament_python: colcon build and pip install -e both work)."""
+
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -23,7 +24,6 @@ setup(
     description="Rigid-body model of the 2-DOF hydraulic spherical motion mechanism (pure numpy).",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-        ],
+        "console_scripts": [],
     },
 )

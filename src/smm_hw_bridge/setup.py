@@ -1,4 +1,5 @@
 """Packaging of smm_hw_bridge (ament_python: colcon build and pip install -e both work)."""
+
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -23,7 +24,6 @@ setup(
     description="Bridge between the SMM ROS interfaces and the hydraulic test bench.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-        ],
+        "console_scripts": [],
     },
 )

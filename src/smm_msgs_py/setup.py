@@ -1,4 +1,5 @@
 """Packaging of smm_msgs_py (ament_python: colcon build and pip install -e both work)."""
+
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -20,10 +21,9 @@ setup(
     zip_safe=True,
     maintainer="SMM control stack maintainers",
     maintainer_email="smm-maintainers@example.org",
-    description="Interface contract of the SMM stack: topic names, QoS, conversions between messages and numpy arrays.",
+    description="Interface contract of the SMM stack: topic names, QoS, message conversions.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-        ],
+        "console_scripts": [],
     },
 )

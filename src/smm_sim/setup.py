@@ -1,4 +1,5 @@
 """Packaging of smm_sim (ament_python: colcon build and pip install -e both work)."""
+
 from glob import glob
 
 from setuptools import find_packages, setup

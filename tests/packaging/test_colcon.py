@@ -1,4 +1,4 @@
-"""``colcon build`` of src/ gives the layout that ``ros2 run <pkg> <executable>`` executes on a Jazzy machine."""
+"""``colcon build`` of src/ gives the layout that ``ros2 run <pkg> <executable>`` runs on Jazzy."""
 
 from __future__ import annotations
 
@@ -20,7 +20,11 @@ COLCON = Path(sys.executable).with_name("colcon")
 def declared_console_scripts(package: str) -> list[str]:
     """Console scripts of ``package`` as setuptools reads them from its setup.py."""
     out = subprocess.run(
-        [sys.executable, "-c", _PRINT_ENTRY_POINTS], cwd=SRC / package, capture_output=True, text=True, check=True
+        [sys.executable, "-c", _PRINT_ENTRY_POINTS],
+        cwd=SRC / package,
+        capture_output=True,
+        text=True,
+        check=True,
     ).stdout
     return [line for line in out.splitlines() if line]
 
@@ -40,18 +44,30 @@ def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
     workdir = tmp_path_factory.mktemp("colcon")
     result = subprocess.run(
         [
-            str(COLCON), "--log-base", str(workdir / "log"), "build", "--base-paths", str(SRC),
-            "--build-base", str(workdir / "build"), "--install-base", str(workdir / "install"),
+            str(COLCON),
+            "--log-base",
+            str(workdir / "log"),
+            "build",
+            "--base-paths",
+            str(SRC),
+            "--build-base",
+            str(workdir / "build"),
+            "--install-base",
+            str(workdir / "install"),
         ],
-        cwd=workdir, capture_output=True, text=True, check=False,
+        cwd=workdir,
+        capture_output=True,
+        text=True,
+        check=False,
     )
     assert result.returncode == 0, result.stdout + result.stderr
     return workdir / "install"
 
 
 def test_every_package_is_built(colcon_install: Path) -> None:
-    assert PACKAGES == sorted(
-        ["smm_analysis", "smm_controller", "smm_dynamics", "smm_hw_bridge", "smm_msgs_py", "smm_sim"]
+    assert (
+        sorted(["smm_analysis", "smm_controller", "smm_dynamics", "smm_hw_bridge", "smm_msgs_py", "smm_sim"])
+        == PACKAGES
     )
     for package in PACKAGES:
         share = colcon_install / package / "share"
@@ -86,7 +102,10 @@ def test_an_installed_executable_starts_from_the_install_tree(colcon_install: Pa
     assert "usage:" in result.stdout
     where = subprocess.run(
         [sys.executable, "-c", "import smm_analysis; print(smm_analysis.__file__)"],
-        capture_output=True, text=True, env=env, check=True,
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
     ).stdout
     assert where.startswith(str(colcon_install)), where
 

@@ -12,8 +12,13 @@ REPO = Path(__file__).resolve().parents[2]
 PACKAGE_DIRS = sorted(p for p in (REPO / "src").iterdir() if (p / "package.xml").is_file())
 OURS = {p.name for p in PACKAGE_DIRS}
 # rosdep keys that are not Python modules of the same name
-ROSDEP_TO_MODULE = {"python3-numpy": "numpy", "python3-matplotlib": "matplotlib", "python3-pytest": "pytest",
-                    "python3-yaml": "yaml", "python3-scipy": "scipy"}
+ROSDEP_TO_MODULE = {
+    "python3-numpy": "numpy",
+    "python3-matplotlib": "matplotlib",
+    "python3-pytest": "pytest",
+    "python3-yaml": "yaml",
+    "python3-scipy": "scipy",
+}
 
 
 @pytest.mark.parametrize("package_dir", PACKAGE_DIRS, ids=lambda p: p.name)
@@ -33,8 +38,11 @@ def test_internal_dependencies_are_declared() -> None:
         package = parse_package(str(package_dir / "package.xml"))
         declared = {d.name for d in package.exec_depends}
         imported = {
-            name for name in OURS - {package.name}
+            name
+            for name in OURS - {package.name}
             for source in (package_dir / package.name).rglob("*.py")
             if f"from {name}" in source.read_text() or f"import {name}" in source.read_text()
         }
-        assert imported <= declared, f"{package.name} imports {sorted(imported - declared)} without exec_depend"
+        assert imported <= declared, (
+            f"{package.name} imports {sorted(imported - declared)} without exec_depend"
+        )

@@ -60,7 +60,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import JointSample, clock_msg, msg_to_torque, sample_to_joint_state
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.node_support import WARN_THROTTLE_S, run_node
+from smm_msgs_py.node_support import WARN_THROTTLE_S, ParameterOverrides, as_parameter_list, run_node
 from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import qos_for_topic
 from std_msgs.msg import Float64MultiArray
@@ -302,7 +302,8 @@ class SimNode(Node):
 
     Args:
         context: rclpy context (None: the default one).
-        parameter_overrides: Parameter values overriding the defaults (as ``rclpy.node.Node``).
+        parameter_overrides: Parameter values overriding the defaults: ``Parameter`` objects or
+            ``{name: value}``.
         node_name: Node name.
         namespace: Node namespace (None: from the command line, else the root).
         shutdown_when_done: Shut the context down when the run is complete, which ends the spin of
@@ -317,7 +318,7 @@ class SimNode(Node):
         self,
         *,
         context: Context | None = None,
-        parameter_overrides: Sequence[Parameter] | None = None,
+        parameter_overrides: ParameterOverrides | None = None,
         node_name: str = NODE_NAME,
         namespace: str | None = None,
         shutdown_when_done: bool = False,
@@ -325,7 +326,7 @@ class SimNode(Node):
         super().__init__(
             node_name,
             context=context,
-            parameter_overrides=None if parameter_overrides is None else list(parameter_overrides),
+            parameter_overrides=as_parameter_list(parameter_overrides),
             namespace=namespace,
         )
         try:
