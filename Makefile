@@ -43,7 +43,7 @@ typecheck: $(STAMP)
 	$(VENV)/bin/mypy
 
 reproduce: $(STAMP)
-	$(VENV)/bin/smm-reproduce --out out/reproduce
+	$(PY) -m smm_analysis.cli --out out/reproduce
 
 colcon: $(STAMP)
 	$(VENV)/bin/colcon build --base-paths src --build-base build --install-base install

@@ -5,12 +5,14 @@ from __future__ import annotations
 import math
 import types
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
 FloatArray = npt.NDArray[np.float64]
+
+InstanceT = TypeVar("InstanceT")
 
 
 def _is_real(value: Any) -> bool:
@@ -62,6 +64,16 @@ def check_grid_points(value: Any) -> None:
     """The defuzzification grid needs at least 3 points (an integer)."""
     if isinstance(value, bool) or not isinstance(value, int) or value < 3:
         raise ValueError(f"grid_points must be an integer >= 3, got {value!r}")
+
+
+def check_instance(name: str, value: object, expected: type[InstanceT]) -> InstanceT:
+    """Returns ``value`` if it is an ``expected``; else a TypeError naming the argument and both types.
+
+    Used by ``reconfigure``: a config of another algorithm would otherwise fail later, mid-step.
+    """
+    if not isinstance(value, expected):
+        raise TypeError(f"{name} must be a {expected.__name__}, got {type(value).__name__}: {value!r}")
+    return value
 
 
 def check_dt(dt: float) -> None:

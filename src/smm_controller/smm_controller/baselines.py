@@ -28,6 +28,7 @@ from smm_controller._validation import (
     as_joint_vector,
     as_reference,
     check_dt,
+    check_instance,
     check_pair,
     internals_view,
 )
@@ -143,6 +144,23 @@ class PIDController(_TorqueController):
         self._previous_error: list[float] | None = None
         self._last: tuple[float, ...] = (0.0,) * 10
 
+    def reconfigure(self, config: PIDConfig) -> None:
+        """Takes new gains for the next step and keeps the integral, derivative filter and last error.
+
+        The integral is re-clamped to the new ``integrator_limit`` at once, so that conditional
+        integration can never hold it outside the new limit.
+
+        Args:
+            config: The new gains (replaces the config whole).
+
+        Raises:
+            TypeError: ``config`` is not a :class:`PIDConfig`.
+        """
+        check_instance("config", config, PIDConfig)
+        for j in range(2):
+            self._integral[j] = _clamp(self._integral[j], config.integrator_limit[j])
+        self.config = config
+
     def step_floats(
         self,
         reference: Sequence[Sequence[float]],
@@ -253,6 +271,17 @@ class NPDController(_TorqueController):
         """The law is memoryless; this clears the recorded internals."""
         self._last: tuple[float, ...] = (0.0,) * 6
 
+    def reconfigure(self, config: NPDConfig) -> None:
+        """Takes new gains for the next step (the law is memoryless; internals kept until then).
+
+        Args:
+            config: The new gains (replaces the config whole).
+
+        Raises:
+            TypeError: ``config`` is not an :class:`NPDConfig`.
+        """
+        self.config = check_instance("config", config, NPDConfig)
+
     def step_floats(
         self,
         reference: Sequence[Sequence[float]],
@@ -313,6 +342,19 @@ class FPDController(_TorqueController):
         """The law is memoryless; this clears the recorded internals."""
         self.schedule.reset()
         self._last: tuple[float, ...] = (0.0,) * 6
+
+    def reconfigure(self, config: FPDConfig) -> None:
+        """Takes new gains for the next step (the law is memoryless; internals kept until then).
+
+        Args:
+            config: The new gains (replaces the config whole).
+
+        Raises:
+            TypeError: ``config`` is not an :class:`FPDConfig`.
+        """
+        check_instance("config", config, FPDConfig)
+        self.schedule.reconfigure(config.fuzzy)
+        self.config = config
 
     def step_floats(
         self,

@@ -44,6 +44,7 @@ from smm_controller._validation import (
     as_joint_vector,
     check_dt,
     check_grid_points,
+    check_instance,
     check_pair,
     readonly_copies,
 )
@@ -92,6 +93,12 @@ def _clip_unit(x: float) -> float:
     return -1.0 if x < -1.0 else (1.0 if x > 1.0 else x)
 
 
+def _bandwidth_batch(grid_points: int) -> MamdaniBatch:
+    """The bandwidth rule base of both joints, defuzzified on ``grid_points`` points."""
+    system = fleso_bandwidth_system(grid_points)
+    return MamdaniBatch([system, system])
+
+
 def observer_gains(bandwidth: float) -> tuple[float, float, float]:
     """LESO gains (l1, l2, l3) = (3 w, 3 w^2, w^3) placing all error poles at -w (eq. 22-23).
 
@@ -115,8 +122,7 @@ class FLESO:
     def __init__(self, config: FLESOConfig | None, params: SMMParameters) -> None:
         self.config = config if config is not None else FLESOConfig()
         self.model = NominalModel.shared(params)
-        system = fleso_bandwidth_system(self.config.grid_points)
-        self._batch = MamdaniBatch([system, system])
+        self._batch = _bandwidth_batch(self.config.grid_points)
         self.reset()
 
     def reset(self) -> None:
@@ -127,6 +133,26 @@ class FLESO:
         self._x3 = [0.0, 0.0]
         self._error = [0.0, 0.0]
         self._last: tuple[float, ...] = (0.0,) * 10
+
+    def reconfigure(self, config: FLESOConfig, *, params: SMMParameters | None = None) -> None:
+        """Takes new gains (and optionally a new nominal model) for the next step and keeps the state.
+
+        Kept: x1^, x2^, x3^ (so the disturbance estimate does not drop to 0) and the previous innovation
+        (so E' stays continuous). The fuzzy bandwidth system is rebuilt when ``grid_points`` changes.
+
+        Args:
+            config: The new observer parameters (replaces the config whole).
+            params: The new nominal model parameters; None keeps the current model.
+
+        Raises:
+            TypeError: ``config`` is not a :class:`FLESOConfig` or ``params`` not an ``SMMParameters``.
+        """
+        check_instance("config", config, FLESOConfig)
+        if params is not None:
+            self.model = NominalModel.shared(check_instance("params", params, SMMParameters))
+        if config.grid_points != self.config.grid_points:
+            self._batch = _bandwidth_batch(config.grid_points)
+        self.config = config
 
     def step(self, y: npt.ArrayLike, tau_applied: npt.ArrayLike, dt: float) -> FloatArray:
         """Advances the observer to the current sample.

@@ -1,25 +1,39 @@
 """``fleso_node``: the fuzzy linear extended state observer (:mod:`smm_controller.fleso`).
 
 Matches, by exact stamp, ``joint_states_filtered`` (TD position, rad) and ``joint_states`` (effort = torque
-applied over the previous interval, N m; required); steps the FLESO once per stamp with dt =
-``control_period`` and publishes ``disturbance_estimate`` (row ``xi_tilde``, N m), then the diagnostics
-``observer_state`` (x1_hat, x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node
-counters), all stamped with the measurement's stamp. Parameters ``fleso.<field>`` (observer gains) and
-``model.<field>`` (the nominal model, :class:`smm_dynamics.SMMParameters`). See ``docs/NODES.md``.
+applied over the previous interval, N m); steps the FLESO once per stamp with dt = ``control_period`` and
+publishes ``disturbance_estimate`` (row ``xi_tilde``, N m), then the diagnostics ``observer_state`` (x1_hat,
+x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node counters), all stamped with
+the measurement's stamp.
+
+Applied torque (SPEC section 4): the measurement's effort; where the plant reports none (empty ``effort``,
+e.g. a bridge without torque sensing), the ``torque_command`` stamped with the previous measurement's stamp,
+i.e. the command that acted over the interval. If that command has not arrived yet (possible in real time,
+never in lockstep), the newest command received is used and ``command_fallback_late`` is counted; before
+any command, and at the first step, the torque is 0.
+
+Parameters ``fleso.<field>`` (observer gains) and ``model.<field>`` (the nominal model,
+:class:`smm_dynamics.SMMParameters`); a valid change reconfigures the running observer, keeping its state.
+See ``docs/NODES.md``.
 """
 
 from __future__ import annotations
 
 import sys
-import typing
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import Any, Final
 
 import numpy as np
 import numpy.typing as npt
 from rclpy.context import Context
 from sensor_msgs.msg import JointState
-from smm_msgs_py.conversions import JointSample, internals_to_msg, joint_state_to_sample, labelled_to_msg
+from smm_msgs_py.conversions import (
+    JointSample,
+    internals_to_msg,
+    joint_state_to_sample,
+    labelled_to_msg,
+    msg_to_torque,
+)
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
 from smm_msgs_py.node_support import (
@@ -34,13 +48,22 @@ from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
 from std_msgs.msg import Float64MultiArray
 
 from smm_controller.fleso import FLESO, FLESOConfig
-from smm_controller.sync import ExactTimeSynchronizer, Matched
+from smm_controller.sync import DEFAULT_MAX_PENDING, ExactTimeSynchronizer, Matched
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
 
 FloatArray = npt.NDArray[np.float64]
 
-__all__ = ["FLESO_PREFIX", "INTERNALS_TOPIC", "MODEL_PREFIX", "NODE_NAME", "FlesoNode", "main"]
+__all__ = [
+    "COMMANDS_KEPT",
+    "COMMAND_FALLBACK_LATE_ROW",
+    "FLESO_PREFIX",
+    "INTERNALS_TOPIC",
+    "MODEL_PREFIX",
+    "NODE_NAME",
+    "FlesoNode",
+    "main",
+]
 
 NODE_NAME = "fleso_node"
 FLESO_PREFIX = "fleso"
@@ -49,6 +72,10 @@ MODEL_PREFIX = "model"
 """Parameters of the nominal model :class:`smm_dynamics.SMMParameters` are ``model.<field>``."""
 INTERNALS_TOPIC = "~/internals"
 """Private diagnostics topic: every FLESO internal and the node counters, labelled rows."""
+COMMAND_FALLBACK_LATE_ROW: Final[str] = "command_fallback_late"
+"""Counter row of ``~/internals``: steps without effort whose previous command had not arrived in time."""
+COMMANDS_KEPT: Final[int] = DEFAULT_MAX_PENDING
+"""Torque commands remembered (the newest stamps), for measurements without effort."""
 
 
 class FlesoNode(MeasurementDrivenNode):
@@ -82,9 +109,16 @@ class FlesoNode(MeasurementDrivenNode):
             cli_args=cli_args,
         )
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
-        self.fleso_parameters = ConfigParameters(self, FLESO_PREFIX, FLESOConfig(), on_change=self._rebuild)
-        self.model_parameters = ConfigParameters(self, MODEL_PREFIX, SMMParameters(), on_change=self._rebuild)
+        self.fleso_parameters = ConfigParameters(
+            self, FLESO_PREFIX, FLESOConfig(), on_change=self._reconfigure
+        )
+        self.model_parameters = ConfigParameters(
+            self, MODEL_PREFIX, SMMParameters(), on_change=self._reconfigure
+        )
         self.fleso = FLESO(self.fleso_parameters.config, self.model_parameters.config)
+        self.command_fallback_late = 0
+        """Steps without effort whose previous command had not arrived (the newest one was used)."""
+        self._commands: dict[int, FloatArray] = {}
         self.sync: ExactTimeSynchronizer[JointSample] = ExactTimeSynchronizer(
             (topics.JOINT_STATES_FILTERED, topics.JOINT_STATES)
         )
@@ -106,26 +140,49 @@ class FlesoNode(MeasurementDrivenNode):
         self.create_subscription(
             JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
         )
+        self.create_subscription(
+            Float64MultiArray, topics.TORQUE_COMMAND, self._on_command, qos_for_topic(topics.TORQUE_COMMAND)
+        )
 
     @property
     def control_period(self) -> float:
         """Step size dt of every step (s)."""
         return self.timing.config.control_period
 
-    def _rebuild(self, _config: Any) -> None:
-        # FLESO has no way to take a new config and keep its state: the new observer re-initialises on the
-        # next sample (x1^ = y, x2^ = x3^ = 0, estimate 0), see docs/NODES.md.
-        self.fleso = FLESO(self.fleso_parameters.config, self.model_parameters.config)
+    def _reconfigure(self, _config: Any) -> None:
+        # Same observer, new gains/model from the next step: x^ and the estimate carry on (no bump).
+        self.fleso.reconfigure(self.fleso_parameters.config, params=self.model_parameters.config)
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        # Not subject to the stamp policy: a command answers a measurement this node has already answered.
+        try:
+            command = msg_to_torque(msg)
+        except InterfaceError as error:
+            self.reject(topics.TORQUE_COMMAND, error)
+            return
+        self._commands[command.stamp_ns] = command.values
+        if len(self._commands) > COMMANDS_KEPT:
+            del self._commands[min(self._commands)]
+
+    def _commanded_torque(self, previous_stamp_ns: int | None) -> FloatArray:
+        """Torque that acted since the measurement ``previous_stamp_ns`` (ns), from the commands."""
+        if previous_stamp_ns is None:
+            return np.zeros(2)
+        command = self._commands.get(previous_stamp_ns)
+        if command is not None:
+            return command
+        self.command_fallback_late += 1
+        return self._commands[max(self._commands)] if self._commands else np.zeros(2)
 
     def _on_filtered(self, msg: JointState) -> None:
-        self._on_input(topics.JOINT_STATES_FILTERED, msg, require_effort=False)
+        self._on_input(topics.JOINT_STATES_FILTERED, msg)
 
     def _on_measurement(self, msg: JointState) -> None:
-        self._on_input(topics.JOINT_STATES, msg, require_effort=True)
+        self._on_input(topics.JOINT_STATES, msg)
 
-    def _on_input(self, topic: str, msg: JointState, require_effort: bool) -> None:
+    def _on_input(self, topic: str, msg: JointState) -> None:
         try:
-            sample = joint_state_to_sample(msg, require_effort=require_effort)
+            sample = joint_state_to_sample(msg)
         except InterfaceError as error:
             self.reject(topic, error)
             return
@@ -135,12 +192,15 @@ class FlesoNode(MeasurementDrivenNode):
         self.counters.dropped_unmatched = self.sync.dropped
         if matched is not None:
             stamp_ns = matched.stamp_ns
-            self.answer(stamp_ns, lambda: self._step(matched), lambda: self._diagnostics(stamp_ns))
+            previous_ns = self.last_answered_stamp_ns
+            self.answer(
+                stamp_ns, lambda: self._step(matched, previous_ns), lambda: self._diagnostics(stamp_ns)
+            )
 
-    def _step(self, matched: Matched[JointSample]) -> list[Output]:
+    def _step(self, matched: Matched[JointSample], previous_stamp_ns: int | None) -> list[Output]:
         position = matched.items[topics.JOINT_STATES_FILTERED].position
-        # require_effort=True on joint_states guarantees the effort.
-        applied_torque = typing.cast(FloatArray, matched.items[topics.JOINT_STATES].effort)
+        effort = matched.items[topics.JOINT_STATES].effort
+        applied_torque = effort if effort is not None else self._commanded_torque(previous_stamp_ns)
         estimate = self.fleso.step(position, applied_torque, self.control_period)
         message = labelled_to_msg(estimate[np.newaxis, :], DISTURBANCE_ESTIMATE_ROWS, matched.stamp_ns)
         return [(self._estimate_publisher, message)]
@@ -152,6 +212,11 @@ class FlesoNode(MeasurementDrivenNode):
             (self._observer_publisher, labelled_to_msg(observer, OBSERVER_STATE_ROWS, stamp_ns)),
             (self._internals_publisher, internals_to_msg({**internals, **self.counter_rows()}, stamp_ns)),
         ]
+
+    def counter_rows(self) -> Mapping[str, FloatArray]:
+        """The common counters plus :data:`COMMAND_FALLBACK_LATE_ROW`, as internals rows."""
+        late = np.full(2, float(self.command_fallback_late))
+        return {**super().counter_rows(), COMMAND_FALLBACK_LATE_ROW: late}
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -25,6 +25,7 @@ from smm_controller._validation import (
     as_joint_vector,
     as_reference,
     check_dt,
+    check_instance,
     check_pair,
     internals_view,
 )
@@ -82,6 +83,25 @@ class FPDESOController:
         """The law is memoryless; this clears the recorded internals."""
         self.schedule.reset()
         self._last: tuple[float, ...] = (0.0,) * 16
+
+    def reconfigure(self, config: FPDESOConfig, *, params: SMMParameters | None = None) -> None:
+        """Takes new gains (and optionally a new nominal model) for the next step.
+
+        The law is memoryless, so the next torque is that of a new controller with the same config;
+        the recorded internals are kept until then.
+
+        Args:
+            config: The new gains (replaces the config whole).
+            params: The new nominal model parameters; None keeps the current model.
+
+        Raises:
+            TypeError: ``config`` is not an :class:`FPDESOConfig` or ``params`` not an ``SMMParameters``.
+        """
+        check_instance("config", config, FPDESOConfig)
+        if params is not None:
+            self.model = NominalModel.shared(check_instance("params", params, SMMParameters))
+        self.schedule.reconfigure(config.fuzzy)
+        self.config = config
 
     def step(
         self,

@@ -23,6 +23,7 @@ from smm_controller._validation import (
     FloatArray,
     as_joint_vector,
     check_grid_points,
+    check_instance,
     check_pair,
     internals_view,
 )
@@ -89,6 +90,11 @@ PAPER_FPD_FUZZY = FuzzyPDConfig(
 )
 
 
+def _gain_batch(tables: tuple[RuleTable, RuleTable], grid_points: int) -> MamdaniBatch:
+    """The gain rule bases (alpha, beta), defuzzified on ``grid_points`` points."""
+    return MamdaniBatch([pd_gain_system(table, grid_points) for table in tables])
+
+
 def _clip_unit(x: float) -> float:
     return -1.0 if x < -1.0 else (1.0 if x > 1.0 else x)
 
@@ -107,12 +113,30 @@ class FuzzyPDGainSchedule:
         tables: tuple[RuleTable, RuleTable] = (TABLE_1, TABLE_7),
     ) -> None:
         self.config = config if config is not None else FuzzyPDConfig()
-        self._batch = MamdaniBatch([pd_gain_system(table, self.config.grid_points) for table in tables])
+        self._tables = tables
+        self._batch = _gain_batch(tables, self.config.grid_points)
         self.reset()
 
     def reset(self) -> None:
         """The schedule is memoryless; this only clears the recorded internals."""
         self._last: tuple[float, ...] = (0.0,) * 12
+
+    def reconfigure(self, config: FuzzyPDConfig) -> None:
+        """Takes new gains for the next step, with the same rule tables.
+
+        The fuzzy systems are rebuilt when ``grid_points`` changes; the recorded internals are kept until
+        the next step.
+
+        Args:
+            config: The new gains (replaces the config whole).
+
+        Raises:
+            TypeError: ``config`` is not a :class:`FuzzyPDConfig`.
+        """
+        check_instance("config", config, FuzzyPDConfig)
+        if config.grid_points != self.config.grid_points:
+            self._batch = _gain_batch(self._tables, config.grid_points)
+        self.config = config
 
     def step(self, e: npt.ArrayLike, e_dot: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Gains for the current error.

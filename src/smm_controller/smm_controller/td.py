@@ -42,6 +42,7 @@ from smm_controller._validation import (
     FloatArray,
     as_joint_vector,
     check_dt,
+    check_instance,
     check_pair,
     readonly_copies,
 )
@@ -146,6 +147,22 @@ class TrackingDifferentiator:
         self._x1 = [0.0, 0.0]
         self._x2 = [0.0, 0.0]
         self._input = [0.0, 0.0]
+
+    def reconfigure(self, config: TrackingDifferentiatorConfig) -> None:
+        """Takes a new config for the next step and keeps the state (x1, x2, last input).
+
+        A live gain change therefore does not restart the velocity estimate at 0; the next step integrates
+        from the current (x1, x2) with the new sigma and h.
+
+        Args:
+            config: The new speed and filter factors (replaces the config whole).
+
+        Raises:
+            TypeError: ``config`` is not a :class:`TrackingDifferentiatorConfig`.
+        """
+        self.config = check_instance("config", config, TrackingDifferentiatorConfig)
+        self._sigma = config.speed
+        self._h = config.filter_factor
 
     def step(self, v: npt.ArrayLike, dt: float) -> tuple[FloatArray, FloatArray]:
         """Advances both TDs by one step of length dt.

@@ -105,9 +105,8 @@ class TdNode(MeasurementDrivenNode):
             )
 
     def _on_td_config(self, config: TrackingDifferentiatorConfig) -> None:
-        # The TD has no way to take a new config and keep its state: a new one re-initialises on the
-        # next sample (x1 = measurement, x2 = 0), see docs/NODES.md.
-        self.td = TrackingDifferentiator(config)
+        # Same TD, new gains from the next sample: x1 and x2 carry on (no velocity restart from 0).
+        self.td.reconfigure(config)
 
     def _on_measurement(self, msg: JointState) -> None:
         try:
