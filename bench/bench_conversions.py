@@ -1,7 +1,8 @@
 """Time the conversions (run by ``make bench``); prints microseconds per call.
 
-The control loop converts several messages per 1 kHz step, so each conversion should cost tens of
-microseconds at most. This only prints figures; nothing asserts on wall-clock time.
+The lockstep graph converts about 12 messages per 1 kHz step in one process and must reach 2000 steps/s, so
+each conversion should cost about 5-10 microseconds. This only prints figures; nothing asserts on wall-clock
+time.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from collections.abc import Callable
 import numpy as np
 from smm_msgs_py.conversions import (
     JointSample,
+    clock_msg,
+    internals_to_msg,
     joint_state_to_sample,
     labelled_to_msg,
     msg_to_labelled,
@@ -21,43 +24,69 @@ from smm_msgs_py.conversions import (
     sample_to_joint_state,
     torque_to_msg,
 )
-from smm_msgs_py.layouts import OBSERVER_STATE_ROWS
+from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
 
 STAMP_NS = 1_700_000_000_123_456_789
+INTERNALS_ROWS = ("kp", "kd", "u", "feedforward", "feedback", "disturbance", "robust", "tau")
+COUNTER_ROWS = ("dropped_invalid", "dropped_stale", "dropped_unmatched", "duplicates_answered", "invalid_outputs")
+
+
+def _read_only(values: list[float]) -> np.ndarray:
+    frozen = np.array(values, dtype=np.float64)
+    frozen.flags.writeable = False
+    return frozen
 
 
 def cases() -> dict[str, Callable[[], object]]:
-    """Return the timed calls, each on a representative valid input."""
+    """Return the timed calls, each on a representative valid input (as the nodes pass them)."""
     tau = np.array([1.25, -0.5])
+    position = np.array([0.1, 0.2])
     reference = np.arange(6.0).reshape(3, 2)
     observer = np.ones((len(OBSERVER_STATE_ROWS), 2))
-    sample = JointSample(STAMP_NS, np.array([0.1, 0.2]), np.array([1.0, 2.0]), np.array([3.0, 4.0]))
-    measurement = sample_to_joint_state(JointSample(STAMP_NS, np.array([0.1, 0.2]), None, tau))
-    swapped = sample_to_joint_state(JointSample(STAMP_NS, np.array([0.1, 0.2]), None, tau))
+    estimate = np.array([0.3, -0.1])
+    # An algorithm's internals (read-only copies) merged with the node counters, as the nodes publish them.
+    internals = {name: _read_only([index, -index]) for index, name in enumerate(INTERNALS_ROWS)}
+    internals |= {name: np.full(2, 0.0) for name in COUNTER_ROWS}
+    sample = JointSample(STAMP_NS, position, np.array([1.0, 2.0]), np.array([3.0, 4.0]))
+    measurement = sample_to_joint_state(JointSample(STAMP_NS, position, None, tau))
+    swapped = sample_to_joint_state(JointSample(STAMP_NS, position, None, tau))
     swapped.name = ["beta", "alpha"]
     torque_msg = torque_to_msg(tau, STAMP_NS)
     reference_msg = reference_to_msg(reference, STAMP_NS)
     observer_msg = labelled_to_msg(observer, OBSERVER_STATE_ROWS, STAMP_NS)
+    estimate_msg = labelled_to_msg(estimate[np.newaxis, :], DISTURBANCE_ESTIMATE_ROWS, STAMP_NS)
     return {
         "joint_state_to_sample (alpha, beta)": lambda: joint_state_to_sample(
             measurement, require_effort=True
         ),
         "joint_state_to_sample (beta, alpha)": lambda: joint_state_to_sample(swapped, require_effort=True),
+        "JointSample (position, effort)": lambda: JointSample(STAMP_NS, position, None, tau),
         "sample_to_joint_state (3 fields)": lambda: sample_to_joint_state(sample),
+        "clock_msg": lambda: clock_msg(STAMP_NS),
         "torque_to_msg": lambda: torque_to_msg(tau, STAMP_NS),
         "msg_to_torque": lambda: msg_to_torque(torque_msg),
         "reference_to_msg": lambda: reference_to_msg(reference, STAMP_NS),
         "msg_to_reference": lambda: msg_to_reference(reference_msg),
+        "labelled_to_msg (1 row)": lambda: labelled_to_msg(
+            estimate[np.newaxis, :], DISTURBANCE_ESTIMATE_ROWS, STAMP_NS
+        ),
         "labelled_to_msg (4 rows)": lambda: labelled_to_msg(observer, OBSERVER_STATE_ROWS, STAMP_NS),
         "msg_to_labelled (4 rows)": lambda: msg_to_labelled(observer_msg),
+        "msg_to_labelled (1 row, expected rows)": lambda: msg_to_labelled(
+            estimate_msg, expected_rows=DISTURBANCE_ESTIMATE_ROWS
+        ),
+        "internals_to_msg (13 rows)": lambda: internals_to_msg(internals, STAMP_NS),
     }
 
 
 def main(calls: int = 20_000) -> None:
     """Print the best of 5 runs of ``calls`` calls of each case, in microseconds per call."""
+    total = 0.0
     for name, call in cases().items():
         seconds = min(timeit.repeat(call, number=calls, repeat=5)) / calls
+        total += seconds
         print(f"{name:40s} {seconds * 1e6:7.2f} us")
+    print(f"{'sum of the cases above':40s} {total * 1e6:7.2f} us")
 
 
 if __name__ == "__main__":

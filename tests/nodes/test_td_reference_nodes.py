@@ -149,7 +149,9 @@ def test_bad_measurements_are_dropped_and_only_the_good_one_is_answered(
 
 
 def test_td_filter_factor_below_the_control_period_is_rejected(make_rig: Any, ros_context: Any) -> None:
-    node = TdNode(context=ros_context, parameter_overrides={"control_period": 0.002})
+    node = TdNode(
+        context=ros_context, parameter_overrides={"control_period": 0.002, "td.filter_factor": [0.002, 0.002]}
+    )
     make_rig(node)
     (result,) = node.set_parameters([Parameter("td.filter_factor", value=[0.001, 0.003])])
     assert not result.successful
@@ -163,28 +165,36 @@ def test_td_refuses_to_start_with_invalid_initial_parameters(ros_context: Any) -
         TdNode(context=ros_context, parameter_overrides={"td.speed": [-1.0, 1.0]})
 
 
-def test_td_gain_change_acts_on_the_next_step(make_rig: Any, ros_context: Any) -> None:
+def test_td_gain_change_acts_on_the_next_step_and_keeps_the_state(make_rig: Any, ros_context: Any) -> None:
     node = TdNode(context=ros_context)
     rig = make_rig(node)
+    td_before = node.td
     out = rig.record(topics.JOINT_STATES_FILTERED)
-    rig.publish(topics.JOINT_STATES, measurement(0, (0.0, 0.0)))
-    rig.wait_for(topics.JOINT_STATES_FILTERED, 1)
+    direct = TrackingDifferentiator(TrackingDifferentiatorConfig())
+    positions = [(0.0, 0.0), (0.01, -0.02), (0.03, -0.03), (0.2, -0.1), (0.3, -0.1)]
+    for k in range(3):
+        rig.publish(topics.JOINT_STATES, measurement(k * MS, positions[k]))
+        rig.wait_for(topics.JOINT_STATES_FILTERED, k + 1)
+        direct.step(np.array(positions[k]), 1e-3)
     new_config = TrackingDifferentiatorConfig(speed=(50.0, 60.0), filter_factor=(0.01, 0.02))
     results = node.set_parameters(
         [Parameter("td.speed", value=[50.0, 60.0]), Parameter("td.filter_factor", value=[0.01, 0.02])]
     )
     assert all(r.successful for r in results)
     assert node.td_parameters.config == new_config
-    rig.publish(topics.JOINT_STATES, measurement(MS, (0.2, -0.1)))
-    rig.publish(topics.JOINT_STATES, measurement(2 * MS, (0.3, -0.1)))
-    rig.wait_for(topics.JOINT_STATES_FILTERED, 3)
-    # Documented effect: the TD is rebuilt with the new gains and re-initialises on the next sample.
-    direct = TrackingDifferentiator(new_config)
-    for k, position in ((1, (0.2, -0.1)), (2, (0.3, -0.1))):
-        x1, x2 = direct.step(np.array(position), 1e-3)
+    assert node.td is td_before and node.td.config == new_config
+    # Documented effect: same TD, new gains from the next sample; x1 and x2 carry on.
+    direct.reconfigure(new_config)
+    restarted = TrackingDifferentiator(new_config)
+    for k in (3, 4):
+        rig.publish(topics.JOINT_STATES, measurement(k * MS, positions[k]))
+        rig.wait_for(topics.JOINT_STATES_FILTERED, k + 1)
+        x1, x2 = direct.step(np.array(positions[k]), 1e-3)
         sample = joint_state_to_sample(out[k], require_velocity=True)
         np.testing.assert_array_equal(sample.position, x1)
         np.testing.assert_array_equal(sample.velocity, x2)
+        # A rebuilt TD would restart at the sample with x2 = 0.
+        assert not np.allclose(sample.velocity, restarted.step(np.array(positions[k]), 1e-3)[1])
 
 
 # ---------------------------------------------------------------------------------------- reference

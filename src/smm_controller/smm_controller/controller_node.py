@@ -8,12 +8,13 @@ stamp. The baselines get xi~ = 0 and ``disturbance_estimate`` is then not read.
 
 Parameters: ``algorithm`` (fpdeso | fpd | pid | npd) and ``switch_idle_time``; the gains of every law,
 ``fpdeso.<field>`` (nested ``fpdeso.fuzzy.<field>``), ``fpd.fuzzy.<field>``, ``pid.<field>``,
-``npd.<field>``; the nominal model ``model.<field>`` (FPDESO). A change of ``algorithm`` is refused while
-the loop is active (any input within the last ``switch_idle_time`` s of wall-clock time): none of the laws
-can be started so that its first torque equals the last one (FPDESO, FPD and NPD are memoryless, so their
-torque is fixed by the inputs; the PID's integrator is not settable), so a switch under load would be a
-torque step. When idle, the switch is accepted and the new law, with fresh state, runs from the next
-stamp. See ``docs/NODES.md``.
+``npd.<field>``; the nominal model ``model.<field>`` (FPDESO). A valid change of the running law's gains
+(or of the model under FPDESO) reconfigures it in place from the next stamp, keeping its state (the PID's
+integrator and derivative filter). A change of ``algorithm`` is refused while the loop is active (any
+input within the last ``switch_idle_time`` s of wall-clock time): none of the laws can be started so that
+its first torque equals the last one (FPDESO, FPD and NPD are memoryless, so their torque is fixed by the
+inputs; the PID's integrator is not settable), so a switch under load would be a torque step. When idle,
+the switch is accepted and the new law, with fresh state, runs from the next stamp. See ``docs/NODES.md``.
 """
 
 from __future__ import annotations
@@ -80,6 +81,7 @@ DEFAULT_SWITCH_IDLE_TIME: Final[float] = 0.5
 
 FloatArray = npt.NDArray[np.float64]
 ConfigT = TypeVar("ConfigT")
+LawT = TypeVar("LawT", bound=JointController)
 
 
 @dataclass(frozen=True)
@@ -106,19 +108,30 @@ class ControllerSelection:
 
 
 @dataclass(frozen=True)
-class _Law(Generic[ConfigT]):
-    """A control law: its default gains and how to build it from gains and the nominal model."""
+class _Law(Generic[ConfigT, LawT]):
+    """A control law: its default gains, how to build it and how to give a running one new gains/model."""
 
     default: ConfigT
-    build: Callable[[ConfigT, SMMParameters], JointController]
+    build: Callable[[ConfigT, SMMParameters], LawT]
+    reconfigure: Callable[[LawT, ConfigT, SMMParameters], None]
     uses_disturbance_estimate: bool = False
 
 
-_LAWS: Final[Mapping[str, _Law[Any]]] = {
-    "fpdeso": _Law(FPDESOConfig(), FPDESOController, uses_disturbance_estimate=True),
-    "fpd": _Law(FPDConfig(), lambda config, _model: FPDController(config)),
-    "pid": _Law(PIDConfig(), lambda config, _model: PIDController(config)),
-    "npd": _Law(NPDConfig(), lambda config, _model: NPDController(config)),
+def _reconfigure_fpdeso(law: FPDESOController, config: FPDESOConfig, model: SMMParameters) -> None:
+    law.reconfigure(config, params=model)
+
+
+def _reconfigure_baseline(
+    law: FPDController | PIDController | NPDController, config: Any, _model: SMMParameters
+) -> None:
+    law.reconfigure(config)  # the baselines use no model
+
+
+_LAWS: Final[Mapping[str, _Law[Any, Any]]] = {
+    "fpdeso": _Law(FPDESOConfig(), FPDESOController, _reconfigure_fpdeso, uses_disturbance_estimate=True),
+    "fpd": _Law(FPDConfig(), lambda config, _model: FPDController(config), _reconfigure_baseline),
+    "pid": _Law(PIDConfig(), lambda config, _model: PIDController(config), _reconfigure_baseline),
+    "npd": _Law(NPDConfig(), lambda config, _model: NPDController(config), _reconfigure_baseline),
 }
 
 
@@ -203,7 +216,10 @@ class ControllerNode(MeasurementDrivenNode):
     # ------------------------------------------------------------------------------ laws and switching
 
     def _build(self, name: str) -> JointController:
-        return _LAWS[name].build(self.law_parameters[name].config, self.model_parameters.config)
+        built: JointController = _LAWS[name].build(
+            self.law_parameters[name].config, self.model_parameters.config
+        )
+        return built
 
     @staticmethod
     def _inputs(name: str) -> tuple[str, ...]:
@@ -228,13 +244,15 @@ class ControllerNode(MeasurementDrivenNode):
             self.sync.set_inputs(self._inputs(self._algorithm))
 
     def _on_gains(self, name: str) -> Callable[[Any], None]:
-        def rebuild_if_running(_config: Any) -> None:
-            # The laws take no new config in place: the running one is rebuilt (memoryless laws are
-            # unaffected; the PID restarts with a zero integrator, see docs/NODES.md).
+        def reconfigure_if_running(_config: Any) -> None:
+            # In place, so that the PID keeps its integrator (a rebuild would be a torque step under load).
+            # A law that is not running takes its current gains when a switch builds it.
             if name == self._algorithm:
-                self.controller = self._build(name)
+                _LAWS[name].reconfigure(
+                    self.controller, self.law_parameters[name].config, self.model_parameters.config
+                )
 
-        return rebuild_if_running
+        return reconfigure_if_running
 
     # --------------------------------------------------------------------------------------- inputs
 

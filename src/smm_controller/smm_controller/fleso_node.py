@@ -149,6 +149,11 @@ class FlesoNode(MeasurementDrivenNode):
         """Step size dt of every step (s)."""
         return self.timing.config.control_period
 
+    @property
+    def newest_command_stamp_ns(self) -> int | None:
+        """Newest stamp (ns) among the torque commands held, None before the first."""
+        return max(self._commands) if self._commands else None
+
     def _reconfigure(self, _config: Any) -> None:
         # Same observer, new gains/model from the next step: x^ and the estimate carry on (no bump).
         self.fleso.reconfigure(self.fleso_parameters.config, params=self.model_parameters.config)

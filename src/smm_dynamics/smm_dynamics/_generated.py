@@ -138,3 +138,74 @@ def coriolis_matrix_entries(sa: Real, ca: Real, sb: Real, cb: Real, alpha_dot: R
     c21 = -sb*t43*(ca**6*t46 - sa**6*t6 + t1*t26 - t11*t45 + t16*t4*t41 - t16*t44 - 2*t20*t30 - t20*t39 + t29*t47 - t32*t49 + t33 + t38*t47 + t4*t46*t48 - t4*t50*t9 + 2*t44 + t45*t50)
     c22 = I55*sb*t0*t12*(beta_dot*t15 + t18*t52 + t19*t49 - t25 + 2*t42*t51 + t51*t8 - t52)
     return (c11, c12, c21, c22,)
+
+
+def mass_matrix_entries_spin_form(sa: Real, ca: Real, sb: Real, cb: Real, I11: Real, I22: Real, I44: Real, I55: Real) -> tuple[Real, ...]:
+    """(M11, M12, M22) (kg m^2), equal to mass_matrix_entries up to rounding."""
+    t0 = I11*cb
+    d_scaled = (ca*ca)*(cb*cb) + (sa*sa)
+    inv_d = 1/d_scaled
+    g_alpha = cb*inv_d
+    t1 = -I55*g_alpha
+    g_beta = ca*inv_d*sa*sb
+    m11 = I44 + g_alpha*(-t0 - t1)
+    m12 = g_beta*(-1/2*t0 - t1)
+    m22 = I22 + I55*(g_beta*g_beta)
+    return (m11, m12, m22,)
+
+
+def rigid_body_entries_spin_form(sa: Real, ca: Real, sb: Real, cb: Real, alpha_dot: Real, beta_dot: Real, I11: Real, I22: Real, I44: Real, I55: Real) -> tuple[Real, ...]:
+    """(M11, M12, M22) (kg m^2) and C q' (N m), equal to the reference entries up to rounding."""
+    t0 = (ca*ca)
+    t1 = I11*cb
+    t5 = 2*(sb*sb)
+    t6 = ca*cb
+    t7 = sa*t6
+    t8 = beta_dot*sb
+    t9 = (1/2)*I11
+    d_scaled = (cb*cb)*t0 + (sa*sa)
+    inv_d = 1/d_scaled
+    g_alpha = cb*inv_d
+    t2 = -I55*g_alpha
+    t3 = alpha_dot*g_alpha
+    g_beta = ca*inv_d*sa*sb
+    t4 = beta_dot*g_beta
+    m11 = I44 + g_alpha*(-t1 - t2)
+    m12 = g_beta*(-1/2*t1 - t2)
+    m22 = I22 + I55*(g_beta*g_beta)
+    theta_dot = t3 + t4
+    spin_curvature = (inv_d*inv_d)*(-(alpha_dot*alpha_dot)*t5*t7 + 2*alpha_dot*t8*(-sa + t6)*(sa + t6) + (beta_dot*beta_dot)*t7*(d_scaled + t0*t5))
+    coriolis_alpha = I55*g_alpha*spin_curvature + t9*(-cb*spin_curvature + t3*t8 + t8*theta_dot)
+    coriolis_beta = I55*g_beta*spin_curvature + alpha_dot*sb*t9*(t4 - theta_dot)
+    return (m11, m12, m22, coriolis_alpha, coriolis_beta,)
+
+
+def forward_dynamics_entries_spin_form(sa: Real, ca: Real, sb: Real, cb: Real, alpha_dot: Real, beta_dot: Real, torque_alpha: Real, torque_beta: Real, I11: Real, I22: Real, I44: Real, I55: Real) -> tuple[Real, ...]:
+    """q'' = M^-1 (torque - C q') (rad/s^2); torque = tau - G - F - tau_dist (N m)."""
+    t0 = (ca*ca)
+    t1 = I11*cb
+    t5 = 2*(sb*sb)
+    t6 = ca*cb
+    t7 = sa*t6
+    t8 = beta_dot*sb
+    t9 = (1/2)*I11
+    d_scaled = (cb*cb)*t0 + (sa*sa)
+    inv_d = 1/d_scaled
+    g_alpha = cb*inv_d
+    t2 = -I55*g_alpha
+    t3 = alpha_dot*g_alpha
+    g_beta = ca*inv_d*sa*sb
+    t4 = beta_dot*g_beta
+    m11 = I44 + g_alpha*(-t1 - t2)
+    m12 = g_beta*(-1/2*t1 - t2)
+    m22 = I22 + I55*(g_beta*g_beta)
+    theta_dot = t3 + t4
+    spin_curvature = (inv_d*inv_d)*(-(alpha_dot*alpha_dot)*t5*t7 + 2*alpha_dot*t8*(-sa + t6)*(sa + t6) + (beta_dot*beta_dot)*t7*(d_scaled + t0*t5))
+    coriolis_alpha = I55*g_alpha*spin_curvature + t9*(-cb*spin_curvature + t3*t8 + t8*theta_dot)
+    coriolis_beta = I55*g_beta*spin_curvature + alpha_dot*sb*t9*(t4 - theta_dot)
+    rhs_alpha = -coriolis_alpha + torque_alpha
+    rhs_beta = -coriolis_beta + torque_beta
+    inv_det = 1/(m11*m22 - (m12*m12))
+    qdd_alpha = inv_det*(-m12*rhs_beta + m22*rhs_alpha)
+    qdd_beta = inv_det*(m11*rhs_beta - m12*rhs_alpha)
+    return (qdd_alpha, qdd_beta,)

@@ -2,16 +2,23 @@
 
     M(q) q'' + C(q, q') q' + G(q) + F(q') + tau_dist = tau,   q = (alpha, beta) (rad).
 
-Every function accepts a single sample (joint arrays of shape (2,)) or a batch (shape (..., 2), broadcast
-against each other). A single sample runs on Python floats with ``math`` (a few microseconds per call,
-since the controller calls these every control step); a batch runs on numpy arrays. The closed-form
+Every array function accepts a single sample (joint arrays of shape (2,)) or a batch (shape (..., 2),
+broadcast against each other). A single sample runs on Python floats with ``math`` (a few microseconds per
+call, since the controller calls these every control step); a batch runs on numpy arrays. The closed-form
 terms come from ``_generated.py`` (see ``tools/generate_dynamics.py``), which is plain arithmetic and so
 serves both paths.
+
+The ``*_floats`` functions are the fast path for loops that step one sample at a time (the simulated
+plant, the controller's model): plain floats in and out, no array, and the spin form of the model
+(``*_spin_form`` in ``_generated.py``: M and C q' written with the gradient and curvature of the spin
+angle, proven equal to the printed M and the Christoffel C by the generator), about five times cheaper
+than the reference form. They agree with the array functions up to rounding (tests: 1e-12 relative).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -19,8 +26,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from smm_dynamics._generated import (
     coriolis_matrix_entries,
+    forward_dynamics_entries_spin_form,
     mass_matrix_entries,
+    mass_matrix_entries_spin_form,
     mass_matrix_gradient_entries,
+    rigid_body_entries_spin_form,
     spin_angle_gradient_entries,
 )
 from smm_dynamics.parameters import SMMParameters
@@ -30,17 +40,21 @@ __all__ = [
     "coriolis_vector",
     "end_effector_position",
     "forward_dynamics",
+    "forward_dynamics_floats",
     "friction_torque",
     "gravity_vector",
     "inverse_dynamics",
     "kinetic_energy",
     "mass_matrix",
+    "mass_matrix_floats",
     "mass_matrix_gradient",
     "mass_matrix_inverse",
     "mass_matrix_time_derivative",
     "potential_energy",
+    "rigid_body_floats",
     "rigid_body_terms",
     "rk4_step",
+    "rk4_step_floats",
     "spin_angle",
     "spin_angle_gradient",
     "total_energy",
@@ -49,6 +63,8 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 # A Python float (single-sample path) or a numpy array (batch path); only arithmetic is applied to it.
 _Real = Any
+# q'' = f(alpha, beta, alpha', beta') on floats, with the torques bound in (see _float_acceleration).
+_FloatAcceleration = Callable[[float, float, float, float], tuple[float, float]]
 
 
 def _joint_array(value: ArrayLike, name: str) -> FloatArray:
@@ -93,9 +109,13 @@ def _mass_entries(trig: tuple[_Real, _Real, _Real, _Real], params: SMMParameters
     return mass_matrix_entries(*trig, params.I11, params.I22, params.I44, params.I55)
 
 
+def _gravity_coefficient(params: SMMParameters) -> float:
+    # V = s m_c l_c g cos(beta) depends on beta only, so G = (0, dV/dbeta) = (0, coefficient sin(beta)).
+    return -params.gravity_sign * params.mass_lever * params.gravity
+
+
 def _gravity_beta(sb: _Real, params: SMMParameters) -> _Real:
-    # V = s m_c l_c g cos(beta) depends on beta only, so G = (0, dV/dbeta).
-    return -params.gravity_sign * params.mass_lever * params.gravity * sb
+    return _gravity_coefficient(params) * sb
 
 
 def spin_angle(q: ArrayLike) -> FloatArray:
@@ -263,6 +283,50 @@ def rigid_body_terms(
     m11, m12, m22 = _mass_entries(trig, params)
     coriolis_alpha, coriolis_beta = _coriolis_components(trig, alpha_dot, beta_dot, params)
     return m11, m12, m22, coriolis_alpha, coriolis_beta, 0.0, _gravity_beta(trig[2], params)
+
+
+def mass_matrix_floats(alpha: float, beta: float, params: SMMParameters) -> tuple[float, float, float]:
+    """Entries of M(q) for one sample on plain floats (fast path, spin form).
+
+    Args:
+        alpha: Joint position alpha (rad).
+        beta: Joint position beta (rad).
+        params: Plant parameters.
+
+    Returns:
+        (M11, M12, M22) (kg m^2); M21 = M12. Equal to :func:`mass_matrix` up to rounding.
+    """
+    return mass_matrix_entries_spin_form(
+        math.sin(alpha), math.cos(alpha), math.sin(beta), math.cos(beta), *_inertias(params)
+    )
+
+
+def rigid_body_floats(
+    alpha: float, beta: float, alpha_dot: float, beta_dot: float, params: SMMParameters
+) -> tuple[float, float, float, float, float, float, float]:
+    """M(q), C(q, q') q' and G(q) for one sample on plain floats (fast path, spin form).
+
+    Same quantities as :func:`rigid_body_terms`, up to rounding, at about a third of its cost.
+
+    Args:
+        alpha: Joint position alpha (rad).
+        beta: Joint position beta (rad).
+        alpha_dot: Joint velocity alpha' (rad/s).
+        beta_dot: Joint velocity beta' (rad/s).
+        params: Plant parameters.
+
+    Returns:
+        (M11, M12, M22, (C q')_alpha, (C q')_beta, G_alpha, G_beta); M in kg m^2, torques in N m.
+    """
+    sb = math.sin(beta)
+    m11, m12, m22, coriolis_alpha, coriolis_beta = rigid_body_entries_spin_form(
+        math.sin(alpha), math.cos(alpha), sb, math.cos(beta), alpha_dot, beta_dot, *_inertias(params)
+    )
+    return m11, m12, m22, coriolis_alpha, coriolis_beta, 0.0, _gravity_coefficient(params) * sb
+
+
+def _inertias(params: SMMParameters) -> tuple[float, float, float, float]:
+    return params.I11, params.I22, params.I44, params.I55
 
 
 def potential_energy(q: ArrayLike, params: SMMParameters) -> FloatArray:
@@ -497,8 +561,7 @@ def rk4_step(
     Returns:
         (q_next, qd_next), each shape (..., 2) (rad, rad/s).
     """
-    if not dt > 0.0 or not math.isfinite(dt):
-        raise ValueError(f"dt must be a finite number > 0 s, got {dt!r}")
+    _check_step(dt)
     arrays = [_joint_array(q, "q"), _joint_array(qd, "qd"), _joint_array(tau, "tau")]
     if tau_dist is not None:
         arrays.append(_joint_array(tau_dist, "tau_dist"))
@@ -521,6 +584,22 @@ def rk4_step(
             friction=friction,
         )
 
+    a1, b1, ad1, bd1 = _rk4_stages(accel, (a0, b0, ad0, bd0), dt)
+    return _pack_vector(a1, b1, batch), _pack_vector(ad1, bd1, batch)
+
+
+def _check_step(dt: float) -> None:
+    if not dt > 0.0 or not math.isfinite(dt):
+        raise ValueError(f"dt must be a finite number > 0 s, got {dt!r}")
+
+
+def _rk4_stages(
+    accel: Callable[[_Real, _Real, _Real, _Real], tuple[_Real, _Real]],
+    state: tuple[_Real, _Real, _Real, _Real],
+    dt: float,
+) -> tuple[_Real, _Real, _Real, _Real]:
+    """Classical RK4 of state = (alpha, beta, alpha', beta') with (alpha'', beta'') = accel(*state)."""
+    a0, b0, ad0, bd0 = state
     half = 0.5 * dt
     add1, bdd1 = accel(a0, b0, ad0, bd0)
     ad2, bd2 = ad0 + half * add1, bd0 + half * bdd1
@@ -534,4 +613,89 @@ def rk4_step(
     b1 = b0 + sixth * (bd0 + 2.0 * bd2 + 2.0 * bd3 + bd4)
     ad1 = ad0 + sixth * (add1 + 2.0 * add2 + 2.0 * add3 + add4)
     bd1 = bd0 + sixth * (bdd1 + 2.0 * bdd2 + 2.0 * bdd3 + bdd4)
-    return _pack_vector(a1, b1, batch), _pack_vector(ad1, bd1, batch)
+    return a1, b1, ad1, bd1
+
+
+def _float_acceleration(
+    params: SMMParameters, torque: tuple[float, float], disturbance: tuple[float, float], friction: bool
+) -> _FloatAcceleration:
+    """The map (alpha, beta, alpha', beta') -> q'' on floats with the torques held (spin form)."""
+    i11, i22, i44, i55 = _inertias(params)
+    gravity = _gravity_coefficient(params)
+    friction_alpha, friction_beta = params.viscous_friction if friction else (0.0, 0.0)
+    load_alpha = torque[0] - disturbance[0]
+    load_beta = torque[1] - disturbance[1]
+    sin, cos = math.sin, math.cos
+
+    def accel(alpha: float, beta: float, alpha_dot: float, beta_dot: float) -> tuple[float, float]:
+        sb = sin(beta)
+        return forward_dynamics_entries_spin_form(
+            sin(alpha),
+            cos(alpha),
+            sb,
+            cos(beta),
+            alpha_dot,
+            beta_dot,
+            load_alpha - friction_alpha * alpha_dot,
+            load_beta - gravity * sb - friction_beta * beta_dot,
+            i11,
+            i22,
+            i44,
+            i55,
+        )
+
+    return accel
+
+
+def forward_dynamics_floats(
+    state: tuple[float, float, float, float],
+    torque: tuple[float, float],
+    params: SMMParameters,
+    *,
+    disturbance: tuple[float, float] = (0.0, 0.0),
+    friction: bool = True,
+) -> tuple[float, float]:
+    """Joint accelerations of eq. 2 for one sample on plain floats (fast path, spin form).
+
+    Same as :func:`forward_dynamics` up to rounding.
+
+    Args:
+        state: (alpha, beta, alpha', beta') (rad, rad/s).
+        torque: Applied torque (tau_alpha, tau_beta) (N m).
+        params: Plant parameters.
+        disturbance: External disturbance torque (alpha, beta) (N m).
+        friction: Whether to include the viscous friction F(qd).
+
+    Returns:
+        (alpha'', beta'') (rad/s^2).
+    """
+    return _float_acceleration(params, torque, disturbance, friction)(*state)
+
+
+def rk4_step_floats(
+    state: tuple[float, float, float, float],
+    torque: tuple[float, float],
+    dt: float,
+    params: SMMParameters,
+    *,
+    disturbance: tuple[float, float] = (0.0, 0.0),
+    friction: bool = True,
+) -> tuple[float, float, float, float]:
+    """One RK4 step of eq. 2 for one sample on plain floats (fast path of :func:`rk4_step`).
+
+    The same classical scheme as :func:`rk4_step` on the spin form of the model: equal to it up to
+    rounding, several times faster. The torques are held constant over the step.
+
+    Args:
+        state: (alpha, beta, alpha', beta') (rad, rad/s).
+        torque: Applied torque (tau_alpha, tau_beta) (N m).
+        dt: Step length (s), > 0.
+        params: Plant parameters.
+        disturbance: External disturbance torque (alpha, beta) (N m).
+        friction: Whether to include the viscous friction F(qd).
+
+    Returns:
+        (alpha, beta, alpha', beta') after the step (rad, rad/s).
+    """
+    _check_step(dt)
+    return _rk4_stages(_float_acceleration(params, torque, disturbance, friction), state, dt)

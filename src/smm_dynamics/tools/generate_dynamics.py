@@ -10,6 +10,16 @@ which makes dM/dt - 2C skew-symmetric. All derivatives are symbolic (sympy). The
 take sin/cos of alpha and beta instead of the angles, contain arithmetic only, and so work unchanged
 on Python floats (fast single-sample path) and on numpy arrays (batch path).
 
+The ``*_spin_form`` functions evaluate the same M, C q' and q'' = M^-1 (tau - C q') far more cheaply,
+from the kinetic energy written with the spin angle theta (its gradient g = (theta_a, theta_b)):
+
+    T = 0.5 I44 alpha'^2 + 0.5 I22 beta'^2 + 0.5 I55 theta'^2 - 0.5 I11 cos(beta) alpha' theta',
+    theta' = g . q',
+
+so M = diag(I44, I22) + I55 g g^T - 0.5 I11 cos(beta) (e1 g^T + g e1^T), and Lagrange's equations give
+C q' in terms of theta', g and the spin curvature s = q'^T H q' (H the Hessian of theta). The generator
+proves both identities symbolically against the printed M and the Christoffel C before emitting code.
+
 Usage: ``python tools/generate_dynamics.py [--output PATH]`` (default: the package's ``_generated.py``).
 """
 
@@ -20,6 +30,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import sympy as sp
+from sympy.printing.pycode import PythonCodePrinter
 
 ALPHA, BETA = sp.symbols("alpha beta", real=True)
 ALPHA_DOT, BETA_DOT = sp.symbols("alpha_dot beta_dot", real=True)
@@ -30,6 +41,22 @@ D_SCALED = sp.Symbol("d_scaled", positive=True)
 
 COORDINATES = (ALPHA, BETA)
 VELOCITIES = (ALPHA_DOT, BETA_DOT)
+
+# Intermediate quantities of the spin form (see the module docstring).
+INV_D, G_ALPHA, G_BETA = sp.symbols("inv_d g_alpha g_beta", real=True)
+THETA_DOT, SPIN_CURVATURE = sp.symbols("theta_dot spin_curvature", real=True)
+M11, M12, M22 = sp.symbols("m11 m12 m22", real=True)
+CORIOLIS_ALPHA, CORIOLIS_BETA = sp.symbols("coriolis_alpha coriolis_beta", real=True)
+TORQUE_ALPHA, TORQUE_BETA = sp.symbols("torque_alpha torque_beta", real=True)
+RHS_ALPHA, RHS_BETA, INV_DET = sp.symbols("rhs_alpha rhs_beta inv_det", real=True)
+QDD_ALPHA, QDD_BETA = sp.symbols("qdd_alpha qdd_beta", real=True)
+# Pythagoras on factors that sympy's factor() leaves behind.
+_PYTHAGORAS = {
+    (CB - 1) * (CB + 1): -(SB**2),
+    CA**2 + SA**2: 1,
+    CB**2 + SB**2: 1,
+    SA**2 + CA**2 * CB**2: D_SCALED,
+}
 
 DEFAULT_OUTPUT = Path(__file__).resolve().parent.parent / "smm_dynamics" / "_generated.py"
 
@@ -94,6 +121,174 @@ def _function_source(
     return "\n".join(lines) + "\n"
 
 
+class _FloatPrinter(PythonCodePrinter):  # type: ignore[misc]
+    """Python printer that writes x**2 .. x**4 as products, which Python evaluates faster on floats."""
+
+    def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
+        base, exponent = expr.as_base_exp()
+        if exponent.is_Integer and 2 <= int(exponent) <= 4:
+            factor = self._print(base) if base.is_Symbol else f"({self._print(base)})"
+            # Parenthesised so that a product printed as a denominator stays one.
+            return "(" + "*".join([factor] * int(exponent)) + ")"
+        return str(super()._print_Pow(expr, rational))
+
+
+def _vanishes(expr: sp.Expr) -> bool:
+    """Whether a rational function of sa, ca, sb, cb (and d_scaled) is identically 0 on sin^2 + cos^2 = 1."""
+    numerator = sp.numer(sp.cancel(sp.together(expr.subs(D_SCALED, SA**2 + CA**2 * CB**2))))
+    remainder = sp.reduced(sp.expand(numerator), [SA**2 + CA**2 - 1, SB**2 + CB**2 - 1], SA, SB, CA, CB)[1]
+    return bool(remainder == 0)
+
+
+def _substitute_stages(expr: sp.Expr, stages: Sequence[tuple[sp.Symbol, sp.Expr]]) -> sp.Expr:
+    """Expands the intermediate symbols of ``stages`` (later stages may use earlier ones)."""
+    for symbol, value in reversed(stages):
+        expr = expr.subs(symbol, value)
+    return expr
+
+
+def spin_form_stages() -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[tuple[sp.Symbol, sp.Expr]]]:
+    """Assignments of the spin form: (M stages, C q' stages), each in evaluation order.
+
+    The gradient of theta and the spin curvature s = q'^T H q' are derived here from
+    theta = atan2(tan(alpha), cos(beta)); M and C q' in terms of them follow from the kinetic energy
+    of the module docstring, and :func:`check_spin_form` proves them equal to the printed M and the
+    Christoffel C q'.
+    """
+    theta = spin_angle()
+    gradient = [to_sin_cos(sp.diff(theta, q)).subs(_PYTHAGORAS) for q in COORDINATES]
+    curvature = sum(
+        sp.diff(theta, q_i, q_j) * rate_i * rate_j
+        for q_i, rate_i in zip(COORDINATES, VELOCITIES, strict=True)
+        for q_j, rate_j in zip(COORDINATES, VELOCITIES, strict=True)
+    )
+    scaled = sp.Poly(sp.expand(sp.cancel(to_sin_cos(curvature) * D_SCALED**2)), *VELOCITIES)
+    curvature_numerator = sum(
+        sp.factor(coefficient).subs(_PYTHAGORAS) * ALPHA_DOT**i * BETA_DOT**j
+        for (i, j), coefficient in scaled.terms()
+    )
+    mass_stages = [
+        (D_SCALED, SA**2 + CA**2 * CB**2),
+        (INV_D, 1 / D_SCALED),
+        (G_ALPHA, gradient[0].subs(D_SCALED, 1 / INV_D)),
+        (G_BETA, gradient[1].subs(D_SCALED, 1 / INV_D)),
+        (M11, I44 + (I55 * G_ALPHA - I11 * CB) * G_ALPHA),
+        (M12, (I55 * G_ALPHA - sp.Rational(1, 2) * I11 * CB) * G_BETA),
+        (M22, I22 + I55 * G_BETA**2),
+    ]
+    coriolis_stages = [
+        (THETA_DOT, G_ALPHA * ALPHA_DOT + G_BETA * BETA_DOT),
+        (SPIN_CURVATURE, curvature_numerator * INV_D**2),
+        (
+            CORIOLIS_ALPHA,
+            I55 * SPIN_CURVATURE * G_ALPHA
+            + sp.Rational(1, 2)
+            * I11
+            * (SB * BETA_DOT * THETA_DOT + SB * ALPHA_DOT * BETA_DOT * G_ALPHA - CB * SPIN_CURVATURE),
+        ),
+        (
+            CORIOLIS_BETA,
+            I55 * SPIN_CURVATURE * G_BETA
+            + sp.Rational(1, 2) * I11 * SB * ALPHA_DOT * (BETA_DOT * G_BETA - THETA_DOT),
+        ),
+    ]
+    return mass_stages, coriolis_stages
+
+
+def check_spin_form(
+    mass_stages: Sequence[tuple[sp.Symbol, sp.Expr]], coriolis_stages: Sequence[tuple[sp.Symbol, sp.Expr]]
+) -> None:
+    """Raises AssertionError unless the spin form equals the printed M and the Christoffel C q'."""
+    mass = printed_mass_matrix()
+    coriolis_vector = christoffel_coriolis(mass) * sp.Matrix(VELOCITIES)
+    stages = [*mass_stages, *coriolis_stages]
+    expected = {
+        M11: mass[0, 0],
+        M12: mass[0, 1],
+        M22: mass[1, 1],
+        CORIOLIS_ALPHA: coriolis_vector[0],
+        CORIOLIS_BETA: coriolis_vector[1],
+    }
+    for symbol, reference in expected.items():
+        difference = _substitute_stages(symbol, stages) - to_sin_cos(reference)
+        if not _vanishes(difference):
+            raise AssertionError(f"spin form of {symbol} differs from the reference")
+
+
+def _staged_function_source(
+    name: str,
+    doc: str,
+    arguments: Sequence[sp.Symbol],
+    stages: Sequence[tuple[sp.Symbol, sp.Expr]],
+    outputs: Sequence[sp.Symbol],
+) -> str:
+    printer = _FloatPrinter()
+    signature = ", ".join(f"{arg}: Real" for arg in arguments)
+    lines = [f"def {name}({signature}) -> tuple[Real, ...]:", f'    """{doc}"""']
+    replacements, reduced = sp.cse([expr for _, expr in stages], symbols=sp.numbered_symbols("t"))
+    defined = set(arguments)
+    pending = list(replacements)
+
+    def emit_ready_replacements() -> None:
+        # A common subexpression is written as soon as everything it uses is defined.
+        ready = True
+        while ready:
+            ready = False
+            for replacement in pending:
+                symbol, expr = replacement
+                if expr.free_symbols <= defined:
+                    lines.append(f"    {symbol} = {printer.doprint(expr)}")
+                    defined.add(symbol)
+                    pending.remove(replacement)
+                    ready = True
+                    break
+
+    for (symbol, _), expr in zip(stages, reduced, strict=True):
+        emit_ready_replacements()
+        lines.append(f"    {symbol} = {printer.doprint(expr)}")
+        defined.add(symbol)
+    lines.append(f"    return ({', '.join(str(symbol) for symbol in outputs)},)")
+    return "\n".join(lines) + "\n"
+
+
+def spin_form_functions() -> list[str]:
+    """Sources of the three spin-form functions (M; M and C q'; q'')."""
+    mass_stages, coriolis_stages = spin_form_stages()
+    check_spin_form(mass_stages, coriolis_stages)
+    solve_stages = [
+        (RHS_ALPHA, TORQUE_ALPHA - CORIOLIS_ALPHA),
+        (RHS_BETA, TORQUE_BETA - CORIOLIS_BETA),
+        (INV_DET, 1 / (M11 * M22 - M12**2)),
+        (QDD_ALPHA, (M22 * RHS_ALPHA - M12 * RHS_BETA) * INV_DET),
+        (QDD_BETA, (M11 * RHS_BETA - M12 * RHS_ALPHA) * INV_DET),
+    ]
+    trig_args = (SA, CA, SB, CB)
+    inertia_args = (I11, I22, I44, I55)
+    return [
+        _staged_function_source(
+            "mass_matrix_entries_spin_form",
+            "(M11, M12, M22) (kg m^2), equal to mass_matrix_entries up to rounding.",
+            (*trig_args, *inertia_args),
+            mass_stages,
+            (M11, M12, M22),
+        ),
+        _staged_function_source(
+            "rigid_body_entries_spin_form",
+            "(M11, M12, M22) (kg m^2) and C q' (N m), equal to the reference entries up to rounding.",
+            (*trig_args, ALPHA_DOT, BETA_DOT, *inertia_args),
+            [*mass_stages, *coriolis_stages],
+            (M11, M12, M22, CORIOLIS_ALPHA, CORIOLIS_BETA),
+        ),
+        _staged_function_source(
+            "forward_dynamics_entries_spin_form",
+            "q'' = M^-1 (torque - C q') (rad/s^2); torque = tau - G - F - tau_dist (N m).",
+            (*trig_args, ALPHA_DOT, BETA_DOT, TORQUE_ALPHA, TORQUE_BETA, *inertia_args),
+            [*mass_stages, *coriolis_stages, *solve_stages],
+            (QDD_ALPHA, QDD_BETA),
+        ),
+    ]
+
+
 def generate_source() -> str:
     """Returns the text of ``_generated.py``."""
     mass = printed_mass_matrix()
@@ -132,6 +327,7 @@ def generate_source() -> str:
             (*trig_args, ALPHA_DOT, BETA_DOT, *inertia_args),
             [(f"c{k + 1}{j + 1}", to_sin_cos(coriolis[k, j])) for k in range(2) for j in range(2)],
         ),
+        *spin_form_functions(),
     ]
     header = (
         '"""Closed-form dynamics terms of the SMM.\n\n'

@@ -10,9 +10,13 @@ consumers see a plain 2-vector or (n, 2) array.
 Converting to a message validates (shape, NaN/Inf, stamp) so that no bad value is ever published; converting
 from a message validates everything and raises an :class:`~smm_msgs_py.errors.InterfaceError` subclass.
 
-Speed: these run several times per 1 kHz step, so labels of fixed layouts are precomputed, free labels are
-parsed once and cached, no regular expression is used, and arrays travel as ``array.array('d')`` buffers
-(the type rclpy stores sequences of doubles in), never as Python lists of floats.
+Speed: the lockstep graph runs about 12 conversions per 1 kHz step in one process, so each must cost a few
+microseconds. The layout of every row-label set is computed and validated once (cached), finiteness is
+checked with ``math.isfinite`` over the few values as Python floats, float64 numpy inputs take a path
+without generic conversions (anything else goes through the generic checked conversion, which also builds
+the exact error), and the result dataclasses are built directly from arrays validated and frozen here
+instead of being validated and copied a second time. Message objects are never shared or reused between
+messages: subscribers and tests may mutate a message they hold.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Final, NamedTuple
+from typing import Any, Final, NamedTuple, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -54,15 +58,14 @@ REFERENCE_SHAPE: Final[tuple[int, int]] = (len(REFERENCE_ROWS), NUM_JOINTS)
 
 _STAMP_PREFIX: Final[str] = STAMP_DIM + DIM_SEPARATOR
 _JOINT_NAME_LIST: Final[list[str]] = list(JOINT_NAMES)
+_REVERSED_JOINT_NAME_LIST: Final[list[str]] = _JOINT_NAME_LIST[::-1]
+_REVERSED_JOINT_ORDER: Final[list[int]] = list(range(NUM_JOINTS))[::-1]
 _FORBIDDEN_IN_ITEM: Final[frozenset[str]] = frozenset((DIM_SEPARATOR, ITEM_SEPARATOR))
+_FLOAT64: Final[np.dtype[np.float64]] = np.dtype(np.float64)
+_LABELLED_AXES: Final[int] = 2  # rows (named quantities) and joints
 
-
-class _Axis(NamedTuple):
-    """One data dimension of a layout: its name and, when fixed, its items and full label."""
-
-    name: str
-    items: tuple[str, ...] | None = None  # None: the parser accepts any valid item names
-    label: str | None = None
+_isfinite = math.isfinite
+_Result = TypeVar("_Result")
 
 
 # ---------------------------------------------------------------------------------------------- stamps
@@ -78,6 +81,12 @@ def _checked_stamp_ns(stamp_ns: object) -> int:
     if not 0 <= stamp_ns <= MAX_STAMP_NS:
         raise StampError(f"stamp_ns={stamp_ns} outside [0, {MAX_STAMP_NS}] (builtin_interfaces/Time range)")
     return stamp_ns
+
+
+def _set_stamp(stamp: Time, stamp_ns: int) -> None:
+    """Write the checked ``stamp_ns`` into ``stamp`` (fresh, owned by a message we build) as sec, nanosec."""
+    # Filling the Time the message constructor made costs half of building and assigning another one.
+    stamp.sec, stamp.nanosec = divmod(_checked_stamp_ns(stamp_ns), NANOSECONDS_PER_SECOND)
 
 
 def stamp_to_ns(stamp: Time) -> int:
@@ -113,8 +122,9 @@ def ns_to_stamp(stamp_ns: int) -> Time:
     Raises:
         StampError: negative, not an integer, or beyond the int32 ``sec`` range.
     """
-    sec, nanosec = divmod(_checked_stamp_ns(stamp_ns), NANOSECONDS_PER_SECOND)
-    return Time(sec=sec, nanosec=nanosec)
+    stamp = Time()
+    _set_stamp(stamp, stamp_ns)
+    return stamp
 
 
 def clock_msg(stamp_ns: int) -> Clock:
@@ -129,7 +139,9 @@ def clock_msg(stamp_ns: int) -> Clock:
     Raises:
         StampError: invalid stamp (see :func:`ns_to_stamp`).
     """
-    return Clock(clock=ns_to_stamp(stamp_ns))
+    msg = Clock()
+    _set_stamp(msg.clock, stamp_ns)
+    return msg
 
 
 # ----------------------------------------------------------------------------------- validated arrays
@@ -137,21 +149,65 @@ def clock_msg(stamp_ns: int) -> Clock:
 
 def _frozen_copy(values: npt.ArrayLike, field: str) -> FloatArray:
     """Return a read-only float64 copy of ``values``; raise NonFiniteError on NaN/Inf."""
-    try:
-        copied = np.array(values, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise ArrayLengthError(f"{field}: not a rectangular array of numbers ({error})") from error
+    if type(values) is np.ndarray and values.dtype is _FLOAT64:
+        copied = values.copy(order="K")  # what np.array(values, dtype=np.float64) does, without its overhead
+    else:
+        try:
+            copied = np.array(values, dtype=np.float64)
+        except (TypeError, ValueError) as error:
+            raise ArrayLengthError(f"{field}: not a rectangular array of numbers ({error})") from error
     # math.isfinite over a list is ~8x faster than np.isfinite(...).all() for the few values we carry.
-    if not all(map(math.isfinite, copied.ravel().tolist())):
+    if not all(map(_isfinite, copied.ravel().tolist())):
         bad = np.argwhere(~np.isfinite(copied)).tolist()
         raise NonFiniteError(f"{field}: non-finite value(s) {copied[~np.isfinite(copied)]} at index {bad}")
-    copied.flags.writeable = False
+    copied.setflags(write=False)
     return copied
 
 
 def _require_shape(values: FloatArray, shape: tuple[int, ...], field: str) -> None:
     if values.shape != shape:
         raise ArrayLengthError(f"{field}: expected shape {shape}, got {values.shape}")
+
+
+def _validated(values: npt.ArrayLike, shape: tuple[int, ...], field: str) -> FloatArray:
+    checked = _frozen_copy(values, field)
+    _require_shape(checked, shape, field)
+    return checked
+
+
+def _finite_float64_items(values: object, shape: tuple[int, ...]) -> list[float] | None:
+    """Return the items (row-major) of a finite float64 ndarray of ``shape``; None for any other input."""
+    if type(values) is np.ndarray and values.dtype is _FLOAT64 and values.shape == shape:
+        items: list[float] = values.ravel().tolist()
+        if all(map(_isfinite, items)):
+            return items
+    return None
+
+
+def _checked_items(values: npt.ArrayLike, shape: tuple[int, ...], field: str) -> list[float]:
+    """Return the items (row-major) of ``values`` after the checks of :func:`_validated`, with its errors."""
+    items = _finite_float64_items(values, shape)
+    if items is None:  # another input type, or a bad value: the generic path converts or names the error
+        items = _validated(values, shape, field).ravel().tolist()
+    return items
+
+
+def _frozen_items(items: list[float], shape: tuple[int, ...]) -> FloatArray:
+    """Return finite Python floats as a read-only float64 array of ``shape`` (product = ``len(items)``)."""
+    frozen = np.array(items, dtype=np.float64)
+    frozen.setflags(write=False)  # before reshaping, so that the base of a reshaped view is read-only too
+    return frozen if len(shape) == 1 else frozen.reshape(shape)
+
+
+def _prevalidated(cls: type[_Result], **fields: Any) -> _Result:
+    """Build a frozen result dataclass from fields already validated and frozen, skipping ``__post_init__``.
+
+    The conversions build fresh read-only arrays and checked stamps themselves; ``__post_init__`` would
+    check and copy each array a second time. ``__init__`` of a frozen dataclass only sets the fields.
+    """
+    instance = object.__new__(cls)
+    instance.__dict__.update(fields)
+    return instance
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,13 +231,11 @@ class JointSample:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "stamp_ns", _checked_stamp_ns(self.stamp_ns))
-        for field in ("position", "velocity", "effort"):
-            raw = getattr(self, field)
-            if raw is None and field != "position":
-                continue
-            values = _frozen_copy(raw, field)
-            _require_shape(values, TORQUE_SHAPE, field)
-            object.__setattr__(self, field, values)
+        object.__setattr__(self, "position", _validated(self.position, TORQUE_SHAPE, "position"))
+        if self.velocity is not None:
+            object.__setattr__(self, "velocity", _validated(self.velocity, TORQUE_SHAPE, "velocity"))
+        if self.effort is not None:
+            object.__setattr__(self, "effort", _validated(self.effort, TORQUE_SHAPE, "effort"))
 
 
 @dataclass(frozen=True, eq=False)
@@ -219,8 +273,7 @@ class LabelledArray:
         object.__setattr__(self, "stamp_ns", _checked_stamp_ns(self.stamp_ns))
         object.__setattr__(self, "row_labels", tuple(self.row_labels))
         _checked_axis_label(QUANTITY_DIM, self.row_labels)
-        values = _frozen_copy(self.values, "values")
-        _require_shape(values, (len(self.row_labels), NUM_JOINTS), "values")
+        values = _validated(self.values, (len(self.row_labels), NUM_JOINTS), "values")
         object.__setattr__(self, "values", values)
 
     def row(self, label: str) -> FloatArray:
@@ -248,6 +301,8 @@ def _joint_order(names: Sequence[str]) -> list[int] | None:
     """Return the index of each of JOINT_NAMES in ``names`` (None if already in order)."""
     if names == _JOINT_NAME_LIST:
         return None
+    if names == _REVERSED_JOINT_NAME_LIST:
+        return _REVERSED_JOINT_ORDER
     name_list = list(names)
     duplicates = sorted({name for name in name_list if name_list.count(name) > 1})
     if duplicates:
@@ -263,8 +318,12 @@ def _joint_order(names: Sequence[str]) -> list[int] | None:
 
 def _joint_field(
     values: Sequence[float], count: int, field: str, required: bool, order: list[int] | None
-) -> FloatArray | None:
-    """Return the field reordered into JOINT_NAMES order (a view when already in order), None if absent."""
+) -> list[float] | FloatArray | None:
+    """Return the field reordered into JOINT_NAMES order, None if absent (finiteness is checked later).
+
+    The ``array.array('d')`` rclpy stores doubles in comes back as Python floats; any other sequence as
+    the generic float64 array.
+    """
     length = len(values)
     if length == 0:
         if required:
@@ -272,8 +331,21 @@ def _joint_field(
         return None
     if length != count:
         raise ArrayLengthError(f"JointState.{field} has {length} values for {count} names")
+    if type(values) is array.array and values.typecode == "d":
+        items: list[float] = values.tolist()
+        return items if order is None else [items[index] for index in order]
     as_array = np.asarray(values, dtype=np.float64)
     return as_array if order is None else as_array[order]
+
+
+def _frozen_joint_field(values: list[float] | FloatArray | None, field: str) -> FloatArray | None:
+    """Return a field of :func:`_joint_field` as a checked read-only array (the JointSample checks)."""
+    if values is None:
+        return None
+    # Floats of a field whose length matched the valid names: shape (2,) already, only finiteness is left.
+    if type(values) is list and all(map(_isfinite, values)):
+        return _frozen_items(values, TORQUE_SHAPE)
+    return _validated(values, TORQUE_SHAPE, field)
 
 
 def joint_state_to_sample(
@@ -301,17 +373,18 @@ def joint_state_to_sample(
     names = msg.name
     order = _joint_order(names)
     count = len(names)
-    return JointSample(
-        stamp_ns=stamp_to_ns(msg.header.stamp),
-        position=_joint_field(msg.position, count, "position", True, order),  # type: ignore[arg-type]
-        velocity=_joint_field(msg.velocity, count, "velocity", require_velocity, order),
-        effort=_joint_field(msg.effort, count, "effort", require_effort, order),
+    stamp_ns = stamp_to_ns(msg.header.stamp)
+    # Every length is checked before any value, as JointSample(...) of the fields would.
+    position = _joint_field(msg.position, count, "position", True, order)
+    velocity = _joint_field(msg.velocity, count, "velocity", require_velocity, order)
+    effort = _joint_field(msg.effort, count, "effort", require_effort, order)
+    return _prevalidated(
+        JointSample,
+        stamp_ns=_checked_stamp_ns(stamp_ns),
+        position=_frozen_joint_field(position, "position"),
+        velocity=_frozen_joint_field(velocity, "velocity"),
+        effort=_frozen_joint_field(effort, "effort"),
     )
-
-
-def _double_buffer(values: FloatArray | None) -> array.array[float]:
-    """Return ``values`` as the ``array.array('d')`` rclpy stores double sequences in (no per-item check)."""
-    return array.array("d") if values is None else array.array("d", values.tobytes())
 
 
 def sample_to_joint_state(sample: JointSample) -> JointState:
@@ -324,16 +397,28 @@ def sample_to_joint_state(sample: JointSample) -> JointState:
         JointState with ``header.stamp`` = ``sample.stamp_ns``, ``frame_id`` "", names (alpha, beta), and
         empty ``velocity`` / ``effort`` when the sample has none.
     """
-    msg = JointState()
-    msg.header.stamp = ns_to_stamp(sample.stamp_ns)
+    msg = JointState()  # its double sequences start as empty array.array('d'): absent fields stay so
+    _set_stamp(msg.header.stamp, sample.stamp_ns)
     msg.name = list(JOINT_NAMES)
-    msg.position = _double_buffer(sample.position)
-    msg.velocity = _double_buffer(sample.velocity)
-    msg.effort = _double_buffer(sample.effort)
+    # The setters store the floats as a new array.array('d'): the message shares nothing with the sample.
+    msg.position = sample.position.tolist()
+    if sample.velocity is not None:
+        msg.velocity = sample.velocity.tolist()
+    if sample.effort is not None:
+        msg.effort = sample.effort.tolist()
     return msg
 
 
 # ----------------------------------------------------------------------------- labelled multi-arrays
+
+
+class _Layout(NamedTuple):
+    """The data dimensions of a message type (the stamp dimension follows them), computed once."""
+
+    dims: tuple[tuple[str, int, int], ...]  # (label, size, stride) of each data dimension, in order
+    shape: tuple[int, ...]
+    size: int  # number of data values
+    rows: tuple[str, ...]  # items of the first dimension
 
 
 def _dim_label(dim_name: str, items: Sequence[str]) -> str:
@@ -351,6 +436,29 @@ def _checked_axis_label(dim_name: str, items: tuple[str, ...]) -> str:
     if len(set(items)) != len(items):
         raise LayoutError(f"dimension {dim_name!r}: duplicate item names in {items}")
     return _dim_label(dim_name, items)
+
+
+def _make_layout(axes: Sequence[tuple[str, tuple[str, ...]]]) -> _Layout:
+    """Return the layout of the axes ``(dimension name, item names)``, validating the item names."""
+    labels = [_checked_axis_label(name, items) for name, items in axes]
+    shape = tuple(len(items) for _, items in axes)
+    size = math.prod(shape)
+    dims = []
+    stride = size
+    for label, length in zip(labels, shape, strict=True):
+        dims.append((label, length, stride))
+        stride //= length
+    return _Layout(tuple(dims), shape, size, axes[0][1])
+
+
+@functools.lru_cache(maxsize=256)
+def _labelled_layout(row_dim: str, rows: tuple[str, ...]) -> _Layout:
+    """Return the layout ``<row_dim>:<rows>``, ``joint:alpha,beta``; raise as :func:`_checked_axis_label`."""
+    return _make_layout(((row_dim, rows), (JOINT_DIM, JOINT_NAMES)))
+
+
+_TORQUE_LAYOUT: Final[_Layout] = _make_layout(((JOINT_DIM, JOINT_NAMES),))
+_REFERENCE_LAYOUT: Final[_Layout] = _labelled_layout(ORDER_DIM, REFERENCE_ROWS)
 
 
 @functools.lru_cache(maxsize=256)
@@ -377,79 +485,76 @@ def _parse_stamp_label(label: str) -> int:
     return _checked_stamp_ns(int(digits))
 
 
-def _encode(values: FloatArray, axis_labels: Sequence[str], stamp_ns: int) -> Float64MultiArray:
-    """Build the message of a validated array whose axes carry ``axis_labels``, plus the stamp dimension."""
+def _dimension(label: str, size: int, stride: int) -> MultiArrayDimension:
+    dim = MultiArrayDimension()  # setting the fields is cheaper than passing them to the constructor
+    dim.label = label
+    dim.size = size
+    dim.stride = stride
+    return dim
+
+
+def _encode(items: list[float], layout: _Layout, stamp_ns: int) -> Float64MultiArray:
+    """Build the message of validated row-major ``items`` with ``layout`` plus the stamp dimension."""
     stamp_label = _STAMP_PREFIX + str(_checked_stamp_ns(stamp_ns))
-    dims = []
-    stride = values.size
-    for label, size in zip(axis_labels, values.shape, strict=True):
-        dims.append(MultiArrayDimension(label=label, size=size, stride=stride))
-        stride //= size
-    dims.append(MultiArrayDimension(label=stamp_label, size=1, stride=1))
+    # Fresh dimension objects every time: a message holds references, and its holder may mutate them.
+    dims = [_dimension(label, size, stride) for label, size, stride in layout.dims]
+    dims.append(_dimension(stamp_label, 1, 1))
     msg = Float64MultiArray()
     msg.layout.dim = dims
     msg.layout.data_offset = 0
-    msg.data = array.array("d", values.tobytes())
+    msg.data = items  # the setter stores them as a new array.array('d')
     return msg
 
 
-def _decode(
-    msg: Float64MultiArray, axes: Sequence[_Axis], what: str
-) -> tuple[int, list[tuple[str, ...]], FloatArray]:
-    """Check the layout of ``msg`` against ``axes`` + stamp; return (stamp_ns, items per axis, data view)."""
-    layout = msg.layout
-    if layout.data_offset != 0:
-        raise LayoutError(f"{what}: data_offset is {layout.data_offset}, must be 0")
-    dims = layout.dim
-    if len(dims) != len(axes) + 1:
+def _frozen_data(data: Sequence[float], shape: tuple[int, ...]) -> FloatArray:
+    """Return the message data (length already checked) as a checked read-only array of ``shape``."""
+    if type(data) is array.array and data.typecode == "d":
+        items: list[float] = data.tolist()
+        if all(map(_isfinite, items)):
+            return _frozen_items(items, shape)
+    return _frozen_copy(np.asarray(data, dtype=np.float64).reshape(shape), "values")
+
+
+def _decode(msg: Float64MultiArray, layout: _Layout | None, row_dim: str, what: str) -> tuple[int, _Layout]:
+    """Check the layout of ``msg`` against ``layout`` + stamp; return (stamp_ns, layout).
+
+    ``layout`` None: a labelled array whose row labels are read from its first dimension (``row_dim``).
+    """
+    msg_layout = msg.layout
+    if msg_layout.data_offset != 0:
+        raise LayoutError(f"{what}: data_offset is {msg_layout.data_offset}, must be 0")
+    dims = msg_layout.dim
+    axis_count = _LABELLED_AXES if layout is None else len(layout.dims)
+    if len(dims) != axis_count + 1:
         labels = [dim.label for dim in dims]
-        raise LayoutError(f"{what}: dimensions {labels}, expected {len(axes)} + '{_STAMP_PREFIX}<int>'")
-    items_per_axis: list[tuple[str, ...]] = []
-    for dim, axis in zip(dims, axes, strict=False):  # dims has one more: the stamp
-        if axis.items is None:
-            items = _parse_axis_label(dim.label, axis.name)
-        elif dim.label == axis.label:
-            items = axis.items
-        else:
-            raise LayoutError(f"{what}: dimension label {dim.label!r}, expected {axis.label!r}")
-        if dim.size != len(items):
-            raise LayoutError(f"{what}: dimension {dim.label!r} has size {dim.size}, expected {len(items)}")
-        items_per_axis.append(items)
+        raise LayoutError(f"{what}: dimensions {labels}, expected {axis_count} + '{_STAMP_PREFIX}<int>'")
+    if layout is None:
+        layout = _labelled_layout(row_dim, _parse_axis_label(dims[0].label, row_dim))
+    for dim, (label, size, _) in zip(dims, layout.dims, strict=False):  # dims has one more: the stamp
+        if dim.label != label:
+            raise LayoutError(f"{what}: dimension label {dim.label!r}, expected {label!r}")
+        if dim.size != size:
+            raise LayoutError(f"{what}: dimension {dim.label!r} has size {dim.size}, expected {size}")
     stamp_dim = dims[-1]
     stamp_ns = _parse_stamp_label(stamp_dim.label)
     if stamp_dim.size != 1 or stamp_dim.stride != 1:
         raise LayoutError(
             f"{what}: stamp dimension size {stamp_dim.size}, stride {stamp_dim.stride}; must be 1, 1"
         )
-    expected_stride = 1
-    for dim in reversed(dims[:-1]):
-        expected_stride *= dim.size
-        if dim.stride != expected_stride:
-            raise LayoutError(
-                f"{what}: dimension {dim.label!r} has stride {dim.stride}, expected {expected_stride}"
-            )
-    data = msg.data
-    if len(data) != expected_stride:
-        raise ArrayLengthError(f"{what}: {len(data)} data values, layout needs {expected_stride}")
-    shape = tuple(len(items) for items in items_per_axis)
-    return stamp_ns, items_per_axis, np.asarray(data, dtype=np.float64).reshape(shape)
+    for index in range(axis_count - 1, -1, -1):  # innermost first, as the strides are built
+        dim = dims[index]
+        stride = layout.dims[index][2]
+        if dim.stride != stride:
+            raise LayoutError(f"{what}: dimension {dim.label!r} has stride {dim.stride}, expected {stride}")
+    data_length = len(msg.data)
+    if data_length != layout.size:
+        raise ArrayLengthError(f"{what}: {data_length} data values, layout needs {layout.size}")
+    return stamp_ns, layout
 
 
-def _fixed_axis(name: str, items: tuple[str, ...]) -> _Axis:
-    return _Axis(name, items, _checked_axis_label(name, items))
-
-
-_JOINT_AXIS: Final[_Axis] = _fixed_axis(JOINT_DIM, JOINT_NAMES)
-_TORQUE_AXES: Final[tuple[_Axis, ...]] = (_JOINT_AXIS,)
-_REFERENCE_AXES: Final[tuple[_Axis, ...]] = (_fixed_axis(ORDER_DIM, REFERENCE_ROWS), _JOINT_AXIS)
-_TORQUE_LABELS: Final[tuple[str, ...]] = tuple(str(axis.label) for axis in _TORQUE_AXES)
-_REFERENCE_LABELS: Final[tuple[str, ...]] = tuple(str(axis.label) for axis in _REFERENCE_AXES)
-
-
-def _validated(values: npt.ArrayLike, shape: tuple[int, ...], field: str) -> FloatArray:
-    checked = _frozen_copy(values, field)
-    _require_shape(checked, shape, field)
-    return checked
+def _decode_stamped(msg: Float64MultiArray, layout: _Layout, what: str) -> StampedArray:
+    stamp_ns, _ = _decode(msg, layout, "", what)
+    return _prevalidated(StampedArray, stamp_ns=stamp_ns, values=_frozen_data(msg.data, layout.shape))
 
 
 def torque_to_msg(tau: npt.ArrayLike, stamp_ns: int) -> Float64MultiArray:
@@ -467,7 +572,7 @@ def torque_to_msg(tau: npt.ArrayLike, stamp_ns: int) -> Float64MultiArray:
         NonFiniteError: NaN or Inf.
         StampError: invalid stamp.
     """
-    return _encode(_validated(tau, TORQUE_SHAPE, "torque"), _TORQUE_LABELS, stamp_ns)
+    return _encode(_checked_items(tau, TORQUE_SHAPE, "torque"), _TORQUE_LAYOUT, stamp_ns)
 
 
 def msg_to_torque(msg: Float64MultiArray) -> StampedArray:
@@ -485,8 +590,7 @@ def msg_to_torque(msg: Float64MultiArray) -> StampedArray:
         NonFiniteError: NaN or Inf.
         StampError: malformed or out-of-range stamp.
     """
-    stamp_ns, _, values = _decode(msg, _TORQUE_AXES, "torque command")
-    return StampedArray(stamp_ns=stamp_ns, values=values)
+    return _decode_stamped(msg, _TORQUE_LAYOUT, "torque command")
 
 
 def reference_to_msg(reference: npt.ArrayLike, stamp_ns: int) -> Float64MultiArray:
@@ -505,7 +609,7 @@ def reference_to_msg(reference: npt.ArrayLike, stamp_ns: int) -> Float64MultiArr
         NonFiniteError: NaN or Inf.
         StampError: invalid stamp.
     """
-    return _encode(_validated(reference, REFERENCE_SHAPE, "reference"), _REFERENCE_LABELS, stamp_ns)
+    return _encode(_checked_items(reference, REFERENCE_SHAPE, "reference"), _REFERENCE_LAYOUT, stamp_ns)
 
 
 def msg_to_reference(msg: Float64MultiArray) -> StampedArray:
@@ -517,8 +621,7 @@ def msg_to_reference(msg: Float64MultiArray) -> StampedArray:
     Raises:
         LayoutError, ArrayLengthError, NonFiniteError, StampError: as :func:`msg_to_torque`.
     """
-    stamp_ns, _, values = _decode(msg, _REFERENCE_AXES, "reference")
-    return StampedArray(stamp_ns=stamp_ns, values=values)
+    return _decode_stamped(msg, _REFERENCE_LAYOUT, "reference")
 
 
 def labelled_to_msg(
@@ -541,9 +644,8 @@ def labelled_to_msg(
         NonFiniteError: NaN or Inf.
         StampError: invalid stamp.
     """
-    row_label = _checked_axis_label(row_dim, tuple(row_labels))
-    checked = _validated(values, (len(row_labels), NUM_JOINTS), "values")
-    return _encode(checked, (row_label, str(_JOINT_AXIS.label)), stamp_ns)
+    layout = _labelled_layout(row_dim, tuple(row_labels))
+    return _encode(_checked_items(values, layout.shape, "values"), layout, stamp_ns)
 
 
 def msg_to_labelled(
@@ -563,10 +665,14 @@ def msg_to_labelled(
         LayoutError: bad layout, or rows differing from ``expected_rows``.
         ArrayLengthError, NonFiniteError, StampError: as :func:`msg_to_torque`.
     """
-    rows = None if expected_rows is None else tuple(expected_rows)
-    row_axis = _Axis(row_dim) if rows is None else _fixed_axis(row_dim, rows)
-    stamp_ns, items, values = _decode(msg, (row_axis, _JOINT_AXIS), "labelled array")
-    return LabelledArray(stamp_ns=stamp_ns, row_labels=items[0], values=values)
+    expected = None if expected_rows is None else _labelled_layout(row_dim, tuple(expected_rows))
+    stamp_ns, layout = _decode(msg, expected, row_dim, "labelled array")
+    return _prevalidated(
+        LabelledArray,
+        stamp_ns=stamp_ns,
+        row_labels=layout.rows,
+        values=_frozen_data(msg.data, layout.shape),
+    )
 
 
 def internals_to_msg(internals: Mapping[str, npt.ArrayLike], stamp_ns: int) -> Float64MultiArray:
@@ -583,9 +689,12 @@ def internals_to_msg(internals: Mapping[str, npt.ArrayLike], stamp_ns: int) -> F
         ArrayLengthError: an entry is not shape (2,), or the mapping is empty.
         LayoutError, NonFiniteError, StampError: as :func:`labelled_to_msg`.
     """
-    rows = []
+    items: list[float] = []
     for name, row in internals.items():
-        rows.append(_validated(row, TORQUE_SHAPE, f"internals[{name!r}]"))
-    if not rows:
+        row_items = _finite_float64_items(row, TORQUE_SHAPE)
+        if row_items is None:  # the field name is only formatted on this generic (or failing) path
+            row_items = _validated(row, TORQUE_SHAPE, f"internals[{name!r}]").tolist()
+        items += row_items
+    if not items:
         raise ArrayLengthError("internals: empty mapping, need at least one row")
-    return labelled_to_msg(np.stack(rows), tuple(internals), stamp_ns)
+    return _encode(items, _labelled_layout(QUANTITY_DIM, tuple(internals)), stamp_ns)

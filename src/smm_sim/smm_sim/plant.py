@@ -18,7 +18,9 @@ What happens to a torque command in :meth:`SimulatedPlant.step` (in this order):
    sub-step boundary after the output crosses zero.
 4. **RK4 integration** of eq. 2 with the true parameters (``params`` with inertias scaled by
    ``inertia_scale``) and the external disturbance ``tau_dist`` (eq. 46 or none), in ``substeps``
-   equal sub-steps per call; the disturbance is evaluated at each sub-step's midpoint.
+   equal sub-steps per call; the disturbance is evaluated at each sub-step's midpoint. The state is
+   kept as plain floats and integrated with ``smm_dynamics.rk4_step_floats`` (equal to ``rk4_step``
+   up to rounding, several times faster).
 5. **Mechanical stops** (``joint_limits``), an inelastic stop: after each sub-step a joint beyond
    ``+-limit`` is put back on the limit and the velocity component that points further into the stop
    is set to zero (no bounce, no penetration). A velocity leaving the stop is kept, so the joint can
@@ -46,7 +48,7 @@ from typing import Final, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from smm_dynamics import SMMParameters, rk4_step
+from smm_dynamics import SMMParameters, rk4_step_floats
 
 __all__ = [
     "DISTURBANCE_MODELS",
@@ -308,14 +310,15 @@ class SimulatedPlant:
             2.0 * math.pi / config.encoder_counts_per_rev if config.encoder_counts_per_rev else 0.0
         )
         self._rng = np.random.default_rng(config.seed)
-        self._q = np.zeros(2)
-        self._qd = np.zeros(2)
+        self._noise_std = config.noise_std if config.noise_std[0] > 0.0 or config.noise_std[1] > 0.0 else None
+        # (alpha, beta, alpha', beta') (rad, rad/s), plain floats for the single-sample RK4.
+        self._state = (0.0, 0.0, 0.0, 0.0)
         self._t_ns = 0
         self._valve = [0.0, 0.0]
         self._command = (0.0, 0.0)
         self._applied = (0.0, 0.0)
-        self._noise = np.zeros(2)
-        self._measured = np.zeros(2)
+        self._noise = (0.0, 0.0)
+        self._measured = (0.0, 0.0)
         self.reset()
 
     @property
@@ -335,8 +338,7 @@ class SimulatedPlant:
         if np.any(np.abs(q0) > np.asarray(self._limits)):
             raise ValueError(f"position must lie within joint_limits {self._limits}, got {q0.tolist()!r}")
         self._rng = np.random.default_rng(self._config.seed)
-        self._q = q0
-        self._qd = np.zeros(2)
+        self._state = (float(q0[0]), float(q0[1]), 0.0, 0.0)
         self._t_ns = 0
         self._valve = [0.0, 0.0]
         self._command = (0.0, 0.0)
@@ -356,17 +358,32 @@ class SimulatedPlant:
         """
         return Measurement(
             stamp_ns=self._t_ns,
-            position=self._measured.copy(),
+            position=np.array(self._measured),
             applied_torque=np.array(self._applied),
         )
+
+    def measure_floats(self) -> tuple[float, float, float, float]:
+        """:meth:`measure` without the arrays, for loops that step the plant one sample at a time.
+
+        Returns:
+            (measured alpha, measured beta) (rad) and (applied alpha, applied beta) (N m), the values of
+            ``measure().position`` and ``measure().applied_torque``.
+        """
+        return (*self._measured, *self._applied)
+
+    @property
+    def state_floats(self) -> tuple[float, float, float, float]:
+        """True (alpha, beta, alpha', beta') (rad, rad/s): ``ground_truth`` position and velocity."""
+        return self._state
 
     @property
     def ground_truth(self) -> GroundTruth:
         """True q, q', applied torque and disturbance at the current time."""
+        alpha, beta, alpha_dot, beta_dot = self._state
         return GroundTruth(
             stamp_ns=self._t_ns,
-            position=self._q.copy(),
-            velocity=self._qd.copy(),
+            position=np.array((alpha, beta)),
+            velocity=np.array((alpha_dot, beta_dot)),
             applied_torque=np.array(self._applied),
             disturbance_torque=np.array(disturbance_torque(self._config.disturbance, self._t_ns / _NS_PER_S)),
         )
@@ -388,7 +405,7 @@ class SimulatedPlant:
             "disturbance_torque": np.array(
                 disturbance_torque(self._config.disturbance, self._t_ns / _NS_PER_S)
             ),
-            "measurement_noise": self._noise.copy(),
+            "measurement_noise": np.array(self._noise),
         }
 
     def step(self, tau_command: ArrayLike, dt: float) -> None:
@@ -409,7 +426,7 @@ class SimulatedPlant:
         substeps = config.substeps
         h = dt_ns / _NS_PER_S / substeps
         t0 = self._t_ns / _NS_PER_S
-        q, qd = self._q, self._qd
+        state = self._state
         applied_sum = [0.0, 0.0]
         for index in range(substeps):
             torque = self._valve_substep(saturated, h)
@@ -417,10 +434,8 @@ class SimulatedPlant:
             applied_sum[1] += torque[1]
             t_mid = t0 + (index + 0.5) * h
             dist = disturbance_torque(config.disturbance, t_mid)
-            tau_dist = None if dist == (0.0, 0.0) else np.array(dist)
-            q, qd = rk4_step(q, qd, np.array(torque), h, self._params, tau_dist=tau_dist)
-            q, qd = self._apply_stops(np.asarray(q, dtype=np.float64), np.asarray(qd, dtype=np.float64))
-        self._q, self._qd = q, qd
+            state = self._apply_stops(rk4_step_floats(state, torque, h, self._params, disturbance=dist))
+        self._state = state
         self._command = command
         self._applied = (applied_sum[0] / substeps, applied_sum[1] / substeps)
         self._t_ns += dt_ns
@@ -448,24 +463,33 @@ class SimulatedPlant:
             mean[joint] = goal + (start - goal) * (time_constant / h) * (1.0 - decay)
         return mean[0], mean[1]
 
-    def _apply_stops(self, q: FloatArray, qd: FloatArray) -> tuple[FloatArray, FloatArray]:
-        for joint in range(2):
-            limit = self._limits[joint]
-            if q[joint] > limit:
-                q[joint] = limit
-                qd[joint] = min(qd[joint], 0.0)
-            elif q[joint] < -limit:
-                q[joint] = -limit
-                qd[joint] = max(qd[joint], 0.0)
-        return q, qd
+    def _apply_stops(self, state: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        alpha, beta, alpha_dot, beta_dot = state
+        limit_alpha, limit_beta = self._limits
+        if alpha > limit_alpha:
+            alpha, alpha_dot = limit_alpha, min(alpha_dot, 0.0)
+        elif alpha < -limit_alpha:
+            alpha, alpha_dot = -limit_alpha, max(alpha_dot, 0.0)
+        if beta > limit_beta:
+            beta, beta_dot = limit_beta, min(beta_dot, 0.0)
+        elif beta < -limit_beta:
+            beta, beta_dot = -limit_beta, max(beta_dot, 0.0)
+        return alpha, beta, alpha_dot, beta_dot
 
     def _sample_sensor(self) -> None:
-        std = self._config.noise_std
-        if std[0] > 0.0 or std[1] > 0.0:
-            self._noise = self._rng.standard_normal(2) * np.asarray(std)
+        std = self._noise_std
+        if std is not None:
+            normal_alpha, normal_beta = self._rng.standard_normal(2).tolist()
+            self._noise = (normal_alpha * std[0], normal_beta * std[1])
         else:
-            self._noise = np.zeros(2)
-        measured = self._q + self._noise
-        if self._quantum > 0.0:
-            measured = np.round(measured / self._quantum) * self._quantum
-        self._measured = measured
+            self._noise = (0.0, 0.0)
+        measured_alpha = self._state[0] + self._noise[0]
+        measured_beta = self._state[1] + self._noise[1]
+        quantum = self._quantum
+        if quantum > 0.0:
+            # np.round on floats: round() rounds half to even, copysign keeps the sign of a zero count.
+            counts_alpha = measured_alpha / quantum
+            counts_beta = measured_beta / quantum
+            measured_alpha = math.copysign(round(counts_alpha), counts_alpha) * quantum
+            measured_beta = math.copysign(round(counts_beta), counts_beta) * quantum
+        self._measured = (measured_alpha, measured_beta)
