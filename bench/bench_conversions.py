@@ -28,7 +28,13 @@ from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
 
 STAMP_NS = 1_700_000_000_123_456_789
 INTERNALS_ROWS = ("kp", "kd", "u", "feedforward", "feedback", "disturbance", "robust", "tau")
-COUNTER_ROWS = ("dropped_invalid", "dropped_stale", "dropped_unmatched", "duplicates_answered", "invalid_outputs")
+COUNTER_ROWS = (
+    "dropped_invalid",
+    "dropped_stale",
+    "dropped_unmatched",
+    "duplicates_answered",
+    "invalid_outputs",
+)
 
 
 def _read_only(values: list[float]) -> np.ndarray:
@@ -79,6 +85,37 @@ def cases() -> dict[str, Callable[[], object]]:
     }
 
 
+def lockstep_step() -> Callable[[], object]:
+    """Return the conversions of one lockstep step of the graph (sim, TD, reference, FLESO, controller).
+
+    Per step: the simulator publishes /clock, the measurement and the ground truth and parses the torque;
+    the TD, reference, FLESO and controller parse their inputs and publish their outputs and internals.
+    """
+    calls = cases()
+    parse_measurement = calls["joint_state_to_sample (alpha, beta)"]
+    return lambda: (
+        calls["clock_msg"](),
+        calls["JointSample (position, effort)"](),
+        calls["sample_to_joint_state (3 fields)"](),  # measurement
+        calls["sample_to_joint_state (3 fields)"](),  # ground truth
+        calls["msg_to_torque"](),
+        parse_measurement(),  # TD
+        calls["JointSample (position, effort)"](),
+        calls["sample_to_joint_state (3 fields)"](),  # filtered
+        parse_measurement(),  # reference
+        calls["reference_to_msg"](),
+        parse_measurement(),  # FLESO: filtered and measurement
+        parse_measurement(),
+        calls["labelled_to_msg (1 row)"](),  # disturbance estimate
+        calls["labelled_to_msg (4 rows)"](),  # observer state
+        parse_measurement(),  # controller: filtered, reference, estimate
+        calls["msg_to_reference"](),
+        calls["msg_to_labelled (1 row, expected rows)"](),
+        calls["torque_to_msg"](),
+        *(calls["internals_to_msg (13 rows)"]() for _ in range(4)),  # TD, reference, FLESO, controller
+    )
+
+
 def main(calls: int = 20_000) -> None:
     """Print the best of 5 runs of ``calls`` calls of each case, in microseconds per call."""
     total = 0.0
@@ -87,6 +124,8 @@ def main(calls: int = 20_000) -> None:
         total += seconds
         print(f"{name:40s} {seconds * 1e6:7.2f} us")
     print(f"{'sum of the cases above':40s} {total * 1e6:7.2f} us")
+    step_seconds = min(timeit.repeat(lockstep_step(), number=calls // 10, repeat=5)) / (calls // 10)
+    print(f"{'conversions of one lockstep step':40s} {step_seconds * 1e6:7.2f} us (budget of a step: 500 us)")
 
 
 if __name__ == "__main__":

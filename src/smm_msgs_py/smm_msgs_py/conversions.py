@@ -178,7 +178,7 @@ def _validated(values: npt.ArrayLike, shape: tuple[int, ...], field: str) -> Flo
 def _finite_float64_items(values: object, shape: tuple[int, ...]) -> list[float] | None:
     """Return the items (row-major) of a finite float64 ndarray of ``shape``; None for any other input."""
     if type(values) is np.ndarray and values.dtype is _FLOAT64 and values.shape == shape:
-        items: list[float] = values.ravel().tolist()
+        items: list[float] = (values if len(shape) == 1 else values.ravel()).tolist()
         if all(map(_isfinite, items)):
             return items
     return None
@@ -485,40 +485,31 @@ def _parse_stamp_label(label: str) -> int:
     return _checked_stamp_ns(int(digits))
 
 
-def _dimension(label: str, size: int, stride: int) -> MultiArrayDimension:
-    dim = MultiArrayDimension()  # setting the fields is cheaper than passing them to the constructor
-    dim.label = label
-    dim.size = size
-    dim.stride = stride
-    return dim
-
-
 def _encode(items: list[float], layout: _Layout, stamp_ns: int) -> Float64MultiArray:
     """Build the message of validated row-major ``items`` with ``layout`` plus the stamp dimension."""
     stamp_label = _STAMP_PREFIX + str(_checked_stamp_ns(stamp_ns))
     # Fresh dimension objects every time: a message holds references, and its holder may mutate them.
-    dims = [_dimension(label, size, stride) for label, size, stride in layout.dims]
-    dims.append(_dimension(stamp_label, 1, 1))
+    dims = []
+    for label, size, stride in (*layout.dims, (stamp_label, 1, 1)):
+        dim = MultiArrayDimension()  # setting the fields is cheaper than passing them to the constructor
+        dim.label = label
+        dim.size = size
+        dim.stride = stride
+        dims.append(dim)
     msg = Float64MultiArray()
-    msg.layout.dim = dims
-    msg.layout.data_offset = 0
+    msg.layout.dim = dims  # data_offset keeps its default, 0
     msg.data = items  # the setter stores them as a new array.array('d')
     return msg
 
 
-def _frozen_data(data: Sequence[float], shape: tuple[int, ...]) -> FloatArray:
-    """Return the message data (length already checked) as a checked read-only array of ``shape``."""
-    if type(data) is array.array and data.typecode == "d":
-        items: list[float] = data.tolist()
-        if all(map(_isfinite, items)):
-            return _frozen_items(items, shape)
-    return _frozen_copy(np.asarray(data, dtype=np.float64).reshape(shape), "values")
-
-
-def _decode(msg: Float64MultiArray, layout: _Layout | None, row_dim: str, what: str) -> tuple[int, _Layout]:
-    """Check the layout of ``msg`` against ``layout`` + stamp; return (stamp_ns, layout).
+def _decode(
+    msg: Float64MultiArray, layout: _Layout | None, row_dim: str, what: str
+) -> tuple[int, _Layout, FloatArray]:
+    """Check the layout of ``msg`` against ``layout`` + stamp; return (stamp_ns, layout, values).
 
     ``layout`` None: a labelled array whose row labels are read from its first dimension (``row_dim``).
+    The checks run, and so report the first error, in this order: data_offset, dimension count, labels and
+    sizes, stamp label, stamp size and stride, strides from the innermost dimension, data length, values.
     """
     msg_layout = msg.layout
     if msg_layout.data_offset != 0:
@@ -530,31 +521,39 @@ def _decode(msg: Float64MultiArray, layout: _Layout | None, row_dim: str, what: 
         raise LayoutError(f"{what}: dimensions {labels}, expected {axis_count} + '{_STAMP_PREFIX}<int>'")
     if layout is None:
         layout = _labelled_layout(row_dim, _parse_axis_label(dims[0].label, row_dim))
-    for dim, (label, size, _) in zip(dims, layout.dims, strict=False):  # dims has one more: the stamp
+    strides_match = True
+    for dim, (label, size, stride) in zip(dims, layout.dims, strict=False):  # dims has one more: the stamp
         if dim.label != label:
             raise LayoutError(f"{what}: dimension label {dim.label!r}, expected {label!r}")
         if dim.size != size:
             raise LayoutError(f"{what}: dimension {dim.label!r} has size {dim.size}, expected {size}")
+        strides_match = strides_match and dim.stride == stride
     stamp_dim = dims[-1]
     stamp_ns = _parse_stamp_label(stamp_dim.label)
     if stamp_dim.size != 1 or stamp_dim.stride != 1:
         raise LayoutError(
             f"{what}: stamp dimension size {stamp_dim.size}, stride {stamp_dim.stride}; must be 1, 1"
         )
-    for index in range(axis_count - 1, -1, -1):  # innermost first, as the strides are built
-        dim = dims[index]
-        stride = layout.dims[index][2]
-        if dim.stride != stride:
-            raise LayoutError(f"{what}: dimension {dim.label!r} has stride {dim.stride}, expected {stride}")
-    data_length = len(msg.data)
-    if data_length != layout.size:
-        raise ArrayLengthError(f"{what}: {data_length} data values, layout needs {layout.size}")
-    return stamp_ns, layout
+    if not strides_match:
+        for dim, (_, _, stride) in reversed(list(zip(dims, layout.dims, strict=False))):
+            if dim.stride != stride:
+                raise LayoutError(
+                    f"{what}: dimension {dim.label!r} has stride {dim.stride}, expected {stride}"
+                )
+    data = msg.data
+    if len(data) != layout.size:
+        raise ArrayLengthError(f"{what}: {len(data)} data values, layout needs {layout.size}")
+    if type(data) is array.array and data.typecode == "d":
+        items: list[float] = data.tolist()
+        if all(map(_isfinite, items)):
+            return stamp_ns, layout, _frozen_items(items, layout.shape)
+    # Another sequence type, or a NaN/Inf: the generic conversion converts it or names the bad values.
+    return stamp_ns, layout, _frozen_copy(np.asarray(data, dtype=np.float64).reshape(layout.shape), "values")
 
 
 def _decode_stamped(msg: Float64MultiArray, layout: _Layout, what: str) -> StampedArray:
-    stamp_ns, _ = _decode(msg, layout, "", what)
-    return _prevalidated(StampedArray, stamp_ns=stamp_ns, values=_frozen_data(msg.data, layout.shape))
+    stamp_ns, _, values = _decode(msg, layout, "", what)
+    return _prevalidated(StampedArray, stamp_ns=stamp_ns, values=values)
 
 
 def torque_to_msg(tau: npt.ArrayLike, stamp_ns: int) -> Float64MultiArray:
@@ -666,13 +665,8 @@ def msg_to_labelled(
         ArrayLengthError, NonFiniteError, StampError: as :func:`msg_to_torque`.
     """
     expected = None if expected_rows is None else _labelled_layout(row_dim, tuple(expected_rows))
-    stamp_ns, layout = _decode(msg, expected, row_dim, "labelled array")
-    return _prevalidated(
-        LabelledArray,
-        stamp_ns=stamp_ns,
-        row_labels=layout.rows,
-        values=_frozen_data(msg.data, layout.shape),
-    )
+    stamp_ns, layout, values = _decode(msg, expected, row_dim, "labelled array")
+    return _prevalidated(LabelledArray, stamp_ns=stamp_ns, row_labels=layout.rows, values=values)
 
 
 def internals_to_msg(internals: Mapping[str, npt.ArrayLike], stamp_ns: int) -> Float64MultiArray:
@@ -690,11 +684,18 @@ def internals_to_msg(internals: Mapping[str, npt.ArrayLike], stamp_ns: int) -> F
         LayoutError, NonFiniteError, StampError: as :func:`labelled_to_msg`.
     """
     items: list[float] = []
+    # Algorithms' internals and node counters are float64 arrays of shape (2,): one pass, one check.
+    for row in internals.values():
+        if type(row) is not np.ndarray or row.dtype is not _FLOAT64 or row.shape != TORQUE_SHAPE:
+            break
+        items += row.tolist()
+    else:
+        if items and all(map(_isfinite, items)):
+            return _encode(items, _labelled_layout(QUANTITY_DIM, tuple(internals)), stamp_ns)
+    # Another row type or a bad value: convert and check row by row, so the first bad row is the one named.
+    items = []
     for name, row in internals.items():
-        row_items = _finite_float64_items(row, TORQUE_SHAPE)
-        if row_items is None:  # the field name is only formatted on this generic (or failing) path
-            row_items = _validated(row, TORQUE_SHAPE, f"internals[{name!r}]").tolist()
-        items += row_items
+        items += _checked_items(row, TORQUE_SHAPE, f"internals[{name!r}]")
     if not items:
         raise ArrayLengthError("internals: empty mapping, need at least one row")
     return _encode(items, _labelled_layout(QUANTITY_DIM, tuple(internals)), stamp_ns)
