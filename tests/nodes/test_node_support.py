@@ -212,3 +212,38 @@ def test_node_main_refuses_invalid_parameters_with_status_2(
     assert code == 2, logs
     assert "invalid parameter" in logs and message in logs
     assert "Traceback" not in logs
+
+
+def test_diagnostics_are_built_only_while_someone_listens(ros_context: Any) -> None:
+    from smm_msgs_py.node_support import MeasurementDrivenNode
+    from std_msgs.msg import Float64MultiArray
+
+    node = MeasurementDrivenNode("lazy_diagnostics", context=ros_context)
+    output_pub = node.create_publisher(Float64MultiArray, "lazy_out", 10)
+    diagnostics_pub = node.create_publisher(Float64MultiArray, "lazy_diag", 10)
+    builds: list[int] = []
+
+    def outputs() -> list[Any]:
+        return [(output_pub, Float64MultiArray())]
+
+    def diagnostics() -> list[Any]:
+        builds.append(1)
+        return [(diagnostics_pub, Float64MultiArray())]
+
+    try:
+        assert node.answer(1, outputs, diagnostics)  # the first build learns the diagnostic topics
+        assert node.answer(2, outputs, diagnostics)  # nobody listens: not built
+        assert len(builds) == 1
+        listener = rclpy.create_node("lazy_listener", context=ros_context)
+        received: list[Any] = []
+        listener.create_subscription(Float64MultiArray, "lazy_diag", received.append, 10)
+        executor = rclpy.executors.SingleThreadedExecutor(context=ros_context)
+        executor.add_node(listener)
+        assert spin_until(executor, lambda: diagnostics_pub.get_subscription_count() > 0, timeout_s=10)
+        assert node.answer(3, outputs, diagnostics)
+        assert len(builds) == 2
+        assert spin_until(executor, lambda: len(received) == 1, timeout_s=10)
+        executor.shutdown()
+        listener.destroy_node()
+    finally:
+        node.destroy_node()

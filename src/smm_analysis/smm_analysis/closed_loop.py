@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from smm_sim.plant import PlantConfig, SimulatedPlant
+from smm_sim.plant import PlantConfig, SimulatedPlant, disturbance_torque
 
 from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError, UnknownControllerError
 from smm_analysis.scenarios import Scenario, get_scenario
@@ -250,46 +250,43 @@ def run_closed_loop(
     reference = spec.reference().sample(t_ns.astype(np.float64) / _NS_PER_S)
     reference_rows = reference.tolist()
     samples = steps + 1
-    measured = np.empty((samples, 2))
-    position = np.empty((samples, 2))
-    velocity = np.empty((samples, 2))
-    command = np.empty((samples, 2))
-    applied = np.empty((samples, 2))
-    estimate = np.zeros((samples, 2))
-    disturbance = np.empty((samples, 2))
-    recorded: dict[str, FloatArray] = {}
+    # Per step one tuple of floats (measured y, true q, q', command, disturbance), stacked at the end:
+    # cheaper than writing numpy rows every step.
+    rows: list[tuple[float, ...]] = []
+    applied_rows: list[tuple[float, float]] = []
+    snapshots: list[Mapping[str, FloatArray]] = []
+    disturbance_model = config.disturbance
 
     for k in range(samples):
-        sample = plant.measure()
-        truth = plant.ground_truth
-        y = sample.position
-        effort = sample.applied_torque
+        # y_k and the torque applied over [t_{k-1}, t_k]: plant.measure() as floats.
+        y0, y1, effort0, effort1 = plant.measure_floats()
         # step_floats is chain.step without the per-call array validation (the plant's outputs are
         # finite by construction); a test pins that both give the same torques bit for bit.
-        tau = chain.step_floats(
-            (float(y[0]), float(y[1])), (float(effort[0]), float(effort[1])), reference_rows[k], dt
-        )
+        tau = chain.step_floats((y0, y1), (effort0, effort1), reference_rows[k], dt)
         if not (math.isfinite(tau[0]) and math.isfinite(tau[1])):
             raise ClosedLoopDivergedError(
                 f"{controller_name} on {spec.name}: non-finite torque {tau!r} at step {k} "
                 f"(t = {k * dt:.3f} s); the closed loop went unstable"
             )
-        measured[k] = y
-        position[k] = truth.position
-        velocity[k] = truth.velocity
-        disturbance[k] = truth.disturbance_torque
-        command[k] = tau
+        # The true state and disturbance at t_k, as plant.ground_truth reports them.
+        dist0, dist1 = disturbance_torque(disturbance_model, plant.time_ns / _NS_PER_S)
+        rows.append((y0, y1, *plant.state_floats, tau[0], tau[1], dist0, dist1))
         if record_internals:
-            internals = chain.internals
-            estimate[k] = internals["disturbance_estimate"]
-            for key, value in internals.items():
-                if key not in recorded:
-                    recorded[key] = np.empty((samples, 2))
-                recorded[key][k] = value
+            snapshots.append(chain.internals)
         if k > 0:
-            applied[k - 1] = truth.applied_torque  # the torque that acted over [t_{k-1}, t_k]
+            applied_rows.append((effort0, effort1))  # the torque that acted over [t_{k-1}, t_k]
         plant.step(tau, dt)
-    applied[steps] = plant.ground_truth.applied_torque
+    applied_rows.append(plant.measure_floats()[2:])
+
+    table = np.array(rows).reshape(samples, 10)
+    measured, position, velocity, command, disturbance = (
+        np.ascontiguousarray(table[:, column : column + 2]) for column in range(0, 10, 2)
+    )
+    applied = np.array(applied_rows).reshape(samples, 2)
+    recorded: dict[str, FloatArray] = {}
+    if snapshots:
+        recorded = {key: np.array([snapshot[key] for snapshot in snapshots]) for key in snapshots[0]}
+    estimate = recorded["disturbance_estimate"].copy() if record_internals else np.zeros((samples, 2))
 
     return Trajectory(
         scenario=spec.name,

@@ -21,7 +21,10 @@ everywhere). It is still guarded: the defuzzified value is then :data:`ZERO_AREA
 Speed: a control step needs several small inferences (per joint, per output). :class:`MamdaniBatch`
 evaluates the rule bases in plain Python (only the labels that are active, at most two per input for a
 uniform triangular partition) and does the aggregation and defuzzification of all joints and outputs
-in four vectorised numpy calls.
+in four vectorised numpy calls, whose cost grows with the number of sampled MFs they touch. For
+complete rule bases of two inputs on uniform triangular partitions (the fuzzy PD schedule) at most the
+2 x 2 rules around the inputs fire, so only the output MFs those rules conclude are clipped (max over
+them per output; min and max commute, so the aggregate is bit for bit the one over all labels).
 """
 
 from __future__ import annotations
@@ -55,6 +58,10 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Defuzzified value returned when the aggregated membership has zero area (see module docstring).
 ZERO_AREA_FALLBACK = 0.0
+
+# A uniform triangular partition: first peak, last peak, spacing, index of the last interval, and per
+# interval (left peak, width of its falling side, right label's left foot, width of its rising side).
+_Lattice = tuple[float, float, float, int, tuple[tuple[float, float, float, float], ...]]
 
 
 def _require_finite(name: str, value: float) -> None:
@@ -220,21 +227,42 @@ class FuzzyVariable:
         """Membership degree of ``x`` in every label, in label order."""
         return tuple(mf.degree(x) for mf in self.mfs)
 
+    def _lattice_data(self) -> _Lattice | None:
+        """(first peak, last peak, spacing, last interval index, sides) of a uniform partition, or None."""
+        if self._lattice is None:
+            return None
+        return (*self._lattice, len(self._sides) - 1, tuple(self._sides))
+
+    def lattice_pair(self, x: float) -> tuple[int, float, float] | None:
+        """On a uniform triangular partition: (k, degree of label k, degree of label k + 1) at ``x``.
+
+        Every other label is zero at ``x``. Only the falling side of label k and the rising side of
+        label k + 1 are evaluated; they equal the full triangle formula up to rounding (within a few
+        ulps of a peak the interval found by the floor may be the neighbouring one, whence the clamp
+        to 1; memberships of order 1e-16 that rounding may leave on a third label are dropped, and a
+        degree that rounding leaves at or below 0 is 0.0).
+
+        Returns:
+            The pair, or None if the MFs are no uniform triangular partition or ``x`` lies outside
+            their peaks (or is NaN).
+        """
+        lattice = self._lattice
+        if lattice is None or not lattice[0] <= x <= lattice[1]:
+            return None
+        left = min(int((x - lattice[0]) // lattice[2]), len(self._sides) - 1)
+        peak_left, falling_width, foot_right, rising_width = self._sides[left]
+        falling = min((peak_left - x) / falling_width, 1.0)
+        rising = min((x - foot_right) / rising_width, 1.0)
+        return left, (falling if falling > 0.0 else 0.0), (rising if rising > 0.0 else 0.0)
+
     def active(self, x: float) -> list[tuple[int, float]]:
         """(label index, degree) for every label that can be non-zero at ``x``, in label order.
 
-        On a uniform triangular partition only the falling side of the label left of x and the rising
-        side of the label right of x are evaluated; they equal the full triangle formula up to
-        rounding (within a few ulps of a peak the interval found by the floor may be the
-        neighbouring one, whence the clamp to 1; memberships of order 1e-16 that rounding may leave
-        on a third label are dropped).
+        On a uniform triangular partition these are the non-zero labels of :meth:`lattice_pair`.
         """
-        lattice = self._lattice
-        if lattice is not None and lattice[0] <= x <= lattice[1]:
-            left = min(int((x - lattice[0]) // lattice[2]), len(self._sides) - 1)
-            peak_left, falling_width, foot_right, rising_width = self._sides[left]
-            falling = min((peak_left - x) / falling_width, 1.0)
-            rising = min((x - foot_right) / rising_width, 1.0)
+        pair = self.lattice_pair(x)
+        if pair is not None:
+            left, falling, rising = pair
             if falling > 0.0:
                 if rising > 0.0:
                     return [(left, falling), (left + 1, rising)]
@@ -493,6 +521,126 @@ class MamdaniBatch:
         self._clipped = np.empty((n_labels, n_rows, first.grid.size))
         self._aggregated = np.empty((n_rows, first.grid.size))
         self._weights = centroid_weights(first.grid)
+        self._lattice_plan = self._two_input_lattice_plan()
+        if self._lattice_plan is not None:
+            grid_size = first.grid.size
+            n_systems = len(systems)
+            # Rows of _samples as one table: row label * n_rows + (system, output) row = a strength slot.
+            self._sample_table = self._samples.reshape(n_labels * n_rows, grid_size)
+            # Per count k of rules that fire in a system (1, 2 or 4 around the inputs): their firing
+            # strengths (broadcast over the outputs and the grid) and, per output, the output MF each
+            # concludes, clipped in place; systems with fewer rules repeat one (max is unchanged).
+            self._lattice_buffers = {
+                count: self._lattice_buffer(count, n_systems, n_outputs, grid_size) for count in (1, 2, 4)
+            }
+            self._aggregated_view = self._aggregated.reshape(n_systems, n_outputs, grid_size)
+
+    @staticmethod
+    def _lattice_buffer(
+        count: int, n_systems: int, n_outputs: int, grid_size: int
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        firing = np.zeros(n_systems * count)
+        gathered = np.zeros((n_systems * count * n_outputs, grid_size))
+        return (
+            firing,
+            firing.reshape(n_systems, count, 1, 1),
+            gathered,
+            gathered.reshape(n_systems, count, n_outputs, grid_size),
+        )
+
+    def _two_input_lattice_plan(
+        self,
+    ) -> tuple[tuple[_Lattice, _Lattice, int, list[tuple[int, ...]]], ...] | None:
+        """Per system (first input's lattice, second's, radix of the second, slots per antecedent cell).
+
+        None unless every system has two inputs on uniform triangular partitions and a rule for every
+        antecedent cell (then exactly the four cells around the inputs can fire).
+        """
+        plan = []
+        for system, targets in self._pairs:
+            if len(system.inputs) != 2 or any(len(slots) != self._n_outputs for slots in targets):
+                return None
+            lattices = [var._lattice_data() for var in system.inputs]
+            if lattices[0] is None or lattices[1] is None:
+                return None
+            plan.append((lattices[0], lattices[1], len(system.inputs[1].labels), targets))
+        return tuple(plan)
+
+    def _evaluate_two_input_lattice(self, inputs: Sequence[Sequence[float]]) -> list[float] | None:
+        """:meth:`evaluate_flat` on the lattice plan; None if an input lies off its lattice.
+
+        Per system the rules of the cells around the inputs with a positive firing strength (1, 2 or
+        4 of them) are clipped and max-aggregated. The lattice lookup is
+        :meth:`FuzzyVariable.lattice_pair` inlined (the same expressions; a test pins the result to the
+        general path bit for bit): this runs every control step.
+        """
+        assert self._lattice_plan is not None
+        fired_per_system: list[list[tuple[tuple[int, ...], float]]] = []
+        count = 1
+        for (first, second, radix, targets), x in zip(self._lattice_plan, inputs, strict=True):
+            if len(x) != 2:
+                return None
+            x0, x1 = x
+            low, high, spacing, last, sides = first
+            if not low <= x0 <= high:
+                return None
+            i = int((x0 - low) // spacing)
+            if i > last:  # noqa: PLR1730 (faster than min() here)
+                i = last
+            peak_left, falling_width, foot_right, rising_width = sides[i]
+            degree_i = (peak_left - x0) / falling_width
+            degree_i1 = (x0 - foot_right) / rising_width
+            low, high, spacing, last, sides = second
+            if not low <= x1 <= high:
+                return None
+            j = int((x1 - low) // spacing)
+            if j > last:  # noqa: PLR1730 (faster than min() here)
+                j = last
+            peak_left, falling_width, foot_right, rising_width = sides[j]
+            degree_j = (peak_left - x1) / falling_width
+            degree_j1 = (x1 - foot_right) / rising_width
+            # Clamp at 1 as lattice_pair does; a degree <= 0 fires no rule.
+            degree_i = 1.0 if degree_i > 1.0 else degree_i
+            degree_i1 = 1.0 if degree_i1 > 1.0 else degree_i1
+            degree_j = 1.0 if degree_j > 1.0 else degree_j
+            degree_j1 = 1.0 if degree_j1 > 1.0 else degree_j1
+            # Cells (i, j), (i, j + 1), (i + 1, j), (i + 1, j + 1) with a positive AND = min.
+            cell = i * radix + j
+            fired = []
+            if degree_i > 0.0:
+                if degree_j > 0.0:
+                    fired.append((targets[cell], degree_i if degree_i < degree_j else degree_j))
+                if degree_j1 > 0.0:
+                    fired.append((targets[cell + 1], degree_i if degree_i < degree_j1 else degree_j1))
+            if degree_i1 > 0.0:
+                if degree_j > 0.0:
+                    fired.append((targets[cell + radix], degree_i1 if degree_i1 < degree_j else degree_j))
+                if degree_j1 > 0.0:
+                    fired.append(
+                        (targets[cell + radix + 1], degree_i1 if degree_i1 < degree_j1 else degree_j1)
+                    )
+            if not fired:
+                return None  # impossible on a partition of unity; the general path copes
+            if len(fired) > count:
+                count = len(fired)
+            fired_per_system.append(fired)
+        slots: list[int] = []
+        firings: list[float] = []
+        for fired in fired_per_system:
+            while len(fired) < count:
+                fired.append(fired[0])
+            for cell_slots, firing in fired:
+                slots += cell_slots
+                firings.append(firing)
+        firing_flat, firing_view, gathered, gathered_view = self._lattice_buffers[count]
+        firing_flat[:] = firings
+        self._sample_table.take(slots, 0, gathered, "clip")
+        np.minimum(gathered_view, firing_view, out=gathered_view)
+        np.maximum.reduce(gathered_view, axis=1, out=self._aggregated_view)
+        return [
+            moment / area if area > 0.0 else ZERO_AREA_FALLBACK
+            for area, moment in np.dot(self._aggregated, self._weights).tolist()
+        ]
 
     def evaluate(self, inputs: Sequence[Sequence[float]]) -> list[list[float]]:
         """Crisp outputs of every system.
@@ -511,6 +659,10 @@ class MamdaniBatch:
         """Crisp outputs of every system, flat: ``outputs[s * n_outputs + o]``."""
         if len(inputs) != len(self.systems):
             raise ValueError(f"expected {len(self.systems)} input vectors, got {len(inputs)}")
+        if self._lattice_plan is not None:
+            crisp = self._evaluate_two_input_lattice(inputs)
+            if crisp is not None:
+                return crisp
         strengths = [0.0] * self._n_slots
         for k, (system, targets) in enumerate(self._pairs):
             system.accumulate_strengths(inputs[k], strengths, targets)

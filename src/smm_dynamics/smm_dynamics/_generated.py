@@ -7,6 +7,7 @@ or broadcastable numpy arrays.
 """
 
 # ruff: noqa
+import math
 from typing import Any
 
 Real = Any  # float or numpy array
@@ -174,8 +175,8 @@ def rigid_body_entries_spin_form(sa: Real, ca: Real, sb: Real, cb: Real, alpha_d
     m12 = g_beta*(-1/2*t1 - t2)
     m22 = I22 + I55*(g_beta*g_beta)
     theta_dot = t3 + t4
-    spin_curvature = (inv_d*inv_d)*(-(alpha_dot*alpha_dot)*t5*t7 + 2*alpha_dot*t8*(-sa + t6)*(sa + t6) + (beta_dot*beta_dot)*t7*(d_scaled + t0*t5))
-    coriolis_alpha = I55*g_alpha*spin_curvature + t9*(-cb*spin_curvature + t3*t8 + t8*theta_dot)
+    spin_curvature = (inv_d*inv_d)*(2*alpha_dot*t8*(t6 - sa)*(sa + t6) + (beta_dot*beta_dot)*t7*(d_scaled + t0*t5) - (alpha_dot*alpha_dot)*t5*t7)
+    coriolis_alpha = I55*g_alpha*spin_curvature + t9*(t3*t8 + t8*theta_dot - cb*spin_curvature)
     coriolis_beta = I55*g_beta*spin_curvature + alpha_dot*sb*t9*(t4 - theta_dot)
     return (m11, m12, m22, coriolis_alpha, coriolis_beta,)
 
@@ -200,12 +201,170 @@ def forward_dynamics_entries_spin_form(sa: Real, ca: Real, sb: Real, cb: Real, a
     m12 = g_beta*(-1/2*t1 - t2)
     m22 = I22 + I55*(g_beta*g_beta)
     theta_dot = t3 + t4
-    spin_curvature = (inv_d*inv_d)*(-(alpha_dot*alpha_dot)*t5*t7 + 2*alpha_dot*t8*(-sa + t6)*(sa + t6) + (beta_dot*beta_dot)*t7*(d_scaled + t0*t5))
-    coriolis_alpha = I55*g_alpha*spin_curvature + t9*(-cb*spin_curvature + t3*t8 + t8*theta_dot)
+    spin_curvature = (inv_d*inv_d)*(2*alpha_dot*t8*(t6 - sa)*(sa + t6) + (beta_dot*beta_dot)*t7*(d_scaled + t0*t5) - (alpha_dot*alpha_dot)*t5*t7)
+    coriolis_alpha = I55*g_alpha*spin_curvature + t9*(t3*t8 + t8*theta_dot - cb*spin_curvature)
     coriolis_beta = I55*g_beta*spin_curvature + alpha_dot*sb*t9*(t4 - theta_dot)
-    rhs_alpha = -coriolis_alpha + torque_alpha
-    rhs_beta = -coriolis_beta + torque_beta
+    rhs_alpha = torque_alpha - coriolis_alpha
+    rhs_beta = torque_beta - coriolis_beta
     inv_det = 1/(m11*m22 - (m12*m12))
-    qdd_alpha = inv_det*(-m12*rhs_beta + m22*rhs_alpha)
+    qdd_alpha = inv_det*(m22*rhs_alpha - m12*rhs_beta)
     qdd_beta = inv_det*(m11*rhs_beta - m12*rhs_alpha)
     return (qdd_alpha, qdd_beta,)
+
+
+def rk4_step_spin_form(alpha: float, beta: float, alpha_dot: float, beta_dot: float, load_alpha: float, load_beta: float, friction_alpha: float, friction_beta: float, gravity: float, dt: float, I11: float, I22: float, I44: float, I55: float) -> tuple[float, ...]:
+    """One RK4 step of the spin form on floats: (alpha, beta, alpha', beta') after dt.
+
+    Angles in rad, rates in rad/s. q'' = M^-1 (load - F q' - G(q) - C q') with
+    F = diag(friction_alpha, friction_beta) (N m s/rad), G = (0, gravity sin(beta)) (N m) and
+    load = tau - tau_dist (N m) held over the step. Floats only (math.sin, math.cos).
+    """
+    sin = math.sin
+    cos = math.cos
+    half = 0.5 * dt
+    t1_9 = (1/2)*I11
+    sa_1 = sin(alpha)
+    ca_1 = cos(alpha)
+    t1_0 = (ca_1*ca_1)
+    sb_1 = sin(beta)
+    t1_5 = 2*(sb_1*sb_1)
+    t1_8 = beta_dot*sb_1
+    cb_1 = cos(beta)
+    t1_1 = I11*cb_1
+    t1_6 = ca_1*cb_1
+    t1_7 = sa_1*t1_6
+    torque_alpha_1 = load_alpha - alpha_dot*friction_alpha
+    torque_beta_1 = load_beta - beta_dot*friction_beta - gravity*sb_1
+    d_scaled_1 = (cb_1*cb_1)*t1_0 + (sa_1*sa_1)
+    inv_d_1 = 1/d_scaled_1
+    g_alpha_1 = cb_1*inv_d_1
+    t1_2 = -I55*g_alpha_1
+    t1_3 = alpha_dot*g_alpha_1
+    g_beta_1 = ca_1*inv_d_1*sa_1*sb_1
+    t1_4 = beta_dot*g_beta_1
+    m11_1 = I44 + g_alpha_1*(-t1_1 - t1_2)
+    m12_1 = g_beta_1*(-1/2*t1_1 - t1_2)
+    m22_1 = I22 + I55*(g_beta_1*g_beta_1)
+    theta_dot_1 = t1_3 + t1_4
+    spin_curvature_1 = (inv_d_1*inv_d_1)*(2*alpha_dot*t1_8*(t1_6 - sa_1)*(sa_1 + t1_6) + (beta_dot*beta_dot)*t1_7*(d_scaled_1 + t1_0*t1_5) - (alpha_dot*alpha_dot)*t1_5*t1_7)
+    coriolis_alpha_1 = I55*g_alpha_1*spin_curvature_1 + t1_9*(t1_3*t1_8 + t1_8*theta_dot_1 - cb_1*spin_curvature_1)
+    coriolis_beta_1 = I55*g_beta_1*spin_curvature_1 + alpha_dot*sb_1*t1_9*(t1_4 - theta_dot_1)
+    rhs_alpha_1 = torque_alpha_1 - coriolis_alpha_1
+    rhs_beta_1 = torque_beta_1 - coriolis_beta_1
+    inv_det_1 = 1/(m11_1*m22_1 - (m12_1*m12_1))
+    qdd_alpha_1 = inv_det_1*(m22_1*rhs_alpha_1 - m12_1*rhs_beta_1)
+    qdd_beta_1 = inv_det_1*(m11_1*rhs_beta_1 - m12_1*rhs_alpha_1)
+    alpha_dot_2 = alpha_dot + half * qdd_alpha_1
+    beta_dot_2 = beta_dot + half * qdd_beta_1
+    alpha_2 = alpha + half * alpha_dot
+    beta_2 = beta + half * beta_dot
+    t2_9 = (1/2)*I11
+    sa_2 = sin(alpha_2)
+    ca_2 = cos(alpha_2)
+    t2_0 = (ca_2*ca_2)
+    sb_2 = sin(beta_2)
+    t2_5 = 2*(sb_2*sb_2)
+    t2_8 = beta_dot_2*sb_2
+    cb_2 = cos(beta_2)
+    t2_1 = I11*cb_2
+    t2_6 = ca_2*cb_2
+    t2_7 = sa_2*t2_6
+    torque_alpha_2 = load_alpha - alpha_dot_2*friction_alpha
+    torque_beta_2 = load_beta - beta_dot_2*friction_beta - gravity*sb_2
+    d_scaled_2 = (cb_2*cb_2)*t2_0 + (sa_2*sa_2)
+    inv_d_2 = 1/d_scaled_2
+    g_alpha_2 = cb_2*inv_d_2
+    t2_2 = -I55*g_alpha_2
+    t2_3 = alpha_dot_2*g_alpha_2
+    g_beta_2 = ca_2*inv_d_2*sa_2*sb_2
+    t2_4 = beta_dot_2*g_beta_2
+    m11_2 = I44 + g_alpha_2*(-t2_1 - t2_2)
+    m12_2 = g_beta_2*(-1/2*t2_1 - t2_2)
+    m22_2 = I22 + I55*(g_beta_2*g_beta_2)
+    theta_dot_2 = t2_3 + t2_4
+    spin_curvature_2 = (inv_d_2*inv_d_2)*(2*alpha_dot_2*t2_8*(t2_6 - sa_2)*(sa_2 + t2_6) + (beta_dot_2*beta_dot_2)*t2_7*(d_scaled_2 + t2_0*t2_5) - (alpha_dot_2*alpha_dot_2)*t2_5*t2_7)
+    coriolis_alpha_2 = I55*g_alpha_2*spin_curvature_2 + t2_9*(t2_3*t2_8 + t2_8*theta_dot_2 - cb_2*spin_curvature_2)
+    coriolis_beta_2 = I55*g_beta_2*spin_curvature_2 + alpha_dot_2*sb_2*t2_9*(t2_4 - theta_dot_2)
+    rhs_alpha_2 = torque_alpha_2 - coriolis_alpha_2
+    rhs_beta_2 = torque_beta_2 - coriolis_beta_2
+    inv_det_2 = 1/(m11_2*m22_2 - (m12_2*m12_2))
+    qdd_alpha_2 = inv_det_2*(m22_2*rhs_alpha_2 - m12_2*rhs_beta_2)
+    qdd_beta_2 = inv_det_2*(m11_2*rhs_beta_2 - m12_2*rhs_alpha_2)
+    alpha_dot_3 = alpha_dot + half * qdd_alpha_2
+    beta_dot_3 = beta_dot + half * qdd_beta_2
+    alpha_3 = alpha + half * alpha_dot_2
+    beta_3 = beta + half * beta_dot_2
+    t3_9 = (1/2)*I11
+    sa_3 = sin(alpha_3)
+    ca_3 = cos(alpha_3)
+    t3_0 = (ca_3*ca_3)
+    sb_3 = sin(beta_3)
+    t3_5 = 2*(sb_3*sb_3)
+    t3_8 = beta_dot_3*sb_3
+    cb_3 = cos(beta_3)
+    t3_1 = I11*cb_3
+    t3_6 = ca_3*cb_3
+    t3_7 = sa_3*t3_6
+    torque_alpha_3 = load_alpha - alpha_dot_3*friction_alpha
+    torque_beta_3 = load_beta - beta_dot_3*friction_beta - gravity*sb_3
+    d_scaled_3 = (cb_3*cb_3)*t3_0 + (sa_3*sa_3)
+    inv_d_3 = 1/d_scaled_3
+    g_alpha_3 = cb_3*inv_d_3
+    t3_2 = -I55*g_alpha_3
+    t3_3 = alpha_dot_3*g_alpha_3
+    g_beta_3 = ca_3*inv_d_3*sa_3*sb_3
+    t3_4 = beta_dot_3*g_beta_3
+    m11_3 = I44 + g_alpha_3*(-t3_1 - t3_2)
+    m12_3 = g_beta_3*(-1/2*t3_1 - t3_2)
+    m22_3 = I22 + I55*(g_beta_3*g_beta_3)
+    theta_dot_3 = t3_3 + t3_4
+    spin_curvature_3 = (inv_d_3*inv_d_3)*(2*alpha_dot_3*t3_8*(t3_6 - sa_3)*(sa_3 + t3_6) + (beta_dot_3*beta_dot_3)*t3_7*(d_scaled_3 + t3_0*t3_5) - (alpha_dot_3*alpha_dot_3)*t3_5*t3_7)
+    coriolis_alpha_3 = I55*g_alpha_3*spin_curvature_3 + t3_9*(t3_3*t3_8 + t3_8*theta_dot_3 - cb_3*spin_curvature_3)
+    coriolis_beta_3 = I55*g_beta_3*spin_curvature_3 + alpha_dot_3*sb_3*t3_9*(t3_4 - theta_dot_3)
+    rhs_alpha_3 = torque_alpha_3 - coriolis_alpha_3
+    rhs_beta_3 = torque_beta_3 - coriolis_beta_3
+    inv_det_3 = 1/(m11_3*m22_3 - (m12_3*m12_3))
+    qdd_alpha_3 = inv_det_3*(m22_3*rhs_alpha_3 - m12_3*rhs_beta_3)
+    qdd_beta_3 = inv_det_3*(m11_3*rhs_beta_3 - m12_3*rhs_alpha_3)
+    alpha_dot_4 = alpha_dot + dt * qdd_alpha_3
+    beta_dot_4 = beta_dot + dt * qdd_beta_3
+    alpha_4 = alpha + dt * alpha_dot_3
+    beta_4 = beta + dt * beta_dot_3
+    t4_9 = (1/2)*I11
+    sa_4 = sin(alpha_4)
+    ca_4 = cos(alpha_4)
+    t4_0 = (ca_4*ca_4)
+    sb_4 = sin(beta_4)
+    t4_5 = 2*(sb_4*sb_4)
+    t4_8 = beta_dot_4*sb_4
+    cb_4 = cos(beta_4)
+    t4_1 = I11*cb_4
+    t4_6 = ca_4*cb_4
+    t4_7 = sa_4*t4_6
+    torque_alpha_4 = load_alpha - alpha_dot_4*friction_alpha
+    torque_beta_4 = load_beta - beta_dot_4*friction_beta - gravity*sb_4
+    d_scaled_4 = (cb_4*cb_4)*t4_0 + (sa_4*sa_4)
+    inv_d_4 = 1/d_scaled_4
+    g_alpha_4 = cb_4*inv_d_4
+    t4_2 = -I55*g_alpha_4
+    t4_3 = alpha_dot_4*g_alpha_4
+    g_beta_4 = ca_4*inv_d_4*sa_4*sb_4
+    t4_4 = beta_dot_4*g_beta_4
+    m11_4 = I44 + g_alpha_4*(-t4_1 - t4_2)
+    m12_4 = g_beta_4*(-1/2*t4_1 - t4_2)
+    m22_4 = I22 + I55*(g_beta_4*g_beta_4)
+    theta_dot_4 = t4_3 + t4_4
+    spin_curvature_4 = (inv_d_4*inv_d_4)*(2*alpha_dot_4*t4_8*(t4_6 - sa_4)*(sa_4 + t4_6) + (beta_dot_4*beta_dot_4)*t4_7*(d_scaled_4 + t4_0*t4_5) - (alpha_dot_4*alpha_dot_4)*t4_5*t4_7)
+    coriolis_alpha_4 = I55*g_alpha_4*spin_curvature_4 + t4_9*(t4_3*t4_8 + t4_8*theta_dot_4 - cb_4*spin_curvature_4)
+    coriolis_beta_4 = I55*g_beta_4*spin_curvature_4 + alpha_dot_4*sb_4*t4_9*(t4_4 - theta_dot_4)
+    rhs_alpha_4 = torque_alpha_4 - coriolis_alpha_4
+    rhs_beta_4 = torque_beta_4 - coriolis_beta_4
+    inv_det_4 = 1/(m11_4*m22_4 - (m12_4*m12_4))
+    qdd_alpha_4 = inv_det_4*(m22_4*rhs_alpha_4 - m12_4*rhs_beta_4)
+    qdd_beta_4 = inv_det_4*(m11_4*rhs_beta_4 - m12_4*rhs_alpha_4)
+    sixth = dt / 6.0
+    alpha_next = alpha + sixth * (alpha_dot + 2.0 * alpha_dot_2 + 2.0 * alpha_dot_3 + alpha_dot_4)
+    beta_next = beta + sixth * (beta_dot + 2.0 * beta_dot_2 + 2.0 * beta_dot_3 + beta_dot_4)
+    alpha_dot_next = alpha_dot + sixth * (qdd_alpha_1 + 2.0 * qdd_alpha_2 + 2.0 * qdd_alpha_3 + qdd_alpha_4)
+    beta_dot_next = beta_dot + sixth * (qdd_beta_1 + 2.0 * qdd_beta_2 + 2.0 * qdd_beta_3 + qdd_beta_4)
+    return (alpha_next, beta_next, alpha_dot_next, beta_dot_next,)

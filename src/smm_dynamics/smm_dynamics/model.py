@@ -31,6 +31,7 @@ from smm_dynamics._generated import (
     mass_matrix_entries_spin_form,
     mass_matrix_gradient_entries,
     rigid_body_entries_spin_form,
+    rk4_step_spin_form,
     spin_angle_gradient_entries,
 )
 from smm_dynamics.parameters import SMMParameters
@@ -63,8 +64,6 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 # A Python float (single-sample path) or a numpy array (batch path); only arithmetic is applied to it.
 _Real = Any
-# q'' = f(alpha, beta, alpha', beta') on floats, with the torques bound in (see _float_acceleration).
-_FloatAcceleration = Callable[[float, float, float, float], tuple[float, float]]
 
 
 def _joint_array(value: ArrayLike, name: str) -> FloatArray:
@@ -616,37 +615,6 @@ def _rk4_stages(
     return a1, b1, ad1, bd1
 
 
-def _float_acceleration(
-    params: SMMParameters, torque: tuple[float, float], disturbance: tuple[float, float], friction: bool
-) -> _FloatAcceleration:
-    """The map (alpha, beta, alpha', beta') -> q'' on floats with the torques held (spin form)."""
-    i11, i22, i44, i55 = _inertias(params)
-    gravity = _gravity_coefficient(params)
-    friction_alpha, friction_beta = params.viscous_friction if friction else (0.0, 0.0)
-    load_alpha = torque[0] - disturbance[0]
-    load_beta = torque[1] - disturbance[1]
-    sin, cos = math.sin, math.cos
-
-    def accel(alpha: float, beta: float, alpha_dot: float, beta_dot: float) -> tuple[float, float]:
-        sb = sin(beta)
-        return forward_dynamics_entries_spin_form(
-            sin(alpha),
-            cos(alpha),
-            sb,
-            cos(beta),
-            alpha_dot,
-            beta_dot,
-            load_alpha - friction_alpha * alpha_dot,
-            load_beta - gravity * sb - friction_beta * beta_dot,
-            i11,
-            i22,
-            i44,
-            i55,
-        )
-
-    return accel
-
-
 def forward_dynamics_floats(
     state: tuple[float, float, float, float],
     torque: tuple[float, float],
@@ -669,7 +637,20 @@ def forward_dynamics_floats(
     Returns:
         (alpha'', beta'') (rad/s^2).
     """
-    return _float_acceleration(params, torque, disturbance, friction)(*state)
+    alpha, beta, alpha_dot, beta_dot = state
+    friction_alpha, friction_beta = params.viscous_friction if friction else (0.0, 0.0)
+    sb = math.sin(beta)
+    return forward_dynamics_entries_spin_form(
+        math.sin(alpha),
+        math.cos(alpha),
+        sb,
+        math.cos(beta),
+        alpha_dot,
+        beta_dot,
+        torque[0] - disturbance[0] - friction_alpha * alpha_dot,
+        torque[1] - disturbance[1] - _gravity_coefficient(params) * sb - friction_beta * beta_dot,
+        *_inertias(params),
+    )
 
 
 def rk4_step_floats(
@@ -683,8 +664,9 @@ def rk4_step_floats(
 ) -> tuple[float, float, float, float]:
     """One RK4 step of eq. 2 for one sample on plain floats (fast path of :func:`rk4_step`).
 
-    The same classical scheme as :func:`rk4_step` on the spin form of the model: equal to it up to
-    rounding, several times faster. The torques are held constant over the step.
+    The same classical scheme as :func:`rk4_step` on the spin form of the model, with the four
+    evaluations written out in one generated function: equal to it up to rounding, several times
+    faster. The torques are held constant over the step.
 
     Args:
         state: (alpha, beta, alpha', beta') (rad, rad/s).
@@ -698,4 +680,18 @@ def rk4_step_floats(
         (alpha, beta, alpha', beta') after the step (rad, rad/s).
     """
     _check_step(dt)
-    return _rk4_stages(_float_acceleration(params, torque, disturbance, friction), state, dt)
+    alpha, beta, alpha_dot, beta_dot = state
+    friction_alpha, friction_beta = params.viscous_friction if friction else (0.0, 0.0)
+    return rk4_step_spin_form(  # type: ignore[return-value]
+        alpha,
+        beta,
+        alpha_dot,
+        beta_dot,
+        torque[0] - disturbance[0],
+        torque[1] - disturbance[1],
+        friction_alpha,
+        friction_beta,
+        _gravity_coefficient(params),
+        dt,
+        *_inertias(params),
+    )

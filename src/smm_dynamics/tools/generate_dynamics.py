@@ -30,6 +30,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import sympy as sp
+from sympy.printing.precedence import precedence
 from sympy.printing.pycode import PythonCodePrinter
 
 ALPHA, BETA = sp.symbols("alpha beta", real=True)
@@ -132,6 +133,25 @@ class _FloatPrinter(PythonCodePrinter):  # type: ignore[misc]
             return "(" + "*".join([factor] * int(exponent)) + ")"
         return str(super()._print_Pow(expr, rational))
 
+    def _print_Add(self, expr: sp.Add, order: str | None = None) -> str:
+        # Terms with a positive sign first, so that a - b is printed rather than -b + a (one negation
+        # less per sum in the generated code).
+        terms = expr.as_ordered_terms()
+        positive = [term for term in terms if not term.could_extract_minus_sign()]
+        negative = [term for term in terms if term.could_extract_minus_sign()]
+        if not positive:
+            return str(super()._print_Add(expr, order))
+        text = " + ".join(self.parenthesize(term, precedence(expr)) for term in positive)
+        for term in negative:
+            text += " - " + self.parenthesize(-term, precedence(expr))
+        return text
+
+    def _print_sin(self, expr: sp.sin) -> str:
+        return f"sin({self._print(expr.args[0])})"
+
+    def _print_cos(self, expr: sp.cos) -> str:
+        return f"cos({self._print(expr.args[0])})"
+
 
 def _vanishes(expr: sp.Expr) -> bool:
     """Whether a rational function of sa, ca, sb, cb (and d_scaled) is identically 0 on sin^2 + cos^2 = 1."""
@@ -215,18 +235,15 @@ def check_spin_form(
             raise AssertionError(f"spin form of {symbol} differs from the reference")
 
 
-def _staged_function_source(
-    name: str,
-    doc: str,
-    arguments: Sequence[sp.Symbol],
-    stages: Sequence[tuple[sp.Symbol, sp.Expr]],
-    outputs: Sequence[sp.Symbol],
-) -> str:
+def _staged_lines(
+    stages: Sequence[tuple[sp.Symbol, sp.Expr]], defined: set[sp.Symbol], temporary_prefix: str = "t"
+) -> list[str]:
+    """Assignment lines of ``stages`` with common subexpressions extracted; ``defined`` grows."""
     printer = _FloatPrinter()
-    signature = ", ".join(f"{arg}: Real" for arg in arguments)
-    lines = [f"def {name}({signature}) -> tuple[Real, ...]:", f'    """{doc}"""']
-    replacements, reduced = sp.cse([expr for _, expr in stages], symbols=sp.numbered_symbols("t"))
-    defined = set(arguments)
+    lines: list[str] = []
+    replacements, reduced = sp.cse(
+        [expr for _, expr in stages], symbols=sp.numbered_symbols(temporary_prefix)
+    )
     pending = list(replacements)
 
     def emit_ready_replacements() -> None:
@@ -247,12 +264,123 @@ def _staged_function_source(
         emit_ready_replacements()
         lines.append(f"    {symbol} = {printer.doprint(expr)}")
         defined.add(symbol)
+    return lines
+
+
+def _staged_function_source(
+    name: str,
+    doc: str,
+    arguments: Sequence[sp.Symbol],
+    stages: Sequence[tuple[sp.Symbol, sp.Expr]],
+    outputs: Sequence[sp.Symbol],
+) -> str:
+    signature = ", ".join(f"{arg}: Real" for arg in arguments)
+    lines = [f"def {name}({signature}) -> tuple[Real, ...]:", f'    """{doc}"""']
+    lines.extend(_staged_lines(stages, set(arguments)))
     lines.append(f"    return ({', '.join(str(symbol) for symbol in outputs)},)")
     return "\n".join(lines) + "\n"
 
 
+# Arguments of the fused RK4 step besides the state and the inertias (see _rk4_function_source).
+LOAD_ALPHA, LOAD_BETA = sp.symbols("load_alpha load_beta", real=True)
+FRICTION_ALPHA, FRICTION_BETA, GRAVITY = sp.symbols("friction_alpha friction_beta gravity", real=True)
+DT = sp.Symbol("dt", positive=True)
+
+# The same stages, in the same order and with the same arithmetic, as smm_dynamics.model._rk4_stages.
+_RK4_COMBINATION = """\
+    half = 0.5 * dt
+{stage_1}
+    alpha_dot_2 = alpha_dot + half * qdd_alpha_1
+    beta_dot_2 = beta_dot + half * qdd_beta_1
+    alpha_2 = alpha + half * alpha_dot
+    beta_2 = beta + half * beta_dot
+{stage_2}
+    alpha_dot_3 = alpha_dot + half * qdd_alpha_2
+    beta_dot_3 = beta_dot + half * qdd_beta_2
+    alpha_3 = alpha + half * alpha_dot_2
+    beta_3 = beta + half * beta_dot_2
+{stage_3}
+    alpha_dot_4 = alpha_dot + dt * qdd_alpha_3
+    beta_dot_4 = beta_dot + dt * qdd_beta_3
+    alpha_4 = alpha + dt * alpha_dot_3
+    beta_4 = beta + dt * beta_dot_3
+{stage_4}
+    sixth = dt / 6.0
+    alpha_next = alpha + sixth * (alpha_dot + 2.0 * alpha_dot_2 + 2.0 * alpha_dot_3 + alpha_dot_4)
+    beta_next = beta + sixth * (beta_dot + 2.0 * beta_dot_2 + 2.0 * beta_dot_3 + beta_dot_4)
+    alpha_dot_next = alpha_dot + sixth * (qdd_alpha_1 + 2.0 * qdd_alpha_2 + 2.0 * qdd_alpha_3 + qdd_alpha_4)
+    beta_dot_next = beta_dot + sixth * (qdd_beta_1 + 2.0 * qdd_beta_2 + 2.0 * qdd_beta_3 + qdd_beta_4)
+    return (alpha_next, beta_next, alpha_dot_next, beta_dot_next,)
+"""
+
+
+def _rk4_function_source(dynamics_stages: Sequence[tuple[sp.Symbol, sp.Expr]]) -> str:
+    """One classical RK4 step with the four evaluations of q'' written out (no call per stage).
+
+    The torque of each evaluation is load - F q' - G(q) with the viscous friction F and the
+    gravity coefficient of G_beta = gravity sin(beta) passed in.
+    """
+    arguments = (
+        *COORDINATES,
+        *VELOCITIES,
+        LOAD_ALPHA,
+        LOAD_BETA,
+        FRICTION_ALPHA,
+        FRICTION_BETA,
+        GRAVITY,
+        DT,
+        I11,
+        I22,
+        I44,
+        I55,
+    )
+    defined = set(arguments)
+    stage_lines = {}
+    for k in range(1, 5):
+        state = (
+            (*COORDINATES, *VELOCITIES)
+            if k == 1
+            else sp.symbols(f"alpha_{k} beta_{k} alpha_dot_{k} beta_dot_{k}", real=True)
+        )
+        defined.update(state)
+        renamed = {
+            symbol: sp.Symbol(f"{symbol}_{k}", real=True)
+            for symbol in (
+                SA,
+                CA,
+                SB,
+                CB,
+                TORQUE_ALPHA,
+                TORQUE_BETA,
+                *(symbol for symbol, _ in dynamics_stages),
+            )
+        }
+        renamed.update(dict(zip((ALPHA_DOT, BETA_DOT), state[2:], strict=True)))
+        stages = [
+            (renamed[SA], sp.sin(state[0])),
+            (renamed[CA], sp.cos(state[0])),
+            (renamed[SB], sp.sin(state[1])),
+            (renamed[CB], sp.cos(state[1])),
+            (renamed[TORQUE_ALPHA], LOAD_ALPHA - FRICTION_ALPHA * state[2]),
+            (renamed[TORQUE_BETA], LOAD_BETA - GRAVITY * renamed[SB] - FRICTION_BETA * state[3]),
+            *((symbol.xreplace(renamed), expr.xreplace(renamed)) for symbol, expr in dynamics_stages),
+        ]
+        stage_lines[f"stage_{k}"] = "\n".join(_staged_lines(stages, defined, f"t{k}_"))
+    signature = ", ".join(f"{arg}: float" for arg in arguments)
+    return (
+        f"def rk4_step_spin_form({signature}) -> tuple[float, ...]:\n"
+        '    """One RK4 step of the spin form on floats: (alpha, beta, alpha\', beta\') after dt.\n\n'
+        "    Angles in rad, rates in rad/s. q'' = M^-1 (load - F q' - G(q) - C q') with\n"
+        "    F = diag(friction_alpha, friction_beta) (N m s/rad), G = (0, gravity sin(beta)) (N m) and\n"
+        "    load = tau - tau_dist (N m) held over the step. Floats only (math.sin, math.cos).\n"
+        '    """\n'
+        "    sin = math.sin\n"
+        "    cos = math.cos\n" + _RK4_COMBINATION.format(**stage_lines)
+    )
+
+
 def spin_form_functions() -> list[str]:
-    """Sources of the three spin-form functions (M; M and C q'; q'')."""
+    """Sources of the spin-form functions (M; M and C q'; q''; one RK4 step)."""
     mass_stages, coriolis_stages = spin_form_stages()
     check_spin_form(mass_stages, coriolis_stages)
     solve_stages = [
@@ -286,6 +414,7 @@ def spin_form_functions() -> list[str]:
             [*mass_stages, *coriolis_stages, *solve_stages],
             (QDD_ALPHA, QDD_BETA),
         ),
+        _rk4_function_source([*mass_stages, *coriolis_stages, *solve_stages]),
     ]
 
 
@@ -336,6 +465,7 @@ def generate_source() -> str:
         "d_scaled = cos^2(alpha) (tan^2(alpha) + cos^2(beta)). Arithmetic only: arguments may be floats\n"
         'or broadcastable numpy arrays.\n"""\n\n'
         "# ruff: noqa\n"
+        "import math\n"
         "from typing import Any\n\n"
         "Real = Any  # float or numpy array\n"
     )

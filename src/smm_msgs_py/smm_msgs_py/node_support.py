@@ -450,6 +450,10 @@ class MeasurementDrivenNode(Node):
         self.counters = InputCounters()
         self._gate = StampGate()
         self._last_answer: tuple[Output, ...] = ()
+        # Publishers the diagnostics went to, learnt from the first build: while none of them has a
+        # subscriber, diagnostics are neither built nor published (lazy publishing, as image_transport
+        # does), which is indistinguishable from publishing to nobody and halves the work per step.
+        self._diagnostic_publishers: tuple[Publisher, ...] | None = None
         self._topic_loggers: dict[str, RcutilsLogger] = {}
 
     @property
@@ -516,8 +520,10 @@ class MeasurementDrivenNode(Node):
                 pairs, all or nothing; a ``ValueError`` (an ``InterfaceError`` from the conversions for a
                 non-finite or mis-shaped output, or an algorithm's own input check) is counted in
                 ``invalid_outputs``, warned about, and nothing is published.
-            build_diagnostics: Builds the diagnostic pairs (internals); published after the outputs. A
-                conversion error there is counted and warned about the same way.
+            build_diagnostics: Builds the diagnostic pairs (internals); published after the outputs, and
+                only while one of their topics has a subscriber (a recorder, a plot): unobserved
+                diagnostics cost nothing. A conversion error there is counted and warned about the same
+                way.
 
         Returns:
             True when the control-chain outputs were published.
@@ -529,10 +535,19 @@ class MeasurementDrivenNode(Node):
             return False
         for publisher, message in outputs:
             publisher.publish(message)
-        diagnostics = () if build_diagnostics is None else self._built(stamp_ns, build_diagnostics)
-        for publisher, message in diagnostics or ():
-            publisher.publish(message)
+        if build_diagnostics is not None and self._diagnostics_observed():
+            diagnostics = self._built(stamp_ns, build_diagnostics)
+            if diagnostics is not None and self._diagnostic_publishers is None:
+                self._diagnostic_publishers = tuple(publisher for publisher, _ in diagnostics)
+            for publisher, message in diagnostics or ():
+                publisher.publish(message)
         return True
+
+    def _diagnostics_observed(self) -> bool:
+        """True when a diagnostics topic has a subscriber (or before the first diagnostics were built)."""
+        if self._diagnostic_publishers is None:
+            return True
+        return any(publisher.get_subscription_count() > 0 for publisher in self._diagnostic_publishers)
 
     def _built(self, stamp_ns: int, build: Callable[[], Sequence[Output]]) -> tuple[Output, ...] | None:
         try:

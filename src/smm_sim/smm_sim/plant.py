@@ -32,7 +32,8 @@ before the external disturbance (which the plant does not know it receives).
 
 Sensing (SPEC section 2): :meth:`SimulatedPlant.measure` returns the true position plus zero-mean
 Gaussian noise (``noise_std`` per joint, drawn once per sample from a ``numpy.random.Generator``
-seeded with ``seed``, so repeated ``measure()`` calls at one instant return the same sample), then
+seeded with ``seed``, so repeated ``measure()`` calls at one instant return the same sample; the
+normal variates are drawn in blocks, which gives the same sequence as drawing two per sample), then
 quantised to the encoder resolution ``2 pi / encoder_counts_per_rev`` by rounding to the nearest
 count (0 counts = no quantisation). Time is kept as integer nanoseconds: after ``k`` steps of
 ``dt`` the stamp is exactly ``k * round(dt * 1e9)``.
@@ -73,6 +74,8 @@ PAPER_VALVE_RESPONSE_TIMES: Final[tuple[float, float]] = (0.050, 0.025)
 """Servo-valve response time for a +-100 % step of the paper's Table 5 (rise, fall) (s)."""
 
 _NS_PER_S: Final[int] = 1_000_000_000
+# Standard normal variates drawn per refill of the noise block (two per sample).
+_NOISE_BLOCK: Final[int] = 1024
 _EQ46_ONSET_NS: Final[int] = 1_000_000_000
 _EQ46_AMPLITUDE: Final[float] = 0.5
 _EQ46_FREQUENCY: Final[float] = 7.0
@@ -311,6 +314,12 @@ class SimulatedPlant:
         )
         self._rng = np.random.default_rng(config.seed)
         self._noise_std = config.noise_std if config.noise_std[0] > 0.0 or config.noise_std[1] > 0.0 else None
+        self._normals: list[float] = []
+        self._normal_index = 0
+        self._unlimited = math.isinf(config.torque_limit[0]) and math.isinf(config.torque_limit[1])
+        # dt of the last step and its validated length in ns (the loops pass the same dt every step).
+        self._last_dt: object = None
+        self._last_dt_ns = 0
         # (alpha, beta, alpha', beta') (rad, rad/s), plain floats for the single-sample RK4.
         self._state = (0.0, 0.0, 0.0, 0.0)
         self._t_ns = 0
@@ -338,6 +347,8 @@ class SimulatedPlant:
         if np.any(np.abs(q0) > np.asarray(self._limits)):
             raise ValueError(f"position must lie within joint_limits {self._limits}, got {q0.tolist()!r}")
         self._rng = np.random.default_rng(self._config.seed)
+        self._normals = []
+        self._normal_index = 0
         self._state = (float(q0[0]), float(q0[1]), 0.0, 0.0)
         self._t_ns = 0
         self._valve = [0.0, 0.0]
@@ -420,9 +431,13 @@ class SimulatedPlant:
                 is left untouched.
         """
         command = _validated_command(tau_command)
-        dt_ns = _validated_dt_ns(dt)
+        if dt is self._last_dt:
+            dt_ns = self._last_dt_ns
+        else:
+            dt_ns = _validated_dt_ns(dt)
+            self._last_dt, self._last_dt_ns = dt, dt_ns
         config = self._config
-        saturated = self._saturate(command)
+        saturated = command if self._unlimited else self._saturate(command)
         substeps = config.substeps
         h = dt_ns / _NS_PER_S / substeps
         t0 = self._t_ns / _NS_PER_S
@@ -479,8 +494,12 @@ class SimulatedPlant:
     def _sample_sensor(self) -> None:
         std = self._noise_std
         if std is not None:
-            normal_alpha, normal_beta = self._rng.standard_normal(2).tolist()
-            self._noise = (normal_alpha * std[0], normal_beta * std[1])
+            index = self._normal_index
+            if index == len(self._normals):
+                self._normals = self._rng.standard_normal(_NOISE_BLOCK).tolist()
+                index = 0
+            self._normal_index = index + 2
+            self._noise = (self._normals[index] * std[0], self._normals[index + 1] * std[1])
         else:
             self._noise = (0.0, 0.0)
         measured_alpha = self._state[0] + self._noise[0]

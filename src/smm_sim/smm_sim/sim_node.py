@@ -616,9 +616,11 @@ class SimNode(Node):
         self._last_publish_ns = now_ns
         if self._clock_pub is not None:
             self._clock_pub.publish(clock_msg(stamp_ns))
-        self._ground_truth_pub.publish(
-            sample_to_joint_state(JointSample(stamp_ns, truth.position, truth.velocity, truth.applied_torque))
-        )
+        # Ground truth is for analysis only: built and sent only while something (a recorder) listens.
+        if self._ground_truth_pub.get_subscription_count() > 0:
+            self._ground_truth_pub.publish(
+                sample_to_joint_state(JointSample(stamp_ns, truth.position, truth.velocity, truth.applied_torque))
+            )
         if self._clock_mode == "realtime":
             self._published_at[stamp_ns] = now_ns
             while len(self._published_at) > _PUBLISHED_STAMPS_KEPT:
