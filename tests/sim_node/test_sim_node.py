@@ -320,3 +320,21 @@ def test_a_diverging_plant_ends_the_run_as_failed(make_harness: Any, tmp_path: P
     h.spin_for(0.1)
     assert h.sim.steps == 1, "a diverged plant must not step again"
     assert np.load(record)["command"].shape == (1, 2)
+
+
+def test_lockstep_publishes_sim_time_on_clock_for_its_subscribers(make_harness: Any) -> None:
+    from rosgraph_msgs.msg import Clock
+    from smm_msgs_py.conversions import stamp_to_ns
+    from smm_msgs_py.qos import clock_qos
+
+    h = make_harness(**LOCKSTEP)
+    clocks: list[Any] = []
+    h.peer.create_subscription(Clock, "/clock", clocks.append, clock_qos())
+    h.wait_matched()
+    assert h.spin_until(lambda: h.sim.count_subscribers("/clock") >= 1)
+    for step in range(3):
+        h.send([0.0, 0.0], step * PERIOD_NS)
+        assert h.spin_until(lambda step=step: h.sim.steps == step + 1)
+    assert h.spin_until(lambda: any(stamp_to_ns(c.clock) == 3 * PERIOD_NS for c in clocks))
+    times = {stamp_to_ns(c.clock) for c in clocks}
+    assert {PERIOD_NS, 2 * PERIOD_NS, 3 * PERIOD_NS} <= times <= {k * PERIOD_NS for k in range(4)}

@@ -614,7 +614,8 @@ class SimNode(Node):
         now_ns = time.monotonic_ns()
         self._joint_states_pub.publish(message)
         self._last_publish_ns = now_ns
-        if self._clock_pub is not None:
+        # /clock only matters to nodes running on sim time (they subscribe to it); unobserved, it is skipped.
+        if self._clock_pub is not None and self._clock_pub.get_subscription_count() > 0:
             self._clock_pub.publish(clock_msg(stamp_ns))
         # Ground truth is for analysis only: built and sent only while something (a recorder) listens.
         if self._ground_truth_pub.get_subscription_count() > 0:
