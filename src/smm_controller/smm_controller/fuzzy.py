@@ -24,15 +24,28 @@ uniform triangular partition) and does the aggregation and defuzzification of al
 in four vectorised numpy calls, whose cost grows with the number of sampled MFs they touch. For
 complete rule bases of two inputs on uniform triangular partitions (the fuzzy PD schedule) at most the
 2 x 2 rules around the inputs fire, so only the output MFs those rules conclude are clipped (max over
-them per output; min and max commute, so the aggregate is bit for bit the one over all labels).
+them per output; min and max commute, so the aggregate is bit for bit the one over all labels). When
+one input sits on a peak or at an end of its universe (often: a saturated error rate), only one or two
+rules fire and their strengths add up to 1; then each output is one clipped label or the max of two,
+whose centroids :class:`LabelPairCentroids` gives exactly from tables, without array operations.
+
+A rule base of one input with Gaussian labels (the FLESO bandwidth) needs no array operation at all:
+between consecutive breakpoints of the input, where a membership crosses a sampled output value or
+another membership, which label wins each grid point and whether it is clipped stay the same, so area
+and moment of the aggregate are a constant plus a fixed combination of the input memberships
+(:class:`SingleInputCentroids`). A bisection finds the interval; the result equals the sum over the
+grid up to rounding.
 """
 
 from __future__ import annotations
 
 import math
+from array import array
+from bisect import bisect_left, bisect_right
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from itertools import pairwise, product
+from functools import lru_cache
+from itertools import combinations, pairwise, product
 from math import exp
 from typing import Protocol
 
@@ -43,9 +56,11 @@ __all__ = [
     "ZERO_AREA_FALLBACK",
     "FuzzyVariable",
     "GaussianMF",
+    "LabelPairCentroids",
     "MamdaniBatch",
     "MamdaniSystem",
     "MembershipFunction",
+    "SingleInputCentroids",
     "TriangularMF",
     "centroid",
     "centroid_weights",
@@ -58,6 +73,10 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Defuzzified value returned when the aggregated membership has zero area (see module docstring).
 ZERO_AREA_FALLBACK = 0.0
+
+# Two rules of a uniform triangular partition with the other input on a peak have strengths adding up
+# to 1 up to rounding; LabelPairCentroids assumes that sum.
+_UNIT_SUM_TOLERANCE = 1e-9
 
 # A uniform triangular partition: first peak, last peak, spacing, index of the last interval, and per
 # interval (left peak, width of its falling side, right label's left foot, width of its rising side).
@@ -481,6 +500,272 @@ class MamdaniSystem:
         return tuple(MamdaniBatch([self]).evaluate([x])[0])
 
 
+# Per interval of the input, per output: constant area, constant moment, and (input label, area
+# coefficient, moment coefficient) for each input label whose membership clips the aggregate somewhere.
+_IntervalCoefficients = tuple[tuple[float, float, tuple[tuple[int, float, float], ...]], ...]
+
+
+class SingleInputCentroids:
+    """Exact centroids of a rule base with one input whose labels are Gaussian, piecewise in the input.
+
+    Rule a (input label a) fires with mu_a(x); output label l is clipped at the largest mu_a of the
+    rules that conclude it, and the aggregate is the max over the labels of min(level, sampled MF). The
+    outcome of every comparison in that evaluation (a membership against a sampled value, against
+    another membership, or two sampled values) can only change where mu_a(x) equals a sampled value or
+    mu_b(x). Between consecutive such breakpoints each grid point's aggregate is either a fixed sample
+    or a fixed mu_a(x), so area and moment (:func:`centroid_weights`) are a constant plus
+    sum_a mu_a(x) times a coefficient. These are computed once at interval midpoints; an evaluation is
+    a bisection and a few products, no array operation. The input range covered is [smallest mean,
+    largest mean] of the input labels.
+
+    Args:
+        gaussians: (mean, 2 sigma^2) of each input label, in label order.
+        consequents: Per input label, per output, the output label its rule concludes, or -1 (no rule).
+        samples: Output MFs on the grid, shape (outputs, output labels, grid points), non-negative.
+        weights: :func:`centroid_weights` of the grid, shape (grid points, 2).
+    """
+
+    _CHUNK = 512
+
+    def __init__(
+        self,
+        gaussians: Sequence[tuple[float, float]],
+        consequents: Sequence[Sequence[int]],
+        samples: npt.ArrayLike,
+        weights: npt.ArrayLike,
+    ) -> None:
+        self.gaussians: tuple[tuple[float, float], ...] = tuple((float(m), float(w)) for m, w in gaussians)
+        self._consequents = tuple(tuple(int(label) for label in row) for row in consequents)
+        sample_array = np.array(samples, dtype=np.float64)
+        weight_array = np.array(weights, dtype=np.float64)
+        if sample_array.ndim != 3 or weight_array.shape != (sample_array.shape[2], 2):
+            raise ValueError("samples must have shape (outputs, labels, n) and weights shape (n, 2)")
+        if len(self._consequents) != len(self.gaussians) or any(
+            len(row) != sample_array.shape[0] for row in self._consequents
+        ):
+            raise ValueError("consequents must give one output label per input label and output")
+        means = np.array([mean for mean, _ in self.gaussians])
+        self.low = float(means.min())
+        self.high = float(means.max())
+        self.breakpoints: list[float] = self._breakpoints(sample_array).tolist()
+        edges = np.array([self.low, *self.breakpoints, self.high])
+        midpoints = 0.5 * (edges[:-1] + edges[1:])
+        self._coefficients: list[_IntervalCoefficients] = []
+        for start in range(0, midpoints.size, self._CHUNK):
+            self._coefficients.extend(
+                self._interval_coefficients(
+                    midpoints[start : start + self._CHUNK], sample_array, weight_array
+                )
+            )
+
+    def _breakpoints(self, samples: FloatArray) -> FloatArray:
+        values = np.unique(samples[samples > 0.0])
+        values = values[values <= 1.0]
+        candidates: list[FloatArray] = []
+        for mean, width in self.gaussians:
+            distance = np.sqrt(-width * np.log(values))
+            candidates.extend((mean - distance, mean + distance))
+        for (mean_a, width_a), (mean_b, width_b) in combinations(self.gaussians, 2):
+            # (x - mean_a)^2 / width_a = (x - mean_b)^2 / width_b
+            quadratic = width_b - width_a
+            linear = -2.0 * (mean_a * width_b - mean_b * width_a)
+            constant = mean_a * mean_a * width_b - mean_b * mean_b * width_a
+            if quadratic == 0.0:
+                if linear != 0.0:
+                    candidates.append(np.array([-constant / linear]))
+            else:
+                discriminant = linear * linear - 4.0 * quadratic * constant
+                if discriminant >= 0.0:
+                    root = math.sqrt(discriminant)
+                    candidates.append(np.array([(-linear - root), (-linear + root)]) / (2.0 * quadratic))
+        points = np.unique(np.concatenate(candidates))
+        return points[(points > self.low) & (points < self.high)]
+
+    def _interval_coefficients(
+        self, midpoints: FloatArray, samples: FloatArray, weights: FloatArray
+    ) -> list[_IntervalCoefficients]:
+        means = np.array([mean for mean, _ in self.gaussians])
+        widths = np.array([width for _, width in self.gaussians])
+        memberships = np.exp(-((midpoints[:, None] - means) ** 2) / widths)  # (intervals, input labels)
+        n_intervals, n_inputs = memberships.shape
+        per_output = []
+        for o, output_samples in enumerate(samples):
+            n_labels, n_points = output_samples.shape
+            level = np.zeros((n_intervals, n_labels))
+            rule = np.full((n_intervals, n_labels), -1)
+            for a in range(n_inputs):
+                label = self._consequents[a][o]
+                if label >= 0:
+                    higher = memberships[:, a] > level[:, label]
+                    level[higher, label] = memberships[higher, a]
+                    rule[higher, label] = a
+            clipped = np.minimum(level[:, :, None], output_samples[None, :, :])
+            winner = clipped.argmax(axis=1)  # (intervals, points)
+            points = np.arange(n_points)
+            winner_sample = output_samples[winner, points]
+            winner_level = np.take_along_axis(level, winner, axis=1)
+            winner_rule = np.take_along_axis(rule, winner, axis=1)
+            is_clipped = winner_level < winner_sample
+            constant = np.where(is_clipped, 0.0, winner_sample) @ weights  # (intervals, 2)
+            by_rule = np.zeros((n_intervals, n_inputs, 2))
+            for a in range(n_inputs):
+                by_rule[:, a, :] = (is_clipped & (winner_rule == a)).astype(np.float64) @ weights
+            per_output.append((constant, by_rule))
+        result = []
+        for k in range(n_intervals):
+            result.append(
+                tuple(
+                    (
+                        float(constant[k, 0]),
+                        float(constant[k, 1]),
+                        tuple(
+                            (a, float(by_rule[k, a, 0]), float(by_rule[k, a, 1]))
+                            for a in range(n_inputs)
+                            if by_rule[k, a, 0] != 0.0 or by_rule[k, a, 1] != 0.0
+                        ),
+                    )
+                    for constant, by_rule in per_output
+                )
+            )
+        return result
+
+    def evaluate(self, x: float) -> list[float] | None:
+        """Crisp value of every output at input ``x``; None outside [low, high] (or for NaN)."""
+        if not self.low <= x <= self.high:
+            return None
+        gaussians = self.gaussians
+        crisp = []
+        for constant_area, constant_moment, clipping in self._coefficients[bisect_right(self.breakpoints, x)]:
+            area = constant_area
+            moment = constant_moment
+            for a, area_coefficient, moment_coefficient in clipping:
+                # The same expression as GaussianMF.degree, for the labels that clip here only.
+                mean, width = gaussians[a]
+                membership = exp(-((x - mean) ** 2) / width)
+                area += membership * area_coefficient
+                moment += membership * moment_coefficient
+            crisp.append(moment / area if area > 0.0 else ZERO_AREA_FALLBACK)
+        return crisp
+
+
+# Sorted samples of one MF and, per split index, area and moment of the samples below it and the
+# area and moment weights at and above it (see LabelPairCentroids.single).
+_ClipTable = tuple[list[float], list[float], list[float], list[float], list[float]]
+
+
+class LabelPairCentroids:
+    """Exact centroids of one clipped output label, or of the max of two whose levels add up to 1.
+
+    One label l clipped at s: area and moment are sums over the grid of weights times min(s, MF_l[i]);
+    with MF_l sorted once, the samples below s count with their value and the others with s, so each sum
+    is one bisection and two prefix sums. Two labels a < b clipped at s_a and s_b = 1 - s_a (two rules of
+    a uniform triangular partition, one input fixed on a peak): every comparison in
+    max(min(s_a, MF_a[i]), min(s_b, MF_b[i])) changes only where s_a equals MF_a[i], MF_b[i],
+    1 - MF_a[i], 1 - MF_b[i] or 1/2, so between these breakpoints area and moment are a constant plus
+    s_a and s_b times coefficients, tabulated at interval midpoints. Both equal the sums over the grid
+    up to rounding.
+
+    Args:
+        samples: Output MFs on the grid, shape (labels, grid points), non-negative.
+        weights: :func:`centroid_weights` of the grid, shape (grid points, 2).
+    """
+
+    def __init__(self, samples: npt.ArrayLike, weights: npt.ArrayLike) -> None:
+        sample_array = np.array(samples, dtype=np.float64)
+        weight_array = np.array(weights, dtype=np.float64)
+        if sample_array.ndim != 2 or weight_array.shape != (sample_array.shape[1], 2):
+            raise ValueError("samples must have shape (labels, n) and weights shape (n, 2)")
+        self._singles = [self._clip_table(row, weight_array) for row in sample_array]
+        self._pairs = {
+            (a, b): self._pair_table(sample_array[a], sample_array[b], weight_array)
+            for a, b in combinations(range(sample_array.shape[0]), 2)
+        }
+
+    @staticmethod
+    def _clip_table(samples: FloatArray, weights: FloatArray) -> _ClipTable:
+        order = np.argsort(samples, kind="stable")
+        values = samples[order]
+        area_weights, moment_weights = weights[order, 0], weights[order, 1]
+        zero = np.zeros(1)
+        return (
+            values.tolist(),
+            np.concatenate((zero, np.cumsum(area_weights * values))).tolist(),
+            np.concatenate((np.cumsum(area_weights[::-1])[::-1], zero)).tolist(),
+            np.concatenate((zero, np.cumsum(moment_weights * values))).tolist(),
+            np.concatenate((np.cumsum(moment_weights[::-1])[::-1], zero)).tolist(),
+        )
+
+    @staticmethod
+    def _pair_table(
+        first: FloatArray, second: FloatArray, weights: FloatArray
+    ) -> tuple[list[float], array[float]]:
+        candidates = np.concatenate((first, second, 1.0 - first, 1.0 - second, [0.5]))
+        breakpoints = np.unique(candidates[(candidates > 0.0) & (candidates < 1.0)])
+        edges = np.concatenate(([0.0], breakpoints, [1.0]))
+        level = 0.5 * (edges[:-1] + edges[1:])[:, None]  # the first label's level at interval midpoints
+        clipped_first = np.minimum(level, first)
+        clipped_second = np.minimum(1.0 - level, second)
+        second_wins = clipped_second > clipped_first
+        first_clipped = ~second_wins & (level < first)
+        second_clipped = second_wins & (1.0 - level < second)
+        constant = np.where(second_wins, second, first) * ~(first_clipped | second_clipped)
+        coefficients = np.concatenate(
+            (
+                constant @ weights,
+                first_clipped.astype(np.float64) @ weights,
+                second_clipped.astype(np.float64) @ weights,
+            ),
+            axis=1,
+        )  # per interval: area, moment, then the first's and the second's level coefficients
+        return breakpoints.tolist(), array("d", coefficients.ravel().tolist())
+
+    def single(self, label: int, level: float) -> float:
+        """Centroid of min(level, MF_label) (level > 0)."""
+        values, area_below, area_above, moment_below, moment_above = self._singles[label]
+        split = bisect_left(values, level)
+        area = area_below[split] + level * area_above[split]
+        moment = moment_below[split] + level * moment_above[split]
+        return moment / area if area > 0.0 else ZERO_AREA_FALLBACK
+
+    def pair(self, first: int, first_level: float, second: int, second_level: float) -> float:
+        """Centroid of the max of two distinct clipped labels whose levels add up to 1."""
+        if first > second:
+            first, first_level, second, second_level = second, second_level, first, first_level
+        breakpoints, coefficients = self._pairs[first, second]
+        at = 6 * bisect_right(breakpoints, first_level)
+        area = coefficients[at] + first_level * coefficients[at + 2] + second_level * coefficients[at + 4]
+        moment = (
+            coefficients[at + 1] + first_level * coefficients[at + 3] + second_level * coefficients[at + 5]
+        )
+        return moment / area if area > 0.0 else ZERO_AREA_FALLBACK
+
+
+@lru_cache(maxsize=16)
+def _label_pair_centroids(samples: bytes, labels: int, weights: bytes) -> LabelPairCentroids:
+    """One table set per output MF family and grid in the process."""
+    return LabelPairCentroids(
+        np.frombuffer(samples, dtype=np.float64).reshape(labels, -1),
+        np.frombuffer(weights, dtype=np.float64).reshape(-1, 2),
+    )
+
+
+@lru_cache(maxsize=16)
+def _single_input_centroids(
+    gaussians: tuple[tuple[float, float], ...],
+    consequents: tuple[tuple[int, ...], ...],
+    samples: bytes,
+    shape: tuple[int, int, int],
+    weights: bytes,
+) -> SingleInputCentroids:
+    """One table per rule base and grid in the process (building one takes some 0.1 s)."""
+    return SingleInputCentroids(
+        gaussians,
+        consequents,
+        np.frombuffer(samples, dtype=np.float64).reshape(shape),
+        np.frombuffer(weights, dtype=np.float64).reshape(-1, 2),
+    )
+
+
 class MamdaniBatch:
     """Evaluates several rule bases that share output MFs and grid, in one vectorised pass.
 
@@ -505,6 +790,8 @@ class MamdaniBatch:
         n_labels = first.n_labels
         n_rows = len(systems) * n_outputs
         self._n_outputs = n_outputs
+        self._n_labels = n_labels
+        self._n_rows = n_rows
         self._n_slots = n_labels * n_rows
         # Rows are (system, output) pairs. Strength slots are label-major, slot = label * rows + row,
         # so that the strengths reshape to (labels, rows, 1) and the max over labels is a reduction
@@ -521,63 +808,114 @@ class MamdaniBatch:
         self._clipped = np.empty((n_labels, n_rows, first.grid.size))
         self._aggregated = np.empty((n_rows, first.grid.size))
         self._weights = centroid_weights(first.grid)
+        self._single_input_plan = self._single_input_tables()
         self._lattice_plan = self._two_input_lattice_plan()
         if self._lattice_plan is not None:
             grid_size = first.grid.size
-            n_systems = len(systems)
+            # Per output, the tables for one or two clipped labels (PD: one family for both outputs).
+            self._pair_centroids = [
+                _label_pair_centroids(
+                    np.ascontiguousarray(first.output_samples[:, o, :]).tobytes(),
+                    n_labels,
+                    self._weights.tobytes(),
+                )
+                for o in range(n_outputs)
+            ]
             # Rows of _samples as one table: row label * n_rows + (system, output) row = a strength slot.
             self._sample_table = self._samples.reshape(n_labels * n_rows, grid_size)
-            # Per count k of rules that fire in a system (1, 2 or 4 around the inputs): their firing
-            # strengths (broadcast over the outputs and the grid) and, per output, the output MF each
-            # concludes, clipped in place; systems with fewer rules repeat one (max is unchanged).
-            self._lattice_buffers = {
-                count: self._lattice_buffer(count, n_systems, n_outputs, grid_size) for count in (1, 2, 4)
-            }
-            self._aggregated_view = self._aggregated.reshape(n_systems, n_outputs, grid_size)
+            # Per number m of systems whose four rules fire: the firing strengths (broadcast over the
+            # outputs and the grid), and per output the output MF each rule concludes, clipped in place.
+            self._lattice_buffers = [
+                self._lattice_buffer(m, n_outputs, grid_size) for m in range(1, len(systems) + 1)
+            ]
 
     @staticmethod
     def _lattice_buffer(
-        count: int, n_systems: int, n_outputs: int, grid_size: int
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        firing = np.zeros(n_systems * count)
-        gathered = np.zeros((n_systems * count * n_outputs, grid_size))
+        n_systems: int, n_outputs: int, grid_size: int
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        firing = np.zeros(n_systems * 4)
+        gathered = np.zeros((n_systems * 4 * n_outputs, grid_size))
+        aggregated = np.zeros((n_systems * n_outputs, grid_size))
         return (
             firing,
-            firing.reshape(n_systems, count, 1, 1),
+            firing.reshape(n_systems, 4, 1, 1),
             gathered,
-            gathered.reshape(n_systems, count, n_outputs, grid_size),
+            gathered.reshape(n_systems, 4, n_outputs, grid_size),
+            aggregated,
+            aggregated.reshape(n_systems, n_outputs, grid_size),
         )
+
+    def _single_input_tables(self) -> tuple[SingleInputCentroids, ...] | None:
+        """Per system its :class:`SingleInputCentroids`, if every system has one Gaussian input."""
+        first = self.systems[0]
+        n_outputs = len(first.outputs)
+        n_labels = first.n_labels
+        samples = np.ascontiguousarray(np.transpose(first.output_samples, (1, 0, 2)))
+        tables = []
+        for system in self.systems:
+            gaussians = system.inputs[0]._gaussians if len(system.inputs) == 1 else None
+            if gaussians is None:
+                return None
+            # Per input label (a rule concludes every output, in output order): output labels or -1.
+            consequents = tuple(
+                tuple(slot - o * n_labels for o, slot in enumerate(slots)) if slots else (-1,) * n_outputs
+                for slots in system.slot_table(range(n_outputs * n_labels))
+            )
+            tables.append(
+                _single_input_centroids(
+                    tuple((mean, width) for _, mean, width in gaussians),
+                    consequents,
+                    samples.tobytes(),
+                    (n_outputs, n_labels, first.grid.size),
+                    self._weights.tobytes(),
+                )
+            )
+        return tuple(tables)
 
     def _two_input_lattice_plan(
         self,
-    ) -> tuple[tuple[_Lattice, _Lattice, int, list[tuple[int, ...]]], ...] | None:
-        """Per system (first input's lattice, second's, radix of the second, slots per antecedent cell).
+    ) -> tuple[tuple[_Lattice, _Lattice, int, list[tuple[int, ...]], list[tuple[int, ...]]], ...] | None:
+        """Per system: the inputs' lattices, the second's radix, and the rules per antecedent cell.
 
-        None unless every system has two inputs on uniform triangular partitions and a rule for every
-        antecedent cell (then exactly the four cells around the inputs can fire).
+        The rules are, per antecedent cell, the strength slots and the output labels its rule
+        concludes (one per output). None unless every system has two inputs on uniform triangular
+        partitions and a rule for every antecedent cell (then exactly the four cells around the inputs
+        can fire).
         """
         plan = []
+        n_outputs, n_labels = self._n_outputs, self._n_labels
         for system, targets in self._pairs:
-            if len(system.inputs) != 2 or any(len(slots) != self._n_outputs for slots in targets):
+            if len(system.inputs) != 2 or any(len(slots) != n_outputs for slots in targets):
                 return None
             lattices = [var._lattice_data() for var in system.inputs]
             if lattices[0] is None or lattices[1] is None:
                 return None
-            plan.append((lattices[0], lattices[1], len(system.inputs[1].labels), targets))
+            labels = [
+                tuple(slot - o * n_labels for o, slot in enumerate(slots))
+                for slots in system.slot_table(range(n_outputs * n_labels))
+            ]
+            plan.append((lattices[0], lattices[1], len(system.inputs[1].labels), targets, labels))
         return tuple(plan)
 
     def _evaluate_two_input_lattice(self, inputs: Sequence[Sequence[float]]) -> list[float] | None:
         """:meth:`evaluate_flat` on the lattice plan; None if an input lies off its lattice.
 
-        Per system the rules of the cells around the inputs with a positive firing strength (1, 2 or
-        4 of them) are clipped and max-aggregated. The lattice lookup is
+        Per system only the rules of the cells around the inputs with a positive firing strength fire
+        (1, 2 or 4 of them). With one or two (one input on a peak or an end), each output is taken
+        from :class:`LabelPairCentroids`; with four, the concluded MFs are clipped, max-aggregated and
+        defuzzified in numpy, for all such systems at once. The lattice lookup is
         :meth:`FuzzyVariable.lattice_pair` inlined (the same expressions; a test pins the result to the
-        general path bit for bit): this runs every control step.
+        dense evaluation): this runs every control step.
         """
         assert self._lattice_plan is not None
-        fired_per_system: list[list[tuple[tuple[int, ...], float]]] = []
-        count = 1
-        for (first, second, radix, targets), x in zip(self._lattice_plan, inputs, strict=True):
+        n_outputs = self._n_outputs
+        outputs = range(n_outputs)
+        pair_centroids = self._pair_centroids
+        crisp = [0.0] * self._n_rows
+        four_rules: list[tuple[int, list[tuple[int, float]]]] = []
+        for system_index, ((first, second, radix, _, labels), x) in enumerate(
+            zip(self._lattice_plan, inputs, strict=True)
+        ):
             if len(x) != 2:
                 return None
             x0, x1 = x
@@ -609,38 +947,61 @@ class MamdaniBatch:
             fired = []
             if degree_i > 0.0:
                 if degree_j > 0.0:
-                    fired.append((targets[cell], degree_i if degree_i < degree_j else degree_j))
+                    fired.append((cell, degree_i if degree_i < degree_j else degree_j))
                 if degree_j1 > 0.0:
-                    fired.append((targets[cell + 1], degree_i if degree_i < degree_j1 else degree_j1))
+                    fired.append((cell + 1, degree_i if degree_i < degree_j1 else degree_j1))
             if degree_i1 > 0.0:
                 if degree_j > 0.0:
-                    fired.append((targets[cell + radix], degree_i1 if degree_i1 < degree_j else degree_j))
+                    fired.append((cell + radix, degree_i1 if degree_i1 < degree_j else degree_j))
                 if degree_j1 > 0.0:
-                    fired.append(
-                        (targets[cell + radix + 1], degree_i1 if degree_i1 < degree_j1 else degree_j1)
-                    )
-            if not fired:
+                    fired.append((cell + radix + 1, degree_i1 if degree_i1 < degree_j1 else degree_j1))
+            row = system_index * n_outputs
+            if len(fired) == 1:
+                ((cell, level),) = fired
+                for o in outputs:
+                    crisp[row + o] = pair_centroids[o].single(labels[cell][o], level)
+            elif len(fired) == 2 and abs(fired[0][1] + fired[1][1] - 1.0) <= _UNIT_SUM_TOLERANCE:
+                (cell, level), (other_cell, other_level) = fired
+                for o in outputs:
+                    label, other_label = labels[cell][o], labels[other_cell][o]
+                    if label == other_label:
+                        crisp[row + o] = pair_centroids[o].single(label, max(level, other_level))
+                    else:
+                        crisp[row + o] = pair_centroids[o].pair(label, level, other_label, other_level)
+            elif fired:
+                four_rules.append((system_index, fired))
+            else:
                 return None  # impossible on a partition of unity; the general path copes
-            if len(fired) > count:
-                count = len(fired)
-            fired_per_system.append(fired)
+        if four_rules:
+            self._clip_and_defuzzify(four_rules, crisp)
+        return crisp
+
+    def _clip_and_defuzzify(
+        self, systems: list[tuple[int, list[tuple[int, float]]]], crisp: list[float]
+    ) -> None:
+        """Numpy min/max/centroid of the given systems' fired rules (padded to 4 by repeating one)."""
+        assert self._lattice_plan is not None
         slots: list[int] = []
         firings: list[float] = []
-        for fired in fired_per_system:
-            while len(fired) < count:
-                fired.append(fired[0])
-            for cell_slots, firing in fired:
-                slots += cell_slots
-                firings.append(firing)
-        firing_flat, firing_view, gathered, gathered_view = self._lattice_buffers[count]
-        firing_flat[:] = firings
+        for system_index, fired in systems:
+            targets = self._lattice_plan[system_index][3]
+            for k in range(4):
+                cell, level = fired[k] if k < len(fired) else fired[0]
+                slots += targets[cell]
+                firings.append(level)
+        firing, firing_view, gathered, gathered_view, aggregated, aggregated_view = self._lattice_buffers[
+            len(systems) - 1
+        ]
+        firing[:] = firings
         self._sample_table.take(slots, 0, gathered, "clip")
         np.minimum(gathered_view, firing_view, out=gathered_view)
-        np.maximum.reduce(gathered_view, axis=1, out=self._aggregated_view)
-        return [
-            moment / area if area > 0.0 else ZERO_AREA_FALLBACK
-            for area, moment in np.dot(self._aggregated, self._weights).tolist()
-        ]
+        np.maximum.reduce(gathered_view, axis=1, out=aggregated_view)
+        values = np.dot(aggregated, self._weights).tolist()
+        n_outputs = self._n_outputs
+        for k, (system_index, _) in enumerate(systems):
+            for o in range(n_outputs):
+                area, moment = values[k * n_outputs + o]
+                crisp[system_index * n_outputs + o] = moment / area if area > 0.0 else ZERO_AREA_FALLBACK
 
     def evaluate(self, inputs: Sequence[Sequence[float]]) -> list[list[float]]:
         """Crisp outputs of every system.
@@ -662,6 +1023,15 @@ class MamdaniBatch:
         if self._lattice_plan is not None:
             crisp = self._evaluate_two_input_lattice(inputs)
             if crisp is not None:
+                return crisp
+        if self._single_input_plan is not None:
+            crisp = []
+            for table, x in zip(self._single_input_plan, inputs, strict=True):
+                values = table.evaluate(x[0]) if len(x) == 1 else None
+                if values is None:
+                    break
+                crisp += values
+            else:
                 return crisp
         strengths = [0.0] * self._n_slots
         for k, (system, targets) in enumerate(self._pairs):

@@ -296,7 +296,14 @@ def mass_matrix_floats(alpha: float, beta: float, params: SMMParameters) -> tupl
         (M11, M12, M22) (kg m^2); M21 = M12. Equal to :func:`mass_matrix` up to rounding.
     """
     return mass_matrix_entries_spin_form(
-        math.sin(alpha), math.cos(alpha), math.sin(beta), math.cos(beta), *_inertias(params)
+        math.sin(alpha),
+        math.cos(alpha),
+        math.sin(beta),
+        math.cos(beta),
+        params.I11,
+        params.I22,
+        params.I44,
+        params.I55,
     )
 
 
@@ -319,13 +326,18 @@ def rigid_body_floats(
     """
     sb = math.sin(beta)
     m11, m12, m22, coriolis_alpha, coriolis_beta = rigid_body_entries_spin_form(
-        math.sin(alpha), math.cos(alpha), sb, math.cos(beta), alpha_dot, beta_dot, *_inertias(params)
+        math.sin(alpha),
+        math.cos(alpha),
+        sb,
+        math.cos(beta),
+        alpha_dot,
+        beta_dot,
+        params.I11,
+        params.I22,
+        params.I44,
+        params.I55,
     )
     return m11, m12, m22, coriolis_alpha, coriolis_beta, 0.0, _gravity_coefficient(params) * sb
-
-
-def _inertias(params: SMMParameters) -> tuple[float, float, float, float]:
-    return params.I11, params.I22, params.I44, params.I55
 
 
 def potential_energy(q: ArrayLike, params: SMMParameters) -> FloatArray:
@@ -649,7 +661,10 @@ def forward_dynamics_floats(
         beta_dot,
         torque[0] - disturbance[0] - friction_alpha * alpha_dot,
         torque[1] - disturbance[1] - _gravity_coefficient(params) * sb - friction_beta * beta_dot,
-        *_inertias(params),
+        params.I11,
+        params.I22,
+        params.I44,
+        params.I55,
     )
 
 
@@ -693,5 +708,8 @@ def rk4_step_floats(
         friction_beta,
         _gravity_coefficient(params),
         dt,
-        *_inertias(params),
+        params.I11,
+        params.I22,
+        params.I44,
+        params.I55,
     )

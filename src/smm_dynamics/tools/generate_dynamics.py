@@ -45,6 +45,7 @@ VELOCITIES = (ALPHA_DOT, BETA_DOT)
 
 # Intermediate quantities of the spin form (see the module docstring).
 INV_D, G_ALPHA, G_BETA = sp.symbols("inv_d g_alpha g_beta", real=True)
+HALF_I11, ROTOR_ALPHA = sp.symbols("half_I11 rotor_alpha", real=True)
 THETA_DOT, SPIN_CURVATURE = sp.symbols("theta_dot spin_curvature", real=True)
 M11, M12, M22 = sp.symbols("m11 m12 m22", real=True)
 CORIOLIS_ALPHA, CORIOLIS_BETA = sp.symbols("coriolis_alpha coriolis_beta", real=True)
@@ -167,8 +168,11 @@ def _substitute_stages(expr: sp.Expr, stages: Sequence[tuple[sp.Symbol, sp.Expr]
     return expr
 
 
-def spin_form_stages() -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[tuple[sp.Symbol, sp.Expr]]]:
-    """Assignments of the spin form: (M stages, C q' stages), each in evaluation order.
+Stages = list[tuple[sp.Symbol, sp.Expr]]
+
+
+def spin_form_stages() -> tuple[Stages, Stages, Stages]:
+    """Assignments of the spin form: (constants, M stages, C q' stages), each in evaluation order.
 
     The gradient of theta and the spin curvature s = q'^T H q' are derived here from
     theta = atan2(tan(alpha), cos(beta)); M and C q' in terms of them follow from the kinetic energy
@@ -187,13 +191,15 @@ def spin_form_stages() -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[tuple[sp.S
         sp.factor(coefficient).subs(_PYTHAGORAS) * ALPHA_DOT**i * BETA_DOT**j
         for (i, j), coefficient in scaled.terms()
     )
+    constant_stages = [(HALF_I11, sp.Rational(1, 2) * I11)]
     mass_stages = [
         (D_SCALED, SA**2 + CA**2 * CB**2),
         (INV_D, 1 / D_SCALED),
         (G_ALPHA, gradient[0].subs(D_SCALED, 1 / INV_D)),
         (G_BETA, gradient[1].subs(D_SCALED, 1 / INV_D)),
-        (M11, I44 + (I55 * G_ALPHA - I11 * CB) * G_ALPHA),
-        (M12, (I55 * G_ALPHA - sp.Rational(1, 2) * I11 * CB) * G_BETA),
+        (ROTOR_ALPHA, I55 * G_ALPHA),
+        (M11, I44 + (ROTOR_ALPHA - I11 * CB) * G_ALPHA),
+        (M12, (ROTOR_ALPHA - HALF_I11 * CB) * G_BETA),
         (M22, I22 + I55 * G_BETA**2),
     ]
     coriolis_stages = [
@@ -201,27 +207,22 @@ def spin_form_stages() -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[tuple[sp.S
         (SPIN_CURVATURE, curvature_numerator * INV_D**2),
         (
             CORIOLIS_ALPHA,
-            I55 * SPIN_CURVATURE * G_ALPHA
-            + sp.Rational(1, 2)
-            * I11
+            ROTOR_ALPHA * SPIN_CURVATURE
+            + HALF_I11
             * (SB * BETA_DOT * THETA_DOT + SB * ALPHA_DOT * BETA_DOT * G_ALPHA - CB * SPIN_CURVATURE),
         ),
         (
             CORIOLIS_BETA,
-            I55 * SPIN_CURVATURE * G_BETA
-            + sp.Rational(1, 2) * I11 * SB * ALPHA_DOT * (BETA_DOT * G_BETA - THETA_DOT),
+            I55 * SPIN_CURVATURE * G_BETA + HALF_I11 * SB * ALPHA_DOT * (BETA_DOT * G_BETA - THETA_DOT),
         ),
     ]
-    return mass_stages, coriolis_stages
+    return constant_stages, mass_stages, coriolis_stages
 
 
-def check_spin_form(
-    mass_stages: Sequence[tuple[sp.Symbol, sp.Expr]], coriolis_stages: Sequence[tuple[sp.Symbol, sp.Expr]]
-) -> None:
+def check_spin_form(stages: Sequence[tuple[sp.Symbol, sp.Expr]]) -> None:
     """Raises AssertionError unless the spin form equals the printed M and the Christoffel C q'."""
     mass = printed_mass_matrix()
     coriolis_vector = christoffel_coriolis(mass) * sp.Matrix(VELOCITIES)
-    stages = [*mass_stages, *coriolis_stages]
     expected = {
         M11: mass[0, 0],
         M12: mass[0, 1],
@@ -241,8 +242,11 @@ def _staged_lines(
     """Assignment lines of ``stages`` with common subexpressions extracted; ``defined`` grows."""
     printer = _FloatPrinter()
     lines: list[str] = []
+    # ROTOR_ALPHA is left alone: cse would otherwise pull out -rotor_alpha, one negation more.
     replacements, reduced = sp.cse(
-        [expr for _, expr in stages], symbols=sp.numbered_symbols(temporary_prefix)
+        [expr for _, expr in stages],
+        symbols=sp.numbered_symbols(temporary_prefix),
+        ignore=tuple(symbol for symbol, _ in stages if symbol.name.startswith("rotor_alpha")),
     )
     pending = list(replacements)
 
@@ -314,7 +318,9 @@ _RK4_COMBINATION = """\
 """
 
 
-def _rk4_function_source(dynamics_stages: Sequence[tuple[sp.Symbol, sp.Expr]]) -> str:
+def _rk4_function_source(
+    constant_stages: Sequence[tuple[sp.Symbol, sp.Expr]], dynamics_stages: Sequence[tuple[sp.Symbol, sp.Expr]]
+) -> str:
     """One classical RK4 step with the four evaluations of q'' written out (no call per stage).
 
     The torque of each evaluation is load - F q' - G(q) with the viscous friction F and the
@@ -335,6 +341,7 @@ def _rk4_function_source(dynamics_stages: Sequence[tuple[sp.Symbol, sp.Expr]]) -
         I55,
     )
     defined = set(arguments)
+    constant_lines = "\n".join(_staged_lines(constant_stages, defined))
     stage_lines = {}
     for k in range(1, 5):
         state = (
@@ -375,14 +382,14 @@ def _rk4_function_source(dynamics_stages: Sequence[tuple[sp.Symbol, sp.Expr]]) -
         "    load = tau - tau_dist (N m) held over the step. Floats only (math.sin, math.cos).\n"
         '    """\n'
         "    sin = math.sin\n"
-        "    cos = math.cos\n" + _RK4_COMBINATION.format(**stage_lines)
+        "    cos = math.cos\n" + constant_lines + "\n" + _RK4_COMBINATION.format(**stage_lines)
     )
 
 
 def spin_form_functions() -> list[str]:
     """Sources of the spin-form functions (M; M and C q'; q''; one RK4 step)."""
-    mass_stages, coriolis_stages = spin_form_stages()
-    check_spin_form(mass_stages, coriolis_stages)
+    constant_stages, mass_stages, coriolis_stages = spin_form_stages()
+    check_spin_form([*constant_stages, *mass_stages, *coriolis_stages])
     solve_stages = [
         (RHS_ALPHA, TORQUE_ALPHA - CORIOLIS_ALPHA),
         (RHS_BETA, TORQUE_BETA - CORIOLIS_BETA),
@@ -397,24 +404,24 @@ def spin_form_functions() -> list[str]:
             "mass_matrix_entries_spin_form",
             "(M11, M12, M22) (kg m^2), equal to mass_matrix_entries up to rounding.",
             (*trig_args, *inertia_args),
-            mass_stages,
+            [*constant_stages, *mass_stages],
             (M11, M12, M22),
         ),
         _staged_function_source(
             "rigid_body_entries_spin_form",
             "(M11, M12, M22) (kg m^2) and C q' (N m), equal to the reference entries up to rounding.",
             (*trig_args, ALPHA_DOT, BETA_DOT, *inertia_args),
-            [*mass_stages, *coriolis_stages],
+            [*constant_stages, *mass_stages, *coriolis_stages],
             (M11, M12, M22, CORIOLIS_ALPHA, CORIOLIS_BETA),
         ),
         _staged_function_source(
             "forward_dynamics_entries_spin_form",
             "q'' = M^-1 (torque - C q') (rad/s^2); torque = tau - G - F - tau_dist (N m).",
             (*trig_args, ALPHA_DOT, BETA_DOT, TORQUE_ALPHA, TORQUE_BETA, *inertia_args),
-            [*mass_stages, *coriolis_stages, *solve_stages],
+            [*constant_stages, *mass_stages, *coriolis_stages, *solve_stages],
             (QDD_ALPHA, QDD_BETA),
         ),
-        _rk4_function_source([*mass_stages, *coriolis_stages, *solve_stages]),
+        _rk4_function_source(constant_stages, [*mass_stages, *coriolis_stages, *solve_stages]),
     ]
 
 

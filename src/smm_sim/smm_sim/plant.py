@@ -443,8 +443,11 @@ class SimulatedPlant:
         t0 = self._t_ns / _NS_PER_S
         state = self._state
         applied_sum = [0.0, 0.0]
+        lagged = config.valve_time_constants is not None
+        if not lagged:
+            self._valve = [saturated[0], saturated[1]]
         for index in range(substeps):
-            torque = self._valve_substep(saturated, h)
+            torque = self._valve_substep(saturated, h) if lagged else saturated
             applied_sum[0] += torque[0]
             applied_sum[1] += torque[1]
             t_mid = t0 + (index + 0.5) * h
