@@ -4,8 +4,8 @@ Run by ``make bench``. Inputs are recorded from a closed loop on the case1 sinus
 fuzzy systems see realistic firing patterns. Prints the median time per step of the array API
 (``step``) and of the float API the offline simulator uses (``step_floats``), as a share of the 1 ms
 control period (target < 10 %), the time of each stage, of the baselines' chains, and of one plant
-RK4 step, with the real-time factor of an offline run (chain + plant per step). Nothing asserts on
-time.
+RK4 step (the float fast path the simulated plant uses, and the array API), with the real-time factor
+of an offline run (chain + plant per step). Nothing asserts on time.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import numpy as np
 from smm_controller.chain import ControlChain, make_chain
 from smm_controller.reference import SineReference
 
-from smm_dynamics import SMMParameters, rk4_step
+from smm_dynamics import SMMParameters, rk4_step, rk4_step_floats
 
 DT = 0.001
 STEPS = 3000
@@ -129,9 +129,12 @@ def main() -> int:
             f" step_floats {chain_float * 1e6:7.2f} us"
         )
     q, qd, tau = np.array([0.3, 0.2]), np.array([0.5, -0.4]), np.array([0.1, 0.2])
-    plant = median_per_call([lambda: rk4_step(q, qd, tau, DT, params)] * 2000)
+    array_plant = median_per_call([lambda: rk4_step(q, qd, tau, DT, params)] * 2000)
+    state, torque = (0.3, 0.2, 0.5, -0.4), (0.1, 0.2)
+    plant = median_per_call([lambda: rk4_step_floats(state, torque, DT, params)] * 2000)
     per_step = float_median + plant
-    print(f"plant rk4_step (smm_dynamics, one sub-step): {plant * 1e6:7.2f} us")
+    print(f"plant rk4_step_floats (the simulated plant's, one sub-step): {plant * 1e6:7.2f} us")
+    print(f"plant rk4_step (array API, one sub-step):                    {array_plant * 1e6:7.2f} us")
     print(
         f"offline closed loop, chain + one plant step: {per_step * 1e6:.2f} us per 1 ms step "
         f"= {DT / per_step:.1f}x real time (target >= 20x; case2 5000 steps ~ {5000 * per_step:.2f} s)"

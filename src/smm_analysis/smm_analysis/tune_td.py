@@ -130,10 +130,14 @@ def sweep_td(
 
 
 def best_point(points: Sequence[TDSweepPoint]) -> TDSweepPoint:
-    """The point with the smallest rms_alpha + rms_beta."""
+    """The point with the smallest rms_alpha + rms_beta.
+
+    Sums equal to 12 significant digits are ties (on the sigma plateau they differ only by round-off),
+    broken by the smaller h, then the smaller sigma, so the answer does not depend on round-off.
+    """
     if not points:
         raise AnalysisError("no sweep points")
-    return min(points, key=lambda point: point.rms_sum)
+    return min(points, key=lambda point: (float(f"{point.rms_sum:.12g}"), point.filter_factor, point.speed))
 
 
 def chosen_point(points: Sequence[TDSweepPoint], tolerance: float = 1e-3) -> TDSweepPoint:

@@ -466,9 +466,7 @@ class SimulatedPlant:
     def _valve_substep(self, target: tuple[float, float], h: float) -> tuple[float, float]:
         """Advances the valve lag by h towards ``target``; returns the mean torque over the sub-step."""
         constants = self._config.valve_time_constants
-        if constants is None:
-            self._valve = [target[0], target[1]]
-            return target
+        assert constants is not None  # step() bypasses the lag when there is none
         rise, fall = constants
         mean = [0.0, 0.0]
         for joint in range(2):

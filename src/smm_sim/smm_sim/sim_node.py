@@ -619,9 +619,8 @@ class SimNode(Node):
             self._clock_pub.publish(clock_msg(stamp_ns))
         # Ground truth is for analysis only: built and sent only while something (a recorder) listens.
         if self._ground_truth_pub.get_subscription_count() > 0:
-            self._ground_truth_pub.publish(
-                sample_to_joint_state(JointSample(stamp_ns, truth.position, truth.velocity, truth.applied_torque))
-            )
+            sample = JointSample(stamp_ns, truth.position, truth.velocity, truth.applied_torque)
+            self._ground_truth_pub.publish(sample_to_joint_state(sample))
         if self._clock_mode == "realtime":
             self._published_at[stamp_ns] = now_ns
             while len(self._published_at) > _PUBLISHED_STAMPS_KEPT:

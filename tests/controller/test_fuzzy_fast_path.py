@@ -1,0 +1,265 @@
+"""MamdaniBatch's fast paths equal the dense Mamdani min/min/max evaluation (SPEC section 4).
+
+The clip-and-max in numpy (four rules per system) is bit for bit the dense evaluation; the tabulated
+centroids (one or two rules, single-input rule bases) agree with it up to rounding: 1e-13 on outputs
+in [-1, 1].
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+from smm_controller.fuzzy import (
+    ZERO_AREA_FALLBACK,
+    FuzzyVariable,
+    LabelPairCentroids,
+    MamdaniBatch,
+    MamdaniSystem,
+    SingleInputCentroids,
+    TriangularMF,
+    centroid,
+    centroid_weights,
+    uniform_grid,
+)
+from smm_controller.fuzzy_pd import FuzzyPDGainSchedule
+from smm_controller.rules import (
+    PD_LABELS,
+    TABLE_1,
+    TABLE_7,
+    fleso_bandwidth_system,
+    fleso_input_variable,
+    fleso_output_variable,
+    pd_gain_system,
+    pd_input_variable,
+    pd_output_variable,
+)
+
+ATOL = 1e-13
+
+PEAKS = [-1.0 + 2.0 * i / 6 for i in range(7)]
+# Peaks, the ends and their float neighbours: where one label has degree 0 or rounding picks the interval.
+SPECIAL = sorted(
+    {x for peak in PEAKS for x in (peak, math.nextafter(peak, -2.0), math.nextafter(peak, 2.0))} | {0.0, -0.0}
+)
+values = st.one_of(st.floats(-1.2, 1.2, allow_nan=False), st.sampled_from(SPECIAL))
+
+
+def _dense_reference(systems: Sequence[MamdaniSystem], inputs: Sequence[Sequence[float]]) -> list[float]:
+    """min/min/max over every label and the centroid as one matrix product, as before the fast path."""
+    aggregated = np.concatenate(
+        [system.aggregated_membership(x) for system, x in zip(systems, inputs, strict=True)]
+    )
+    weights = centroid_weights(systems[0].grid)
+    return [
+        moment / area if area > 0.0 else ZERO_AREA_FALLBACK
+        for area, moment in np.dot(np.ascontiguousarray(aggregated), weights).tolist()
+    ]
+
+
+@pytest.fixture(scope="module", params=[201, 51, 7])
+def pd_systems(request: pytest.FixtureRequest) -> tuple[MamdaniSystem, MamdaniSystem]:
+    return pd_gain_system(TABLE_1, request.param), pd_gain_system(TABLE_7, request.param)
+
+
+@settings(max_examples=300, deadline=None)
+@given(x=st.tuples(values, values, values, values))
+def test_pd_batch_equals_the_dense_evaluation(
+    pd_systems: tuple[MamdaniSystem, MamdaniSystem], x: tuple[float, float, float, float]
+) -> None:
+    inputs = ((x[0], x[1]), (x[2], x[3]))
+    reference = _dense_reference(pd_systems, inputs)
+    assert_allclose(MamdaniBatch(pd_systems).evaluate_flat(inputs), reference, rtol=0.0, atol=ATOL)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    x=st.tuples(
+        *[st.floats(-0.99, 0.99, allow_nan=False).filter(lambda v: min(abs(v - p) for p in PEAKS) > 1e-6)] * 4
+    )
+)
+def test_four_rules_per_joint_are_bit_for_bit_the_dense_evaluation(
+    pd_systems: tuple[MamdaniSystem, MamdaniSystem], x: tuple[float, float, float, float]
+) -> None:
+    """No input on a peak: four rules fire per joint, clipped and aggregated in numpy."""
+    inputs = ((x[0], x[1]), (x[2], x[3]))
+    assert MamdaniBatch(pd_systems).evaluate_flat(inputs) == _dense_reference(pd_systems, inputs)
+
+
+@pytest.mark.parametrize(
+    ("e", "ce"),
+    [
+        (0.0, 0.0),  # both on a peak: one rule fires
+        (1.0, -1.0),  # both clipped to the ends: one rule fires
+        (1.0 / 3.0, 0.1),  # one on a peak: two rules
+        (0.1, -2.0 / 3.0),  # two rules, the other input on a peak
+        (0.51, 0.2),  # the worked example of Section III.B: four rules
+        (0.2, -0.4),  # four rules
+    ],
+)
+def test_pd_batch_with_one_two_or_four_rules_per_joint(
+    pd_systems: tuple[MamdaniSystem, MamdaniSystem], e: float, ce: float
+) -> None:
+    batch = MamdaniBatch(pd_systems)
+    for inputs in (((e, ce), (0.51, 0.2)), ((0.0, 0.0), (e, ce)), ((e, ce), (e, ce))):
+        assert_allclose(
+            batch.evaluate_flat(inputs), _dense_reference(pd_systems, inputs), rtol=0.0, atol=ATOL
+        )
+
+
+def test_pd_batch_matches_the_documented_centroid() -> None:
+    """Against centroid() of each system's aggregate, an independent evaluation of eq. 17."""
+    systems = (pd_gain_system(TABLE_1), pd_gain_system(TABLE_7))
+    batch = MamdaniBatch(systems)
+    rng = np.random.default_rng(7)
+    for x in rng.uniform(-1.0, 1.0, (200, 4)):
+        inputs = ((x[0], x[1]), (x[2], x[3]))
+        expected = [
+            centroid(system.grid, membership)
+            for system, point in zip(systems, inputs, strict=True)
+            for membership in system.aggregated_membership(point)
+        ]
+        assert_allclose(batch.evaluate_flat(inputs), expected, rtol=0.0, atol=1e-14)
+
+
+@pytest.fixture(scope="module", params=[201, 51, 3])
+def fleso_systems(request: pytest.FixtureRequest) -> tuple[MamdaniSystem, MamdaniSystem]:
+    system = fleso_bandwidth_system(request.param)
+    return system, system
+
+
+@settings(max_examples=300, deadline=None)
+@given(s=st.tuples(st.floats(-1.5, 1.5, allow_nan=False), st.floats(-1.5, 1.5, allow_nan=False)))
+def test_single_input_batch_equals_the_dense_evaluation(
+    fleso_systems: tuple[MamdaniSystem, MamdaniSystem], s: tuple[float, float]
+) -> None:
+    inputs = ((s[0],), (s[1],))
+    reference = _dense_reference(fleso_systems, inputs)
+    assert_allclose(MamdaniBatch(fleso_systems).evaluate_flat(inputs), reference, rtol=0.0, atol=ATOL)
+
+
+def test_single_input_table_on_and_beside_every_breakpoint(
+    fleso_systems: tuple[MamdaniSystem, MamdaniSystem],
+) -> None:
+    """Where a membership crosses a sampled value the pattern of clipping changes: the worst places."""
+    system = fleso_systems[0]
+    table = SingleInputCentroids(
+        [(mf.mean, 2.0 * mf.sigma**2) for mf in fleso_input_variable().mfs],
+        [(0,), (1,), (2,), (1,), (0,)],  # NB->S, NS->M, ZE->B, PS->M, PB->S
+        np.transpose(system.output_samples, (1, 0, 2)),
+        centroid_weights(system.grid),
+    )
+    points = [p for b in table.breakpoints for p in (b, math.nextafter(b, -2.0), math.nextafter(b, 2.0))]
+    for x in [-1.0, 1.0, *points]:
+        (value,) = table.evaluate(x) or [math.nan]
+        assert value == pytest.approx(centroid(system.grid, system.aggregated_membership((x,))[0]), abs=ATOL)
+    assert table.evaluate(1.0 + 1e-12) is None
+    assert table.evaluate(math.nan) is None
+
+
+@pytest.mark.parametrize(
+    ("gaussians", "consequents", "samples", "weights"),
+    [
+        ([(0.0, 1.0)], [(0,)], np.ones((1, 1, 5)), np.ones((4, 2))),  # weights for another grid
+        ([(0.0, 1.0)], [(0,)], np.ones((1, 5)), np.ones((5, 2))),  # samples not per output
+        ([(0.0, 1.0), (1.0, 1.0)], [(0,)], np.ones((1, 1, 5)), np.ones((5, 2))),  # a rule missing
+    ],
+)
+def test_single_input_table_rejects_inconsistent_shapes(
+    gaussians: list[tuple[float, float]],
+    consequents: list[tuple[int, ...]],
+    samples: np.ndarray,
+    weights: np.ndarray,
+) -> None:
+    with pytest.raises(ValueError, match="must"):
+        SingleInputCentroids(gaussians, consequents, samples, weights)
+
+
+@pytest.mark.parametrize("family", [pd_output_variable, fleso_output_variable])
+def test_label_pair_centroids_match_the_dense_centroid(family: object) -> None:
+    variable = family()  # type: ignore[operator]
+    grid = uniform_grid((-1.0, 1.0), 201)
+    samples = np.array([mf.sample(grid) for mf in variable.mfs])
+    tables = LabelPairCentroids(samples, centroid_weights(grid))
+    rng = np.random.default_rng(3)
+    for level in [*rng.uniform(0.0, 1.0, 40), 1.0, 0.5, *samples[1][::10]]:
+        for label in range(len(samples)):
+            expected = centroid(grid, np.minimum(level, samples[label]))
+            assert tables.single(label, level) == pytest.approx(expected, abs=ATOL)
+        for first in range(len(samples)):
+            for second in range(len(samples)):
+                if first == second:
+                    continue
+                other = 1.0 - level
+                aggregate = np.maximum(np.minimum(level, samples[first]), np.minimum(other, samples[second]))
+                value = tables.pair(first, level, second, other)
+                assert value == pytest.approx(centroid(grid, aggregate), abs=ATOL)
+
+
+def test_label_pair_centroids_reject_inconsistent_shapes() -> None:
+    with pytest.raises(ValueError, match="must"):
+        LabelPairCentroids(np.ones((2, 5)), np.ones((4, 2)))
+
+
+def test_incomplete_rule_base_uses_the_general_path() -> None:
+    """A cell without a rule does not fire; outside the rules nothing fires and the fallback is used."""
+    variable = pd_input_variable()
+    rules: dict[tuple[str, ...], tuple[str, ...]] = {("ZE", "ZE"): ("PB",), ("PS", "ZE"): ("NB",)}
+    system = MamdaniSystem((variable, variable), (pd_output_variable(),), rules)
+    batch = MamdaniBatch([system])
+    for inputs in (((0.1, 0.0),), ((0.2, 0.1),), ((-0.5, 0.9),)):
+        assert_allclose(batch.evaluate_flat(inputs), _dense_reference([system], inputs), rtol=0.0, atol=ATOL)
+    assert batch.evaluate_flat(((-0.9, -0.9),)) == [ZERO_AREA_FALLBACK]
+
+
+@settings(max_examples=200, deadline=None)
+@given(x=st.floats(-1.0, 1.0, allow_nan=False))
+def test_lattice_pair_gives_the_two_triangle_memberships(x: float) -> None:
+    variable = pd_input_variable()
+    pair = variable.lattice_pair(x)
+    assert pair is not None
+    k, degree_k, degree_next = pair
+    assert 0 <= k < len(PD_LABELS) - 1
+    memberships = variable.memberships(x)
+    assert_allclose([degree_k, degree_next], memberships[k : k + 2], rtol=0.0, atol=1e-15)
+    others = [m for i, m in enumerate(memberships) if i not in (k, k + 1)]
+    assert max(others, default=0.0) <= 1e-15
+    assert 0.0 <= degree_k <= 1.0 and 0.0 <= degree_next <= 1.0
+    assert [(i, d) for i, d in ((k, degree_k), (k + 1, degree_next)) if d > 0.0] == variable.active(x)
+
+
+@pytest.mark.parametrize("x", [-1.0 - 1e-9, 1.5, math.nan, math.inf])
+def test_lattice_pair_is_none_off_the_lattice(x: float) -> None:
+    assert pd_input_variable().lattice_pair(x) is None
+
+
+def test_lattice_pair_is_none_without_a_uniform_triangular_partition() -> None:
+    assert fleso_input_variable().lattice_pair(0.0) is None
+    uneven = FuzzyVariable(
+        ("A", "B", "C"), [TriangularMF(-1, 0, 0.5), TriangularMF(0, 0.5, 1), TriangularMF(0.5, 1, 2)]
+    )
+    assert uneven.lattice_pair(0.2) is None
+
+
+@settings(max_examples=100, deadline=None)
+@given(e=st.tuples(values, values), e_dot=st.tuples(values, values))
+def test_gain_schedule_uses_the_dense_result(e: tuple[float, float], e_dot: tuple[float, float]) -> None:
+    schedule = FuzzyPDGainSchedule()
+    kp0, kp1, kd0, kd1 = schedule.step_floats(e[0], e[1], e_dot[0], e_dot[1])
+    internals = schedule.internals
+    inputs = [(internals["e_normalised"][j], internals["ce_normalised"][j]) for j in range(2)]
+    fe0, fde0, fe1, fde1 = _dense_reference((pd_gain_system(TABLE_1), pd_gain_system(TABLE_7)), inputs)
+    config = schedule.config
+    expected = (
+        config.kp0[0] + config.k1[0] * fe0,
+        config.kp0[1] + config.k1[1] * fe1,
+        config.kd0[0] + config.k2[0] * fde0,
+        config.kd0[1] + config.k2[1] * fde1,
+    )
+    # The gains are k0 + k f with f in [-1, 1]: rounding is relative to k0.
+    assert_allclose((kp0, kp1, kd0, kd1), expected, rtol=1e-15, atol=0.0)
