@@ -20,19 +20,14 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-import numpy.typing as npt
-
 from smm_controller._validation import (
     FloatArray,
-    as_joint_vector,
-    as_reference,
-    check_dt,
     check_instance,
     check_pair,
     internals_view,
 )
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
+from smm_controller.torque_law import TorqueLaw
 
 __all__ = [
     "FPDConfig",
@@ -43,53 +38,6 @@ __all__ = [
     "PIDController",
     "npd_gain",
 ]
-
-
-class _TorqueController:
-    """Shared array interface of the baselines: validation and conversion around ``step_floats``."""
-
-    def step(
-        self,
-        reference: npt.ArrayLike,
-        q: npt.ArrayLike,
-        q_dot: npt.ArrayLike,
-        disturbance_estimate: npt.ArrayLike,
-        dt: float,
-    ) -> FloatArray:
-        """Joint torque command.
-
-        Args:
-            reference: Rows q_d (rad), q_d' (rad/s), q_d'' (rad/s^2); columns alpha, beta; shape (3, 2).
-            q: Position estimate (rad), shape (2,).
-            q_dot: Velocity estimate (rad/s), shape (2,).
-            disturbance_estimate: Ignored by the baselines (N m), shape (2,).
-            dt: Control period (s), > 0.
-
-        Returns:
-            tau (N m), shape (2,).
-        """
-        check_dt(dt)
-        ref = as_reference(reference).tolist()
-        return np.array(
-            self.step_floats(
-                ref,
-                as_joint_vector("q", q),
-                as_joint_vector("q_dot", q_dot),
-                as_joint_vector("disturbance_estimate", disturbance_estimate),
-                dt,
-            )
-        )
-
-    def step_floats(
-        self,
-        reference: Sequence[Sequence[float]],
-        q: tuple[float, float],
-        q_dot: tuple[float, float],
-        disturbance_estimate: tuple[float, float],
-        dt: float,
-    ) -> tuple[float, float]:
-        """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
-        raise NotImplementedError
 
 
 @dataclass(frozen=True)
@@ -126,7 +74,7 @@ def _clamp(x: float, limit: float) -> float:
     return -limit if x < -limit else (limit if x > limit else x)
 
 
-class PIDController(_TorqueController):
+class PIDController(TorqueLaw):
     """Discrete PID with filtered derivative, integrator clamp and conditional integration.
 
     Args:
@@ -256,7 +204,7 @@ def npd_gain(x: float, coefficient: float, threshold: float, exponent: float) ->
     return coefficient * math.pow(threshold, exponent - 1.0)
 
 
-class NPDController(_TorqueController):
+class NPDController(TorqueLaw):
     """Nonlinear PD (eq. 38-40): tau = K_Np(e) e + K_Nd(e') e'.
 
     Args:
@@ -326,7 +274,7 @@ class FPDConfig:
             raise ValueError(f"fuzzy must be a FuzzyPDConfig, got {self.fuzzy!r}")
 
 
-class FPDController(_TorqueController):
+class FPDController(TorqueLaw):
     """Fuzzy PD (eq. 11-12 without model): tau = k_p e + k_d e'.
 
     Args:

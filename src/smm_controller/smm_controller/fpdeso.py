@@ -17,20 +17,15 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-import numpy.typing as npt
-
 from smm_controller._validation import (
     FloatArray,
-    as_joint_vector,
-    as_reference,
-    check_dt,
     check_instance,
     check_pair,
     internals_view,
 )
 from smm_controller.fuzzy_pd import PAPER_FPDESO_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
 from smm_controller.model import NominalModel
+from smm_controller.torque_law import TorqueLaw
 from smm_dynamics import SMMParameters
 
 __all__ = ["FPDESOConfig", "FPDESOController", "robust_switch"]
@@ -65,7 +60,7 @@ def robust_switch(x: float, phi: float) -> float:
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-class FPDESOController:
+class FPDESOController(TorqueLaw):
     """Fuzzy PD inverse-dynamics decoupling law with disturbance compensation and robust term.
 
     Args:
@@ -102,38 +97,6 @@ class FPDESOController:
             self.model = NominalModel.shared(check_instance("params", params, SMMParameters))
         self.schedule.reconfigure(config.fuzzy)
         self.config = config
-
-    def step(
-        self,
-        reference: npt.ArrayLike,
-        q: npt.ArrayLike,
-        q_dot: npt.ArrayLike,
-        disturbance_estimate: npt.ArrayLike,
-        dt: float,
-    ) -> FloatArray:
-        """Joint torque command.
-
-        Args:
-            reference: Rows q_d (rad), q_d' (rad/s), q_d'' (rad/s^2); columns alpha, beta; shape (3, 2).
-            q: Position estimate (TD x1) (rad), shape (2,).
-            q_dot: Velocity estimate (TD x2) (rad/s), shape (2,).
-            disturbance_estimate: xi~ (N m), shape (2,).
-            dt: Control period (s), > 0 (the law itself is static).
-
-        Returns:
-            tau (N m), shape (2,).
-        """
-        check_dt(dt)
-        ref = as_reference(reference).tolist()
-        return np.array(
-            self.step_floats(
-                ref,
-                as_joint_vector("q", q),
-                as_joint_vector("q_dot", q_dot),
-                as_joint_vector("disturbance_estimate", disturbance_estimate),
-                dt,
-            )
-        )
 
     def step_floats(
         self,
