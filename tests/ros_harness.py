@@ -73,6 +73,26 @@ def topic_names(node: Any) -> set[str]:
     return {name for name, _ in node.get_topic_names_and_types()}
 
 
+def wait_for_topics(context: Any, names: Sequence[str], timeout_s: float) -> set[str]:
+    """Wait until every topic in ``names`` (fully qualified) has a publisher or subscriber in the graph.
+
+    Returns:
+        The topics seen when the wait ended; the caller asserts on them (missing ones time out).
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    node = rclpy.create_node("topic_waiter", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        spin_until(executor, lambda: set(names) <= topic_names(node), timeout_s)
+        return topic_names(node)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+
+
 @dataclass
 class NodeProcess:
     """One started OS process with its log files."""

@@ -75,10 +75,11 @@ def test_two_processes_exchange_joint_state(ros_processes, ros_domain_id: int) -
 
 
 def test_in_process_context_sees_separate_process(ros_processes, ros_context) -> None:
-    from ros_harness import MessageCollector
+    from ros_harness import MessageCollector, wait_for_topics
     from sensor_msgs.msg import JointState
 
     talker = ros_processes.start("talker", [sys.executable, "-c", TALKER])
+    assert "/smoke_joint_states" in wait_for_topics(ros_context, ["/smoke_joint_states"], timeout_s=30)
     collector = MessageCollector(ros_context, "smoke_joint_states", JointState)
     try:
         messages = collector.wait_for(2, timeout_s=30)
