@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import types
 from collections.abc import Mapping, Sequence
-from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -25,6 +24,7 @@ from smm_controller.baselines import FPDController, NPDController, PIDController
 from smm_controller.fleso import FLESO
 from smm_controller.fpdeso import FPDESOController
 from smm_controller.td import TrackingDifferentiator
+from smm_controller.torque_law import TorqueLaw
 from smm_dynamics import SMMParameters
 
 __all__ = ["CONTROLLER_NAMES", "ControlChain", "JointController", "make_chain", "make_controller"]
@@ -33,39 +33,8 @@ __all__ = ["CONTROLLER_NAMES", "ControlChain", "JointController", "make_chain", 
 CONTROLLER_NAMES: tuple[str, ...] = ("fpdeso", "fpd", "pid", "npd")
 
 
-class JointController(Protocol):
-    """The interface shared by FPDESO and the baselines."""
-
-    def step(
-        self,
-        reference: npt.ArrayLike,
-        q: npt.ArrayLike,
-        q_dot: npt.ArrayLike,
-        disturbance_estimate: npt.ArrayLike,
-        dt: float,
-    ) -> FloatArray:
-        """Torque command (N m), shape (2,)."""
-        ...
-
-    def step_floats(
-        self,
-        reference: Sequence[Sequence[float]],
-        q: tuple[float, float],
-        q_dot: tuple[float, float],
-        disturbance_estimate: tuple[float, float],
-        dt: float,
-    ) -> tuple[float, float]:
-        """Same on floats: reference as nested 3x2 lists, joint pairs as tuples."""
-        ...
-
-    def reset(self) -> None:
-        """Restores the initial state."""
-        ...
-
-    @property
-    def internals(self) -> Mapping[str, FloatArray]:
-        """Read-only copies of the internal signals."""
-        ...
+JointController = TorqueLaw
+"""The interface shared by FPDESO and the baselines (see :class:`smm_controller.torque_law.TorqueLaw`)."""
 
 
 class ControlChain:

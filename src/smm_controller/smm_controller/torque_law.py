@@ -1,12 +1,13 @@
-"""The array interface every joint torque law shares (FPDESO and the baselines).
+"""The interface every joint torque law shares (FPDESO and the baselines).
 
-Each law implements ``step_floats`` on plain floats (the 1 kHz hot path); this base class validates and
-converts the array arguments of ``step`` once, so no law repeats that code.
+Each law implements ``step_floats`` on plain floats (the 1 kHz hot path), ``reset`` and ``internals``; this
+base class validates and converts the array arguments of ``step`` once, so no law repeats that code, and is
+the type the chain, the offline loop and the controller node accept.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -58,4 +59,13 @@ class TorqueLaw:
         dt: float,
     ) -> tuple[float, float]:
         """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
+        raise NotImplementedError
+
+    def reset(self) -> None:
+        """Restores the initial state."""
+        raise NotImplementedError
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """Read-only copies of the internal signals, each shape (2,)."""
         raise NotImplementedError
