@@ -6,11 +6,13 @@ namespace (this script re-executes itself under ``unshare --net`` with ``lo`` up
 
 1. Raw rclpy ping-pong between two processes (JointState out, echoed back, 1 kHz, EventsExecutor): the
    round-trip latency floor of this machine and middleware, measured in the same run.
-2. Real time, separate processes (``smm-launch --clock-mode realtime``, case2, 1 kHz for 30 s): deadline-miss
-   rate (ticks at which the answer to the previous measurement had not arrived) and measurement-to-command
-   latency p50/p99 (four hops: sim -> td -> fleso -> controller -> sim). Targets: p99 < 1 ms, misses < 1 %.
-3. Lockstep throughput (case2), separate processes and ``--composed``, in steps per wall second from the
-   first step to the last (start-up excluded). Target: >= 2000 steps/s composed.
+2. Real time, separate processes (``smm-launch --clock-mode realtime``, case2, FPDESO, 1 kHz for 30 s) with
+   the default fused chain (sim -> controller_node -> sim: two hops; the reference is published one period
+   ahead, off the path): deadline-miss rate (ticks at which the answer to the previous measurement had not
+   arrived) and measurement-to-command latency p50/p99. Targets: p99 < 1 ms, misses < 1 %. For comparison
+   the split chain (sim -> td -> fleso -> controller -> sim: four hops) at 1 kHz for a shorter time.
+3. Lockstep throughput (case2), separate processes and ``--composed``, both chain layouts, in steps per wall
+   second from the first step to the last (start-up excluded). Target: >= 2000 steps/s composed (fused).
 
 Exit code 0 whenever the measurements ran, even if a target is MISSED; non-zero only if a run failed.
 """
@@ -213,8 +215,18 @@ def run_graph(
     return result
 
 
+HOPS = {"fused": 2, "split": 4}
+"""Process boundaries a measurement crosses until its command is back at the plant, per chain layout."""
+
+
 def report_realtime(
-    stats: dict[str, Any], period: float, seconds: float, raw: dict[str, float], targets: bool
+    stats: dict[str, Any],
+    period: float,
+    seconds: float,
+    raw: dict[str, float],
+    *,
+    chain: str,
+    targets: bool,
 ) -> None:
     """Print the figures of one real-time run (with the verdicts when ``targets``)."""
     steps = stats["steps"]
@@ -231,12 +243,13 @@ def report_realtime(
         else ""
     )
     print(
-        f"real time, separate processes, {1 / period:.0f} Hz for {seconds:g} s: {steps} steps, "
+        f"real time, separate processes, {chain} chain, {1 / period:.0f} Hz for {seconds:g} s: "
+        f"{steps} steps, "
         f"deadline misses {misses} ({100 * rate:.2f} %{miss_target}), late ticks {stats['late_ticks']}, "
         f"zero-torque ticks {stats['stale_ticks']}"
     )
     print(
-        f"  measurement-to-command latency (4 hops): p50 {latency['p50_us']:.0f} us, "
+        f"  measurement-to-command latency ({HOPS[chain]} hops): p50 {latency['p50_us']:.0f} us, "
         f"p99 {p99:.0f} us{p99_target}, "
         f"max {latency['max_us']:.0f} us; {latency['count']:.0f} of {steps} measurements answered"
     )
@@ -247,10 +260,13 @@ def report_realtime(
 
 
 def td_filter_yaml(period: float) -> str:
-    """Parameter-file section giving the TD a filter factor h >= the control period (its constraint)."""
+    """Parameter-file section giving the TD a filter factor h >= the control period (its constraint).
+
+    A ``/**`` section reaches whichever node runs the TD (controller_node fused, td_node split).
+    """
     if period <= 2e-3:
         return ""
-    return f"/**/td_node:\n  ros__parameters:\n    td:\n      filter_factor: [{period}, {period}]\n"
+    return f"/**:\n  ros__parameters:\n    td:\n      filter_factor: [{period}, {period}]\n"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -286,18 +302,18 @@ def main(argv: list[str] | None = None) -> int:
     )
     with tempfile.TemporaryDirectory(prefix="bench_graph_") as tmp:
         workdir = Path(tmp)
-        # 1 kHz (FPDESO, case2) is the target; 100 Hz shows the latency of a graph that keeps up (PID on
-        # case1: the paper's FPDESO gains are unstable at a 10 ms period, which would end the run early).
+        # 1 kHz (FPDESO, case2, fused chain) is the target; the split chain's four hops for comparison.
         realtime_runs = (
-            (1e-3, arguments.realtime_seconds, "fpdeso", "case2"),
-            (1e-2, min(arguments.realtime_seconds, 10.0), "pid", "case1"),
+            ("fused", arguments.realtime_seconds),
+            ("split", min(arguments.realtime_seconds, 10.0)),
         )
-        for period, seconds, algorithm, scenario in realtime_runs:
-            command = ["--clock-mode", "realtime", "--scenario", scenario, "--algorithm", algorithm]
-            command += ["--duration", str(seconds), "--control-period", str(period)]
+        period = 1e-3
+        for chain, seconds in realtime_runs:
+            command = ["--clock-mode", "realtime", "--scenario", "case2", "--algorithm", "fpdeso"]
+            command += ["--chain", chain, "--duration", str(seconds), "--control-period", str(period)]
             stats = run_graph(
                 workdir,
-                f"realtime_{round(1 / period)}hz",
+                f"realtime_{chain}",
                 command,
                 timeout_s=seconds + 120,
                 # A real plant saturates; without it a loop run on late commands can drive the plant to Inf.
@@ -307,13 +323,19 @@ def main(argv: list[str] | None = None) -> int:
             if stats is None:
                 failures += 1
                 continue
-            print(f"[{algorithm}, {scenario}, torque limit +-{REALTIME_TORQUE_LIMIT:g} N m]")
-            report_realtime(stats, period, seconds, raw, targets=period == 1e-3)
+            print(f"[fpdeso, case2, torque limit +-{REALTIME_TORQUE_LIMIT:g} N m]")
+            report_realtime(stats, period, seconds, raw, chain=chain, targets=chain == "fused")
         rates: dict[str, float] = {}
-        for label, extra in (("separate processes", []), ("composed", ["--composed"])):
+        lockstep_runs = (
+            ("separate processes, fused chain", ["--chain", "fused"]),
+            ("composed, fused chain", ["--chain", "fused", "--composed"]),
+            ("separate processes, split chain", ["--chain", "split"]),
+            ("composed, split chain", ["--chain", "split", "--composed"]),
+        )
+        for label, extra in lockstep_runs:
             stats = run_graph(
                 workdir,
-                "lockstep_" + label.split()[0],
+                "lockstep_" + label.replace(",", "").replace(" ", "_"),
                 [
                     "--clock-mode",
                     "lockstep",
@@ -330,13 +352,21 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             rates[label] = stats["steps_per_wall_second"]
             line = f"lockstep, {label}: {stats['steps']} steps at {rates[label]:.0f} steps/s"
-            if label == "composed":
+            if label == "composed, fused chain":
                 met = rates[label] >= COMPOSED_TARGET_STEPS_PER_S
                 line += f" (target >= {COMPOSED_TARGET_STEPS_PER_S:.0f}: {verdict(met)})"
             line += f", {rates[label] / 1000:.2f}x real time (launch to exit {stats['launch_wall_s']:.1f} s)"
             print(line)
-        if len(rates) == 2:
-            print(f"  composed / separate processes: x{rates['composed'] / rates['separate processes']:.2f}")
+        for chain in ("fused", "split"):
+            composed, separate = (
+                rates.get(f"composed, {chain} chain"),
+                rates.get(f"separate processes, {chain} chain"),
+            )
+            if composed and separate:
+                print(f"  {chain} chain, composed / separate processes: x{composed / separate:.2f}")
+        fused, split = rates.get("composed, fused chain"), rates.get("composed, split chain")
+        if fused and split:
+            print(f"  composed, fused / split chain: x{fused / split:.2f}")
     return 1 if failures else 0
 
 

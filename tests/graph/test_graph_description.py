@@ -19,22 +19,33 @@ from smm_controller import graph
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH_DIR = REPO / "src" / "smm_controller" / "launch"
-EXPECTED_NODES = ["smm_sim_node", "td_node", "fleso_node", "reference_node", "controller_node"]
+FUSED_NODES = ["smm_sim_node", "reference_node", "controller_node"]
+SPLIT_NODES = ["smm_sim_node", "td_node", "fleso_node", "reference_node", "controller_node"]
 
 
-def test_default_graph_has_the_five_nodes_in_namespace_smm() -> None:
+def test_default_graph_is_fused_in_namespace_smm() -> None:
     specs = build_graph(GraphOptions())
-    assert [spec.name for spec in specs] == EXPECTED_NODES
+    assert [spec.name for spec in specs] == FUSED_NODES
     assert {spec.namespace for spec in specs} == {"smm"}
-    assert [spec.package for spec in specs] == ["smm_sim"] + ["smm_controller"] * 4
+    assert [spec.package for spec in specs] == ["smm_sim"] + ["smm_controller"] * 2
     assert specs[0].fully_qualified_name == "/smm/smm_sim_node"
+    assert dict(specs[-1].parameters)["chain"] == "internal"
+
+
+def test_split_graph_has_the_five_nodes_and_an_external_chain() -> None:
+    specs = build_graph(GraphOptions(chain="split"))
+    assert [spec.name for spec in specs] == SPLIT_NODES
+    assert [spec.package for spec in specs] == ["smm_sim"] + ["smm_controller"] * 4
+    assert dict(specs[-1].parameters)["chain"] == "external"
 
 
 def test_options_reach_the_right_nodes() -> None:
-    specs = build_graph(GraphOptions(clock_mode="realtime", algorithm="npd", duration=2.5, seed=11))
+    specs = build_graph(
+        GraphOptions(clock_mode="realtime", chain="split", algorithm="npd", duration=2.5, seed=11)
+    )
     by_name = {spec.name: dict(spec.parameters) for spec in specs}
     assert by_name["smm_sim_node"] == {"clock_mode": "realtime", "duration": 2.5, "seed": 11}
-    assert by_name["controller_node"] == {"algorithm": "npd"}
+    assert by_name["controller_node"] == {"algorithm": "npd", "chain": "external"}
     assert by_name["td_node"] == {}
 
 
@@ -73,6 +84,7 @@ def test_hw_plant_is_refused_clearly() -> None:
     [
         ({"plant": "mars"}, "plant"),
         ({"clock_mode": "slow"}, "clock_mode"),
+        ({"chain": "tangled"}, "chain"),
         ({"algorithm": "lqr"}, "algorithm"),
         ({"scenario": "case9"}, "scenario"),
         ({"duration": -1.0}, "duration"),
@@ -187,6 +199,8 @@ def test_launcher_arguments_map_onto_graph_options() -> None:
         [
             "--clock-mode",
             "realtime",
+            "--chain",
+            "split",
             "--algorithm",
             "pid",
             "--scenario",
@@ -200,7 +214,13 @@ def test_launcher_arguments_map_onto_graph_options() -> None:
         ]
     )
     assert options_from_arguments(arguments) == GraphOptions(
-        clock_mode="realtime", algorithm="pid", scenario=None, duration=3.0, seed=4, control_period=0.002
+        clock_mode="realtime",
+        chain="split",
+        algorithm="pid",
+        scenario=None,
+        duration=3.0,
+        seed=4,
+        control_period=0.002,
     )
 
 
@@ -217,7 +237,7 @@ def test_launcher_reports_bad_values_and_exits_2(capsys: pytest.CaptureFixture[s
 def test_dry_run_prints_the_command_lines(capsys: pytest.CaptureFixture[str]) -> None:
     assert run(["--dry-run", "--seed", "3"]) == EXIT_OK
     lines = capsys.readouterr().out.splitlines()
-    assert [line.split()[0] for line in lines] == EXPECTED_NODES
+    assert [line.split()[0] for line in lines] == FUSED_NODES
     assert "seed:=3" in lines[0]
 
 
@@ -296,6 +316,7 @@ def _launched_nodes(monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str]) 
         (
             {
                 "clock_mode": "realtime",
+                "chain": "split",
                 "algorithm": "fpd",
                 "scenario": "case1",
                 "duration": "2",
@@ -304,6 +325,7 @@ def _launched_nodes(monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str]) 
             },
             GraphOptions(
                 clock_mode="realtime",
+                chain="split",
                 algorithm="fpd",
                 scenario="case1",
                 duration=2.0,

@@ -86,10 +86,13 @@ class Rig:
 
 
 def measurement(
-    stamp_ns: int, position: Sequence[float] = (0.1, -0.2), effort: Sequence[float] = (0.5, -0.25)
+    stamp_ns: int,
+    position: Sequence[float] = (0.1, -0.2),
+    effort: Sequence[float] | None = (0.5, -0.25),
 ) -> Any:
-    """A raw joint_states message (position rad, effort N m) stamped ``stamp_ns``."""
-    return sample_to_joint_state(JointSample(stamp_ns, np.array(position), None, np.array(effort)))
+    """A raw joint_states message (position rad, effort N m or None for none) stamped ``stamp_ns``."""
+    applied = None if effort is None else np.array(effort)
+    return sample_to_joint_state(JointSample(stamp_ns, np.array(position), None, applied))
 
 
 def filtered(

@@ -19,7 +19,7 @@ from smm_controller.fleso import FLESOConfig
 from smm_controller.fleso_node import FlesoNode
 from smm_controller.fpdeso import FPDESOConfig
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, PAPER_FPDESO_FUZZY
-from smm_controller.graph import package_file
+from smm_controller.graph import load_parameter_file, package_file
 from smm_msgs_py.parameters import config_fields, config_from_parameters, config_to_parameters
 
 PAPER = {
@@ -39,14 +39,14 @@ def flatten(prefix: str, values: dict[str, Any]) -> dict[str, Any]:
     return flat
 
 
-def section(algorithm: str, node: str) -> dict[str, Any]:
+def section(algorithm: str, key: str) -> dict[str, Any]:
     content = yaml.safe_load(package_file("smm_controller", f"config/{algorithm}.yaml").read_text())
-    return flatten("", content[f"/**/{node}"]["ros__parameters"])
+    return flatten("", content[key]["ros__parameters"])
 
 
 @pytest.mark.parametrize("algorithm", sorted(PAPER))
 def test_file_sets_every_gain_of_its_law_to_the_paper_value(algorithm: str) -> None:
-    values = section(algorithm, "controller_node")
+    values = section(algorithm, "/**/controller_node")
     assert values["algorithm"] == algorithm
     config_cls = type(PAPER[algorithm])
     expected_names = {f"{algorithm}.{f.name}" for f in config_fields(config_cls)}
@@ -61,10 +61,18 @@ def test_file_sets_every_gain_of_its_law_to_the_paper_value(algorithm: str) -> N
 
 
 def test_fpdeso_file_sets_every_fleso_gain_to_the_paper_value() -> None:
-    values = section("fpdeso", "fleso_node")
+    values = section("fpdeso", "/**")
     expected = config_to_parameters(PAPER_FLESO, prefix="fleso")
     assert json.dumps(values, sort_keys=True) == json.dumps(expected, sort_keys=True)
     assert config_from_parameters(FLESOConfig, FLESOConfig(), values, prefix="fleso") == PAPER_FLESO
+
+
+@pytest.mark.parametrize("node", ["fleso_node", "controller_node"])
+def test_fpdeso_file_gives_the_fleso_gains_to_whichever_node_runs_the_fleso(node: str) -> None:
+    path = package_file("smm_controller", "config/fpdeso.yaml")
+    values = load_parameter_file(path, f"/smm/{node}")
+    fleso = {name: value for name, value in values.items() if name.startswith("fleso.")}
+    assert fleso == config_to_parameters(PAPER_FLESO, prefix="fleso")
 
 
 @pytest.mark.ros
@@ -79,6 +87,17 @@ def test_rcl_loads_each_file_into_the_node_configs(ros_context: Any, algorithm: 
         assert node.law_parameters[algorithm].config == PAPER[algorithm]
     finally:
         node.destroy_node()
+    fused = ControllerNode(
+        context=ros_context,
+        namespace="smm",
+        cli_args=["--ros-args", "--params-file", path, "-p", "chain:=internal"],
+    )
+    try:
+        assert fused.algorithm == algorithm
+        assert fused.law_parameters[algorithm].config == PAPER[algorithm]
+        assert fused.fleso_parameters.config == PAPER_FLESO
+    finally:
+        fused.destroy_node()
     if algorithm == "fpdeso":
         fleso = FlesoNode(
             context=ros_context, namespace="smm", cli_args=["--ros-args", "--params-file", path]

@@ -1,4 +1,8 @@
-"""The four controller nodes, run in-process against smm_sim.plant, give the torques of ControlChain.
+"""The controller nodes, run in-process against smm_sim.plant, give the torques of ControlChain.
+
+Both layouts: the split chain (td_node, fleso_node, reference_node, controller_node with ``chain:
+external``) and the fused one (reference_node, controller_node with ``chain: internal``), with and without
+the plant reporting the applied torque.
 
 The test plays the simulator: it publishes each measurement of the plant on joint_states, waits for the
 torque command stamped with it, checks that command against ``ControlChain.step`` fed the same inputs, and
@@ -29,17 +33,36 @@ pytestmark = pytest.mark.ros
 DT = 1e-3
 
 
-@pytest.mark.parametrize(("algorithm", "steps"), [("fpdeso", 300), ("pid", 150)])
+LAYOUTS = {
+    # layout: (controller_node's chain parameter, whether the plant reports the applied torque)
+    "split": ("external", True),
+    "fused": ("internal", True),
+    "fused-without-effort": ("internal", False),
+}
+
+
+@pytest.mark.parametrize(
+    ("algorithm", "steps", "layout"),
+    [
+        ("fpdeso", 300, "split"),
+        ("pid", 150, "split"),
+        ("fpdeso", 300, "fused"),
+        ("npd", 150, "fused"),
+        ("fpdeso", 200, "fused-without-effort"),
+    ],
+)
 def test_node_graph_reproduces_the_offline_chain(
-    make_rig: Any, ros_context: Any, algorithm: str, steps: int
+    make_rig: Any, ros_context: Any, algorithm: str, steps: int, layout: str
 ) -> None:
-    nodes = [
-        TdNode(context=ros_context),
+    chain, with_effort = LAYOUTS[layout]
+    nodes: list[Any] = [
         ReferenceNode(context=ros_context, parameter_overrides={"kind": "sine"}),
-        ControllerNode(context=ros_context, parameter_overrides={"algorithm": algorithm}),
+        ControllerNode(context=ros_context, parameter_overrides={"algorithm": algorithm, "chain": chain}),
     ]
-    if algorithm == "fpdeso":
-        nodes.append(FlesoNode(context=ros_context))
+    if chain == "external":
+        nodes.append(TdNode(context=ros_context))
+        if algorithm == "fpdeso":
+            nodes.append(FlesoNode(context=ros_context))
     rig = make_rig(*nodes)
     torques = rig.record(topics.TORQUE_COMMAND)
     chain = make_chain(algorithm, SMMParameters())
@@ -49,7 +72,8 @@ def test_node_graph_reproduces_the_offline_chain(
     chain_torques = []
     for k in range(steps):
         sample = plant.measure()
-        rig.publish(topics.JOINT_STATES, measurement(sample.stamp_ns, sample.position, sample.applied_torque))
+        effort = sample.applied_torque if with_effort else None
+        rig.publish(topics.JOINT_STATES, measurement(sample.stamp_ns, sample.position, effort))
         rig.wait_for(topics.TORQUE_COMMAND, k + 1)
         command = msg_to_torque(torques[k])
         assert command.stamp_ns == sample.stamp_ns

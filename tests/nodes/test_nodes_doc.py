@@ -25,11 +25,30 @@ def documented_parameters(node_name: str) -> set[str]:
     return set(re.findall(r"^\| `([^`]+)` \|", match.group(1), flags=re.MULTILINE))
 
 
+INTERNAL_ONLY = re.compile(r"^(td|fleso)\.")
+"""Parameters controller_node declares only with ``chain: internal``."""
+
+
 @pytest.mark.parametrize("node_class", [ReferenceNode, TdNode, FlesoNode, ControllerNode])
 def test_every_declared_parameter_is_documented_and_nothing_else(ros_context: Any, node_class: Any) -> None:
     node = node_class(context=ros_context)
     try:
         declared = set(node.list_parameters([], 0).names) - ROS_OWN
+        documented = documented_parameters(node.get_name())
+        if node_class is ControllerNode:
+            documented = {name for name in documented if not INTERNAL_ONLY.match(name)}
+        assert documented == declared
+    finally:
+        node.destroy_node()
+
+
+def test_controller_node_with_the_internal_chain_declares_the_documented_td_and_fleso_parameters(
+    ros_context: Any,
+) -> None:
+    node = ControllerNode(context=ros_context, parameter_overrides={"chain": "internal"})
+    try:
+        declared = set(node.list_parameters([], 0).names) - ROS_OWN
         assert documented_parameters(node.get_name()) == declared
+        assert {name for name in declared if INTERNAL_ONLY.match(name)}  # td.* and fleso.* are there
     finally:
         node.destroy_node()

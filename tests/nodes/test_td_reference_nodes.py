@@ -123,7 +123,16 @@ def test_td_stale_stamp_is_dropped_and_counted(make_rig: Any, ros_context: Any) 
     assert counter(internals[-1], "dropped_stale") == 1
 
 
-@pytest.mark.parametrize("make_node", [TdNode, ReferenceNode], ids=["td_node", "reference_node"])
+def reference_node_without_lookahead(context: Any, **overrides: Any) -> ReferenceNode:
+    """A reference node that answers each measurement with the reference of that measurement's stamp."""
+    return ReferenceNode(context=context, parameter_overrides={"lookahead": 0, **overrides})
+
+
+@pytest.mark.parametrize(
+    "make_node",
+    [TdNode, reference_node_without_lookahead],
+    ids=["td_node", "reference_node"],
+)
 def test_bad_measurements_are_dropped_and_only_the_good_one_is_answered(
     make_rig: Any, ros_context: Any, make_node: Any
 ) -> None:
@@ -201,7 +210,7 @@ def test_td_gain_change_acts_on_the_next_step_and_keeps_the_state(make_rig: Any,
 
 
 def test_reference_is_sampled_at_the_time_since_the_first_stamp(make_rig: Any, ros_context: Any) -> None:
-    rig = make_rig(ReferenceNode(context=ros_context))
+    rig = make_rig(reference_node_without_lookahead(ros_context))
     out = rig.record(topics.REFERENCE)
     first = 10**15 + 123  # any epoch: t counts from the first measurement
     stamps = [first, first + MS, first + 250 * MS, first + 1_700 * MS]
@@ -218,9 +227,7 @@ def test_reference_is_sampled_at_the_time_since_the_first_stamp(make_rig: Any, r
 def test_reference_kind_and_generator_parameters_act_on_the_next_measurement(
     make_rig: Any, ros_context: Any
 ) -> None:
-    node = ReferenceNode(
-        context=ros_context, parameter_overrides={"kind": "step", "step.amplitude": [0.5, 0.25]}
-    )
+    node = reference_node_without_lookahead(ros_context, **{"kind": "step", "step.amplitude": [0.5, 0.25]})
     rig = make_rig(node)
     out = rig.record(topics.REFERENCE)
     rig.publish(topics.JOINT_STATES, measurement(0))
@@ -238,6 +245,43 @@ def test_reference_kind_and_generator_parameters_act_on_the_next_measurement(
     rig.wait_for(topics.REFERENCE, 2)
     expected = RampHoldReference(target=(0.4, -0.4), ramp_time=0.5).evaluate(0.1)
     np.testing.assert_array_equal(msg_to_reference(out[1]).values, expected)
+
+
+@pytest.mark.parametrize(("lookahead", "period_ms"), [(1, 1), (2, 1), (1, 5)])
+def test_reference_is_published_lookahead_periods_ahead(
+    make_rig: Any, ros_context: Any, lookahead: int, period_ms: int
+) -> None:
+    node = ReferenceNode(
+        context=ros_context,
+        parameter_overrides={"lookahead": lookahead, "control_period": period_ms / 1e3},
+    )
+    rig = make_rig(node)
+    out = rig.record(topics.REFERENCE)
+    period = period_ms * MS
+    first = 10**12 + 7
+    rig.publish(topics.JOINT_STATES, measurement(first))
+    # The first measurement: every stamp from the first to `lookahead` periods ahead.
+    rig.wait_for(topics.REFERENCE, lookahead + 1)
+    rig.publish(topics.JOINT_STATES, measurement(first))  # re-transmission: the same answer again
+    rig.wait_for(topics.REFERENCE, 2 * (lookahead + 1))
+    rig.publish(topics.JOINT_STATES, measurement(first + period))
+    rig.wait_for(topics.REFERENCE, 2 * (lookahead + 1) + 1)
+    rig.settle()
+    first_answer = [first + j * period for j in range(lookahead + 1)]
+    expected_stamps = [*first_answer, *first_answer, first + (lookahead + 1) * period]
+    parsed = [msg_to_reference(msg) for msg in out]
+    assert [reference.stamp_ns for reference in parsed] == expected_stamps
+    generator = SineReference()
+    for reference in parsed:
+        np.testing.assert_array_equal(
+            reference.values, generator.evaluate((reference.stamp_ns - first) / 1e9)
+        )
+    assert node.counters.duplicates_answered == 1
+
+
+def test_reference_node_refuses_a_negative_lookahead(ros_context: Any) -> None:
+    with pytest.raises(ValueError, match="lookahead must be an int >= 0"):
+        ReferenceNode(context=ros_context, parameter_overrides={"lookahead": -1})
 
 
 @pytest.mark.parametrize(

@@ -5,6 +5,7 @@ so the two cannot drift apart. Arguments:
 
 * ``plant:=sim|hw`` (hw: smm_hw_bridge, refused until that node exists),
 * ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``, ``scenario:=step|case1|case2|none``,
+* ``chain:=fused|split`` (fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too),
 * ``duration:=<s>`` (empty: the scenario's in lockstep, endless in realtime),
 * ``seed:=<int>`` (empty: as configured),
 * ``params_file:=<path>`` (empty: none), applied after the scenario's file,
@@ -22,6 +23,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from smm_controller.graph import (
     ALGORITHMS,
+    CHAIN_LAYOUTS,
     CLOCK_MODES,
     PLANTS,
     SCENARIO_NAMES,
@@ -33,6 +35,7 @@ from smm_controller.graph import (
 ARGUMENTS = (
     ("plant", "sim", f"plant node: {' | '.join(PLANTS)}"),
     ("clock_mode", "lockstep", f"simulator clock: {' | '.join(CLOCK_MODES)}"),
+    ("chain", "fused", f"chain layout: {' | '.join(CHAIN_LAYOUTS)}"),
     ("algorithm", "fpdeso", f"controller: {' | '.join(ALGORITHMS)}"),
     ("scenario", "case2", f"scenario: {' | '.join(SCENARIO_NAMES)} | none"),
     ("duration", "", "simulated seconds until the simulator stops (empty: scenario / endless; 0: endless)"),
@@ -48,6 +51,7 @@ def options_from_launch_arguments(values: dict[str, str]) -> GraphOptions:
     return GraphOptions(
         plant=values["plant"],  # type: ignore[arg-type]
         clock_mode=values["clock_mode"],  # type: ignore[arg-type]
+        chain=values["chain"],  # type: ignore[arg-type]
         algorithm=values["algorithm"],
         scenario=None if scenario == "none" else scenario,
         duration=float(values["duration"]) if values["duration"] else None,

@@ -14,7 +14,17 @@ integrator and derivative filter). A change of ``algorithm`` is refused while th
 input within the last ``switch_idle_time`` s of wall-clock time): none of the laws can be started so that
 its first torque equals the last one (FPDESO, FPD and NPD are memoryless, so their torque is fixed by the
 inputs; the PID's integrator is not settable), so a switch under load would be a torque step. When idle,
-the switch is accepted and the new law, with fresh state, runs from the next stamp. See ``docs/NODES.md``.
+the switch is accepted and the new law, with fresh state, runs from the next stamp.
+
+Parameter ``chain`` (read-only): ``external`` (default above: the TD and the FLESO run in ``td_node`` and
+``fleso_node``) or ``internal``: the node runs the whole chain of ``smm_controller.chain.ControlChain``
+itself (TD -> FLESO for FPDESO -> law, the offline loop's code), matching by stamp ``joint_states``
+(position rad; effort = applied torque N m, or, where the plant reports none, the command this node sent for
+the previous stamp) and ``reference``. Then the TD and FLESO gains are parameters of this node too
+(``td.<field>``, ``fleso.<field>``, validated and applied live like the law's), ``controller_internals``
+carries the chain's internals (rows ``td.*``, ``fleso.*``, ``controller.*``, ``disturbance_estimate``), and
+the measurement-to-command path has two hops instead of four, which is what a 1 kHz loop of Python
+processes needs. See ``docs/NODES.md``.
 """
 
 from __future__ import annotations
@@ -58,16 +68,22 @@ from smm_controller.baselines import (
     PIDConfig,
     PIDController,
 )
-from smm_controller.chain import CONTROLLER_NAMES, JointController
+from smm_controller.chain import CONTROLLER_NAMES, ControlChain, JointController
+from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
 from smm_controller.sync import ExactTimeSynchronizer, Matched
+from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
 
 __all__ = [
+    "CHAIN_MODES",
     "DEFAULT_SWITCH_IDLE_TIME",
+    "FLESO_PREFIX",
     "MODEL_PREFIX",
     "NODE_NAME",
+    "TD_PREFIX",
+    "ChainPlacement",
     "ControllerNode",
     "ControllerSelection",
     "main",
@@ -78,6 +94,12 @@ MODEL_PREFIX: Final[str] = "model"
 """Parameters of the nominal model :class:`smm_dynamics.SMMParameters` are ``model.<field>``."""
 DEFAULT_SWITCH_IDLE_TIME: Final[float] = 0.5
 """Default quiet time before ``algorithm`` may change (s)."""
+CHAIN_MODES: Final[tuple[str, ...]] = ("external", "internal")
+"""Values of the ``chain`` parameter."""
+TD_PREFIX: Final[str] = "td"
+"""With ``chain = internal``: parameters of the TD are ``td.<field>`` (as on ``td_node``)."""
+FLESO_PREFIX: Final[str] = "fleso"
+"""With ``chain = internal``: parameters of the FLESO are ``fleso.<field>`` (as on ``fleso_node``)."""
 
 FloatArray = npt.NDArray[np.float64]
 ConfigT = TypeVar("ConfigT")
@@ -105,6 +127,22 @@ class ControllerSelection:
             raise ValueError(
                 f"switch_idle_time must be a finite number >= 0 s, got {self.switch_idle_time!r}"
             )
+
+
+@dataclass(frozen=True)
+class ChainPlacement:
+    """Where the TD and the FLESO run (declared read-only: the node's inputs depend on it).
+
+    Attributes:
+        chain: ``"external"``: in ``td_node`` and ``fleso_node``; this node reads ``joint_states_filtered``
+            and ``disturbance_estimate``. ``"internal"``: in this node, on ``joint_states``.
+    """
+
+    chain: str = "external"
+
+    def __post_init__(self) -> None:
+        if self.chain not in CHAIN_MODES:
+            raise ValueError(f"chain must be one of {CHAIN_MODES}, got {self.chain!r}")
 
 
 @dataclass(frozen=True)
@@ -167,6 +205,7 @@ class ControllerNode(MeasurementDrivenNode):
         )
         self._last_input_time: float | None = None
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
+        self.placement = ConfigParameters(self, "", ChainPlacement(), read_only=True)
         self.selection = ConfigParameters(
             self, "", ControllerSelection(), check=self._check_selection, on_change=self._on_selection
         )
@@ -174,10 +213,21 @@ class ControllerNode(MeasurementDrivenNode):
             name: ConfigParameters(self, name, law.default, on_change=self._on_gains(name))
             for name, law in _LAWS.items()
         }
-        # Only FPDESO uses the nominal model.
+        # FPDESO (and, in the internal chain, the FLESO) use the nominal model.
         self.model_parameters = ConfigParameters(
-            self, MODEL_PREFIX, SMMParameters(), on_change=self._on_gains("fpdeso")
+            self, MODEL_PREFIX, SMMParameters(), on_change=self._on_model
         )
+        self.internal_chain = self.placement.config.chain == "internal"
+        self.chain: ControlChain | None = None
+        """The TD -> FLESO -> law chain this node runs with ``chain = internal`` (None otherwise)."""
+        if self.internal_chain:
+            self.td_parameters = ConfigParameters(
+                self, TD_PREFIX, TrackingDifferentiatorConfig(), on_change=self._on_td
+            )
+            self.fleso_parameters = ConfigParameters(
+                self, FLESO_PREFIX, FLESOConfig(), on_change=self._on_fleso
+            )
+        self._last_command: FloatArray = np.zeros(2)
         self._algorithm = self.selection.config.algorithm
         self.controller = self._build(self._algorithm)
         self.sync: ExactTimeSynchronizer[Any] = ExactTimeSynchronizer(self._inputs(self._algorithm))
@@ -188,13 +238,18 @@ class ControllerNode(MeasurementDrivenNode):
             Float64MultiArray, topics.CONTROLLER_INTERNALS, qos_for_topic(topics.CONTROLLER_INTERNALS)
         )
         self.create_subscription(
+            Float64MultiArray, topics.REFERENCE, self._on_reference, qos_for_topic(topics.REFERENCE)
+        )
+        if self.internal_chain:
+            self.create_subscription(
+                JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
+            )
+            return
+        self.create_subscription(
             JointState,
             topics.JOINT_STATES_FILTERED,
             self._on_filtered,
             qos_for_topic(topics.JOINT_STATES_FILTERED),
-        )
-        self.create_subscription(
-            Float64MultiArray, topics.REFERENCE, self._on_reference, qos_for_topic(topics.REFERENCE)
         )
         self.create_subscription(
             Float64MultiArray,
@@ -216,13 +271,23 @@ class ControllerNode(MeasurementDrivenNode):
     # ------------------------------------------------------------------------------ laws and switching
 
     def _build(self, name: str) -> JointController:
+        """Build law ``name`` with its current gains; with the internal chain, a fresh chain around it."""
         built: JointController = _LAWS[name].build(
             self.law_parameters[name].config, self.model_parameters.config
         )
+        if self.internal_chain:
+            fleso = (
+                FLESO(self.fleso_parameters.config, self.model_parameters.config)
+                if _LAWS[name].uses_disturbance_estimate
+                else None
+            )
+            self.chain = ControlChain(TrackingDifferentiator(self.td_parameters.config), fleso, built)
+            self._last_command = np.zeros(2)
         return built
 
-    @staticmethod
-    def _inputs(name: str) -> tuple[str, ...]:
+    def _inputs(self, name: str) -> tuple[str, ...]:
+        if self.internal_chain:
+            return (topics.JOINT_STATES, topics.REFERENCE)
         required = (topics.JOINT_STATES_FILTERED, topics.REFERENCE)
         return (*required, topics.DISTURBANCE_ESTIMATE) if _LAWS[name].uses_disturbance_estimate else required
 
@@ -254,7 +319,22 @@ class ControllerNode(MeasurementDrivenNode):
 
         return reconfigure_if_running
 
+    def _on_model(self, _model: SMMParameters) -> None:
+        self._on_gains("fpdeso")(_model)
+        self._on_fleso(None)
+
+    def _on_td(self, config: TrackingDifferentiatorConfig) -> None:
+        if self.chain is not None:
+            self.chain.td.reconfigure(config)
+
+    def _on_fleso(self, _config: FLESOConfig | None) -> None:
+        if self.chain is not None and self.chain.fleso is not None:
+            self.chain.fleso.reconfigure(self.fleso_parameters.config, params=self.model_parameters.config)
+
     # --------------------------------------------------------------------------------------- inputs
+
+    def _on_measurement(self, msg: JointState) -> None:
+        self._on_input(topics.JOINT_STATES, msg, joint_state_to_sample)
 
     def _on_filtered(self, msg: JointState) -> None:
         self._on_input(
@@ -290,15 +370,23 @@ class ControllerNode(MeasurementDrivenNode):
     # ----------------------------------------------------------------------------------------- step
 
     def _step(self, matched: Matched[Any]) -> list[Output]:
-        filtered = matched.items[topics.JOINT_STATES_FILTERED]
         reference = matched.items[topics.REFERENCE].values
+        if self.chain is not None:
+            measurement = matched.items[topics.JOINT_STATES]
+            applied = measurement.effort if measurement.effort is not None else self._last_command
+            tau = self.chain.step(measurement.position, applied, reference, self.control_period)
+            command = torque_to_msg(tau, matched.stamp_ns)  # raises for a non-finite torque: not sent
+            self._last_command = tau
+            return [(self._torque_publisher, command)]
+        filtered = matched.items[topics.JOINT_STATES_FILTERED]
         estimate = matched.items.get(topics.DISTURBANCE_ESTIMATE)
         xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
         tau = self.controller.step(reference, filtered.position, filtered.velocity, xi, self.control_period)
         return [(self._torque_publisher, torque_to_msg(tau, matched.stamp_ns))]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
-        rows = {**self.controller.internals, **self.counter_rows()}
+        internals = self.chain.internals if self.chain is not None else self.controller.internals
+        rows = {**internals, **self.counter_rows()}
         return [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
 
 

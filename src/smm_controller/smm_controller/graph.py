@@ -1,11 +1,12 @@
 """The one description of the SMM node graph, used by ``smm-launch`` and by the ROS launch files.
 
-:func:`build_graph` turns :class:`GraphOptions` (plant, clock mode, algorithm, scenario, duration, seed,
-extra parameter files) into an ordered tuple of :class:`NodeSpec`: package, executable, node name,
-namespace, parameter files, parameter overrides and remappings of each node. ``smm-launch`` starts each
-spec as its own OS process (:meth:`NodeSpec.command_line`) or, with ``--composed``, instantiates the node
-classes in one process (:attr:`NodeSpec.node_class`, :func:`parameter_overrides`); the launch files map
-the same specs onto ``launch_ros.actions.Node``. So the two ways to start the graph cannot drift apart.
+:func:`build_graph` turns :class:`GraphOptions` (plant, clock mode, chain layout, algorithm, scenario,
+duration, seed, extra parameter files) into an ordered tuple of :class:`NodeSpec`: package, executable,
+node name, namespace, parameter files, parameter overrides and remappings of each node. ``smm-launch``
+starts each spec as its own OS process (:meth:`NodeSpec.command_line`) or, with ``--composed``,
+instantiates the node classes in one process (:attr:`NodeSpec.node_class`, :func:`parameter_overrides`);
+the launch files map the same specs onto ``launch_ros.actions.Node``. So the two ways to start the graph
+cannot drift apart.
 
 Parameter precedence, lowest first (later layers win, as in ``ros2 launch``): the node's own defaults,
 the scenario file ``smm_sim/config/scenario_<name>.yaml``, the user's extra ``--params-file`` files in
@@ -35,6 +36,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_share_
 
 __all__ = [
     "ALGORITHMS",
+    "CHAIN_LAYOUTS",
     "CLOCK_MODES",
     "CONTROLLER_NODE",
     "FLESO_NODE",
@@ -69,6 +71,9 @@ NAMESPACE: Final[str] = "smm"
 
 PLANTS: Final[tuple[str, ...]] = ("sim", "hw")
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
+CHAIN_LAYOUTS: Final[tuple[str, ...]] = ("fused", "split")
+"""``fused``: TD, FLESO and law in ``controller_node`` (``chain: internal``), two hops per step; ``split``:
+``td_node`` and ``fleso_node`` as their own nodes (``chain: external``), four hops per step."""
 ALGORITHMS: Final[tuple[str, ...]] = ("fpdeso", "fpd", "pid", "npd")
 SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2")
 
@@ -111,6 +116,10 @@ class GraphOptions:
         plant: ``"sim"`` (smm_sim_node) or ``"hw"`` (smm_hw_bridge, not available yet).
         clock_mode: ``"lockstep"`` (deterministic, as fast as the graph allows, /clock published by the
             simulator) or ``"realtime"`` (wall-clock timer at the control period).
+        chain: ``"fused"`` (default): ``controller_node`` runs TD -> FLESO -> law itself, so a step crosses
+            two process boundaries (plant -> controller -> plant), the layout that keeps up with 1 kHz;
+            ``"split"``: ``td_node`` and ``fleso_node`` run as their own nodes (four crossings per step), to
+            inspect or replace a stage on the wire. Both give the same torques.
         algorithm: Controller algorithm, one of :data:`ALGORITHMS`.
         scenario: Scenario name (:data:`SCENARIO_NAMES`), or ``None`` for the nodes' own defaults.
         duration: Simulated time after which the simulator stops (s), > 0; ``None`` keeps the scenario's
@@ -123,6 +132,7 @@ class GraphOptions:
 
     plant: Literal["sim", "hw"] = "sim"
     clock_mode: Literal["lockstep", "realtime"] = "lockstep"
+    chain: Literal["fused", "split"] = "fused"
     algorithm: str = "fpdeso"
     scenario: str | None = "case2"
     duration: float | None = None
@@ -135,6 +145,8 @@ class GraphOptions:
             raise ValueError(f"plant must be one of {PLANTS}, got {self.plant!r}")
         if self.clock_mode not in CLOCK_MODES:
             raise ValueError(f"clock_mode must be one of {CLOCK_MODES}, got {self.clock_mode!r}")
+        if self.chain not in CHAIN_LAYOUTS:
+            raise ValueError(f"chain must be one of {CHAIN_LAYOUTS}, got {self.chain!r}")
         if self.algorithm not in ALGORITHMS:
             raise ValueError(f"algorithm must be one of {ALGORITHMS}, got {self.algorithm!r}")
         if self.scenario is not None and self.scenario not in SCENARIO_NAMES:
@@ -345,10 +357,14 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
         parameters=_sim_parameters(options),
     )
     controller_side = []
+    fused = options.chain == "fused"
     for name, class_name in _CONTROLLER_NODES:
+        if fused and name in (TD_NODE, FLESO_NODE):
+            continue  # their algorithms run inside controller_node
         parameters = _period_parameters(options)
         if name == CONTROLLER_NODE:
-            parameters = (("algorithm", options.algorithm), *parameters)
+            chain = "internal" if fused else "external"
+            parameters = (("algorithm", options.algorithm), ("chain", chain), *parameters)
         controller_side.append(
             NodeSpec(
                 package="smm_controller",

@@ -47,6 +47,7 @@ from smm_msgs_py.node_support import as_parameter_list, ensure_localhost_discove
 
 from smm_controller.graph import (
     ALGORITHMS,
+    CHAIN_LAYOUTS,
     CLOCK_MODES,
     NAMESPACE,
     PLANT_NODE_NAMES,
@@ -364,6 +365,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--plant", choices=PLANTS, default="sim", help="plant node (hw: smm_hw_bridge)")
     parser.add_argument("--clock-mode", choices=CLOCK_MODES, default="lockstep", help="simulator clock mode")
+    parser.add_argument(
+        "--chain",
+        choices=CHAIN_LAYOUTS,
+        default="fused",
+        help="fused: TD, FLESO and law in controller_node (2 hops per step); "
+        "split: td_node and fleso_node as their own nodes (4 hops per step)",
+    )
     parser.add_argument("--algorithm", choices=ALGORITHMS, default="fpdeso", help="controller algorithm")
     parser.add_argument(
         "--scenario",
@@ -414,6 +422,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
     return GraphOptions(
         plant=arguments.plant,
         clock_mode=arguments.clock_mode,
+        chain=arguments.chain,
         algorithm=arguments.algorithm,
         scenario=None if arguments.scenario == "none" else arguments.scenario,
         duration=arguments.duration,

@@ -1,11 +1,16 @@
 """``reference_node``: the reference trajectory (:mod:`smm_controller.reference`) sampled at each measurement.
 
-Subscribes ``joint_states`` (only its stamp is used, but the message must be valid); for each new stamp
-publishes ``reference`` (3x2: position rad, velocity rad/s, acceleration rad/s^2; columns alpha, beta)
-evaluated at t = (stamp - first stamp) / 1e9 s, and ``~/internals`` (row ``time`` = t in both columns, and
-the node counters). The generator is a pure function of t, so a parameter change takes effect exactly at
-the next measurement. Parameters: ``kind`` selects the generator; every generator's fields are parameters
-``<kind>.<field>`` (e.g. ``sine.amplitude``). See ``docs/NODES.md``.
+Subscribes ``joint_states`` (only its stamp is used, but the message must be valid); for each new stamp s
+publishes ``reference`` (3x2: position rad, velocity rad/s, acceleration rad/s^2; columns alpha, beta) for the
+stamp s + ``lookahead`` control periods, evaluated at t = (that stamp - first stamp) / 1e9 s; on the first
+measurement it also publishes the references of the stamps before that one, from the first stamp on. So
+with ``lookahead`` >= 1 the reference of a step is already at the controller when the step's measurement
+arrives: the reference node is off the measurement-to-command path (a reference is a known function of
+time, so nothing is lost by computing it one period early). ``~/internals`` carries row ``time`` = t of the
+newest reference in both columns, and the node counters. The generator is a pure function of t; a parameter
+change applies to the references published after it. Parameters: ``kind`` selects the generator; every
+generator's fields are parameters ``<kind>.<field>`` (e.g. ``sine.amplitude``); ``lookahead`` (read-only)
+and ``control_period`` (read-only, s; the plant's period, which spaces the stamps). See ``docs/NODES.md``.
 """
 
 from __future__ import annotations
@@ -24,7 +29,13 @@ from smm_msgs_py.conversions import (
     reference_to_msg,
 )
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.node_support import MeasurementDrivenNode, Output, ParameterOverrides, node_main
+from smm_msgs_py.node_support import (
+    ControlPeriodConfig,
+    MeasurementDrivenNode,
+    Output,
+    ParameterOverrides,
+    node_main,
+)
 from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
 from std_msgs.msg import Float64MultiArray
@@ -32,11 +43,21 @@ from std_msgs.msg import Float64MultiArray
 from smm_controller.reference import REFERENCE_KINDS, RampHoldReference, SineReference, StepReference
 from smm_msgs_py import topics
 
-__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "ReferenceNode", "ReferenceSelection", "main"]
+__all__ = [
+    "DEFAULT_LOOKAHEAD",
+    "INTERNALS_TOPIC",
+    "NODE_NAME",
+    "ReferenceLookahead",
+    "ReferenceNode",
+    "ReferenceSelection",
+    "main",
+]
 
 NODE_NAME = "reference_node"
 INTERNALS_TOPIC = "~/internals"
 """Private diagnostics topic: row ``time`` (s) and the node counters."""
+DEFAULT_LOOKAHEAD = 1
+"""Default number of control periods the published reference is ahead of the measurement that triggers it."""
 
 
 @dataclass(frozen=True)
@@ -52,6 +73,24 @@ class ReferenceSelection:
     def __post_init__(self) -> None:
         if self.kind not in REFERENCE_KINDS:
             raise ValueError(f"kind must be one of {sorted(REFERENCE_KINDS)}, got {self.kind!r}")
+
+
+@dataclass(frozen=True)
+class ReferenceLookahead:
+    """How far ahead of each measurement the reference is published (declared read-only).
+
+    Attributes:
+        lookahead: Number of control periods, an int >= 0. 0 publishes the reference of the measurement's
+            own stamp, so the controller waits for one more hop (measurement -> reference node ->
+            controller) in every step; 1 (default) publishes it one step early.
+    """
+
+    lookahead: int = DEFAULT_LOOKAHEAD
+
+    def __post_init__(self) -> None:
+        value = self.lookahead
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ValueError(f"lookahead must be an int >= 0 control periods, got {value!r}")
 
 
 class ReferenceNode(MeasurementDrivenNode):
@@ -84,6 +123,8 @@ class ReferenceNode(MeasurementDrivenNode):
             namespace=namespace,
             cli_args=cli_args,
         )
+        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
+        self.lookahead = ConfigParameters(self, "", ReferenceLookahead(), read_only=True)
         self.selection = ConfigParameters(self, "", ReferenceSelection())
         self.generators: dict[str, ConfigParameters[StepReference | SineReference | RampHoldReference]] = {
             "step": ConfigParameters(self, "step", StepReference()),
@@ -121,13 +162,26 @@ class ReferenceNode(MeasurementDrivenNode):
         if self.admit(topics.JOINT_STATES, stamp_ns):
             self.answer(stamp_ns, lambda: self._step(stamp_ns), lambda: self._diagnostics(stamp_ns))
 
+    @property
+    def period_ns(self) -> int:
+        """Control period (ns): the spacing of the plant's stamps."""
+        return round(self.timing.config.control_period * NANOSECONDS_PER_SECOND)
+
     def _step(self, stamp_ns: int) -> list[Output]:
+        ahead_ns = self.lookahead.config.lookahead * self.period_ns
         if self._first_stamp_ns is None:
             self._first_stamp_ns = stamp_ns
-        # Exact integer difference, then one rounding: the offline loop's t_ns / 1e9 for the same stamps.
-        self._time_s = (stamp_ns - self._first_stamp_ns) / NANOSECONDS_PER_SECOND
-        reference = self.generator.evaluate(self._time_s)
-        return [(self._reference_publisher, reference_to_msg(reference, stamp_ns))]
+            stamps = range(stamp_ns, stamp_ns + ahead_ns + 1, self.period_ns)
+        else:
+            stamps = range(stamp_ns + ahead_ns, stamp_ns + ahead_ns + 1)
+        generator = self.generator
+        outputs: list[Output] = []
+        for reference_stamp_ns in stamps:
+            # Exact integer difference, then one rounding: the offline loop's t_ns / 1e9 for the same stamps.
+            self._time_s = (reference_stamp_ns - self._first_stamp_ns) / NANOSECONDS_PER_SECOND
+            reference = generator.evaluate(self._time_s)
+            outputs.append((self._reference_publisher, reference_to_msg(reference, reference_stamp_ns)))
+        return outputs
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
         rows = {"time": np.full(2, self._time_s), **self.counter_rows()}
