@@ -125,7 +125,7 @@ def test_metrics_document_schema(short_result: ReproductionResult) -> None:
     document = metrics_document(short_result)
     text = json.dumps(document, allow_nan=False)
     assert json.loads(text) == document
-    assert set(document) == {"step", "case1", "case2", "acceptance", "meta"}
+    assert set(document) == {"step", "case1", "case2", "acceptance", "acceptance_verdict", "meta"}
     for scenario in ("step", "case1", "case2"):
         per_scenario = document[scenario]
         assert isinstance(per_scenario, dict)

@@ -14,6 +14,7 @@ Everything is deterministic for a given seed (the plant's noise generator is the
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -256,29 +257,38 @@ def run_closed_loop(
     applied_rows: list[tuple[float, float]] = []
     snapshots: list[Mapping[str, FloatArray]] = []
     disturbance_model = config.disturbance
+    measure_floats = plant.measure_floats
+    chain_step = chain.step_floats
+    plant_step = plant.step
+    isfinite = math.isfinite
 
     for k in range(samples):
         # y_k and the torque applied over [t_{k-1}, t_k]: plant.measure() as floats.
-        y0, y1, effort0, effort1 = plant.measure_floats()
+        y0, y1, effort0, effort1 = measure_floats()
         # step_floats is chain.step without the per-call array validation (the plant's outputs are
         # finite by construction); a test pins that both give the same torques bit for bit.
-        tau = chain.step_floats((y0, y1), (effort0, effort1), reference_rows[k], dt)
-        if not (math.isfinite(tau[0]) and math.isfinite(tau[1])):
+        tau = chain_step((y0, y1), (effort0, effort1), reference_rows[k], dt)
+        tau0, tau1 = tau
+        if not (isfinite(tau0) and isfinite(tau1)):
             raise ClosedLoopDivergedError(
                 f"{controller_name} on {spec.name}: non-finite torque {tau!r} at step {k} "
                 f"(t = {k * dt:.3f} s); the closed loop went unstable"
             )
         # The true state and disturbance at t_k, as plant.ground_truth reports them.
         dist0, dist1 = disturbance_torque(disturbance_model, plant.time_ns / _NS_PER_S)
-        rows.append((y0, y1, *plant.state_floats, tau[0], tau[1], dist0, dist1))
+        alpha, beta, alpha_dot, beta_dot = plant.state_floats
+        rows.append((y0, y1, alpha, beta, alpha_dot, beta_dot, tau0, tau1, dist0, dist1))
         if record_internals:
             snapshots.append(chain.internals)
         if k > 0:
             applied_rows.append((effort0, effort1))  # the torque that acted over [t_{k-1}, t_k]
-        plant.step(tau, dt)
-    applied_rows.append(plant.measure_floats()[2:])
+        plant_step(tau, dt)
+    applied_rows.append(measure_floats()[2:])
 
-    table = np.array(rows).reshape(samples, 10)
+    # fromiter over the flattened rows: the same values as np.array(rows), without its shape discovery.
+    table = np.fromiter(itertools.chain.from_iterable(rows), dtype=np.float64, count=10 * samples).reshape(
+        samples, 10
+    )
     measured, position, velocity, command, disturbance = (
         np.ascontiguousarray(table[:, column : column + 2]) for column in range(0, 10, 2)
     )

@@ -1,6 +1,8 @@
 """PNG figures like the paper's Figs 12-17 and 19-20 (matplotlib, Agg backend, no display needed).
 
-* ``step_<joint>.png``: step responses of every controller (Figs 12-13);
+* ``step_<joint>.png``: step responses of every controller (Figs 12-13), with the clearly labelled
+  retuned FPDESO set beside the paper's (the other figures show the paper's gains only: there the two
+  FPDESO curves would lie on top of each other);
 * ``case1_tracking_<joint>.png`` and ``case1_error_<joint>.png``: case 1 tracking and error
   (Figs 14-17);
 * ``case2_tracking_<joint>.png``: case 2 tracking (Figs 19-20);
@@ -22,7 +24,8 @@ import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
 from smm_analysis.errors import AnalysisError
-from smm_analysis.reproduction import JOINTS, ReproductionResult, RunResult
+from smm_analysis.reproduction import JOINTS, ReproductionResult, RunResult, controller_label
+from smm_analysis.retuned import RETUNED_SETS
 
 __all__ = ["DEFAULT_DPI", "write_plots"]
 
@@ -33,13 +36,21 @@ _STYLES: dict[str, dict[str, Any]] = {
     "fpd": {"color": "tab:blue", "linestyle": "--"},
     "pid": {"color": "tab:green", "linestyle": "-."},
     "npd": {"color": "tab:purple", "linestyle": ":"},
+    "fpdeso_retuned": {"color": "tab:orange", "linestyle": (0, (6, 2))},
 }
-_LABELS = {"fpdeso": "FPDESO", "fpd": "FPD", "pid": "PID", "npd": "NPD"}
 _SYMBOLS = {"alpha": "\u03b1", "beta": "\u03b2"}
 
 
-def _runs(result: ReproductionResult, scenario: str) -> list[RunResult]:
-    return [run for name in result.controllers if (run := result.run(scenario, name)) is not None]
+def _runs(result: ReproductionResult, scenario: str, *, retuned: bool = False) -> list[RunResult]:
+    return [
+        run
+        for name in result.controllers
+        if (retuned or name not in RETUNED_SETS) and (run := result.run(scenario, name)) is not None
+    ]
+
+
+def _legend_label(name: str) -> str:
+    return "FPDESO (paper gains)" if name == "fpdeso" else controller_label(name)
 
 
 def _save(figure: Figure, path: Path, dpi: int) -> Path:
@@ -63,7 +74,7 @@ def _tracking_figure(runs: Sequence[RunResult], joint: int, title: str, error: b
             trajectory.time,
             values,
             linewidth=1.0,
-            label=_LABELS.get(run.controller, run.controller),
+            label=_legend_label(run.controller),
             **_STYLES.get(run.controller, {}),
         )
     axes.set_xlabel("t (s)")
@@ -94,7 +105,7 @@ def write_plots(result: ReproductionResult, directory: Path, *, dpi: int = DEFAU
         raise AnalysisError(f"cannot create plot folder {directory}: {error}") from error
     written: list[Path] = []
     try:
-        step = _runs(result, "step")
+        step = _runs(result, "step", retuned=True)
         case1 = _runs(result, "case1")
         case2 = _runs(result, "case2")
         for index, joint in enumerate(JOINTS):
