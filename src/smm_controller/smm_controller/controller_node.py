@@ -374,7 +374,15 @@ class ControllerNode(MeasurementDrivenNode):
         if self.chain is not None:
             measurement = matched.items[topics.JOINT_STATES]
             applied = measurement.effort if measurement.effort is not None else self._last_command
-            tau = self.chain.step(measurement.position, applied, reference, self.control_period)
+            # The conversions validated shapes and finiteness, so the chain's float path skips the checks
+            # of ControlChain.step (same arithmetic, same result).
+            torque = self.chain.step_floats(
+                (float(measurement.position[0]), float(measurement.position[1])),
+                (float(applied[0]), float(applied[1])),
+                reference.tolist(),
+                self.control_period,
+            )
+            tau = np.array(torque)
             command = torque_to_msg(tau, matched.stamp_ns)  # raises for a non-finite torque: not sent
             self._last_command = tau
             return [(self._torque_publisher, command)]
