@@ -103,6 +103,12 @@ def pong(seconds: float) -> int:
     return 0
 
 
+def process_cpu_seconds(pid: int) -> float:
+    """User + system CPU time a process has used so far (s), from /proc (Linux)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def ping_pong(seconds: float) -> dict[str, float]:
     """Round trips of a JointState at 1 kHz to a pong process and back (us)."""
     import rclpy
@@ -158,8 +164,10 @@ def ping_pong(seconds: float) -> dict[str, float]:
     time.sleep(0.5)  # let the reverse direction match too
     node.create_timer(1e-3, tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
     deadline = time.monotonic() + seconds
+    partner_cpu_start = process_cpu_seconds(partner.pid)
     while time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
+    partner_cpu = process_cpu_seconds(partner.pid) - partner_cpu_start
     executor.shutdown()
     node.destroy_node()
     context.try_shutdown()
@@ -169,6 +177,7 @@ def ping_pong(seconds: float) -> dict[str, float]:
     return {
         "sent": float(counter[0]),
         "answered": float(samples.size),
+        "echo_cpu_fraction": partner_cpu / seconds,
         "p50_us": float(np.percentile(samples, 50)) if samples.size else float("nan"),
         "p99_us": float(np.percentile(samples, 99)) if samples.size else float("nan"),
     }
@@ -226,6 +235,7 @@ def report_realtime(
     raw: dict[str, float],
     *,
     chain: str,
+    composed: bool,
     targets: bool,
 ) -> None:
     """Print the figures of one real-time run (with the verdicts when ``targets``)."""
@@ -243,13 +253,15 @@ def report_realtime(
         else ""
     )
     print(
-        f"real time, separate processes, {chain} chain, {1 / period:.0f} Hz for {seconds:g} s: "
+        f"real time, {'composed' if composed else 'separate processes'}, {chain} chain, "
+        f"{1 / period:.0f} Hz for {seconds:g} s: "
         f"{steps} steps, "
         f"deadline misses {misses} ({100 * rate:.2f} %{miss_target}), late ticks {stats['late_ticks']}, "
         f"zero-torque ticks {stats['stale_ticks']}"
     )
     print(
-        f"  measurement-to-command latency ({HOPS[chain]} hops): p50 {latency['p50_us']:.0f} us, "
+        f"  measurement-to-command latency ({0 if composed else HOPS[chain]} inter-process hops): "
+        f"p50 {latency['p50_us']:.0f} us, "
         f"p99 {p99:.0f} us{p99_target}, "
         f"max {latency['max_us']:.0f} us; {latency['count']:.0f} of {steps} measurements answered"
     )
@@ -300,20 +312,27 @@ def main(argv: list[str] | None = None) -> int:
         f"raw rclpy ping-pong (2 processes, JointState, 1 kHz): round trip p50 {raw['p50_us']:.0f} us, "
         f"p99 {raw['p99_us']:.0f} us ({raw['answered']:.0f}/{raw['sent']:.0f} answered)"
     )
+    print(
+        "  the echo process alone (one take + one publish per ms, no work) uses "
+        f"{100 * raw['echo_cpu_fraction']:.0f} % of a core"
+    )
     with tempfile.TemporaryDirectory(prefix="bench_graph_") as tmp:
         workdir = Path(tmp)
         # 1 kHz (FPDESO, case2, fused chain) is the target; the split chain's four hops for comparison.
+        # For comparison too: the fused chain composed in one process (no inter-process hop at all).
         realtime_runs = (
-            ("fused", arguments.realtime_seconds),
-            ("split", min(arguments.realtime_seconds, 10.0)),
+            ("fused", False, arguments.realtime_seconds),
+            ("split", False, min(arguments.realtime_seconds, 10.0)),
+            ("fused", True, min(arguments.realtime_seconds, 10.0)),
         )
         period = 1e-3
-        for chain, seconds in realtime_runs:
+        for chain, composed, seconds in realtime_runs:
             command = ["--clock-mode", "realtime", "--scenario", "case2", "--algorithm", "fpdeso"]
             command += ["--chain", chain, "--duration", str(seconds), "--control-period", str(period)]
+            command += ["--composed"] if composed else []
             stats = run_graph(
                 workdir,
-                f"realtime_{chain}",
+                f"realtime_{chain}{'_composed' if composed else ''}",
                 command,
                 timeout_s=seconds + 120,
                 # A real plant saturates; without it a loop run on late commands can drive the plant to Inf.
@@ -324,7 +343,15 @@ def main(argv: list[str] | None = None) -> int:
                 failures += 1
                 continue
             print(f"[fpdeso, case2, torque limit +-{REALTIME_TORQUE_LIMIT:g} N m]")
-            report_realtime(stats, period, seconds, raw, chain=chain, targets=chain == "fused")
+            report_realtime(
+                stats,
+                period,
+                seconds,
+                raw,
+                chain=chain,
+                composed=composed,
+                targets=not composed and chain == "fused",
+            )
         rates: dict[str, float] = {}
         lockstep_runs = (
             ("separate processes, fused chain", ["--chain", "fused"]),
