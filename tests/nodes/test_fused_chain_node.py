@@ -179,3 +179,27 @@ def test_a_non_finite_chain_output_sends_nothing(make_rig: Any, ros_context: Any
     rig.settle(0.2)
     assert torques == []
     assert node.counters.invalid_outputs == 1
+
+
+def test_fused_node_re_answers_a_duplicate_and_drops_a_stale_measurement(
+    make_rig: Any, ros_context: Any
+) -> None:
+    node = fused_node(ros_context)
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    chain = paper_chain()
+    for k in (1, 2):
+        feed(rig, k)
+        rig.wait_for(topics.TORQUE_COMMAND, k)
+        expected_torque(chain, k)
+    rig.publish(topics.JOINT_STATES, measurement(2 * MS, POSITIONS[2], EFFORTS[2]))  # re-transmission
+    rig.wait_for(topics.TORQUE_COMMAND, 3)
+    assert list(torques[2].data) == list(torques[1].data)  # the same answer, the chain not stepped again
+    rig.publish(topics.JOINT_STATES, measurement(MS, POSITIONS[1], EFFORTS[1]))  # stale: dropped
+    feed(rig, 3)
+    rig.wait_for(topics.TORQUE_COMMAND, 4)
+    rig.settle()
+    assert len(torques) == 4
+    np.testing.assert_array_equal(msg_to_torque(torques[3]).values, expected_torque(chain, 3))
+    assert node.counters.duplicates_answered == 1
+    assert node.counters.dropped_stale == 1
