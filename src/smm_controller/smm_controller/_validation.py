@@ -9,55 +9,25 @@ from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
+from smm_dynamics.validation import check_pair, check_scalar, is_real
+
+__all__ = [
+    "FloatArray",
+    "as_joint_vector",
+    "as_reference",
+    "check_dt",
+    "check_grid_points",
+    "check_instance",
+    "check_pair",
+    "check_scalar",
+    "internals_view",
+    "is_real",
+    "readonly_copies",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
 InstanceT = TypeVar("InstanceT")
-
-
-def _is_real(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def check_scalar(
-    name: str,
-    value: Any,
-    *,
-    positive: bool = False,
-    non_negative: bool = False,
-    allow_inf: bool = False,
-) -> None:
-    """Rejects non-numbers, NaN, infinities (unless ``allow_inf``) and out-of-range signs."""
-    if not _is_real(value) or math.isnan(value):
-        raise ValueError(f"{name} must be a real number, got {value!r}")
-    if math.isinf(value) and not (allow_inf and value > 0.0):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    if positive and not value > 0.0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    if non_negative and not value >= 0.0:
-        raise ValueError(f"{name} must be >= 0, got {value!r}")
-
-
-def check_pair(
-    name: str,
-    value: Any,
-    *,
-    positive: bool = False,
-    non_negative: bool = False,
-    allow_inf: bool = False,
-) -> None:
-    """Checks a per-joint ``tuple[float, float]`` (alpha, beta) field element-wise."""
-    if not isinstance(value, tuple) or len(value) != 2:
-        raise ValueError(f"{name} must be a tuple (alpha, beta) of 2 numbers, got {value!r}")
-    for element in value:
-        if not _is_real(element) or math.isnan(element):
-            raise ValueError(f"{name} must contain real numbers, got {value!r}")
-        if math.isinf(element) and not (allow_inf and element > 0.0):
-            raise ValueError(f"{name} must be finite, got {value!r}")
-        if positive and not element > 0.0:
-            raise ValueError(f"{name} must be > 0 for both joints, got {value!r}")
-        if non_negative and not element >= 0.0:
-            raise ValueError(f"{name} must be >= 0 for both joints, got {value!r}")
 
 
 def check_grid_points(value: Any) -> None:
@@ -78,7 +48,7 @@ def check_instance(name: str, value: object, expected: type[InstanceT]) -> Insta
 
 def check_dt(dt: float) -> None:
     """A step size must be a finite positive number of seconds."""
-    if not _is_real(dt) or not math.isfinite(dt) or dt <= 0.0:
+    if not is_real(dt) or not math.isfinite(dt) or dt <= 0.0:
         raise ValueError(f"dt must be a finite number of seconds > 0, got {dt!r}")
 
 

@@ -18,6 +18,8 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from smm_dynamics.validation import check_pair
+
 __all__ = ["TABLE2_BODIES", "BodyData", "SMMParameters"]
 
 
@@ -112,13 +114,7 @@ class SMMParameters:
             raise ValueError(f"gravity must be >= 0 m/s^2, got {self.gravity!r}")
         if self.gravity_sign not in (-1.0, 1.0) or isinstance(self.gravity_sign, bool):
             raise ValueError(f"gravity_sign must be +1.0 or -1.0, got {self.gravity_sign!r}")
-        friction = self.viscous_friction
-        if not isinstance(friction, tuple) or len(friction) != 2:
-            raise ValueError(f"viscous_friction must be a tuple (alpha, beta) of 2 floats, got {friction!r}")
-        for value in friction:
-            _require_finite("viscous_friction", value)
-            if value < 0.0:
-                raise ValueError(f"viscous_friction must be >= 0 N m s/rad, got {friction!r}")
+        check_pair("viscous_friction", self.viscous_friction, non_negative=True)
         _require_finite("link_length", self.link_length)
         if self.link_length <= 0.0:
             raise ValueError(f"link_length must be > 0 m, got {self.link_length!r}")

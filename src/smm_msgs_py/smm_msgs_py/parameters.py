@@ -512,4 +512,3 @@ class ConfigParameters(Generic[ConfigT]):
         self._config = config_from_parameters(self._config_cls, self._config, overrides, self._prefix)
         if self._on_change is not None:
             self._on_change(self._config)
-

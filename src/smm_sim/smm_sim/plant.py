@@ -48,6 +48,7 @@ from typing import Final, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from smm_dynamics.validation import check_pair
 
 from smm_dynamics import SMMParameters, rk4_step_floats
 
@@ -139,19 +140,6 @@ def disturbance_torque(model: str, t: float) -> tuple[float, float]:
     raise ValueError(f"disturbance must be one of {DISTURBANCE_MODELS}, got {model!r}")
 
 
-def _require_pair(name: str, value: object, *, minimum: float, allow_equal: bool, allow_inf: bool) -> None:
-    if not isinstance(value, tuple) or len(value) != 2:
-        raise ValueError(f"{name} must be a tuple (alpha, beta) of 2 floats, got {value!r}")
-    for item in value:
-        if isinstance(item, bool) or not isinstance(item, (int, float)) or math.isnan(item):
-            raise ValueError(f"{name} must hold numbers, got {value!r}")
-        if math.isinf(item) and not (allow_inf and item > 0):
-            raise ValueError(f"{name} must be finite, got {value!r}")
-        if item < minimum or (item == minimum and not allow_equal):
-            relation = ">=" if allow_equal else ">"
-            raise ValueError(f"{name} must be {relation} {minimum}, got {value!r}")
-
-
 @dataclass(frozen=True)
 class PlantConfig:
     """Configuration of the simulated plant.
@@ -195,7 +183,7 @@ class PlantConfig:
             raise ValueError(f"inertia_scale must be a finite number, got {scale!r}")
         if scale <= 0.0:
             raise ValueError(f"inertia_scale must be > 0, got {scale!r}")
-        _require_pair("noise_std", self.noise_std, minimum=0.0, allow_equal=True, allow_inf=False)
+        check_pair("noise_std", self.noise_std, non_negative=True)
         counts = self.encoder_counts_per_rev
         if isinstance(counts, bool) or not isinstance(counts, int) or counts < 0:
             raise ValueError(f"encoder_counts_per_rev must be an int >= 0, got {counts!r}")
@@ -203,18 +191,12 @@ class PlantConfig:
             raise ValueError(f"seed must be an int >= 0, got {self.seed!r}")
         if self.disturbance not in DISTURBANCE_MODELS:
             raise ValueError(f"disturbance must be one of {DISTURBANCE_MODELS}, got {self.disturbance!r}")
-        _require_pair("joint_limits", self.joint_limits, minimum=0.0, allow_equal=False, allow_inf=False)
+        check_pair("joint_limits", self.joint_limits, positive=True)
         if max(self.joint_limits) >= math.pi / 2:
             raise ValueError(f"joint_limits must be < pi/2 rad (singularity), got {self.joint_limits!r}")
-        _require_pair("torque_limit", self.torque_limit, minimum=0.0, allow_equal=False, allow_inf=True)
+        check_pair("torque_limit", self.torque_limit, positive=True, allow_inf=True)
         if self.valve_time_constants is not None:
-            _require_pair(
-                "valve_time_constants",
-                self.valve_time_constants,
-                minimum=0.0,
-                allow_equal=False,
-                allow_inf=False,
-            )
+            check_pair("valve_time_constants", self.valve_time_constants, positive=True)
         if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1:
             raise ValueError(f"substeps must be an int >= 1, got {self.substeps!r}")
         period = self.control_period
