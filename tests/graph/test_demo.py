@@ -12,7 +12,10 @@ import pytest
 pytestmark = pytest.mark.ros
 
 
-def test_demo_runs_the_graph_and_matches_the_offline_loop(ros_processes: Any, tmp_path: Path) -> None:
+@pytest.mark.parametrize("chain", ["fused", "split"])
+def test_demo_runs_the_graph_and_matches_the_offline_loop(
+    ros_processes: Any, tmp_path: Path, chain: str
+) -> None:
     out = tmp_path / "demo"
     demo = ros_processes.start(
         "demo",
@@ -26,10 +29,13 @@ def test_demo_runs_the_graph_and_matches_the_offline_loop(ros_processes: Any, tm
             "0.3",
             "--out",
             str(out),
+            "--chain",
+            chain,
         ],
     )
     assert demo.popen.wait(timeout=180) == 0, demo.logs()
     document = json.loads((out / "metrics.json").read_text())
+    assert document["chain"] == chain
     run = document["runs"]["fpdeso"]
     assert run["steps"] == 300
     for joint in ("alpha", "beta"):

@@ -1,8 +1,9 @@
 """The main job: the full closed loop on the simulator, through the real ROS 2 graph.
 
 ``make demo`` (or ``python -m smm_analysis.demo``) starts the node graph with ``smm-launch`` (one OS process
-per node: simulator, TD, FLESO, reference, controller), runs the paper's case 2 (sinusoid, sensor noise,
-eq. 46 disturbance, +10 % inertia error) in lockstep for each controller asked for, has the simulator
+per node: simulator, reference and controller running TD -> FLESO -> law with the default fused chain;
+``--chain split`` adds the TD and FLESO nodes, five processes), runs the paper's case 2 (sinusoid, sensor
+noise, eq. 46 disturbance, +10 % inertia error) in lockstep for each controller asked for, has the simulator
 record every sample, then prints the paper's indices (eq. 42-45) of the graph run beside the offline
 simulator's for the same seed (they agree: a lockstep run is deterministic) and beside the paper's numbers.
 
@@ -50,7 +51,13 @@ class DemoRun:
 
 
 def graph_command(
-    controller: str, scenario: str, seed: int, duration: float | None, params_file: Path
+    controller: str,
+    scenario: str,
+    seed: int,
+    duration: float | None,
+    params_file: Path,
+    *,
+    chain: str = "fused",
 ) -> list[str]:
     """The ``smm-launch`` command line of one lockstep run that records to the file in ``params_file``."""
     command = [
@@ -59,6 +66,8 @@ def graph_command(
         "smm_controller.launcher",
         "--clock-mode",
         "lockstep",
+        "--chain",
+        chain,
         "--scenario",
         scenario,
         "--algorithm",
@@ -73,7 +82,9 @@ def graph_command(
     return command
 
 
-def run_graph(controller: str, scenario: str, seed: int, duration: float | None, out_dir: Path) -> Path:
+def run_graph(
+    controller: str, scenario: str, seed: int, duration: float | None, out_dir: Path, *, chain: str = "fused"
+) -> Path:
     """Run the graph once in lockstep; return the path of the simulator's record (.npz).
 
     Raises:
@@ -86,7 +97,8 @@ def run_graph(controller: str, scenario: str, seed: int, duration: float | None,
     params.write_text(f'/**/smm_sim_node:\n  ros__parameters:\n    record_file: "{record}"\n')
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    code = subprocess.run(graph_command(controller, scenario, seed, duration, params), env=env, check=False)
+    command = graph_command(controller, scenario, seed, duration, params, chain=chain)
+    code = subprocess.run(command, env=env, check=False)
     if code.returncode != 0:
         raise DemoError(f"smm-launch exited with code {code.returncode} for controller {controller}")
     if not record.is_file():
@@ -134,16 +146,26 @@ def format_table(runs: Sequence[DemoRun]) -> str:
     return "\n".join(lines)
 
 
-def demo(controllers: Sequence[str], scenario: str, seed: int, duration: float | None, out_dir: Path) -> int:
+def demo(
+    controllers: Sequence[str],
+    scenario: str,
+    seed: int,
+    duration: float | None,
+    out_dir: Path,
+    *,
+    chain: str = "fused",
+) -> int:
     """Run the demo; return the process exit code."""
     runs: list[DemoRun] = []
     for controller in controllers:
         print(
-            f"[demo] {scenario} with {controller} through the ROS 2 graph (lockstep, seed {seed})", flush=True
+            f"[demo] {scenario} with {controller} through the ROS 2 graph (lockstep, {chain} chain, "
+            f"seed {seed})",
+            flush=True,
         )
         start = time.perf_counter()
         try:
-            record = run_graph(controller, scenario, seed, duration, out_dir)
+            record = run_graph(controller, scenario, seed, duration, out_dir, chain=chain)
             run = graph_indices(record, scenario, seed, duration)
         except (DemoError, AnalysisError) as error:
             print(f"[demo] error: {error}", file=sys.stderr)
@@ -156,6 +178,7 @@ def demo(controllers: Sequence[str], scenario: str, seed: int, duration: float |
     document = {
         "scenario": scenario,
         "seed": seed,
+        "chain": chain,
         "runs": {
             run.controller: {
                 "steps": run.steps,
@@ -185,9 +208,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--duration", type=float, default=None, help="override the scenario length (s)")
     parser.add_argument("--out", type=Path, default=Path("out/demo"))
+    parser.add_argument(
+        "--chain",
+        choices=("fused", "split"),
+        default="fused",
+        help="fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too",
+    )
     arguments = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    return demo(arguments.controllers, arguments.scenario, arguments.seed, arguments.duration, arguments.out)
+    return demo(
+        arguments.controllers,
+        arguments.scenario,
+        arguments.seed,
+        arguments.duration,
+        arguments.out,
+        chain=arguments.chain,
+    )
 
 
 if __name__ == "__main__":
