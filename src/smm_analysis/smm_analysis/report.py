@@ -414,7 +414,8 @@ def _baseline_step_explanation(result: ReproductionResult, params: SMMParameters
         "depend on "
         "the torque scale; its numbers are comparable with the paper's (see above).",
         "",
-        "No baseline gain was retuned for this report; all numbers use the paper's gains (SPEC section 4).",
+        "No baseline (PID, NPD, FPD) gain was retuned for this report: their numbers use the paper's gains "
+        "(SPEC section 4). The only retuned set is the labelled FPDESO one above.",
         "",
     ]
     return lines
