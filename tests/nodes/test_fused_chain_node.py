@@ -98,6 +98,7 @@ def test_fused_node_drops_bad_input_on_every_subscription_and_sends_no_torque(
     [
         ("td.speed", [-1.0, 1.0], "speed"),
         ("td.filter_factor", [1e-3], "td.filter_factor must have 2 values (alpha, beta), got 1"),
+        ("td.filter_factor", [5e-4, 1e-3], "td.filter_factor (0.0005, 0.001) must be >= control_period"),
         ("fleso.w0", [0.0, 28.0], "w0"),
         ("fleso.grid_points", 2, "grid_points"),
     ],

@@ -73,6 +73,7 @@ from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
 from smm_controller.sync import ExactTimeSynchronizer, Matched
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
+from smm_controller.td_node import check_filter_factor
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
 
@@ -97,7 +98,8 @@ DEFAULT_SWITCH_IDLE_TIME: Final[float] = 0.5
 CHAIN_MODES: Final[tuple[str, ...]] = ("external", "internal")
 """Values of the ``chain`` parameter."""
 TD_PREFIX: Final[str] = "td"
-"""With ``chain = internal``: parameters of the TD are ``td.<field>`` (as on ``td_node``)."""
+"""With ``chain = internal``: parameters of the TD are ``td.<field>`` (as on ``td_node``, with its check that
+``td.filter_factor`` >= ``control_period``)."""
 FLESO_PREFIX: Final[str] = "fleso"
 """With ``chain = internal``: parameters of the FLESO are ``fleso.<field>`` (as on ``fleso_node``)."""
 
@@ -222,7 +224,11 @@ class ControllerNode(MeasurementDrivenNode):
         """The TD -> FLESO -> law chain this node runs with ``chain = internal`` (None otherwise)."""
         if self.internal_chain:
             self.td_parameters = ConfigParameters(
-                self, TD_PREFIX, TrackingDifferentiatorConfig(), on_change=self._on_td
+                self,
+                TD_PREFIX,
+                TrackingDifferentiatorConfig(),
+                check=lambda config: check_filter_factor(config, self.control_period),
+                on_change=self._on_td,
             )
             self.fleso_parameters = ConfigParameters(
                 self, FLESO_PREFIX, FLESOConfig(), on_change=self._on_fleso

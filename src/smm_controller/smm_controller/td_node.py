@@ -34,13 +34,30 @@ from std_msgs.msg import Float64MultiArray
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_msgs_py import topics
 
-__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "TD_PREFIX", "TdNode", "main"]
+__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "TD_PREFIX", "TdNode", "check_filter_factor", "main"]
 
 NODE_NAME = "td_node"
 TD_PREFIX = "td"
 """Parameters of :class:`~smm_controller.td.TrackingDifferentiatorConfig` are ``td.<field>``."""
 INTERNALS_TOPIC = "~/internals"
 """Private diagnostics topic: TD internals (x1, x2, input) and node counters, labelled rows."""
+
+
+def check_filter_factor(config: TrackingDifferentiatorConfig, control_period: float) -> None:
+    """Refuse TD gains whose filter factor h is below the node's step: the TD needs h >= dt.
+
+    Args:
+        config: Proposed TD parameters.
+        control_period: The node's control period dt (s).
+
+    Raises:
+        ValueError: naming the parameter ``td.filter_factor`` and both values.
+    """
+    if min(config.filter_factor) < control_period:
+        raise ValueError(
+            f"{TD_PREFIX}.filter_factor {config.filter_factor!r} must be >= control_period = "
+            f"{control_period!r} s"
+        )
 
 
 class TdNode(MeasurementDrivenNode):
@@ -98,11 +115,7 @@ class TdNode(MeasurementDrivenNode):
         return self.timing.config.control_period
 
     def _check_td_config(self, config: TrackingDifferentiatorConfig) -> None:
-        dt = self.timing.config.control_period
-        if min(config.filter_factor) < dt:
-            raise ValueError(
-                f"{TD_PREFIX}.filter_factor {config.filter_factor!r} must be >= control_period = {dt!r} s"
-            )
+        check_filter_factor(config, self.timing.config.control_period)
 
     def _on_td_config(self, config: TrackingDifferentiatorConfig) -> None:
         # Same TD, new gains from the next sample: x1 and x2 carry on (no velocity restart from 0).
