@@ -33,7 +33,7 @@ from smm_analysis.metrics import (
     joint_indices,
     step_metrics,
 )
-from smm_analysis.retuned import RETUNED_SETS
+from smm_analysis.retuned import RETUNED_SETS, damping_ratio
 from smm_analysis.scenarios import SCENARIOS, Scenario, get_scenario
 from smm_controller import CONTROLLER_NAMES, FPDESOConfig, TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
@@ -415,7 +415,7 @@ def ideal_step_response(kp: float, kd: float) -> tuple[float, float]:
     if not (kp > 0.0 and kd > 0.0):
         raise AnalysisError(f"kp and kd must be > 0, got {kp!r}, {kd!r}")
     omega = math.sqrt(kp)
-    zeta = kd / (2.0 * omega)
+    zeta = damping_ratio(kp, kd)
     overshoot = math.exp(-zeta * math.pi / math.sqrt(1.0 - zeta * zeta)) if zeta < 1.0 else 0.0
 
     def unit_response(t: float) -> float:

@@ -70,10 +70,11 @@ from smm_controller.baselines import (
 )
 from smm_controller.chain import CONTROLLER_NAMES, ControlChain, JointController
 from smm_controller.fleso import FLESO, FLESOConfig
+from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
 from smm_controller.sync import ExactTimeSynchronizer, Matched
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
-from smm_controller.td_node import check_filter_factor
+from smm_controller.td_node import TD_PREFIX, check_filter_factor
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
 
@@ -91,17 +92,10 @@ __all__ = [
 ]
 
 NODE_NAME: Final[str] = "controller_node"
-MODEL_PREFIX: Final[str] = "model"
-"""Parameters of the nominal model :class:`smm_dynamics.SMMParameters` are ``model.<field>``."""
 DEFAULT_SWITCH_IDLE_TIME: Final[float] = 0.5
 """Default quiet time before ``algorithm`` may change (s)."""
 CHAIN_MODES: Final[tuple[str, ...]] = ("external", "internal")
 """Values of the ``chain`` parameter."""
-TD_PREFIX: Final[str] = "td"
-"""With ``chain = internal``: parameters of the TD are ``td.<field>`` (as on ``td_node``, with its check that
-``td.filter_factor`` >= ``control_period``)."""
-FLESO_PREFIX: Final[str] = "fleso"
-"""With ``chain = internal``: parameters of the FLESO are ``fleso.<field>`` (as on ``fleso_node``)."""
 
 FloatArray = npt.NDArray[np.float64]
 ConfigT = TypeVar("ConfigT")
