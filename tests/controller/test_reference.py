@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from smm_controller.reference import RampHoldReference, SineReference, StepReference, make_reference
 
@@ -48,13 +50,26 @@ def test_step() -> None:
     assert_allclose(reference(0.2), [[1.0, 0.785], [0.0, 0.0], [0.0, 0.0]])
 
 
-def test_sample_matches_evaluate() -> None:
-    times = np.array([0.0, 0.25, 1.7])
-    for reference in (StepReference(), SineReference(), RampHoldReference()):
-        samples = reference.sample(times)
-        assert samples.shape == (3, 3, 2)
-        for k, t in enumerate(times):
-            assert_allclose(samples[k], reference.evaluate(float(t)), atol=0)
+GENERATORS = (
+    StepReference(start_time=0.3),
+    SineReference(amplitude=(0.4, -1.2), angular_frequency=7.0, phase=(0.3, -2.0)),
+    RampHoldReference(profile="linear", start_time=0.2, ramp_time=0.7),
+    RampHoldReference(initial=(0.5, -0.5), start_time=0.1, ramp_time=1.3),
+)
+
+
+@settings(max_examples=50, deadline=None)
+@given(times=st.lists(st.floats(0.0, 10.0, allow_nan=False), min_size=1, max_size=20))
+@pytest.mark.parametrize("reference", GENERATORS)
+def test_sample_evaluate_and_rows_agree_bit_for_bit(
+    reference: StepReference | SineReference | RampHoldReference, times: list[float]
+) -> None:
+    """The offline loop samples a whole run, the nodes one stamp at a time: the same values exactly."""
+    samples = reference.sample(np.array(times))
+    assert samples.shape == (len(times), 3, 2)
+    for k, t in enumerate(times):
+        np.testing.assert_array_equal(samples[k], reference.evaluate(t))
+        np.testing.assert_array_equal(samples[k], np.array(reference.rows(t)))
 
 
 def test_make_reference() -> None:

@@ -39,6 +39,32 @@ def test_split_graph_has_the_five_nodes_and_an_external_chain() -> None:
     assert dict(specs[-1].parameters)["chain"] == "external"
 
 
+@pytest.mark.parametrize("chain", ["fused", "split"])
+def test_reference_in_the_controller_drops_reference_node_and_hands_over_its_parameters(
+    tmp_path: Path, chain: str
+) -> None:
+    user = tmp_path / "user.yaml"
+    user.write_text(
+        "/**/reference_node:\n  ros__parameters:\n    lookahead: 2\n    sine:\n      amplitude: [0.5, 0.25]\n"
+        "/**/controller_node:\n  ros__parameters:\n    pid:\n      kp: [1.0, 2.0]\n"
+    )
+    options = GraphOptions(chain=chain, reference="controller", scenario="case2", params_files=(str(user),))
+    specs = build_graph(options)
+    with_node = build_graph(GraphOptions(chain=chain, scenario="case2", params_files=(str(user),)))
+    assert [spec.name for spec in specs] == [spec.name for spec in with_node if spec.name != "reference_node"]
+    controller = dict(specs[-1].parameters)
+    assert controller["reference_source"] == "internal"
+    # What reference_node would have been given (scenario file, then the user's file), renamed reference.*:
+    given = graph.parameter_overrides(next(spec for spec in with_node if spec.name == "reference_node"))
+    handed = {name.removeprefix("reference."): value for name, value in controller.items()}
+    assert given.pop("lookahead") == 2  # a setting of reference_node itself: not handed over
+    for name, value in given.items():
+        assert handed[name] == (tuple(value) if isinstance(value, list) else value), name
+    assert handed["kind"] == "sine" and handed["sine.amplitude"] == (0.5, 0.25)
+    assert "lookahead" not in handed
+    assert "reference_source" not in dict(with_node[-1].parameters)
+
+
 def test_options_reach_the_right_nodes() -> None:
     specs = build_graph(
         GraphOptions(clock_mode="realtime", chain="split", algorithm="npd", duration=2.5, seed=11)
@@ -85,6 +111,7 @@ def test_hw_plant_is_refused_clearly() -> None:
         ({"plant": "mars"}, "plant"),
         ({"clock_mode": "slow"}, "clock_mode"),
         ({"chain": "tangled"}, "chain"),
+        ({"reference": "oracle"}, "reference"),
         ({"algorithm": "lqr"}, "algorithm"),
         ({"scenario": "case9"}, "scenario"),
         ({"duration": -1.0}, "duration"),
@@ -201,6 +228,8 @@ def test_launcher_arguments_map_onto_graph_options() -> None:
             "realtime",
             "--chain",
             "split",
+            "--reference",
+            "controller",
             "--algorithm",
             "pid",
             "--scenario",
@@ -216,6 +245,7 @@ def test_launcher_arguments_map_onto_graph_options() -> None:
     assert options_from_arguments(arguments) == GraphOptions(
         clock_mode="realtime",
         chain="split",
+        reference="controller",
         algorithm="pid",
         scenario=None,
         duration=3.0,
@@ -317,6 +347,7 @@ def _launched_nodes(monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str]) 
             {
                 "clock_mode": "realtime",
                 "chain": "split",
+                "reference": "controller",
                 "algorithm": "fpd",
                 "scenario": "case1",
                 "duration": "2",
@@ -326,6 +357,7 @@ def _launched_nodes(monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str]) 
             GraphOptions(
                 clock_mode="realtime",
                 chain="split",
+                reference="controller",
                 algorithm="fpd",
                 scenario="case1",
                 duration=2.0,

@@ -60,6 +60,11 @@ def compare_with_offline(record_path: Path, scenario_name: str, duration: float)
     np.testing.assert_allclose(record["command"], offline.command_torque[:steps], rtol=0, atol=1e-6)
 
 
+LAYOUTS = [("fused", "node"), ("split", "node"), ("fused", "controller")]
+"""(chain, reference) pairs run end to end: the default graph, the five-node graph, and the reference
+sampled inside controller_node."""
+
+
 def wait_exit(process: Any, timeout_s: float) -> int:
     try:
         return int(process.popen.wait(timeout=timeout_s))
@@ -67,16 +72,18 @@ def wait_exit(process: Any, timeout_s: float) -> int:
         pytest.fail(f"smm-launch did not finish within {timeout_s} s\n{process.logs()}")
 
 
-@pytest.mark.parametrize("chain", ["fused", "split"])
+@pytest.mark.parametrize(("chain", "reference"), LAYOUTS)
 def test_lockstep_case2_through_separate_processes_matches_the_offline_loop(
-    ros_processes: Any, tmp_path: Path, chain: str
+    ros_processes: Any, tmp_path: Path, chain: str, reference: str
 ) -> None:
     params, record = record_parameters(tmp_path)
     launcher = ros_processes.start(
-        f"smm-launch-{chain}",
+        f"smm-launch-{chain}-{reference}",
         launcher_argv(
             "--chain",
             chain,
+            "--reference",
+            reference,
             "--scenario",
             "case2",
             "--algorithm",
@@ -93,15 +100,19 @@ def test_lockstep_case2_through_separate_processes_matches_the_offline_loop(
     compare_with_offline(record, "case2", duration=5.0)
 
 
-@pytest.mark.parametrize("chain", ["fused", "split"])
-def test_lockstep_composed_matches_the_offline_loop(ros_processes: Any, tmp_path: Path, chain: str) -> None:
+@pytest.mark.parametrize(("chain", "reference"), LAYOUTS)
+def test_lockstep_composed_matches_the_offline_loop(
+    ros_processes: Any, tmp_path: Path, chain: str, reference: str
+) -> None:
     params, record = record_parameters(tmp_path)
     launcher = ros_processes.start(
-        f"smm-launch-composed-{chain}",
+        f"smm-launch-composed-{chain}-{reference}",
         launcher_argv(
             "--composed",
             "--chain",
             chain,
+            "--reference",
+            reference,
             "--scenario",
             "case2",
             "--duration",

@@ -25,8 +25,9 @@ def documented_parameters(node_name: str) -> set[str]:
     return set(re.findall(r"^\| `([^`]+)` \|", match.group(1), flags=re.MULTILINE))
 
 
-INTERNAL_ONLY = re.compile(r"^(td|fleso)\.")
-"""Parameters controller_node declares only with ``chain: internal``."""
+INTERNAL_ONLY = re.compile(r"^(td|fleso|reference)\.")
+"""Parameters controller_node declares only with ``chain: internal`` (td, fleso) or
+``reference_source: internal`` (reference)."""
 
 
 @pytest.mark.parametrize("node_class", [ReferenceNode, TdNode, FlesoNode, ControllerNode])
@@ -42,13 +43,37 @@ def test_every_declared_parameter_is_documented_and_nothing_else(ros_context: An
         node.destroy_node()
 
 
-def test_controller_node_with_the_internal_chain_declares_the_documented_td_and_fleso_parameters(
+def test_controller_node_with_the_internal_chain_and_reference_declares_the_documented_parameters(
     ros_context: Any,
 ) -> None:
-    node = ControllerNode(context=ros_context, parameter_overrides={"chain": "internal"})
+    node = ControllerNode(
+        context=ros_context, parameter_overrides={"chain": "internal", "reference_source": "internal"}
+    )
     try:
         declared = set(node.list_parameters([], 0).names) - ROS_OWN
         assert documented_parameters(node.get_name()) == declared
-        assert {name for name in declared if INTERNAL_ONLY.match(name)}  # td.* and fleso.* are there
+        prefixes = {name.split(".")[0] for name in declared if INTERNAL_ONLY.match(name)}
+        assert prefixes == {"td", "fleso", "reference"}
     finally:
         node.destroy_node()
+
+
+def test_controller_reference_parameters_mirror_reference_node(ros_context: Any) -> None:
+    """reference.<name> on controller_node is reference_node's <name>, with the same description."""
+    controller = ControllerNode(context=ros_context, parameter_overrides={"reference_source": "internal"})
+    reference = ReferenceNode(context=ros_context)
+    try:
+        generator_names = [
+            name
+            for name in reference.list_parameters([], 0).names
+            if name not in ROS_OWN and name not in {"control_period", "lookahead"}
+        ]
+        assert generator_names
+        for name in generator_names:
+            ours = controller.describe_parameter(f"reference.{name}")
+            theirs = reference.describe_parameter(name)
+            assert ours.description == theirs.description
+            assert controller.get_parameter(f"reference.{name}").value == reference.get_parameter(name).value
+    finally:
+        controller.destroy_node()
+        reference.destroy_node()

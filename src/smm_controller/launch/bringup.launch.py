@@ -6,6 +6,7 @@ so the two cannot drift apart. Arguments:
 * ``plant:=sim|hw`` (hw: smm_hw_bridge, refused until that node exists),
 * ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``, ``scenario:=step|case1|case2|none``,
 * ``chain:=fused|split`` (fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too),
+* ``reference:=node|controller`` (controller: controller_node samples the reference, no reference_node),
 * ``duration:=<s>`` (empty: the scenario's in lockstep, endless in realtime),
 * ``seed:=<int>`` (empty: as configured),
 * ``params_file:=<path>`` (empty: none), applied after the scenario's file,
@@ -26,6 +27,7 @@ from smm_controller.graph import (
     CHAIN_LAYOUTS,
     CLOCK_MODES,
     PLANTS,
+    REFERENCE_PLACEMENTS,
     SCENARIO_NAMES,
     GraphOptions,
     NodeSpec,
@@ -36,6 +38,7 @@ ARGUMENTS = (
     ("plant", "sim", f"plant node: {' | '.join(PLANTS)}"),
     ("clock_mode", "lockstep", f"simulator clock: {' | '.join(CLOCK_MODES)}"),
     ("chain", "fused", f"chain layout: {' | '.join(CHAIN_LAYOUTS)}"),
+    ("reference", "node", f"who samples the reference: {' | '.join(REFERENCE_PLACEMENTS)}"),
     ("algorithm", "fpdeso", f"controller: {' | '.join(ALGORITHMS)}"),
     ("scenario", "case2", f"scenario: {' | '.join(SCENARIO_NAMES)} | none"),
     ("duration", "", "simulated seconds until the simulator stops (empty: scenario / endless; 0: endless)"),
@@ -52,6 +55,7 @@ def options_from_launch_arguments(values: dict[str, str]) -> GraphOptions:
         plant=values["plant"],  # type: ignore[arg-type]
         clock_mode=values["clock_mode"],  # type: ignore[arg-type]
         chain=values["chain"],  # type: ignore[arg-type]
+        reference=values["reference"],  # type: ignore[arg-type]
         algorithm=values["algorithm"],
         scenario=None if scenario == "none" else scenario,
         duration=float(values["duration"]) if values["duration"] else None,

@@ -24,7 +24,14 @@ the previous stamp) and ``reference``. Then the TD and FLESO gains are parameter
 (``td.<field>``, ``fleso.<field>``, validated and applied live like the law's), ``controller_internals``
 carries the chain's internals (rows ``td.*``, ``fleso.*``, ``controller.*``, ``disturbance_estimate``), and
 the measurement-to-command path has two hops instead of four, which is what a 1 kHz loop of Python
-processes needs. See ``docs/NODES.md``.
+processes needs.
+
+Parameter ``reference_source`` (read-only): ``topic`` (default: the ``reference`` topic, e.g. from
+``reference_node``, is an input matched by stamp) or ``internal``: the node samples the reference itself
+from its parameters ``reference.kind`` and ``reference.<kind>.<field>`` (the same generators and
+parameters as ``reference_node``), at t = (stamp - first stamp) / 1e9 s, as a trajectory controller samples
+its trajectory. One input less per step; the sampled reference is published on ``reference`` after the
+command, while something (a recorder) listens. See ``docs/NODES.md``.
 """
 
 from __future__ import annotations
@@ -45,6 +52,7 @@ from smm_msgs_py.conversions import (
     joint_state_to_sample,
     msg_to_labelled,
     msg_to_reference,
+    reference_to_msg,
     torque_to_msg,
 )
 from smm_msgs_py.errors import InterfaceError
@@ -72,6 +80,8 @@ from smm_controller.chain import CONTROLLER_NAMES, ControlChain, JointController
 from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
+from smm_controller.graph import REFERENCE_PREFIX
+from smm_controller.reference_node import ReferenceParameters, reference_time_s
 from smm_controller.sync import ExactTimeSynchronizer, Matched
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_controller.td_node import TD_PREFIX, check_filter_factor
@@ -84,10 +94,13 @@ __all__ = [
     "FLESO_PREFIX",
     "MODEL_PREFIX",
     "NODE_NAME",
+    "REFERENCE_PREFIX",
+    "REFERENCE_SOURCES",
     "TD_PREFIX",
     "ChainPlacement",
     "ControllerNode",
     "ControllerSelection",
+    "ReferenceSource",
     "main",
 ]
 
@@ -96,6 +109,8 @@ DEFAULT_SWITCH_IDLE_TIME: Final[float] = 0.5
 """Default quiet time before ``algorithm`` may change (s)."""
 CHAIN_MODES: Final[tuple[str, ...]] = ("external", "internal")
 """Values of the ``chain`` parameter."""
+REFERENCE_SOURCES: Final[tuple[str, ...]] = ("topic", "internal")
+"""Values of the ``reference_source`` parameter."""
 
 FloatArray = npt.NDArray[np.float64]
 ConfigT = TypeVar("ConfigT")
@@ -139,6 +154,24 @@ class ChainPlacement:
     def __post_init__(self) -> None:
         if self.chain not in CHAIN_MODES:
             raise ValueError(f"chain must be one of {CHAIN_MODES}, got {self.chain!r}")
+
+
+@dataclass(frozen=True)
+class ReferenceSource:
+    """Where the reference comes from (declared read-only: the node's inputs depend on it).
+
+    Attributes:
+        reference_source: ``"topic"``: the ``reference`` topic, matched by stamp. ``"internal"``: sampled
+            by this node from its ``reference.*`` parameters.
+    """
+
+    reference_source: str = "topic"
+
+    def __post_init__(self) -> None:
+        if self.reference_source not in REFERENCE_SOURCES:
+            raise ValueError(
+                f"reference_source must be one of {REFERENCE_SOURCES}, got {self.reference_source!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -202,6 +235,13 @@ class ControllerNode(MeasurementDrivenNode):
         self._last_input_time: float | None = None
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.placement = ConfigParameters(self, "", ChainPlacement(), read_only=True)
+        self.reference_source = ConfigParameters(self, "", ReferenceSource(), read_only=True)
+        self.internal_reference = self.reference_source.config.reference_source == "internal"
+        self.reference: ReferenceParameters | None = (
+            ReferenceParameters(self, REFERENCE_PREFIX) if self.internal_reference else None
+        )
+        """The reference generator this node samples with ``reference_source = internal`` (else None)."""
+        self._first_stamp_ns: int | None = None
         self.selection = ConfigParameters(
             self, "", ControllerSelection(), check=self._check_selection, on_change=self._on_selection
         )
@@ -228,6 +268,7 @@ class ControllerNode(MeasurementDrivenNode):
                 self, FLESO_PREFIX, FLESOConfig(), on_change=self._on_fleso
             )
         self._last_command: FloatArray = np.zeros(2)
+        self._reference: Sequence[Sequence[float]] = ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0))
         self._algorithm = self.selection.config.algorithm
         self.controller = self._build(self._algorithm)
         self.sync: ExactTimeSynchronizer[Any] = ExactTimeSynchronizer(self._inputs(self._algorithm))
@@ -237,9 +278,14 @@ class ControllerNode(MeasurementDrivenNode):
         self._internals_publisher = self.create_publisher(
             Float64MultiArray, topics.CONTROLLER_INTERNALS, qos_for_topic(topics.CONTROLLER_INTERNALS)
         )
-        self.create_subscription(
-            Float64MultiArray, topics.REFERENCE, self._on_reference, qos_for_topic(topics.REFERENCE)
-        )
+        if self.internal_reference:
+            self._reference_publisher = self.create_publisher(
+                Float64MultiArray, topics.REFERENCE, qos_for_topic(topics.REFERENCE)
+            )
+        else:
+            self.create_subscription(
+                Float64MultiArray, topics.REFERENCE, self._on_reference, qos_for_topic(topics.REFERENCE)
+            )
         if self.internal_chain:
             self.create_subscription(
                 JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
@@ -286,9 +332,10 @@ class ControllerNode(MeasurementDrivenNode):
         return built
 
     def _inputs(self, name: str) -> tuple[str, ...]:
+        reference = () if self.internal_reference else (topics.REFERENCE,)
         if self.internal_chain:
-            return (topics.JOINT_STATES, topics.REFERENCE)
-        required = (topics.JOINT_STATES_FILTERED, topics.REFERENCE)
+            return (topics.JOINT_STATES, *reference)
+        required = (topics.JOINT_STATES_FILTERED, *reference)
         return (*required, topics.DISTURBANCE_ESTIMATE) if _LAWS[name].uses_disturbance_estimate else required
 
     def _check_selection(self, candidate: ControllerSelection) -> None:
@@ -369,8 +416,18 @@ class ControllerNode(MeasurementDrivenNode):
 
     # ----------------------------------------------------------------------------------------- step
 
+    def _reference_rows(self, matched: Matched[Any]) -> Sequence[Sequence[float]]:
+        """The reference of the matched stamp, 3x2 floats: the input's, or sampled (``internal``)."""
+        if self.reference is None:
+            rows: list[list[float]] = matched.items[topics.REFERENCE].values.tolist()
+            return rows
+        if self._first_stamp_ns is None:
+            self._first_stamp_ns = matched.stamp_ns
+        return self.reference.generator.rows(reference_time_s(matched.stamp_ns, self._first_stamp_ns))
+
     def _step(self, matched: Matched[Any]) -> list[Output]:
-        reference = matched.items[topics.REFERENCE].values
+        reference = self._reference_rows(matched)
+        self._reference = reference
         if self.chain is not None:
             measurement = matched.items[topics.JOINT_STATES]
             applied = measurement.effort if measurement.effort is not None else self._last_command
@@ -379,7 +436,7 @@ class ControllerNode(MeasurementDrivenNode):
             torque = self.chain.step_floats(
                 (float(measurement.position[0]), float(measurement.position[1])),
                 (float(applied[0]), float(applied[1])),
-                reference.tolist(),
+                reference,
                 self.control_period,
             )
             tau = np.array(torque)
@@ -389,13 +446,18 @@ class ControllerNode(MeasurementDrivenNode):
         filtered = matched.items[topics.JOINT_STATES_FILTERED]
         estimate = matched.items.get(topics.DISTURBANCE_ESTIMATE)
         xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
-        tau = self.controller.step(reference, filtered.position, filtered.velocity, xi, self.control_period)
+        tau = self.controller.step(
+            np.array(reference), filtered.position, filtered.velocity, xi, self.control_period
+        )
         return [(self._torque_publisher, torque_to_msg(tau, matched.stamp_ns))]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
         internals = self.chain.internals if self.chain is not None else self.controller.internals
         rows = {**internals, **self.counter_rows()}
-        return [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
+        outputs = [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
+        if self.internal_reference:
+            outputs.append((self._reference_publisher, reference_to_msg(np.array(self._reference), stamp_ns)))
+        return outputs
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -34,6 +34,8 @@ from typing import Any, Final, Literal
 import yaml
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 
+from smm_controller.reference import REFERENCE_KINDS
+
 __all__ = [
     "ALGORITHMS",
     "CHAIN_LAYOUTS",
@@ -44,6 +46,7 @@ __all__ = [
     "PLANTS",
     "PLANT_NODE_NAMES",
     "REFERENCE_NODE",
+    "REFERENCE_PLACEMENTS",
     "SCENARIO_NAMES",
     "SIM_NODE",
     "TD_NODE",
@@ -74,8 +77,15 @@ CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
 CHAIN_LAYOUTS: Final[tuple[str, ...]] = ("fused", "split")
 """``fused``: TD, FLESO and law in ``controller_node`` (``chain: internal``), two hops per step; ``split``:
 ``td_node`` and ``fleso_node`` as their own nodes (``chain: external``), four hops per step."""
+REFERENCE_PLACEMENTS: Final[tuple[str, ...]] = ("node", "controller")
+"""``node``: ``reference_node`` publishes the reference, ``controller_node`` matches it by stamp;
+``controller``: ``controller_node`` samples it itself (``reference_source: internal``), from the parameters
+that the parameter files give ``reference_node``, and no ``reference_node`` runs."""
 ALGORITHMS: Final[tuple[str, ...]] = ("fpdeso", "fpd", "pid", "npd")
 SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2")
+
+REFERENCE_PREFIX: Final[str] = "reference"
+"""Prefix of controller_node's reference generator parameters (``reference.kind``, ``reference.sine.*``)."""
 
 SIM_NODE: Final[str] = "smm_sim_node"
 HW_NODE: Final[str] = "smm_hw_bridge"
@@ -120,6 +130,9 @@ class GraphOptions:
             two process boundaries (plant -> controller -> plant), the layout that keeps up with 1 kHz;
             ``"split"``: ``td_node`` and ``fleso_node`` run as their own nodes (four crossings per step), to
             inspect or replace a stage on the wire. Both give the same torques.
+        reference: ``"node"`` (default): ``reference_node`` publishes the reference one period ahead;
+            ``"controller"``: ``controller_node`` samples it itself, one input and one process less per
+            step; the same values either way (see :data:`REFERENCE_PLACEMENTS`).
         algorithm: Controller algorithm, one of :data:`ALGORITHMS`.
         scenario: Scenario name (:data:`SCENARIO_NAMES`), or ``None`` for the nodes' own defaults.
         duration: Simulated time after which the simulator stops (s), > 0; ``None`` keeps the scenario's
@@ -133,6 +146,7 @@ class GraphOptions:
     plant: Literal["sim", "hw"] = "sim"
     clock_mode: Literal["lockstep", "realtime"] = "lockstep"
     chain: Literal["fused", "split"] = "fused"
+    reference: Literal["node", "controller"] = "node"
     algorithm: str = "fpdeso"
     scenario: str | None = "case2"
     duration: float | None = None
@@ -147,6 +161,8 @@ class GraphOptions:
             raise ValueError(f"clock_mode must be one of {CLOCK_MODES}, got {self.clock_mode!r}")
         if self.chain not in CHAIN_LAYOUTS:
             raise ValueError(f"chain must be one of {CHAIN_LAYOUTS}, got {self.chain!r}")
+        if self.reference not in REFERENCE_PLACEMENTS:
+            raise ValueError(f"reference must be one of {REFERENCE_PLACEMENTS}, got {self.reference!r}")
         if self.algorithm not in ALGORITHMS:
             raise ValueError(f"algorithm must be one of {ALGORITHMS}, got {self.algorithm!r}")
         if self.scenario is not None and self.scenario not in SCENARIO_NAMES:
@@ -321,6 +337,22 @@ def _period_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue
     return () if options.control_period is None else (("control_period", float(options.control_period)),)
 
 
+def _reference_parameters(files: Sequence[str]) -> tuple[tuple[str, ParameterValue], ...]:
+    """The generator parameters the files set for ``reference_node``, renamed ``reference.<name>``.
+
+    So the reference is configured in one place (the ``reference_node`` sections) wherever it is sampled.
+    Only ``kind`` and ``<kind>.<field>`` are handed over, not the node's own settings (``lookahead``).
+    """
+    values: dict[str, Any] = {}
+    for path in files:
+        values.update(load_parameter_file(path, f"/{NAMESPACE}/{REFERENCE_NODE}"))
+    return tuple(
+        (f"{REFERENCE_PREFIX}.{name}", tuple(value) if isinstance(value, list) else value)
+        for name, value in values.items()
+        if name == "kind" or name.partition(".")[0] in REFERENCE_KINDS
+    )
+
+
 def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
     """Describe the graph for ``options``: the plant node first, then the controller-side nodes.
 
@@ -358,13 +390,22 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
     )
     controller_side = []
     fused = options.chain == "fused"
+    reference_in_controller = options.reference == "controller"
     for name, class_name in _CONTROLLER_NODES:
         if fused and name in (TD_NODE, FLESO_NODE):
             continue  # their algorithms run inside controller_node
+        if reference_in_controller and name == REFERENCE_NODE:
+            continue  # sampled inside controller_node
         parameters = _period_parameters(options)
         if name == CONTROLLER_NODE:
             chain = "internal" if fused else "external"
             parameters = (("algorithm", options.algorithm), ("chain", chain), *parameters)
+            if reference_in_controller:
+                parameters = (
+                    ("reference_source", "internal"),
+                    *_reference_parameters(shared_files),
+                    *parameters,
+                )
         controller_side.append(
             NodeSpec(
                 package="smm_controller",

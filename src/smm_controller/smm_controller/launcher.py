@@ -52,6 +52,7 @@ from smm_controller.graph import (
     NAMESPACE,
     PLANT_NODE_NAMES,
     PLANTS,
+    REFERENCE_PLACEMENTS,
     SCENARIO_NAMES,
     GraphError,
     GraphOptions,
@@ -372,6 +373,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="fused: TD, FLESO and law in controller_node (2 hops per step); "
         "split: td_node and fleso_node as their own nodes (4 hops per step)",
     )
+    parser.add_argument(
+        "--reference",
+        choices=REFERENCE_PLACEMENTS,
+        default="node",
+        help="node: reference_node publishes the reference; controller: controller_node samples it itself "
+        "(one process and one input less per step)",
+    )
     parser.add_argument("--algorithm", choices=ALGORITHMS, default="fpdeso", help="controller algorithm")
     parser.add_argument(
         "--scenario",
@@ -423,6 +431,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         plant=arguments.plant,
         clock_mode=arguments.clock_mode,
         chain=arguments.chain,
+        reference=arguments.reference,
         algorithm=arguments.algorithm,
         scenario=None if arguments.scenario == "none" else arguments.scenario,
         duration=arguments.duration,

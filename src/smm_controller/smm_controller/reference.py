@@ -19,14 +19,23 @@ __all__ = [
     "REFERENCE_KINDS",
     "RampHoldReference",
     "Reference",
+    "Rows",
     "SineReference",
     "StepReference",
     "make_reference",
 ]
 
 
+Rows = tuple[tuple[float, float], tuple[float, float], tuple[float, float]]
+"""A reference at one time as floats: (position, velocity, acceleration), each (alpha, beta)."""
+
+
 class Reference(Protocol):
-    """A reference generator: ``evaluate(t)`` -> shape (3, 2), ``sample(times)`` -> (n, 3, 2)."""
+    """A reference generator: ``rows(t)`` (floats), ``evaluate(t)`` (3, 2), ``sample(times)`` (n, 3, 2)."""
+
+    def rows(self, t: float) -> Rows:
+        """Position (rad), velocity (rad/s), acceleration (rad/s^2) at time t (s), as float pairs."""
+        ...
 
     def evaluate(self, t: float) -> FloatArray:
         """Position, velocity and acceleration at time t (s), shape (3, 2)."""
@@ -37,31 +46,32 @@ class Reference(Protocol):
         ...
 
 
-def _as_times(times: npt.ArrayLike) -> FloatArray:
-    array = np.asarray(times, dtype=np.float64)
-    if array.ndim != 1 or not np.all(np.isfinite(array)):
-        raise ValueError(f"times must be a finite 1-D array (s), got shape {array.shape}")
-    return array
-
-
-def _stack(position: FloatArray, velocity: FloatArray, acceleration: FloatArray) -> FloatArray:
-    """Per-joint arrays of shape (n, 2) -> references of shape (n, 3, 2)."""
-    stacked: FloatArray = np.stack((position, velocity, acceleration), axis=1)
-    return stacked
-
-
 class _Sampled:
-    """evaluate(t) in terms of the vectorised sample(times) of each generator."""
+    """evaluate(t) and sample(times) in terms of each generator's scalar rows(t).
 
-    def sample(self, times: npt.ArrayLike) -> FloatArray:
-        """References at every time of ``times`` (s), shape (n, 3, 2)."""
+    One formula per generator, in plain floats: the offline loop (``sample`` over a run) and the nodes
+    (``rows`` or ``evaluate`` at each stamp) compute the same values bit for bit, and a node's step costs
+    no array set-up.
+    """
+
+    def rows(self, t: float) -> Rows:
+        """Position (rad), velocity (rad/s), acceleration (rad/s^2) at time t (s), as float pairs."""
         raise NotImplementedError
 
     def evaluate(self, t: float) -> FloatArray:
         """Position, velocity and acceleration at time t (s), shape (3, 2)."""
         check_scalar("t", t)
-        single: FloatArray = self.sample(np.array((t,)))[0]
-        return single
+        return np.array(self.rows(float(t)))
+
+    def sample(self, times: npt.ArrayLike) -> FloatArray:
+        """References at every time of ``times`` (s), shape (n, 3, 2)."""
+        array = np.asarray(times, dtype=np.float64)
+        if array.ndim != 1 or not np.all(np.isfinite(array)):
+            raise ValueError(f"times must be a finite 1-D array (s), got shape {array.shape}")
+        sampled: FloatArray = np.array([self.rows(t) for t in array.tolist()], dtype=np.float64).reshape(
+            array.size, 3, 2
+        )
+        return sampled
 
     def __call__(self, t: float) -> FloatArray:
         """Same as :meth:`evaluate`."""
@@ -86,12 +96,10 @@ class StepReference(_Sampled):
         check_pair("amplitude", self.amplitude)
         check_scalar("start_time", self.start_time, non_negative=True)
 
-    def sample(self, times: npt.ArrayLike) -> FloatArray:
-        """References at every time of ``times`` (s), shape (n, 3, 2)."""
-        t = _as_times(times)
-        on = (t >= self.start_time).astype(np.float64)[:, None]
-        zeros = np.zeros((t.size, 2))
-        return _stack(on * np.asarray(self.amplitude), zeros, zeros)
+    def rows(self, t: float) -> Rows:
+        """Position (rad), velocity (rad/s), acceleration (rad/s^2) at time t (s), as float pairs."""
+        alpha, beta = self.amplitude if t >= self.start_time else (0.0, 0.0)
+        return ((float(alpha), float(beta)), (0.0, 0.0), (0.0, 0.0))
 
 
 @dataclass(frozen=True)
@@ -113,13 +121,17 @@ class SineReference(_Sampled):
         check_scalar("angular_frequency", self.angular_frequency, positive=True)
         check_pair("phase", self.phase)
 
-    def sample(self, times: npt.ArrayLike) -> FloatArray:
-        """References at every time of ``times`` (s), shape (n, 3, 2)."""
+    def rows(self, t: float) -> Rows:
+        """Position (rad), velocity (rad/s), acceleration (rad/s^2) at time t (s), as float pairs."""
         omega = self.angular_frequency
-        angle = omega * _as_times(times)[:, None] + np.asarray(self.phase)
-        amplitude = np.asarray(self.amplitude)
-        sine = amplitude * np.sin(angle)
-        return _stack(sine, amplitude * omega * np.cos(angle), -(omega * omega) * sine)
+        (amplitude_a, amplitude_b), (phase_a, phase_b) = self.amplitude, self.phase
+        angle_a, angle_b = omega * t + phase_a, omega * t + phase_b
+        sine_a, sine_b = amplitude_a * math.sin(angle_a), amplitude_b * math.sin(angle_b)
+        return (
+            (sine_a, sine_b),
+            (amplitude_a * omega * math.cos(angle_a), amplitude_b * omega * math.cos(angle_b)),
+            (-(omega * omega) * sine_a, -(omega * omega) * sine_b),
+        )
 
 
 @dataclass(frozen=True)
@@ -153,21 +165,22 @@ class RampHoldReference(_Sampled):
         if self.profile not in ("linear", "quintic"):
             raise ValueError(f"profile must be 'linear' or 'quintic', got {self.profile!r}")
 
-    def sample(self, times: npt.ArrayLike) -> FloatArray:
-        """References at every time of ``times`` (s), shape (n, 3, 2)."""
-        x = np.clip((_as_times(times) - self.start_time) / self.ramp_time, 0.0, 1.0)[:, None]
+    def rows(self, t: float) -> Rows:
+        """Position (rad), velocity (rad/s), acceleration (rad/s^2) at time t (s), as float pairs."""
+        x = min(max((t - self.start_time) / self.ramp_time, 0.0), 1.0)
         if self.profile == "linear":
-            shape = x
-            rate = ((x > 0.0) & (x < 1.0)).astype(np.float64)
-            curvature = np.zeros_like(x)
+            shape, rate, curvature = x, (1.0 if 0.0 < x < 1.0 else 0.0), 0.0
         else:
             shape = x**3 * (10.0 - 15.0 * x + 6.0 * x * x)
             rate = 30.0 * x * x * (1.0 - x) ** 2
             curvature = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x)
-        initial = np.asarray(self.initial)
-        span = np.asarray(self.target) - initial
-        return _stack(
-            initial + span * shape, span * rate / self.ramp_time, span * curvature / self.ramp_time**2
+        (initial_a, initial_b), (target_a, target_b) = self.initial, self.target
+        span_a, span_b = target_a - initial_a, target_b - initial_b
+        ramp = self.ramp_time
+        return (
+            (initial_a + span_a * shape, initial_b + span_b * shape),
+            (span_a * rate / ramp, span_b * rate / ramp),
+            (span_a * curvature / ramp**2, span_b * curvature / ramp**2),
         )
 
 

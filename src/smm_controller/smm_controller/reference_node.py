@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from rclpy.context import Context
+from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import (
     NANOSECONDS_PER_SECOND,
@@ -36,7 +37,7 @@ from smm_msgs_py.node_support import (
     ParameterOverrides,
     node_main,
 )
-from smm_msgs_py.parameters import ConfigParameters
+from smm_msgs_py.parameters import ConfigParameters, parameter_name
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
 from std_msgs.msg import Float64MultiArray
 
@@ -49,8 +50,10 @@ __all__ = [
     "NODE_NAME",
     "ReferenceLookahead",
     "ReferenceNode",
+    "ReferenceParameters",
     "ReferenceSelection",
     "main",
+    "reference_time_s",
 ]
 
 NODE_NAME = "reference_node"
@@ -93,6 +96,43 @@ class ReferenceLookahead:
             raise ValueError(f"lookahead must be an int >= 0 control periods, got {value!r}")
 
 
+Generator = StepReference | SineReference | RampHoldReference
+
+
+class ReferenceParameters:
+    """A reference generator held as node parameters: ``<prefix>.kind`` and ``<prefix>.<kind>.<field>``.
+
+    Declares :class:`ReferenceSelection` and every generator's fields (validated and applied live like any
+    config); :attr:`generator` is the one ``kind`` selects, with its current parameters. Shared by
+    ``reference_node`` (no prefix) and ``controller_node`` (prefix ``reference``, when it samples the
+    reference itself), so the two sample the same function of time from the same parameters.
+
+    Args:
+        node: The node declaring the parameters.
+        prefix: Parameter name prefix without trailing dot (``""`` for none).
+    """
+
+    def __init__(self, node: Node, prefix: str = "") -> None:
+        self.selection = ConfigParameters(node, prefix, ReferenceSelection())
+        self.generators: dict[str, ConfigParameters[Generator]] = {
+            kind: ConfigParameters(node, parameter_name(prefix, kind), factory())
+            for kind, factory in REFERENCE_KINDS.items()
+        }
+
+    @property
+    def generator(self) -> Generator:
+        """The generator ``kind`` selects, with its current parameters."""
+        return self.generators[self.selection.config.kind].config
+
+
+def reference_time_s(stamp_ns: int, first_stamp_ns: int) -> float:
+    """Time of the reference at ``stamp_ns``: t = (stamp - first stamp) / 1e9 (s).
+
+    Exact integer difference, then one rounding: the offline loop's ``t_ns / 1e9`` for the same stamps.
+    """
+    return (stamp_ns - first_stamp_ns) / NANOSECONDS_PER_SECOND
+
+
 class ReferenceNode(MeasurementDrivenNode):
     """Reference generator node.
 
@@ -125,12 +165,7 @@ class ReferenceNode(MeasurementDrivenNode):
         )
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.lookahead = ConfigParameters(self, "", ReferenceLookahead(), read_only=True)
-        self.selection = ConfigParameters(self, "", ReferenceSelection())
-        self.generators: dict[str, ConfigParameters[StepReference | SineReference | RampHoldReference]] = {
-            "step": ConfigParameters(self, "step", StepReference()),
-            "sine": ConfigParameters(self, "sine", SineReference()),
-            "ramp_hold": ConfigParameters(self, "ramp_hold", RampHoldReference()),
-        }
+        self.reference = ReferenceParameters(self)
         self._first_stamp_ns: int | None = None
         self._time_s = 0.0
         self._reference_publisher = self.create_publisher(
@@ -144,9 +179,9 @@ class ReferenceNode(MeasurementDrivenNode):
         )
 
     @property
-    def generator(self) -> StepReference | SineReference | RampHoldReference:
+    def generator(self) -> Generator:
         """The generator sampled at the next measurement (per ``kind`` and its parameters)."""
-        return self.generators[self.selection.config.kind].config
+        return self.reference.generator
 
     @property
     def first_stamp_ns(self) -> int | None:
@@ -177,8 +212,7 @@ class ReferenceNode(MeasurementDrivenNode):
         generator = self.generator
         outputs: list[Output] = []
         for reference_stamp_ns in stamps:
-            # Exact integer difference, then one rounding: the offline loop's t_ns / 1e9 for the same stamps.
-            self._time_s = (reference_stamp_ns - self._first_stamp_ns) / NANOSECONDS_PER_SECOND
+            self._time_s = reference_time_s(reference_stamp_ns, self._first_stamp_ns)
             reference = generator.evaluate(self._time_s)
             outputs.append((self._reference_publisher, reference_to_msg(reference, reference_stamp_ns)))
         return outputs
