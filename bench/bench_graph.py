@@ -7,12 +7,14 @@ namespace (this script re-executes itself under ``unshare --net`` with ``lo`` up
 1. Raw rclpy ping-pong between two processes (JointState out, echoed back, 1 kHz, EventsExecutor): the
    round-trip latency floor of this machine and middleware, measured in the same run.
 2. Real time, separate processes (``smm-launch --clock-mode realtime``, case2, FPDESO, 1 kHz for 30 s) with
-   the default fused chain (sim -> controller_node -> sim: two hops; the reference is published one period
-   ahead, off the path): deadline-miss rate (ticks at which the answer to the previous measurement had not
-   arrived) and measurement-to-command latency p50/p99. Targets: p99 < 1 ms, misses < 1 %. For comparison
-   the split chain (sim -> td -> fleso -> controller -> sim: four hops) at 1 kHz for a shorter time.
-3. Lockstep throughput (case2), separate processes and ``--composed``, both chain layouts, in steps per wall
-   second from the first step to the last (start-up excluded). Target: >= 2000 steps/s composed (fused).
+   the default graph (sim -> controller_node -> sim: two hops, two processes; controller_node samples the
+   reference): deadline-miss rate (ticks at which the answer to the previous measurement had not arrived)
+   and measurement-to-command latency p50/p99. Targets: p99 < 1 ms, misses < 1 %. For comparison, shorter:
+   the fused chain with reference_node (three processes, reference one period ahead, off the path), the
+   split chain (sim -> td -> fleso -> controller -> sim: four hops), and the default graph composed.
+3. Lockstep throughput (case2), separate processes and ``--composed``, for the same layouts, in steps per
+   wall second from the first step to the last (start-up excluded). Target: >= 2000 steps/s composed
+   (default graph).
 
 Exit code 0 whenever the measurements ran, even if a target is MISSED; non-zero only if a run failed.
 """
@@ -227,6 +229,13 @@ def run_graph(
 HOPS = {"fused": 2, "split": 4}
 """Process boundaries a measurement crosses until its command is back at the plant, per chain layout."""
 
+LAYOUTS = {
+    "default": ["--chain", "fused", "--reference", "controller"],
+    "fused + reference_node": ["--chain", "fused", "--reference", "node"],
+    "split": ["--chain", "split", "--reference", "node"],
+}
+"""smm-launch arguments of each benchmarked layout; "default" is the graph smm-launch starts unasked."""
+
 
 def report_realtime(
     stats: dict[str, Any],
@@ -234,7 +243,7 @@ def report_realtime(
     seconds: float,
     raw: dict[str, float],
     *,
-    chain: str,
+    layout: str,
     composed: bool,
     targets: bool,
 ) -> None:
@@ -253,14 +262,15 @@ def report_realtime(
         else ""
     )
     print(
-        f"real time, {'composed' if composed else 'separate processes'}, {chain} chain, "
+        f"real time, {'composed' if composed else 'separate processes'}, {layout} graph, "
         f"{1 / period:.0f} Hz for {seconds:g} s: "
         f"{steps} steps, "
         f"deadline misses {misses} ({100 * rate:.2f} %{miss_target}), late ticks {stats['late_ticks']}, "
         f"zero-torque ticks {stats['stale_ticks']}"
     )
+    hops = 0 if composed else HOPS[LAYOUTS[layout][1]]
     print(
-        f"  measurement-to-command latency ({0 if composed else HOPS[chain]} inter-process hops): "
+        f"  measurement-to-command latency ({hops} inter-process hops): "
         f"p50 {latency['p50_us']:.0f} us, "
         f"p99 {p99:.0f} us{p99_target}, "
         f"max {latency['max_us']:.0f} us; {latency['count']:.0f} of {steps} measurements answered"
@@ -318,21 +328,23 @@ def main(argv: list[str] | None = None) -> int:
     )
     with tempfile.TemporaryDirectory(prefix="bench_graph_") as tmp:
         workdir = Path(tmp)
-        # 1 kHz (FPDESO, case2, fused chain) is the target; the split chain's four hops for comparison.
-        # For comparison too: the fused chain composed in one process (no inter-process hop at all).
+        # 1 kHz (FPDESO, case2, default graph) is the target; the other layouts for comparison, and the
+        # default graph composed in one process (no inter-process hop at all).
+        short = min(arguments.realtime_seconds, 10.0)
         realtime_runs = (
-            ("fused", False, arguments.realtime_seconds),
-            ("split", False, min(arguments.realtime_seconds, 10.0)),
-            ("fused", True, min(arguments.realtime_seconds, 10.0)),
+            ("default", False, arguments.realtime_seconds),
+            ("fused + reference_node", False, short),
+            ("split", False, short),
+            ("default", True, short),
         )
         period = 1e-3
-        for chain, composed, seconds in realtime_runs:
+        for layout, composed, seconds in realtime_runs:
             command = ["--clock-mode", "realtime", "--scenario", "case2", "--algorithm", "fpdeso"]
-            command += ["--chain", chain, "--duration", str(seconds), "--control-period", str(period)]
+            command += [*LAYOUTS[layout], "--duration", str(seconds), "--control-period", str(period)]
             command += ["--composed"] if composed else []
             stats = run_graph(
                 workdir,
-                f"realtime_{chain}{'_composed' if composed else ''}",
+                f"realtime_{layout.replace(' + ', '_')}{'_composed' if composed else ''}",
                 command,
                 timeout_s=seconds + 120,
                 # A real plant saturates; without it a loop run on late commands can drive the plant to Inf.
@@ -348,17 +360,19 @@ def main(argv: list[str] | None = None) -> int:
                 period,
                 seconds,
                 raw,
-                chain=chain,
+                layout=layout,
                 composed=composed,
-                targets=not composed and chain == "fused",
+                targets=not composed and layout == "default",
             )
         rates: dict[str, float] = {}
-        lockstep_runs = (
-            ("separate processes, fused chain", ["--chain", "fused"]),
-            ("composed, fused chain", ["--chain", "fused", "--composed"]),
-            ("separate processes, split chain", ["--chain", "split"]),
-            ("composed, split chain", ["--chain", "split", "--composed"]),
-        )
+        lockstep_runs = [
+            (
+                f"{placement}, {layout} graph",
+                [*arguments_, *(["--composed"] if placement == "composed" else [])],
+            )
+            for layout, arguments_ in LAYOUTS.items()
+            for placement in ("separate processes", "composed")
+        ]
         for label, extra in lockstep_runs:
             stats = run_graph(
                 workdir,
@@ -379,21 +393,23 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             rates[label] = stats["steps_per_wall_second"]
             line = f"lockstep, {label}: {stats['steps']} steps at {rates[label]:.0f} steps/s"
-            if label == "composed, fused chain":
+            if label == "composed, default graph":
                 met = rates[label] >= COMPOSED_TARGET_STEPS_PER_S
                 line += f" (target >= {COMPOSED_TARGET_STEPS_PER_S:.0f}: {verdict(met)})"
             line += f", {rates[label] / 1000:.2f}x real time (launch to exit {stats['launch_wall_s']:.1f} s)"
             print(line)
-        for chain in ("fused", "split"):
+        for layout in LAYOUTS:
             composed, separate = (
-                rates.get(f"composed, {chain} chain"),
-                rates.get(f"separate processes, {chain} chain"),
+                rates.get(f"composed, {layout} graph"),
+                rates.get(f"separate processes, {layout} graph"),
             )
             if composed and separate:
-                print(f"  {chain} chain, composed / separate processes: x{composed / separate:.2f}")
-        fused, split = rates.get("composed, fused chain"), rates.get("composed, split chain")
-        if fused and split:
-            print(f"  composed, fused / split chain: x{fused / split:.2f}")
+                print(f"  {layout} graph, composed / separate processes: x{composed / separate:.2f}")
+        default = rates.get("composed, default graph")
+        for layout in list(LAYOUTS)[1:]:
+            other = rates.get(f"composed, {layout} graph")
+            if default and other:
+                print(f"  composed, default / {layout} graph: x{default / other:.2f}")
     return 1 if failures else 0
 
 

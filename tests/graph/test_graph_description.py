@@ -19,7 +19,8 @@ from smm_controller import graph
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH_DIR = REPO / "src" / "smm_controller" / "launch"
-FUSED_NODES = ["smm_sim_node", "reference_node", "controller_node"]
+FUSED_NODES = ["smm_sim_node", "controller_node"]
+"""The default graph: the fused chain with the reference sampled inside controller_node."""
 SPLIT_NODES = ["smm_sim_node", "td_node", "fleso_node", "reference_node", "controller_node"]
 
 
@@ -27,13 +28,14 @@ def test_default_graph_is_fused_in_namespace_smm() -> None:
     specs = build_graph(GraphOptions())
     assert [spec.name for spec in specs] == FUSED_NODES
     assert {spec.namespace for spec in specs} == {"smm"}
-    assert [spec.package for spec in specs] == ["smm_sim"] + ["smm_controller"] * 2
+    assert [spec.package for spec in specs] == ["smm_sim", "smm_controller"]
     assert specs[0].fully_qualified_name == "/smm/smm_sim_node"
     assert dict(specs[-1].parameters)["chain"] == "internal"
+    assert dict(specs[-1].parameters)["reference_source"] == "internal"
 
 
 def test_split_graph_has_the_five_nodes_and_an_external_chain() -> None:
-    specs = build_graph(GraphOptions(chain="split"))
+    specs = build_graph(GraphOptions(chain="split", reference="node"))
     assert [spec.name for spec in specs] == SPLIT_NODES
     assert [spec.package for spec in specs] == ["smm_sim"] + ["smm_controller"] * 4
     assert dict(specs[-1].parameters)["chain"] == "external"
@@ -50,7 +52,9 @@ def test_reference_in_the_controller_drops_reference_node_and_hands_over_its_par
     )
     options = GraphOptions(chain=chain, reference="controller", scenario="case2", params_files=(str(user),))
     specs = build_graph(options)
-    with_node = build_graph(GraphOptions(chain=chain, scenario="case2", params_files=(str(user),)))
+    with_node = build_graph(
+        GraphOptions(chain=chain, reference="node", scenario="case2", params_files=(str(user),))
+    )
     assert [spec.name for spec in specs] == [spec.name for spec in with_node if spec.name != "reference_node"]
     controller = dict(specs[-1].parameters)
     assert controller["reference_source"] == "internal"
@@ -67,7 +71,9 @@ def test_reference_in_the_controller_drops_reference_node_and_hands_over_its_par
 
 def test_options_reach_the_right_nodes() -> None:
     specs = build_graph(
-        GraphOptions(clock_mode="realtime", chain="split", algorithm="npd", duration=2.5, seed=11)
+        GraphOptions(
+            clock_mode="realtime", chain="split", reference="node", algorithm="npd", duration=2.5, seed=11
+        )
     )
     by_name = {spec.name: dict(spec.parameters) for spec in specs}
     assert by_name["smm_sim_node"] == {"clock_mode": "realtime", "duration": 2.5, "seed": 11}

@@ -60,9 +60,9 @@ def compare_with_offline(record_path: Path, scenario_name: str, duration: float)
     np.testing.assert_allclose(record["command"], offline.command_torque[:steps], rtol=0, atol=1e-6)
 
 
-LAYOUTS = [("fused", "node"), ("split", "node"), ("fused", "controller")]
-"""(chain, reference) pairs run end to end: the default graph, the five-node graph, and the reference
-sampled inside controller_node."""
+LAYOUTS = [("fused", "controller"), ("split", "node"), ("fused", "node")]
+"""(chain, reference) pairs run end to end: the default two-node graph, the five-node graph, and the fused
+chain with reference_node."""
 
 
 def wait_exit(process: Any, timeout_s: float) -> int:
@@ -168,7 +168,8 @@ def test_a_node_killed_mid_run_stops_the_graph_with_a_non_zero_exit(
     ros_processes: Any, ros_context: Any
 ) -> None:
     launcher = ros_processes.start(
-        "smm-launch", launcher_argv("--chain", "split", "--scenario", "case1", "--duration", "600")
+        "smm-launch",
+        launcher_argv("--chain", "split", "--reference", "node", "--scenario", "case1", "--duration", "600"),
     )
     children = started_children(launcher, 5)
     wait_until_stepping(ros_context, launcher)
@@ -180,7 +181,9 @@ def test_a_node_killed_mid_run_stops_the_graph_with_a_non_zero_exit(
 
 
 def test_sigint_stops_every_child(ros_processes: Any, ros_context: Any) -> None:
-    launcher = ros_processes.start("smm-launch", launcher_argv("--scenario", "case1", "--duration", "600"))
+    launcher = ros_processes.start(
+        "smm-launch", launcher_argv("--reference", "node", "--scenario", "case1", "--duration", "600")
+    )
     children = started_children(launcher, 3)
     wait_until_stepping(ros_context, launcher)
     launcher.popen.send_signal(signal.SIGINT)

@@ -1,8 +1,8 @@
 """The main job: the full closed loop on the simulator, through the real ROS 2 graph.
 
 ``make demo`` (or ``python -m smm_analysis.demo``) starts the node graph with ``smm-launch`` (one OS process
-per node: simulator, reference and controller running TD -> FLESO -> law with the default fused chain;
-``--chain split`` adds the TD and FLESO nodes, five processes), runs the paper's case 2 (sinusoid, sensor
+per node: the simulator, and controller_node sampling the reference and running TD -> FLESO -> law, the
+default graph; ``--chain split`` adds the TD and FLESO nodes, four processes), runs the paper's case 2 (sinusoid, sensor
 noise, eq. 46 disturbance, +10 % inertia error) in lockstep for each controller asked for, has the simulator
 record every sample, then prints the paper's indices (eq. 42-45) of the graph run beside the offline
 simulator's for the same seed (they agree: a lockstep run is deterministic) and beside the paper's numbers.

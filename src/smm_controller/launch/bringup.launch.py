@@ -6,7 +6,8 @@ so the two cannot drift apart. Arguments:
 * ``plant:=sim|hw`` (hw: smm_hw_bridge, refused until that node exists),
 * ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``, ``scenario:=step|case1|case2|none``,
 * ``chain:=fused|split`` (fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too),
-* ``reference:=node|controller`` (controller: controller_node samples the reference, no reference_node),
+* ``reference:=controller|node`` (controller: controller_node samples the reference, no reference_node;
+  node: reference_node publishes it),
 * ``duration:=<s>`` (empty: the scenario's in lockstep, endless in realtime),
 * ``seed:=<int>`` (empty: as configured),
 * ``params_file:=<path>`` (empty: none), applied after the scenario's file,
@@ -38,7 +39,7 @@ ARGUMENTS = (
     ("plant", "sim", f"plant node: {' | '.join(PLANTS)}"),
     ("clock_mode", "lockstep", f"simulator clock: {' | '.join(CLOCK_MODES)}"),
     ("chain", "fused", f"chain layout: {' | '.join(CHAIN_LAYOUTS)}"),
-    ("reference", "node", f"who samples the reference: {' | '.join(REFERENCE_PLACEMENTS)}"),
+    ("reference", "controller", f"who samples the reference: {' | '.join(REFERENCE_PLACEMENTS)}"),
     ("algorithm", "fpdeso", f"controller: {' | '.join(ALGORITHMS)}"),
     ("scenario", "case2", f"scenario: {' | '.join(SCENARIO_NAMES)} | none"),
     ("duration", "", "simulated seconds until the simulator stops (empty: scenario / endless; 0: endless)"),

@@ -130,9 +130,10 @@ class GraphOptions:
             two process boundaries (plant -> controller -> plant), the layout that keeps up with 1 kHz;
             ``"split"``: ``td_node`` and ``fleso_node`` run as their own nodes (four crossings per step), to
             inspect or replace a stage on the wire. Both give the same torques.
-        reference: ``"node"`` (default): ``reference_node`` publishes the reference one period ahead;
-            ``"controller"``: ``controller_node`` samples it itself, one input and one process less per
-            step; the same values either way (see :data:`REFERENCE_PLACEMENTS`).
+        reference: ``"controller"`` (default): ``controller_node`` samples the reference itself, one input
+            and one process less per step, so the default graph is plant + controller; ``"node"``:
+            ``reference_node`` publishes it one period ahead. The same values either way (see
+            :data:`REFERENCE_PLACEMENTS`).
         algorithm: Controller algorithm, one of :data:`ALGORITHMS`.
         scenario: Scenario name (:data:`SCENARIO_NAMES`), or ``None`` for the nodes' own defaults.
         duration: Simulated time after which the simulator stops (s), > 0; ``None`` keeps the scenario's
@@ -146,7 +147,7 @@ class GraphOptions:
     plant: Literal["sim", "hw"] = "sim"
     clock_mode: Literal["lockstep", "realtime"] = "lockstep"
     chain: Literal["fused", "split"] = "fused"
-    reference: Literal["node", "controller"] = "node"
+    reference: Literal["node", "controller"] = "controller"
     algorithm: str = "fpdeso"
     scenario: str | None = "case2"
     duration: float | None = None

@@ -376,9 +376,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--reference",
         choices=REFERENCE_PLACEMENTS,
-        default="node",
-        help="node: reference_node publishes the reference; controller: controller_node samples it itself "
-        "(one process and one input less per step)",
+        default="controller",
+        help="controller: controller_node samples the reference itself (one process and one input less per "
+        "step); node: reference_node publishes it",
     )
     parser.add_argument("--algorithm", choices=ALGORITHMS, default="fpdeso", help="controller algorithm")
     parser.add_argument(
