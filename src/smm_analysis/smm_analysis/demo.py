@@ -2,10 +2,11 @@
 
 ``make demo`` (or ``python -m smm_analysis.demo``) starts the node graph with ``smm-launch`` (one OS process
 per node: the simulator, and controller_node sampling the reference and running TD -> FLESO -> law, the
-default graph; ``--chain split`` adds the TD and FLESO nodes, four processes), runs the paper's case 2 (sinusoid, sensor
-noise, eq. 46 disturbance, +10 % inertia error) in lockstep for each controller asked for, has the simulator
-record every sample, then prints the paper's indices (eq. 42-45) of the graph run beside the offline
-simulator's for the same seed (they agree: a lockstep run is deterministic) and beside the paper's numbers.
+default graph; ``--chain split`` adds the TD and FLESO nodes, four processes), runs the paper's case 2
+(sinusoid, sensor noise, eq. 46 disturbance, +10 % inertia error) in lockstep for each controller asked
+for, has the simulator record every sample, then prints the paper's indices (eq. 42-45) of the graph run
+beside the offline simulator's for the same seed (they agree: a lockstep run is deterministic) and beside
+the paper's numbers.
 
 Outputs go to ``--out`` (default ``out/demo``): ``<controller>.npz`` (the simulator's record) and
 ``metrics.json``. DDS stays on loopback unless ``ROS_AUTOMATIC_DISCOVERY_RANGE`` was set by the caller.
