@@ -19,6 +19,7 @@ __all__ = [
     "REFERENCE_KINDS",
     "RampHoldReference",
     "Reference",
+    "ReferenceGenerator",
     "Rows",
     "SineReference",
     "StepReference",
@@ -184,6 +185,9 @@ class RampHoldReference(_Sampled):
         )
 
 
+ReferenceGenerator = StepReference | SineReference | RampHoldReference
+"""Any of the reference generators (each a frozen config dataclass with ``rows``/``evaluate``/``sample``)."""
+
 #: Names accepted by :func:`make_reference`.
 REFERENCE_KINDS: dict[str, type[StepReference] | type[SineReference] | type[RampHoldReference]] = {
     "step": StepReference,
@@ -197,7 +201,7 @@ def _as_pair(value: Any) -> Any:
     return tuple(value) if isinstance(value, (list, np.ndarray)) else value
 
 
-def make_reference(kind: str, **params: Any) -> StepReference | SineReference | RampHoldReference:
+def make_reference(kind: str, **params: Any) -> ReferenceGenerator:
     """Builds a reference generator by name.
 
     Args:

@@ -41,7 +41,7 @@ from smm_msgs_py.parameters import ConfigParameters, parameter_name
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
 from std_msgs.msg import Float64MultiArray
 
-from smm_controller.reference import REFERENCE_KINDS, RampHoldReference, SineReference, StepReference
+from smm_controller.reference import REFERENCE_KINDS, ReferenceGenerator
 from smm_msgs_py import topics
 
 __all__ = [
@@ -96,9 +96,6 @@ class ReferenceLookahead:
             raise ValueError(f"lookahead must be an int >= 0 control periods, got {value!r}")
 
 
-Generator = StepReference | SineReference | RampHoldReference
-
-
 class ReferenceParameters:
     """A reference generator held as node parameters: ``<prefix>.kind`` and ``<prefix>.<kind>.<field>``.
 
@@ -114,13 +111,13 @@ class ReferenceParameters:
 
     def __init__(self, node: Node, prefix: str = "") -> None:
         self.selection = ConfigParameters(node, prefix, ReferenceSelection())
-        self.generators: dict[str, ConfigParameters[Generator]] = {
+        self.generators: dict[str, ConfigParameters[ReferenceGenerator]] = {
             kind: ConfigParameters(node, parameter_name(prefix, kind), factory())
             for kind, factory in REFERENCE_KINDS.items()
         }
 
     @property
-    def generator(self) -> Generator:
+    def generator(self) -> ReferenceGenerator:
         """The generator ``kind`` selects, with its current parameters."""
         return self.generators[self.selection.config.kind].config
 
@@ -179,7 +176,7 @@ class ReferenceNode(MeasurementDrivenNode):
         )
 
     @property
-    def generator(self) -> Generator:
+    def generator(self) -> ReferenceGenerator:
         """The generator sampled at the next measurement (per ``kind`` and its parameters)."""
         return self.reference.generator
 
