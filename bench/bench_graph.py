@@ -4,6 +4,9 @@ Figures, not pass/fail (``make bench``; never a test): every ROS process runs in
 namespace (this script re-executes itself under ``unshare --net`` with ``lo`` up, through
 ``tests/netns_exec.py``), with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ROS_DOMAIN_ID of its own.
 
+0. The host floor, without ROS: the wake-up lateness of a bare 1 ms sleep loop (the share of wake-ups
+   later than one period bounds the deadline-miss rate of any 1 kHz loop on this machine) and a bare UDP
+   ping-pong between two processes.
 1. Raw rclpy ping-pong between two processes (JointState out, echoed back, 1 kHz, EventsExecutor): the
    round-trip latency floor of this machine and middleware, measured in the same run.
 2. Real time, separate processes (``smm-launch --clock-mode realtime``, case2, FPDESO, 1 kHz for 30 s) with
@@ -185,6 +188,83 @@ def ping_pong(seconds: float) -> dict[str, float]:
     }
 
 
+# ------------------------------------------------------------------------------------------ host floor
+
+UDP_PONG_ADDRESS = ("127.0.0.1", 45_001)
+
+
+def udp_pong(seconds: float) -> int:
+    """Echo every UDP datagram on loopback back to its sender until none came for ``seconds``."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(UDP_PONG_ADDRESS)
+        sock.settimeout(seconds)
+        try:
+            while True:
+                data, sender = sock.recvfrom(1024)
+                sock.sendto(data, sender)
+        except TimeoutError:
+            return 0
+
+
+def timer_floor(seconds: float, period: float = 1e-3) -> dict[str, float]:
+    """Wake-up lateness of a bare sleep loop at ``period`` in this process (no ROS, no work).
+
+    A loop that sleeps to absolute deadlines and does nothing else: the share of wake-ups later than one
+    period after their deadline is a deadline-miss rate no control loop on this machine can beat.
+    """
+    lateness_ns: list[int] = []
+    period_ns = int(period * 1e9)
+    deadline_ns = time.monotonic_ns()
+    for _ in range(int(seconds / period)):
+        deadline_ns += period_ns
+        remaining_ns = deadline_ns - time.monotonic_ns()
+        if remaining_ns > 0:
+            time.sleep(remaining_ns / 1e9)
+        lateness_ns.append(time.monotonic_ns() - deadline_ns)
+    late = np.asarray(lateness_ns, dtype=np.float64) / 1e3
+    return {
+        "late_fraction": float(np.mean(late > period * 1e6)),
+        "p50_us": float(np.percentile(late, 50)),
+        "p99_us": float(np.percentile(late, 99)),
+    }
+
+
+def udp_ping_pong(seconds: float, period: float = 1e-3) -> dict[str, float]:
+    """Round trips of a 120-byte UDP datagram to an echo process and back at ``period`` (us; no ROS)."""
+    partner = subprocess.Popen(
+        [sys.executable, str(Path(__file__).resolve()), "--inner", "--role", "udp-pong", "--seconds", "5"]
+    )
+    round_trips: list[int] = []
+    payload = bytes(120)
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            sock.settimeout(1.0)
+            started = time.monotonic()
+            while True:  # until the echo process is bound
+                sock.sendto(payload, UDP_PONG_ADDRESS)
+                try:
+                    sock.recv(1024)
+                    break
+                except (TimeoutError, ConnectionRefusedError):
+                    if time.monotonic() - started > 30.0:
+                        raise
+            period_ns = int(period * 1e9)
+            deadline_ns = time.monotonic_ns()
+            for _ in range(int(seconds / period)):
+                start = time.monotonic_ns()
+                sock.sendto(payload, UDP_PONG_ADDRESS)
+                sock.recv(1024)
+                round_trips.append(time.monotonic_ns() - start)
+                deadline_ns += period_ns
+                remaining_ns = deadline_ns - time.monotonic_ns()
+                if remaining_ns > 0:
+                    time.sleep(remaining_ns / 1e9)
+    finally:
+        partner.wait(timeout=30)
+    samples = np.asarray(round_trips, dtype=np.float64) / 1e3
+    return {"p50_us": float(np.percentile(samples, 50)), "p99_us": float(np.percentile(samples, 99))}
+
+
 # ---------------------------------------------------------------------------------------------- graph
 
 
@@ -294,7 +374,9 @@ def td_filter_yaml(period: float) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
-    parser.add_argument("--role", choices=("bench", "pong"), default="bench", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--role", choices=("bench", "pong", "udp-pong"), default="bench", help=argparse.SUPPRESS
+    )
     parser.add_argument("--seconds", type=float, default=5.0, help=argparse.SUPPRESS)
     parser.add_argument(
         "--realtime-seconds", type=float, default=30.0, help="length of the 1 kHz real-time run (s)"
@@ -305,6 +387,8 @@ def main(argv: list[str] | None = None) -> int:
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if arguments.role == "pong":
         return pong(arguments.seconds)
+    if arguments.role == "udp-pong":
+        return udp_pong(arguments.seconds)
     if not arguments.inner:
         forwarded = ["--realtime-seconds", str(arguments.realtime_seconds)]
         forwarded += ["--lockstep-seconds", str(arguments.lockstep_seconds)]
@@ -317,6 +401,18 @@ def main(argv: list[str] | None = None) -> int:
         f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
     )
     failures = 0
+    # The floor under every figure below: what this machine gives a loop with no ROS and no work at all.
+    timer = timer_floor(10.0)
+    print(
+        f"host floor, bare 1 ms sleep loop (no ROS, no work): wake-up lateness p50 {timer['p50_us']:.0f} us, "
+        f"p99 {timer['p99_us']:.0f} us; {100 * timer['late_fraction']:.2f} % of wake-ups later than one "
+        "period (a 1 kHz loop that must wake within each period misses at least this often)"
+    )
+    udp = udp_ping_pong(5.0)
+    print(
+        f"host floor, bare UDP ping-pong (2 processes, loopback, no ROS, 1 kHz): round trip "
+        f"p50 {udp['p50_us']:.0f} us, p99 {udp['p99_us']:.0f} us"
+    )
     raw = ping_pong(5.0)
     print(
         f"raw rclpy ping-pong (2 processes, JointState, 1 kHz): round trip p50 {raw['p50_us']:.0f} us, "
@@ -364,6 +460,12 @@ def main(argv: list[str] | None = None) -> int:
                 composed=composed,
                 targets=not composed and layout == "default",
             )
+            if not composed and layout == "default":
+                print(
+                    f"  beside the host floor: a bare sleep loop was late at "
+                    f"{100 * timer['late_fraction']:.2f} % of its ticks, a bare UDP round trip's p99 was "
+                    f"{udp['p99_us']:.0f} us"
+                )
         rates: dict[str, float] = {}
         lockstep_runs = [
             (

@@ -11,7 +11,7 @@ from nodes.node_rig import measurement
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from smm_controller.reference import RampHoldReference, SineReference, StepReference
-from smm_controller.reference_node import ReferenceNode
+from smm_controller.reference_node import ReferenceClock, ReferenceNode
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_controller.td_node import TdNode
 from smm_msgs_py.conversions import joint_state_to_sample, msg_to_labelled, msg_to_reference
@@ -207,6 +207,17 @@ def test_td_gain_change_acts_on_the_next_step_and_keeps_the_state(make_rig: Any,
 
 
 # ---------------------------------------------------------------------------------------- reference
+
+
+def test_reference_clock_counts_from_the_first_stamp_in_exact_integers() -> None:
+    clock = ReferenceClock()
+    assert clock.first_stamp_ns is None
+    first = 2**62 + 1  # beyond float precision: the difference must be taken in integers
+    assert clock.time_s(first) == 0.0
+    assert clock.first_stamp_ns == first
+    assert clock.time_s(first + 1_700 * MS + 1) == (1_700 * MS + 1) / 1e9
+    assert clock.time_s(first - MS) == -1e-3  # an earlier stamp later on does not move t = 0
+    assert clock.first_stamp_ns == first
 
 
 def test_reference_is_sampled_at_the_time_since_the_first_stamp(make_rig: Any, ros_context: Any) -> None:

@@ -81,7 +81,7 @@ from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
 from smm_controller.graph import REFERENCE_PREFIX
-from smm_controller.reference_node import ReferenceParameters, reference_time_s
+from smm_controller.reference_node import ReferenceClock, ReferenceParameters
 from smm_controller.sync import ExactTimeSynchronizer, Matched
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_controller.td_node import TD_PREFIX, check_filter_factor
@@ -236,12 +236,13 @@ class ControllerNode(MeasurementDrivenNode):
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.placement = ConfigParameters(self, "", ChainPlacement(), read_only=True)
         self.reference_source = ConfigParameters(self, "", ReferenceSource(), read_only=True)
-        self.internal_reference = self.reference_source.config.reference_source == "internal"
+        internal = self.reference_source.config.reference_source == "internal"
         self.reference: ReferenceParameters | None = (
-            ReferenceParameters(self, REFERENCE_PREFIX) if self.internal_reference else None
+            ReferenceParameters(self, REFERENCE_PREFIX) if internal else None
         )
         """The reference generator this node samples with ``reference_source = internal`` (else None)."""
-        self._first_stamp_ns: int | None = None
+        self.reference_clock = ReferenceClock()
+        """Time of the sampled reference: t = 0 at the first matched measurement (``internal`` only)."""
         self.selection = ConfigParameters(
             self, "", ControllerSelection(), check=self._check_selection, on_change=self._on_selection
         )
@@ -330,6 +331,11 @@ class ControllerNode(MeasurementDrivenNode):
             self.chain = ControlChain(TrackingDifferentiator(self.td_parameters.config), fleso, built)
             self._last_command = np.zeros(2)
         return built
+
+    @property
+    def internal_reference(self) -> bool:
+        """True with ``reference_source = internal``: this node samples the reference, nothing feeds it."""
+        return self.reference is not None
 
     def _inputs(self, name: str) -> tuple[str, ...]:
         reference = () if self.internal_reference else (topics.REFERENCE,)
@@ -421,9 +427,7 @@ class ControllerNode(MeasurementDrivenNode):
         if self.reference is None:
             rows: list[list[float]] = matched.items[topics.REFERENCE].values.tolist()
             return rows
-        if self._first_stamp_ns is None:
-            self._first_stamp_ns = matched.stamp_ns
-        return self.reference.generator.rows(reference_time_s(matched.stamp_ns, self._first_stamp_ns))
+        return self.reference.generator.rows(self.reference_clock.time_s(matched.stamp_ns))
 
     def _step(self, matched: Matched[Any]) -> list[Output]:
         reference = self._reference_rows(matched)

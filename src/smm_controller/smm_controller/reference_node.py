@@ -53,7 +53,6 @@ __all__ = [
     "ReferenceParameters",
     "ReferenceSelection",
     "main",
-    "reference_time_s",
 ]
 
 NODE_NAME = "reference_node"
@@ -122,12 +121,27 @@ class ReferenceParameters:
         return self.generators[self.selection.config.kind].config
 
 
-def reference_time_s(stamp_ns: int, first_stamp_ns: int) -> float:
-    """Time of the reference at ``stamp_ns``: t = (stamp - first stamp) / 1e9 (s).
+class ReferenceClock:
+    """Time of the reference from measurement stamps: t = (stamp - first stamp) / 1e9 (s).
 
-    Exact integer difference, then one rounding: the offline loop's ``t_ns / 1e9`` for the same stamps.
+    t = 0 at the first stamp it is asked about, as a trajectory controller starts its trajectory at the
+    first state it sees. Exact integer difference, then one rounding: the offline loop's ``t_ns / 1e9``
+    for the same stamps.
     """
-    return (stamp_ns - first_stamp_ns) / NANOSECONDS_PER_SECOND
+
+    def __init__(self) -> None:
+        self._first_stamp_ns: int | None = None
+
+    @property
+    def first_stamp_ns(self) -> int | None:
+        """Stamp (ns) that is t = 0; None before the first call of :meth:`time_s`."""
+        return self._first_stamp_ns
+
+    def time_s(self, stamp_ns: int) -> float:
+        """Reference time (s) at ``stamp_ns`` (ns); the first stamp ever passed becomes t = 0."""
+        if self._first_stamp_ns is None:
+            self._first_stamp_ns = stamp_ns
+        return (stamp_ns - self._first_stamp_ns) / NANOSECONDS_PER_SECOND
 
 
 class ReferenceNode(MeasurementDrivenNode):
@@ -163,7 +177,8 @@ class ReferenceNode(MeasurementDrivenNode):
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.lookahead = ConfigParameters(self, "", ReferenceLookahead(), read_only=True)
         self.reference = ReferenceParameters(self)
-        self._first_stamp_ns: int | None = None
+        self.clock = ReferenceClock()
+        """Reference time from the stamps: t = 0 at the first answered measurement."""
         self._time_s = 0.0
         self._reference_publisher = self.create_publisher(
             Float64MultiArray, topics.REFERENCE, qos_for_topic(topics.REFERENCE)
@@ -179,11 +194,6 @@ class ReferenceNode(MeasurementDrivenNode):
     def generator(self) -> ReferenceGenerator:
         """The generator sampled at the next measurement (per ``kind`` and its parameters)."""
         return self.reference.generator
-
-    @property
-    def first_stamp_ns(self) -> int | None:
-        """Stamp (ns) of the first answered measurement: t = 0 of the reference; None before it."""
-        return self._first_stamp_ns
 
     def _on_measurement(self, msg: JointState) -> None:
         try:
@@ -201,15 +211,14 @@ class ReferenceNode(MeasurementDrivenNode):
 
     def _step(self, stamp_ns: int) -> list[Output]:
         ahead_ns = self.lookahead.config.lookahead * self.period_ns
-        if self._first_stamp_ns is None:
-            self._first_stamp_ns = stamp_ns
+        if self.clock.first_stamp_ns is None:
             stamps = range(stamp_ns, stamp_ns + ahead_ns + 1, self.period_ns)
         else:
             stamps = range(stamp_ns + ahead_ns, stamp_ns + ahead_ns + 1)
         generator = self.generator
         outputs: list[Output] = []
         for reference_stamp_ns in stamps:
-            self._time_s = reference_time_s(reference_stamp_ns, self._first_stamp_ns)
+            self._time_s = self.clock.time_s(reference_stamp_ns)
             reference = generator.evaluate(self._time_s)
             outputs.append((self._reference_publisher, reference_to_msg(reference, reference_stamp_ns)))
         return outputs
