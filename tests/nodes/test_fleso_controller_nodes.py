@@ -329,8 +329,10 @@ def test_fpdeso_waits_for_all_three_inputs_and_answers_with_the_law_output(
     np.testing.assert_array_equal(command.values, direct_torque(direct, 0))
     rig.wait_for(topics.CONTROLLER_INTERNALS, 1)
     rows = msg_to_labelled(internals[0])
-    np.testing.assert_array_equal(rows.row("tau"), command.values)
-    assert "dropped_invalid" in rows.row_labels
+    # The law's rows carry the chain's labels, as with chain: internal and offline.
+    np.testing.assert_array_equal(rows.row("controller.tau"), command.values)
+    law_rows = {f"controller.{key}" for key in direct.internals}
+    assert law_rows | {"dropped_invalid"} <= set(rows.row_labels)
 
 
 @pytest.mark.parametrize(("algorithm", "law"), [("pid", PIDController), ("npd", NPDController)])

@@ -27,7 +27,14 @@ from smm_controller.td import TrackingDifferentiator
 from smm_controller.torque_law import TorqueLaw
 from smm_dynamics import SMMParameters
 
-__all__ = ["CONTROLLER_NAMES", "ControlChain", "JointController", "make_chain", "make_controller"]
+__all__ = [
+    "CONTROLLER_NAMES",
+    "ControlChain",
+    "JointController",
+    "make_chain",
+    "make_controller",
+    "stage_internals",
+]
 
 #: Names accepted by :func:`make_controller` and :func:`make_chain`.
 CONTROLLER_NAMES: tuple[str, ...] = ("fpdeso", "fpd", "pid", "npd")
@@ -35,6 +42,14 @@ CONTROLLER_NAMES: tuple[str, ...] = ("fpdeso", "fpd", "pid", "npd")
 
 JointController = TorqueLaw
 """The interface shared by FPDESO and the baselines (see :class:`smm_controller.torque_law.TorqueLaw`)."""
+
+
+def stage_internals(stage: str, internals: Mapping[str, FloatArray]) -> dict[str, FloatArray]:
+    """A stage's internals under the chain's labels: ``"<stage>.<key>"`` (``"controller.kp"``, ...).
+
+    One labelling for the offline loop and every node layout, so a row means the same in every bag.
+    """
+    return {f"{stage}.{key}": value for key, value in internals.items()}
 
 
 class ControlChain:
@@ -104,14 +119,10 @@ class ControlChain:
     @property
     def internals(self) -> Mapping[str, FloatArray]:
         """All stages' internals, keys prefixed ``td.``, ``fleso.``, ``controller.``, shape (2,)."""
-        merged: dict[str, FloatArray] = {}
-        stages: list[tuple[str, Mapping[str, FloatArray]]] = [("td", self.td.internals)]
+        merged = stage_internals("td", self.td.internals)
         if self.fleso is not None:
-            stages.append(("fleso", self.fleso.internals))
-        stages.append(("controller", self.controller.internals))
-        for prefix, internals in stages:
-            for key, value in internals.items():
-                merged[f"{prefix}.{key}"] = value
+            merged.update(stage_internals("fleso", self.fleso.internals))
+        merged.update(stage_internals("controller", self.controller.internals))
         disturbance = np.array(self._disturbance)
         disturbance.flags.writeable = False
         merged["disturbance_estimate"] = disturbance

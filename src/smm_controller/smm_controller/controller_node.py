@@ -76,7 +76,7 @@ from smm_controller.baselines import (
     PIDConfig,
     PIDController,
 )
-from smm_controller.chain import CONTROLLER_NAMES, ControlChain, JointController
+from smm_controller.chain import CONTROLLER_NAMES, ControlChain, JointController, stage_internals
 from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
@@ -456,7 +456,11 @@ class ControllerNode(MeasurementDrivenNode):
         return [(self._torque_publisher, torque_to_msg(tau, matched.stamp_ns))]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
-        internals = self.chain.internals if self.chain is not None else self.controller.internals
+        internals = (
+            self.chain.internals
+            if self.chain is not None
+            else stage_internals("controller", self.controller.internals)
+        )
         rows = {**internals, **self.counter_rows()}
         outputs = [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
         if self.internal_reference:
