@@ -12,9 +12,9 @@ import pytest
 pytestmark = pytest.mark.ros
 
 
-@pytest.mark.parametrize("chain", ["fused", "split"])
+@pytest.mark.parametrize(("chain", "reference"), [("fused", "controller"), ("split", "node")])
 def test_demo_runs_the_graph_and_matches_the_offline_loop(
-    ros_processes: Any, tmp_path: Path, chain: str
+    ros_processes: Any, tmp_path: Path, chain: str, reference: str
 ) -> None:
     out = tmp_path / "demo"
     demo = ros_processes.start(
@@ -31,11 +31,13 @@ def test_demo_runs_the_graph_and_matches_the_offline_loop(
             str(out),
             "--chain",
             chain,
+            "--reference",
+            reference,
         ],
     )
     assert demo.popen.wait(timeout=180) == 0, demo.logs()
     document = json.loads((out / "metrics.json").read_text())
-    assert document["chain"] == chain
+    assert (document["chain"], document["reference"]) == (chain, reference)
     run = document["runs"]["fpdeso"]
     assert run["steps"] == 300
     for joint in ("alpha", "beta"):

@@ -2,7 +2,8 @@
 
 ``make demo`` (or ``python -m smm_analysis.demo``) starts the node graph with ``smm-launch`` (one OS process
 per node: the simulator, and controller_node sampling the reference and running TD -> FLESO -> law, the
-default graph; ``--chain split`` adds the TD and FLESO nodes, four processes), runs the paper's case 2
+default graph; ``--chain split`` adds the TD and FLESO nodes, ``--reference node`` the reference_node),
+runs the paper's case 2
 (sinusoid, sensor noise, eq. 46 disturbance, +10 % inertia error) in lockstep for each controller asked
 for, has the simulator record every sample, then prints the paper's indices (eq. 42-45) of the graph run
 beside the offline simulator's for the same seed (they agree: a lockstep run is deterministic) and beside
@@ -25,6 +26,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from smm_controller.graph import CHAIN_LAYOUTS, REFERENCE_PLACEMENTS, GraphOptions
 
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.errors import AnalysisError
@@ -58,7 +60,8 @@ def graph_command(
     duration: float | None,
     params_file: Path,
     *,
-    chain: str = "fused",
+    chain: str = GraphOptions.chain,
+    reference: str = GraphOptions.reference,
 ) -> list[str]:
     """The ``smm-launch`` command line of one lockstep run that records to the file in ``params_file``."""
     command = [
@@ -69,6 +72,8 @@ def graph_command(
         "lockstep",
         "--chain",
         chain,
+        "--reference",
+        reference,
         "--scenario",
         scenario,
         "--algorithm",
@@ -84,7 +89,14 @@ def graph_command(
 
 
 def run_graph(
-    controller: str, scenario: str, seed: int, duration: float | None, out_dir: Path, *, chain: str = "fused"
+    controller: str,
+    scenario: str,
+    seed: int,
+    duration: float | None,
+    out_dir: Path,
+    *,
+    chain: str = GraphOptions.chain,
+    reference: str = GraphOptions.reference,
 ) -> Path:
     """Run the graph once in lockstep; return the path of the simulator's record (.npz).
 
@@ -98,7 +110,7 @@ def run_graph(
     params.write_text(f'/**/smm_sim_node:\n  ros__parameters:\n    record_file: "{record}"\n')
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    command = graph_command(controller, scenario, seed, duration, params, chain=chain)
+    command = graph_command(controller, scenario, seed, duration, params, chain=chain, reference=reference)
     code = subprocess.run(command, env=env, check=False)
     if code.returncode != 0:
         raise DemoError(f"smm-launch exited with code {code.returncode} for controller {controller}")
@@ -154,19 +166,22 @@ def demo(
     duration: float | None,
     out_dir: Path,
     *,
-    chain: str = "fused",
+    chain: str = GraphOptions.chain,
+    reference: str = GraphOptions.reference,
 ) -> int:
     """Run the demo; return the process exit code."""
     runs: list[DemoRun] = []
     for controller in controllers:
         print(
             f"[demo] {scenario} with {controller} through the ROS 2 graph (lockstep, {chain} chain, "
-            f"seed {seed})",
+            f"reference sampled by the {reference}, seed {seed})",
             flush=True,
         )
         start = time.perf_counter()
         try:
-            record = run_graph(controller, scenario, seed, duration, out_dir, chain=chain)
+            record = run_graph(
+                controller, scenario, seed, duration, out_dir, chain=chain, reference=reference
+            )
             run = graph_indices(record, scenario, seed, duration)
         except (DemoError, AnalysisError) as error:
             print(f"[demo] error: {error}", file=sys.stderr)
@@ -180,6 +195,7 @@ def demo(
         "scenario": scenario,
         "seed": seed,
         "chain": chain,
+        "reference": reference,
         "runs": {
             run.controller: {
                 "steps": run.steps,
@@ -211,9 +227,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("out/demo"))
     parser.add_argument(
         "--chain",
-        choices=("fused", "split"),
-        default="fused",
+        choices=CHAIN_LAYOUTS,
+        default=GraphOptions.chain,
         help="fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too",
+    )
+    parser.add_argument(
+        "--reference",
+        choices=REFERENCE_PLACEMENTS,
+        default=GraphOptions.reference,
+        help="controller: controller_node samples the reference; node: reference_node publishes it",
     )
     arguments = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -224,6 +246,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         arguments.duration,
         arguments.out,
         chain=arguments.chain,
+        reference=arguments.reference,
     )
 
 
