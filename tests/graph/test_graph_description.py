@@ -11,8 +11,16 @@ from typing import Any
 
 import pytest
 import yaml
+from hypothesis import assume, given
+from hypothesis import strategies as st
 from smm_controller.graph import GraphOptions, NodeSpec, build_graph
-from smm_controller.launcher import EXIT_CONFIGURATION_ERROR, EXIT_OK, options_from_arguments, run
+from smm_controller.launcher import (
+    EXIT_CONFIGURATION_ERROR,
+    EXIT_OK,
+    arguments_from_options,
+    options_from_arguments,
+    run,
+)
 from smm_controller.launcher import build_parser as launcher_parser
 
 from smm_controller import graph
@@ -258,6 +266,34 @@ def test_launcher_arguments_map_onto_graph_options() -> None:
         seed=4,
         control_period=0.002,
     )
+
+
+@st.composite
+def graph_options(draw: st.DrawFn) -> GraphOptions:
+    """Any valid GraphOptions."""
+    positive = st.floats(min_value=1e-4, max_value=1e4, allow_nan=False, allow_infinity=False)
+    try:
+        return GraphOptions(
+            plant=draw(st.sampled_from(graph.PLANTS)),
+            clock_mode=draw(st.sampled_from(graph.CLOCK_MODES)),
+            chain=draw(st.sampled_from(graph.CHAIN_LAYOUTS)),
+            reference=draw(st.sampled_from(graph.REFERENCE_PLACEMENTS)),
+            algorithm=draw(st.sampled_from(graph.ALGORITHMS)),
+            scenario=draw(st.none() | st.sampled_from(graph.SCENARIO_NAMES)),
+            duration=draw(st.none() | st.just(0.0) | positive),
+            seed=draw(st.none() | st.integers(min_value=0, max_value=2**32 - 1)),
+            params_files=tuple(draw(st.lists(st.sampled_from(["a.yaml", "dir/b c.yaml"]), max_size=3))),
+            control_period=draw(st.none() | positive),
+        )
+    except ValueError:
+        assume(False)
+        raise
+
+
+@given(graph_options())
+def test_launcher_arguments_from_options_give_the_same_options_back(options: GraphOptions) -> None:
+    arguments = launcher_parser().parse_args(arguments_from_options(options))
+    assert options_from_arguments(arguments) == options
 
 
 def test_launcher_reports_hw_plant_and_exits_2(capsys: pytest.CaptureFixture[str]) -> None:

@@ -16,6 +16,7 @@ Outputs go to ``--out`` (default ``out/demo``): ``<controller>.npz`` (the simula
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import subprocess
@@ -24,9 +25,11 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from smm_controller.graph import CHAIN_LAYOUTS, REFERENCE_PLACEMENTS, GraphOptions
+from smm_controller.launcher import arguments_from_options
 
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.errors import AnalysisError
@@ -53,86 +56,53 @@ class DemoRun:
     wall_time: float
 
 
-def graph_command(
-    controller: str,
-    scenario: str,
-    seed: int,
-    duration: float | None,
-    params_file: Path,
-    *,
-    chain: str = GraphOptions.chain,
-    reference: str = GraphOptions.reference,
-) -> list[str]:
-    """The ``smm-launch`` command line of one lockstep run that records to the file in ``params_file``."""
-    command = [
-        sys.executable,
-        "-m",
-        "smm_controller.launcher",
-        "--clock-mode",
-        "lockstep",
-        "--chain",
-        chain,
-        "--reference",
-        reference,
-        "--scenario",
-        scenario,
-        "--algorithm",
-        controller,
-        "--seed",
-        str(seed),
-        "--params-file",
-        str(params_file),
-    ]
-    if duration is not None:
-        command += ["--duration", repr(duration)]
-    return command
+def graph_command(options: GraphOptions) -> list[str]:
+    """The ``smm-launch`` command line that starts the graph ``options`` describe."""
+    return [sys.executable, "-m", "smm_controller.launcher", *arguments_from_options(options)]
 
 
-def run_graph(
-    controller: str,
-    scenario: str,
-    seed: int,
-    duration: float | None,
-    out_dir: Path,
-    *,
-    chain: str = GraphOptions.chain,
-    reference: str = GraphOptions.reference,
-) -> Path:
-    """Run the graph once in lockstep; return the path of the simulator's record (.npz).
+def run_graph(options: GraphOptions, out_dir: Path) -> Path:
+    """Run the graph once, the simulator recording; return the path of its record (.npz).
 
     Raises:
         DemoError: ``smm-launch`` exited non-zero or wrote no record.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    record = (out_dir / f"{controller}.npz").resolve()
+    record = (out_dir / f"{options.algorithm}.npz").resolve()
     record.unlink(missing_ok=True)
-    params = out_dir / f"{controller}.record.yaml"
+    params = out_dir / f"{options.algorithm}.record.yaml"
     params.write_text(f'/**/smm_sim_node:\n  ros__parameters:\n    record_file: "{record}"\n')
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    command = graph_command(controller, scenario, seed, duration, params, chain=chain, reference=reference)
-    code = subprocess.run(command, env=env, check=False)
+    recording = dataclasses.replace(options, params_files=(*options.params_files, str(params)))
+    code = subprocess.run(graph_command(recording), env=env, check=False)
     if code.returncode != 0:
-        raise DemoError(f"smm-launch exited with code {code.returncode} for controller {controller}")
+        raise DemoError(f"smm-launch exited with code {code.returncode} for controller {options.algorithm}")
     if not record.is_file():
         raise DemoError(f"the simulator wrote no record at {record}")
     return record
 
 
-def graph_indices(record_path: Path, scenario: str, seed: int, duration: float | None) -> DemoRun:
-    """Indices of a recorded graph run and of the offline loop, both over the N commanded intervals."""
+def graph_indices(record_path: Path, options: GraphOptions) -> DemoRun:
+    """Indices of a recorded graph run and of the offline loop, both over the N commanded intervals.
+
+    Raises:
+        DemoError: ``options`` name no scenario, or the record's stamps are not the scenario's.
+    """
+    if options.scenario is None or options.seed is None:
+        raise DemoError("a demo run needs a scenario and a seed to compare with the offline loop")
     record = np.load(record_path)
     steps = int(record["command"].shape[0])
-    chosen = get_scenario(scenario)
-    if duration is not None:
-        chosen = chosen.with_duration(duration)
-    offline = run_closed_loop(chosen, str(record_path.stem), seed=seed, record_internals=False)
+    chosen = get_scenario(options.scenario)
+    if options.duration is not None:
+        chosen = chosen.with_duration(options.duration)
+    offline = run_closed_loop(chosen, options.algorithm, seed=options.seed, record_internals=False)
     if not np.array_equal(record["stamp_ns"][:steps], offline.t_ns[:steps]):
         raise DemoError("the graph's stamps differ from the offline loop's: not the same scenario")
     t_ns = offline.t_ns[:steps]
     desired = offline.desired_position[:steps]
     return DemoRun(
-        controller=record_path.stem,
+        controller=options.algorithm,
         graph=joint_indices(t_ns, desired, record["position"][:steps], record["command"]),
         offline=joint_indices(t_ns, desired, offline.position[:steps], offline.command_torque[:steps]),
         steps=steps,
@@ -166,8 +136,8 @@ def demo(
     duration: float | None,
     out_dir: Path,
     *,
-    chain: str = GraphOptions.chain,
-    reference: str = GraphOptions.reference,
+    chain: Literal["fused", "split"] = GraphOptions.chain,
+    reference: Literal["node", "controller"] = GraphOptions.reference,
 ) -> int:
     """Run the demo; return the process exit code."""
     runs: list[DemoRun] = []
@@ -177,12 +147,18 @@ def demo(
             f"reference sampled by the {reference}, seed {seed})",
             flush=True,
         )
+        options = GraphOptions(
+            clock_mode="lockstep",
+            chain=chain,
+            reference=reference,
+            algorithm=controller,
+            scenario=scenario,
+            duration=duration,
+            seed=seed,
+        )
         start = time.perf_counter()
         try:
-            record = run_graph(
-                controller, scenario, seed, duration, out_dir, chain=chain, reference=reference
-            )
-            run = graph_indices(record, scenario, seed, duration)
+            run = graph_indices(run_graph(options, out_dir), options)
         except (DemoError, AnalysisError) as error:
             print(f"[demo] error: {error}", file=sys.stderr)
             return 1

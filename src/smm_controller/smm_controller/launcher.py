@@ -369,14 +369,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--chain",
         choices=CHAIN_LAYOUTS,
-        default="fused",
+        default=GraphOptions.chain,
         help="fused: TD, FLESO and law in controller_node (2 hops per step); "
         "split: td_node and fleso_node as their own nodes (4 hops per step)",
     )
     parser.add_argument(
         "--reference",
         choices=REFERENCE_PLACEMENTS,
-        default="controller",
+        default=GraphOptions.reference,
         help="controller: controller_node samples the reference itself (one process and one input less per "
         "step); node: reference_node publishes it",
     )
@@ -439,6 +439,22 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         params_files=tuple(arguments.params_file),
         control_period=arguments.control_period,
     )
+
+
+def arguments_from_options(options: GraphOptions) -> list[str]:
+    """The ``smm-launch`` arguments of the graph ``options`` describe; inverts options_from_arguments."""
+    arguments = ["--plant", options.plant, "--clock-mode", options.clock_mode, "--chain", options.chain]
+    arguments += ["--reference", options.reference, "--algorithm", options.algorithm]
+    arguments += ["--scenario", "none" if options.scenario is None else options.scenario]
+    if options.duration is not None:
+        arguments += ["--duration", repr(options.duration)]
+    if options.seed is not None:
+        arguments += ["--seed", str(options.seed)]
+    if options.control_period is not None:
+        arguments += ["--control-period", repr(options.control_period)]
+    for params_file in options.params_files:
+        arguments += ["--params-file", params_file]
+    return arguments
 
 
 def run(argv: Sequence[str]) -> int:
