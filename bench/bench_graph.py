@@ -206,20 +206,25 @@ def udp_pong(seconds: float) -> int:
             return 0
 
 
+def sleep_until_ns(deadline_ns: int) -> None:
+    """Sleep until ``time.monotonic_ns()`` reaches ``deadline_ns`` (return at once if it has)."""
+    remaining_ns = deadline_ns - time.monotonic_ns()
+    if remaining_ns > 0:
+        time.sleep(remaining_ns / 1e9)
+
+
 def timer_floor(seconds: float, period: float = 1e-3) -> dict[str, float]:
     """Wake-up lateness of a bare sleep loop at ``period`` in this process (no ROS, no work).
 
     A loop that sleeps to absolute deadlines and does nothing else: the share of wake-ups later than one
-    period after their deadline is a deadline-miss rate no control loop on this machine can beat.
+    period after their deadline is a deadline-miss rate that no loop sleeping between its ticks can beat.
     """
     lateness_ns: list[int] = []
     period_ns = int(period * 1e9)
     deadline_ns = time.monotonic_ns()
     for _ in range(int(seconds / period)):
         deadline_ns += period_ns
-        remaining_ns = deadline_ns - time.monotonic_ns()
-        if remaining_ns > 0:
-            time.sleep(remaining_ns / 1e9)
+        sleep_until_ns(deadline_ns)
         lateness_ns.append(time.monotonic_ns() - deadline_ns)
     late = np.asarray(lateness_ns, dtype=np.float64) / 1e3
     return {
@@ -256,9 +261,7 @@ def udp_ping_pong(seconds: float, period: float = 1e-3) -> dict[str, float]:
                 sock.recv(1024)
                 round_trips.append(time.monotonic_ns() - start)
                 deadline_ns += period_ns
-                remaining_ns = deadline_ns - time.monotonic_ns()
-                if remaining_ns > 0:
-                    time.sleep(remaining_ns / 1e9)
+                sleep_until_ns(deadline_ns)
     finally:
         partner.wait(timeout=30)
     samples = np.asarray(round_trips, dtype=np.float64) / 1e3
@@ -406,7 +409,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"host floor, bare 1 ms sleep loop (no ROS, no work): wake-up lateness p50 {timer['p50_us']:.0f} us, "
         f"p99 {timer['p99_us']:.0f} us; {100 * timer['late_fraction']:.2f} % of wake-ups later than one "
-        "period (a 1 kHz loop that must wake within each period misses at least this often)"
+        "period (a 1 kHz loop that sleeps between its ticks misses at least this often)"
     )
     udp = udp_ping_pong(5.0)
     print(
