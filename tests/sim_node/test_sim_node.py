@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from smm_sim.sim_node import statistics_summary
 
 pytestmark = pytest.mark.ros
 
@@ -192,6 +193,9 @@ def test_realtime_applies_zero_torque_once_the_command_is_stale(make_harness: An
     assert commands.shape[0] - nonzero[-1] > 50, "zero torque must follow the timeout"
     assert h.sim.stale_ticks > 50
     np.testing.assert_array_equal(h.sim.plant.internals["commanded_torque"], [0.0, 0.0])
+    summary = statistics_summary(h.sim.statistics())
+    assert "(real time); latency p50 " in summary and "(1 answers)" in summary
+    assert f"zero-torque ticks {h.sim.stale_ticks};" in summary
 
 
 def test_lockstep_run_ends_after_max_steps_with_a_complete_record(make_harness: Any, tmp_path: Path) -> None:
@@ -218,6 +222,25 @@ def test_lockstep_run_ends_after_max_steps_with_a_complete_record(make_harness: 
     np.testing.assert_array_equal(data["command_stamp_ns"], np.arange(20) * PERIOD_NS)
     assert data["position"].shape == (21, 2) and data["command"].shape == (20, 2)
     assert '"steps": 20' in stats.read_text()
+    summary = statistics_summary(h.sim.statistics())
+    assert summary.startswith("20 steps at ") and "steps/s (lockstep)" in summary
+    assert "latency" not in summary and "nan" not in summary  # no deadlines in lockstep
+
+
+def test_realtime_summary_without_answers_says_so_instead_of_nan() -> None:
+    stats = {
+        "clock_mode": "realtime",
+        "steps": 7,
+        "latency": {"count": 0.0, "p50_us": math.nan, "p99_us": math.nan},
+        "deadline_misses": 7,
+        "late_ticks": 0,
+        "stale_ticks": 7,
+        "dropped_invalid": 1,
+        "dropped_unknown_stamp": 2,
+    }
+    summary = statistics_summary(stats)
+    assert "no command answered a measurement" in summary and "nan" not in summary
+    assert "deadline misses 7" in summary and "dropped 1 invalid, 2 unknown-stamp commands" in summary
 
 
 def _lockstep_record(make_harness: Any, path: Path, seed: int) -> dict[str, np.ndarray]:

@@ -42,7 +42,7 @@ import math
 import sys
 import time
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final, Literal
@@ -79,6 +79,7 @@ __all__ = [
     "SimNodeConfig",
     "SimParameterError",
     "main",
+    "statistics_summary",
 ]
 
 NODE_NAME: Final[str] = "smm_sim_node"
@@ -258,6 +259,33 @@ class LatencyStats:
             "p99_us": self.percentile_us(99.0),
             "max_us": self.percentile_us(100.0),
         }
+
+
+def statistics_summary(stats: Mapping[str, Any]) -> str:
+    """One log line of :meth:`SimNode.statistics`: the figures that mean something in its clock mode.
+
+    Lockstep: steps and stepping rate (latency and deadlines do not exist: the plant waits for every
+    answer). Real time: latency percentiles, deadline misses, late and zero-torque ticks. Both: the
+    commands dropped.
+    """
+    dropped = (
+        f"dropped {stats['dropped_invalid']} invalid, {stats['dropped_unknown_stamp']} unknown-stamp commands"
+    )
+    if stats["clock_mode"] == "lockstep":
+        rate = stats["steps_per_wall_second"]
+        rate_text = f" at {rate:.0f} steps/s" if math.isfinite(rate) else ""
+        return f"{stats['steps']} steps{rate_text} (lockstep); republished {stats['republished']}; {dropped}"
+    latency = stats["latency"]
+    answers = int(latency["count"])
+    latency_text = (
+        f"latency p50 {latency['p50_us']:.0f} us, p99 {latency['p99_us']:.0f} us ({answers} answers)"
+        if answers
+        else "no command answered a measurement"
+    )
+    return (
+        f"{stats['steps']} steps (real time); {latency_text}; deadline misses {stats['deadline_misses']}, "
+        f"late ticks {stats['late_ticks']}, zero-torque ticks {stats['stale_ticks']}; {dropped}"
+    )
 
 
 class _Recorder:
@@ -664,15 +692,7 @@ class SimNode(Node):
     # ------------------------------------------------------------------------------------------ the end
 
     def _log_statistics(self) -> None:
-        stats = self.statistics()
-        latency = stats["latency"]
-        self._log.info(
-            f"{stats['steps']} steps; latency p50 {latency['p50_us']:.0f} us, p99 {latency['p99_us']:.0f} us "
-            f"({int(latency['count'])} answers); deadline misses {stats['deadline_misses']}, late ticks "
-            f"{stats['late_ticks']}, zero-torque ticks {stats['stale_ticks']}; "
-            f"dropped {stats['dropped_invalid']} "
-            f"invalid, {stats['dropped_unknown_stamp']} unknown-stamp commands"
-        )
+        self._log.info(statistics_summary(self.statistics()))
 
     def write_outputs(self) -> None:
         """Write ``record_file`` and ``stats_file`` (when set) with the run so far."""
