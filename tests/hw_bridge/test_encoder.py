@@ -12,7 +12,9 @@ from smm_hw_bridge.encoder import EncoderConfig, EncoderDecoder
 
 
 def test_counts_to_radians_with_offset_and_direction() -> None:
-    decoder = EncoderDecoder(EncoderConfig(counts_per_rev=(4000, 1000), zero_offset=(100, 50), direction=(1, -1)))
+    decoder = EncoderDecoder(
+        EncoderConfig(counts_per_rev=(4000, 1000), zero_offset=(100, 50), direction=(1, -1))
+    )
     position = decoder.update((1100, 300))
     np.testing.assert_allclose(position, [2 * math.pi * 1000 / 4000, -2 * math.pi * 250 / 1000])
 
@@ -29,7 +31,9 @@ def test_counter_wrap_is_unwrapped_both_ways() -> None:
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.integers(-20000, 20000), min_size=1, max_size=50), st.integers(0, 65535))
 def test_unwrapped_position_equals_the_true_count_sum(steps: list[int], offset: int) -> None:
-    decoder = EncoderDecoder(EncoderConfig(counts_per_rev=(2000, 2000), zero_offset=(offset, offset), counter_bits=16))
+    decoder = EncoderDecoder(
+        EncoderConfig(counts_per_rev=(2000, 2000), zero_offset=(offset, offset), counter_bits=16)
+    )
     true = 0
     decoder.update((offset, offset))
     for step in steps:

@@ -34,6 +34,7 @@ from smm_sim.plant import PlantConfig, SimulatedPlant
 __all__ = ["BoardConfig", "BoardCore"]
 
 _U32 = 1 << 32
+_APPLIED_KEPT = 200_000
 
 
 @dataclass(frozen=True)
@@ -135,6 +136,8 @@ class BoardCore:
         self.supply_pressure = config.supply_pressure
         """Supply pressure now (bar); tests and fault injection change it."""
         self.boots = 0
+        self.applied_log: list[tuple[int, int, tuple[int, int]]] = []
+        """(tick, command seq, codes) of every enabled command the board put on the valves, across boots."""
         self.boot()
 
     @property
@@ -161,8 +164,6 @@ class BoardCore:
         self._holding = False
         self.estop_latched = False
         self.last_feedback: FeedbackFrame | None = None
-        self.applied_log: list[tuple[int, int, tuple[int, int]]] = []
-        """(tick, command seq, codes) of every enabled command the board put on the valves."""
 
     # ---- receive ------------------------------------------------------------------------------------
 
@@ -279,6 +280,8 @@ class BoardCore:
                 self._ramping = self._watchdog = False
                 self.output = [float(command.codes[0]), float(command.codes[1])]
                 self.applied_log.append((self.tick, command.seq, command.codes))
+                if len(self.applied_log) > _APPLIED_KEPT:
+                    del self.applied_log[: _APPLIED_KEPT // 2]
             else:
                 self._disable()
                 self._watchdog = False

@@ -220,7 +220,8 @@ class BridgeCore:
         elif frame.session != self.board_session:
             self._admission.count(Reason.SESSION)
             self._foreign(frame.session)
-            return None
+            if frame.session != self.board_session:
+                return None
         self._candidate = None
         if self._admission.admit(frame, rx_ns) is not None:
             return None
@@ -244,10 +245,9 @@ class BridgeCore:
         if count < self._config.reboot_frames:
             return
         self.reboots += 1
-        if self._active and self.state in (BridgeState.ARMING, BridgeState.ARMED):
+        if self.state in (BridgeState.ARMING, BridgeState.ARMED):
             self._lose_session()
-        if not self._active or self.state in (BridgeState.DISARMED, BridgeState.ESTOP, BridgeState.FAULT):
-            self._adopt(session)
+        self._adopt(session)  # safe frames to the new board from now on; output only after arm()
 
     def _lose_session(self) -> None:
         self.state = BridgeState.SESSION_LOST
@@ -398,8 +398,6 @@ class BridgeCore:
             raise BridgeError("the board reports fault bits: reset (reconfigure) before arming")
         if self.state == BridgeState.ESTOP or self._estop_requested:
             raise BridgeError("e-stop latched: re-arm it first")
-        if self.state == BridgeState.SESSION_LOST and self._candidate is not None:
-            self._adopt(self._candidate[0])
         if self.board_session is None or self._last is None:
             raise BridgeError("no valid feedback from the board yet")
         self._active = True

@@ -55,14 +55,18 @@ class FeedbackAdmission:
         self._last_seq: int | None = None
         self._last_tick: int | None = None
         self._tick = 0
+        self._epoch = 0
         self._offset: float | None = None
         self._last_rx: int | None = None
 
     def reset(self) -> None:
-        """Forgets the sequence and clock history (a new session); counters are kept."""
+        """Forgets the sequence and clock history (a new session); counters are kept.
+
+        The new session's unwrapped ticks continue after the old one's, so stamps never repeat.
+        """
+        self._epoch = self._tick + 1 if self._last_tick is not None else self._epoch
         self._last_seq = None
         self._last_tick = None
-        self._tick = 0
         self._offset = None
         self._last_rx = None
 
@@ -72,7 +76,7 @@ class FeedbackAdmission:
 
     @property
     def tick(self) -> int:
-        """Board tick of the last admitted frame, unwrapped to 64 bits (0 before the first)."""
+        """Board tick of the last admitted frame, unwrapped, continued across sessions (0 before any)."""
         return self._tick
 
     def admit(self, frame: FeedbackFrame, rx_ns: int) -> Reason | None:
@@ -90,7 +94,11 @@ class FeedbackAdmission:
             if step < 0:
                 self.count(Reason.OUT_OF_ORDER)
                 return Reason.OUT_OF_ORDER
-        tick = frame.tick if self._last_tick is None else self._tick + u32_diff(frame.tick, self._last_tick)
+        tick = (
+            self._epoch + frame.tick
+            if self._last_tick is None
+            else self._tick + u32_diff(frame.tick, self._last_tick)
+        )
         offset = rx_ns - tick * self._config.period_ns
         if self._offset is not None and self._last_rx is not None:
             allowance = (rx_ns - self._last_rx) * self._config.drift_ppm * 1e-6
