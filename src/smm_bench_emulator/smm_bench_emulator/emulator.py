@@ -92,6 +92,7 @@ class Emulator:
         self.overruns = 0
         self.ticks = 0
         self.null_since_ns: int | None = None
+        self.null_since_tick: int | None = None
         self.last_command_ns: int | None = None
         self.last_enabled_ns: int | None = None
 
@@ -112,9 +113,9 @@ class Emulator:
         now = self._clock()
         if self.board.output_codes() == (0, 0):
             if self.null_since_ns is None:
-                self.null_since_ns = now
+                self.null_since_ns, self.null_since_tick = now, self.board.tick
         else:
-            self.null_since_ns = None
+            self.null_since_ns = self.null_since_tick = None
         self.ticks += 1
         if self.config.duration_ticks and self.ticks >= self.config.duration_ticks:
             self.running = False
@@ -180,6 +181,7 @@ class Emulator:
             "overruns": self.overruns,
             "ticks": self.ticks,
             "null_since_ns": self.null_since_ns,
+            "null_since_tick": self.null_since_tick,
             "last_command_ns": self.last_command_ns,
             "last_enabled_ns": self.last_enabled_ns,
             "applied": len(board.applied_log),
