@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from nodes.node_rig import measurement
+from controller_nodes.node_rig import measurement
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from smm_controller.reference import RampHoldReference, SineReference, StepReference

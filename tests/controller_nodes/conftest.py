@@ -1,4 +1,4 @@
-"""Fixtures of the node tests (the rig itself is in ``nodes.node_rig``)."""
+"""Fixtures of the node tests (the rig itself is in ``controller_nodes.node_rig``)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
-from nodes.node_rig import Rig
+from controller_nodes.node_rig import Rig
 
 
 @pytest.fixture

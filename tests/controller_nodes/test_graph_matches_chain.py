@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from nodes.node_rig import measurement
+from controller_nodes.node_rig import measurement
 from smm_controller.chain import make_chain
 from smm_controller.controller_node import ControllerNode
 from smm_controller.fleso_node import FlesoNode

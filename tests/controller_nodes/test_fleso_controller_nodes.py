@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from nodes.node_rig import filtered, measurement
+from controller_nodes.node_rig import filtered, measurement
 from rclpy.parameter import Parameter
 from smm_controller.baselines import NPDConfig, NPDController, PIDConfig, PIDController
 from smm_controller.controller_node import ControllerNode

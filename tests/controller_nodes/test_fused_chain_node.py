@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 import pytest
-from nodes.node_rig import measurement
-from nodes.test_fleso_controller_nodes import bad_arrays, reference_msg
-from nodes.test_td_reference_nodes import bad_measurements
+from controller_nodes.node_rig import measurement
+from controller_nodes.test_fleso_controller_nodes import bad_arrays, reference_msg
+from controller_nodes.test_td_reference_nodes import bad_measurements
 from rclpy.parameter import Parameter
 from smm_controller.chain import ControlChain
 from smm_controller.controller_node import ControllerNode

@@ -1,7 +1,7 @@
 """In-process rig for node tests: the nodes under test and a probe node in one private context.
 
 The probe publishes the inputs and records every output; everything spins in one executor (the one the
-stack uses, :func:`smm_msgs_py.node_support.make_executor`), so a test is a sequence of "publish, spin until
+stack uses, :func:`smm_node_runtime.make_executor`), so a test is a sequence of "publish, spin until
 the answer arrived, check".
 """
 
@@ -27,7 +27,8 @@ class Rig:
 
     def __init__(self, context: Any, nodes: Sequence[Any]) -> None:
         import rclpy
-        from smm_msgs_py.node_support import make_executor
+
+        from smm_node_runtime import make_executor
 
         self.context = context
         self.nodes = list(nodes)

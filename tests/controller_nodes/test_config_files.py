@@ -13,14 +13,14 @@ from typing import Any
 
 import pytest
 import yaml
+from smm_bringup.graph import load_parameter_file, package_file
 from smm_controller.baselines import FPDConfig, NPDConfig, PIDConfig
 from smm_controller.controller_node import ControllerNode
 from smm_controller.fleso import FLESOConfig
 from smm_controller.fleso_node import FlesoNode
 from smm_controller.fpdeso import FPDESOConfig
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, PAPER_FPDESO_FUZZY
-from smm_controller.graph import load_parameter_file, package_file
-from smm_msgs_py.parameters import config_fields, config_from_parameters, config_to_parameters
+from smm_node_runtime.parameters import config_fields, config_from_parameters, config_to_parameters
 
 PAPER = {
     "fpdeso": FPDESOConfig(fuzzy=PAPER_FPDESO_FUZZY),

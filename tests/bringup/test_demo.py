@@ -1,4 +1,4 @@
-"""`make demo` (python -m smm_analysis.demo): the graph run's indices equal the offline loop's."""
+"""`make demo` (python -m smm_bringup.demo): the graph run's indices equal the offline loop's."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ def test_demo_runs_the_graph_and_matches_the_offline_loop(
         [
             sys.executable,
             "-m",
-            "smm_analysis.demo",
+            "smm_bringup.demo",
             "--controllers",
             "fpdeso",
             "--duration",

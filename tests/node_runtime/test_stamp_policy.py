@@ -1,10 +1,11 @@
-"""Stamp gate and counters of smm_msgs_py.node_support (pure parts, no ROS graph)."""
+"""Stamp gate and counters of smm_node_runtime (pure parts, no ROS graph)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from smm_msgs_py.node_support import COUNTER_ROWS, Admission, ControlPeriodConfig, InputCounters, StampGate
+
+from smm_node_runtime import COUNTER_ROWS, Admission, ControlPeriodConfig, InputCounters, StampGate
 
 
 def test_every_stamp_is_new_before_the_first_answer() -> None:

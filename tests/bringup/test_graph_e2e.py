@@ -29,7 +29,7 @@ _STARTED = re.compile(r"started (\w+) \(pid (\d+)\)")
 
 
 def launcher_argv(*arguments: str) -> list[str]:
-    return [sys.executable, "-m", "smm_controller.launcher", *arguments]
+    return [sys.executable, "-m", "smm_bringup.launcher", *arguments]
 
 
 def record_parameters(tmp_path: Path) -> tuple[Path, Path]:

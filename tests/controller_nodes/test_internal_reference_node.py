@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 import pytest
-from nodes.node_rig import filtered, measurement
-from nodes.test_fleso_controller_nodes import estimate_msg
-from nodes.test_fused_chain_node import EFFORTS, POSITIONS, paper_chain
+from controller_nodes.node_rig import filtered, measurement
+from controller_nodes.test_fleso_controller_nodes import estimate_msg
+from controller_nodes.test_fused_chain_node import EFFORTS, POSITIONS, paper_chain
 from rclpy.parameter import Parameter
 from smm_controller.controller_node import ControllerNode
 from smm_controller.fpdeso import FPDESOController

@@ -1,4 +1,4 @@
-"""The graph description (smm_controller.graph), smm-launch's command line, and the launch file."""
+"""The graph description (smm_bringup.graph), smm-launch's command line, and the launch file."""
 
 from __future__ import annotations
 
@@ -13,17 +13,17 @@ import pytest
 import yaml
 from hypothesis import assume, given
 from hypothesis import strategies as st
-from smm_controller.graph import GraphOptions, NodeSpec, build_graph
-from smm_controller.launcher import (
+from smm_bringup.graph import GraphOptions, NodeSpec, build_graph
+from smm_bringup.launcher import (
     EXIT_CONFIGURATION_ERROR,
     EXIT_OK,
     arguments_from_options,
     options_from_arguments,
     run,
 )
-from smm_controller.launcher import build_parser as launcher_parser
+from smm_bringup.launcher import build_parser as launcher_parser
 
-from smm_controller import graph
+from smm_bringup import graph
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH_DIR = REPO / "src" / "smm_controller" / "launch"
@@ -367,7 +367,7 @@ class _FakeContext:
 def _launched_nodes(monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str]) -> list[Any]:
     for name, module in _fake_launch_modules().items():
         monkeypatch.setitem(sys.modules, name, module)
-    namespace = runpy.run_path(str(LAUNCH_DIR / "bringup.launch.py"))
+    namespace = runpy.run_path(str(LAUNCH_DIR / "smm.launch.py"))
     description = namespace["generate_launch_description"]()
     entities = description.args[0]
     defaults = {
@@ -435,7 +435,7 @@ def test_launch_file_refuses_the_hw_plant(monkeypatch: pytest.MonkeyPatch) -> No
 
 
 def test_every_node_executable_is_installed() -> None:
-    from smm_controller.launcher import resolve_executable
+    from smm_bringup.launcher import resolve_executable
 
     for spec in build_graph(GraphOptions(scenario=None)):
         assert Path(resolve_executable(spec)).is_file(), spec.executable
@@ -507,7 +507,7 @@ def test_scenario_files_agree_with_smm_analysis(name: str) -> None:
 
 
 def test_a_missing_executable_is_reported_before_anything_starts() -> None:
-    from smm_controller.launcher import ExecutableNotFoundError, launch_processes, resolve_executable
+    from smm_bringup.launcher import ExecutableNotFoundError, launch_processes, resolve_executable
 
     missing = NodeSpec("smm_sim", "no_such_node", "ghost", "m:C")
     with pytest.raises(ExecutableNotFoundError, match="no_such_node"):

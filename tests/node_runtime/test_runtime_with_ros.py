@@ -1,4 +1,4 @@
-"""smm_msgs_py.node_support and smm_msgs_py.parameters with real ROS: executors, main, parameter binding."""
+"""smm_node_runtime and smm_node_runtime.parameters with real ROS: executors, main, parameter binding."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ from rcl_interfaces.msg import ParameterType
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from ros_harness import spin_until
-from smm_msgs_py.node_support import SPIN_POLL_S, as_parameter_list, make_executor
-from smm_msgs_py.parameters import ConfigParameters
+from smm_node_runtime.parameters import ConfigParameters
+
+from smm_node_runtime import SPIN_POLL_S, as_parameter_list, make_executor
 
 pytestmark = pytest.mark.ros
 
@@ -215,10 +216,11 @@ def test_node_main_refuses_invalid_parameters_with_status_2(
 
 
 def test_diagnostics_are_built_only_while_someone_listens(ros_context: Any) -> None:
-    from smm_msgs_py.node_support import MeasurementDrivenNode
     from std_msgs.msg import Float64MultiArray
 
-    node = MeasurementDrivenNode("lazy_diagnostics", context=ros_context)
+    from smm_node_runtime import MeasurementDrivenNode
+
+    node = MeasurementDrivenNode(node_name="lazy_diagnostics", context=ros_context)
     output_pub = node.create_publisher(Float64MultiArray, "lazy_out", 10)
     diagnostics_pub = node.create_publisher(Float64MultiArray, "lazy_diag", 10)
     builds: list[int] = []
