@@ -26,7 +26,7 @@ from smm_bringup.launcher import build_parser as launcher_parser
 from smm_bringup import graph
 
 REPO = Path(__file__).resolve().parents[2]
-LAUNCH_DIR = REPO / "src" / "smm_controller" / "launch"
+LAUNCH_DIR = REPO / "src" / "smm_bringup" / "launch"
 FUSED_NODES = ["smm_sim_node", "controller_node"]
 """The default graph: the fused chain with the reference sampled inside controller_node."""
 SPLIT_NODES = ["smm_sim_node", "td_node", "fleso_node", "reference_node", "controller_node"]

@@ -1,6 +1,6 @@
-"""Start the SMM control graph on a ROS 2 Jazzy install: ``ros2 launch smm_controller bringup.launch.py``.
+"""Start the SMM control graph on a ROS 2 Jazzy install: ``ros2 launch smm_bringup smm.launch.py``.
 
-The node list comes from :func:`smm_controller.graph.build_graph`, the same description ``smm-launch`` uses,
+The node list comes from :func:`smm_bringup.graph.build_graph`, the same description ``smm-launch`` uses,
 so the two cannot drift apart. Arguments:
 
 * ``plant:=sim|hw`` (hw: smm_hw_bridge, refused until that node exists),
@@ -23,7 +23,7 @@ from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunc
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from smm_controller.graph import (
+from smm_bringup.graph import (
     ALGORITHMS,
     CHAIN_LAYOUTS,
     CLOCK_MODES,

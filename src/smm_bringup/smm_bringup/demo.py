@@ -1,6 +1,6 @@
 """The main job: the full closed loop on the simulator, through the real ROS 2 graph.
 
-``make demo`` (or ``python -m smm_analysis.demo``) starts the node graph with ``smm-launch`` (one OS process
+``make demo`` (or ``python -m smm_bringup.demo``) starts the node graph with ``smm-launch`` (one OS process
 per node: the simulator, and controller_node sampling the reference and running TD -> FLESO -> law, the
 default graph; ``--chain split`` adds the TD and FLESO nodes, ``--reference node`` the reference_node),
 runs the paper's case 2
@@ -28,14 +28,14 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from smm_controller.graph import CHAIN_LAYOUTS, REFERENCE_PLACEMENTS, GraphOptions
-from smm_controller.launcher import arguments_from_options
-
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.errors import AnalysisError
 from smm_analysis.metrics import JointIndices, joint_indices
 from smm_analysis.paper_values import PAPER_CASE2
 from smm_analysis.scenarios import get_scenario
+
+from smm_bringup.graph import CHAIN_LAYOUTS, REFERENCE_PLACEMENTS, GraphOptions
+from smm_bringup.launcher import arguments_from_options
 
 DEMO_CONTROLLERS = ("fpdeso", "fpd")
 JOINTS = ("alpha", "beta")
@@ -58,7 +58,7 @@ class DemoRun:
 
 def graph_command(options: GraphOptions) -> list[str]:
     """The ``smm-launch`` command line that starts the graph ``options`` describe."""
-    return [sys.executable, "-m", "smm_controller.launcher", *arguments_from_options(options)]
+    return [sys.executable, "-m", "smm_bringup.launcher", *arguments_from_options(options)]
 
 
 def run_graph(options: GraphOptions, out_dir: Path) -> Path:
@@ -192,7 +192,7 @@ def demo(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``python -m smm_analysis.demo [--controllers ...] [--scenario ...]``."""
+    """Command line: ``python -m smm_bringup.demo [--controllers ...] [--scenario ...]``."""
     parser = argparse.ArgumentParser(prog="smm-demo", description=__doc__.splitlines()[0])
     parser.add_argument(
         "--controllers", nargs="+", default=list(DEMO_CONTROLLERS), choices=("fpdeso", "fpd", "pid", "npd")

@@ -9,7 +9,7 @@ the launch files map the same specs onto ``launch_ros.actions.Node``. So the two
 cannot drift apart.
 
 Parameter precedence, lowest first (later layers win, as in ``ros2 launch``): the node's own defaults,
-the scenario file ``smm_sim/config/scenario_<name>.yaml``, the user's extra ``--params-file`` files in
+the scenario file ``smm_bringup/config/scenario_<name>.yaml``, the user's extra ``--params-file`` files in
 the order given, then the overrides that the launcher's own options imply (clock mode, duration, seed,
 algorithm).
 
@@ -33,7 +33,7 @@ from typing import Any, Final, Literal
 
 import yaml
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
+from smm_controller.controller_node import REFERENCE_PREFIX
 from smm_controller.reference import REFERENCE_KINDS
 
 __all__ = [
@@ -84,8 +84,6 @@ that the parameter files give ``reference_node``, and no ``reference_node`` runs
 ALGORITHMS: Final[tuple[str, ...]] = ("fpdeso", "fpd", "pid", "npd")
 SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2")
 
-REFERENCE_PREFIX: Final[str] = "reference"
-"""Prefix of controller_node's reference generator parameters (``reference.kind``, ``reference.sine.*``)."""
 
 SIM_NODE: Final[str] = "smm_sim_node"
 HW_NODE: Final[str] = "smm_hw_bridge"
@@ -311,7 +309,7 @@ def package_file(package: str, relative: str) -> Path:
 
 
 def scenario_file(name: str) -> Path:
-    """Path of the parameter file of scenario ``name`` (``smm_sim/config/scenario_<name>.yaml``).
+    """Path of the parameter file of scenario ``name`` (``smm_bringup/config/scenario_<name>.yaml``).
 
     Raises:
         ValueError: Unknown scenario.
@@ -319,7 +317,7 @@ def scenario_file(name: str) -> Path:
     """
     if name not in SCENARIO_NAMES:
         raise ValueError(f"scenario must be one of {SCENARIO_NAMES}, got {name!r}")
-    return package_file("smm_sim", f"config/scenario_{name}.yaml")
+    return package_file("smm_bringup", f"config/scenario_{name}.yaml")
 
 
 def _sim_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], ...]:

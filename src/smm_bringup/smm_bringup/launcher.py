@@ -1,6 +1,6 @@
 """``smm-launch``: start the SMM node graph without the ``ros2`` CLI (which PyPI does not provide).
 
-It starts the graph that :func:`smm_controller.graph.build_graph` describes, the same one the launch files
+It starts the graph that :func:`smm_bringup.graph.build_graph` describes, the same one the launch files
 start on a full ROS 2 install:
 
 * by default each node is its own OS process, like ``ros2 launch``: the installed console script with
@@ -43,9 +43,8 @@ from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
-from smm_msgs_py.node_support import as_parameter_list, ensure_localhost_discovery, make_executor
 
-from smm_controller.graph import (
+from smm_bringup.graph import (
     ALGORITHMS,
     CHAIN_LAYOUTS,
     CLOCK_MODES,
@@ -60,6 +59,7 @@ from smm_controller.graph import (
     build_graph,
     parameter_overrides,
 )
+from smm_node_runtime import as_parameter_list, ensure_localhost_discovery, make_executor
 
 __all__ = [
     "EXIT_CONFIGURATION_ERROR",
@@ -242,7 +242,7 @@ def launch_processes(
     """Run the graph as separate processes until the plant completes, a node dies, or a stop signal.
 
     Args:
-        specs: The graph (:func:`~smm_controller.graph.build_graph`).
+        specs: The graph (:func:`~smm_bringup.graph.build_graph`).
         env: Environment of the children (default: ours, see :func:`child_environment`).
         stop_grace_s: Seconds each stop signal gets before the next one.
 

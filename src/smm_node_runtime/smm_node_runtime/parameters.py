@@ -170,7 +170,7 @@ def _leaf_kind(hint: Any, where: str) -> tuple[FieldKind, int | None]:
             return FieldKind.DOUBLE_ARRAY, length
         if element_types == {int}:
             return FieldKind.INTEGER_ARRAY, length
-    raise TypeError(f"{where}: field type {hint!r} has no ROS parameter mapping (see smm_msgs_py.parameters)")
+    raise TypeError(f"{where}: field type {hint!r} has no ROS parameter mapping")
 
 
 def config_fields(config_cls: type) -> tuple[ConfigField, ...]:
