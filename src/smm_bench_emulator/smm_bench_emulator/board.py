@@ -299,6 +299,11 @@ class BoardCore:
             if self.output == [0.0, 0.0]:
                 self._ramping = False
 
+    @property
+    def status_enabled(self) -> bool:
+        """True while an enabled command drives the valves."""
+        return self._active is not None
+
     def output_codes(self) -> tuple[int, int]:
         """D/A codes on the valves now."""
         return round(self.output[0]), round(self.output[1])

@@ -376,12 +376,25 @@ class BridgeCore:
         self.stats.on_command_sent(frame.seq, now_ns)
         return frame
 
+    def needs_frame(self, now_ns: int) -> bool:
+        """True when a frame should go out without a new command (output not live, or its command aged)."""
+        pending = self._pending
+        if self.state != BridgeState.ARMED or pending is None:
+            return True
+        if now_ns - pending.rx_ns > self._config.host_watchdog_ns:
+            return True
+        return self._admission.tick - pending.answers_tick_unwrapped > self._config.validity_ticks
+
+    def link_up(self, now_ns: int) -> bool:
+        """True if feedback was admitted within ``link_timeout_ns`` (no state change)."""
+        return self._last_rx_ns is not None and now_ns - self._last_rx_ns <= self._config.link_timeout_ns
+
     def check_link(self, now_ns: int) -> bool:
         """True if feedback was admitted within ``link_timeout_ns``.
 
         A link loss while active loses the session: output disabled until :meth:`arm`.
         """
-        up = self._last_rx_ns is not None and now_ns - self._last_rx_ns <= self._config.link_timeout_ns
+        up = self.link_up(now_ns)
         if not up and self._active and self.state in (BridgeState.ARMING, BridgeState.ARMED):
             self._lose_session()
         return up
