@@ -185,6 +185,8 @@ class Emulator:
             "last_command_ns": self.last_command_ns,
             "last_enabled_ns": self.last_enabled_ns,
             "applied": len(board.applied_log),
+            "last_applied_tick": board.applied_log[-1][0] if board.applied_log else None,
+            "status_bits": 0 if board.last_feedback is None else board.last_feedback.status,
         }
 
     def _wait(self, timeout_ns: int) -> None:

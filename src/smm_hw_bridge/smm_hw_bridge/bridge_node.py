@@ -128,7 +128,7 @@ class HwBridgeNode(LifecycleNode):
             self._link = ConfigParameters(self, "link", LinkConfig())
             self._bridge = ConfigParameters(self, "bridge", BridgeConfig())
         except ValueError:
-            self.destroy_node()  # type: ignore[no-untyped-call]
+            self.destroy_node()
             raise
         self._log = self.get_logger()  # type: ignore[no-untyped-call]
         self._lock = threading.RLock()
@@ -152,15 +152,25 @@ class HwBridgeNode(LifecycleNode):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(_FAULT_CHECK_S, self._check, clock=steady)
         self.diagnostics = DiagnosticsPublisher(self, self.health)
+        self._started = False
         self.declare_parameter("autostart", False)
         if self.get_parameter("autostart").value is True:
             self._autostart = self.create_timer(0.0, self._start, clock=steady)
 
     def _start(self) -> None:
         """``autostart``: configure, then activate, once (a failure is logged by the transition)."""
-        self.destroy_timer(self._autostart)
+        self._autostart.cancel()  # type: ignore[no-untyped-call]
+        if self._started:
+            return
+        self._started = True
         if self.trigger_configure() == TransitionCallbackReturn.SUCCESS:  # type: ignore[no-untyped-call]
             self.trigger_activate()  # type: ignore[no-untyped-call]
+
+    def destroy_node(self) -> None:
+        """Sends safe output, stops the reader thread and closes the transport, then destroys the node."""
+        if getattr(self, "_transport", None) is not None:
+            self._close()
+        super().destroy_node()  # type: ignore[no-untyped-call]
 
     # ---- public views -----------------------------------------------------------------------------
 
