@@ -9,6 +9,7 @@ import sys
 from collections.abc import Sequence
 from types import FrameType
 
+import numpy as np
 from smm_sim.plant import PAPER_VALVE_RESPONSE_TIMES, PlantConfig, valve_time_constants_from_response_times
 
 from smm_bench_emulator.board import BoardConfig
@@ -41,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-valve-lag", action="store_true", help="valves follow the D/A without lag")
     parser.add_argument("--full-scale-torque", type=float, default=10.0, help="N m at D/A code 32767")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--record", default="", help="write the per-tick record (.npz) here at the end")
     return parser
 
 
@@ -66,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
             duration_ticks=round(args.duration * 1e9 / plant.period_ns),
             seed=args.seed,
         )
-        emulator = Emulator(config)
+        emulator = Emulator(config, record=bool(args.record))
     except (ValueError, OSError) as error:
         print(f"smm_bench_emulator: {error}", file=sys.stderr)
         return 2
@@ -84,6 +86,9 @@ def run(args: argparse.Namespace) -> int:
         emulator.run()
     finally:
         emulator.close()
+    if args.record and emulator.record is not None:
+        rows = np.asarray(emulator.record, dtype=np.float64).reshape(-1, 5)
+        np.savez(args.record, tick=rows[:, 0].astype(np.int64), position=rows[:, 1:3], codes=rows[:, 3:5])
     print(json.dumps(emulator.status()), flush=True)
     return 0
 

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+import numpy as np
 from smm_hw_bridge.protocol import encode
 from smm_hw_bridge.transport import Transport, UdpTransport
 
@@ -63,6 +64,10 @@ class EmulatorConfig:
             raise ValueError(f"duration_ticks must be an int >= 0, got {self.duration_ticks!r}")
 
 
+def _percentile_us(values: list[int], q: float) -> float | None:
+    return float(np.percentile(np.asarray(values), q)) / 1e3 if values else None
+
+
 class Emulator:
     """Runs a :class:`BoardCore` against a UDP transport until stopped.
 
@@ -70,6 +75,7 @@ class Emulator:
         config: Addresses, clock mode and the bench.
         transport: Link to the bridge (default: UDP on ``config.bind`` to ``config.host``).
         clock_ns: Monotonic clock (ns).
+        record: Keep the per-tick record (:attr:`record`).
     """
 
     def __init__(
@@ -77,6 +83,7 @@ class Emulator:
         config: EmulatorConfig,
         transport: Transport | None = None,
         clock_ns: Callable[[], int] = time.monotonic_ns,
+        record: bool = False,
     ) -> None:
         self.config = config
         self.board = BoardCore(config.board)
@@ -92,6 +99,11 @@ class Emulator:
         self.overruns = 0
         self.ticks = 0
         self.null_since_ns: int | None = None
+        self._sent_ns: dict[int, int] = {}
+        self.latencies_ns: list[int] = []
+        """Feedback sent -> enabled command answering it received (ns), one per answered feedback."""
+        self.record: list[tuple[int, float, float, int, int]] | None = [] if record else None
+        """Per tick: (tick, true alpha, true beta (rad), D/A codes), when ``record`` is set."""
         self.null_since_tick: int | None = None
         self.last_command_ns: int | None = None
         self.last_enabled_ns: int | None = None
@@ -111,6 +123,14 @@ class Emulator:
         for data in self.faults.outgoing(frame, self.board.tick):
             self.transport.send(data)
         now = self._clock()
+        feedback = self.board.last_feedback
+        if feedback is not None:
+            self._sent_ns[feedback.seq] = now
+            if len(self._sent_ns) > 2000:
+                del self._sent_ns[next(iter(self._sent_ns))]
+            if self.record is not None:
+                alpha, beta, _, _ = self.board.plant.state_floats
+                self.record.append((feedback.tick, alpha, beta, *self.board.output_codes()))
         if self.board.output_codes() == (0, 0):
             if self.null_since_ns is None:
                 self.null_since_ns, self.null_since_tick = now, self.board.tick
@@ -127,6 +147,9 @@ class Emulator:
                 command = self.board.receive(passed)
                 if command is not None:
                     self.last_command_ns = self._clock()
+                    sent = self._sent_ns.pop(command.answers_seq, None)
+                    if sent is not None and command.enabled:
+                        self.latencies_ns.append(self.last_command_ns - sent)
                     if command.enabled:
                         self.last_enabled_ns = self.last_command_ns
         if self._control is not None:
@@ -185,6 +208,8 @@ class Emulator:
             "last_command_ns": self.last_command_ns,
             "last_enabled_ns": self.last_enabled_ns,
             "applied": len(board.applied_log),
+            "latency_p50_us": _percentile_us(self.latencies_ns, 50),
+            "latency_p99_us": _percentile_us(self.latencies_ns, 99),
             "last_applied_tick": board.applied_log[-1][0] if board.applied_log else None,
             "status_bits": 0 if board.last_feedback is None else board.last_feedback.status,
         }
