@@ -9,6 +9,7 @@ tick and return the feedback frame to send. What the board does at each tick (do
 from __future__ import annotations
 
 import math
+import secrets
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -148,7 +149,7 @@ class BoardCore:
     def boot(self) -> None:
         """Power-on or reboot: new session, tick 0, counters 0, no host, valves null; the plant moves on."""
         self.boots += 1
-        self.session = int(self._rng.integers(1, _U32))
+        self.session = secrets.randbelow(_U32 - 1) + 1  # not from the seed: a restart must look new
         self.tick = 0
         self._fb_seq = 0
         self.host_session = 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import signal
 import sys
@@ -42,6 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-valve-lag", action="store_true", help="valves follow the D/A without lag")
     parser.add_argument("--full-scale-torque", type=float, default=10.0, help="N m at D/A code 32767")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--control-period", type=float, default=1e-3, help="board tick (s)")
     parser.add_argument("--record", default="", help="write the per-tick record (.npz) here at the end")
     return parser
 
@@ -57,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
             disturbance=args.disturbance,
             valve_time_constants=lag,
             seed=args.seed,
+            control_period=args.control_period,
         )
         board = BoardConfig(plant=plant, full_scale_torque=(args.full_scale_torque,) * 2, seed=args.seed)
         config = EmulatorConfig(
@@ -93,9 +96,47 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+_ROS_PARAMETERS = {
+    "bind": "--bind",
+    "host": "--host",
+    "control": "--control",
+    "duration": "--duration",
+    "seed": "--seed",
+    "mode": "--mode",
+    "control-period": "--control-period",
+}
+
+
+def from_ros_arguments(argv: Sequence[str]) -> list[str]:
+    """Options from ``--ros-args -p name:=value ...`` (how smm-launch starts every process of the graph).
+
+    ``-p`` names of :data:`_ROS_PARAMETERS` become the options of the same name; remappings and parameter
+    files are ignored (the emulator is not a ROS node).
+
+    Raises:
+        ValueError: an unknown ``-p`` name.
+    """
+    if "--ros-args" not in argv:
+        return list(argv)
+    index = list(argv).index("--ros-args")
+    options, ros = list(argv[:index]), list(argv[index + 1 :])
+    for flag, value in itertools.pairwise(ros):
+        if flag == "-p":
+            name, _, text = value.partition(":=")
+            if name not in _ROS_PARAMETERS:
+                raise ValueError(f"unknown parameter {name!r} (known: {sorted(_ROS_PARAMETERS)})")
+            options += [_ROS_PARAMETERS[name], text.strip('"')]
+    return options
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point."""
-    return run(build_parser().parse_args(argv))
+    try:
+        options = from_ros_arguments(sys.argv[1:] if argv is None else argv)
+    except ValueError as error:
+        print(f"smm_bench_emulator: {error}", file=sys.stderr)
+        return 2
+    return run(build_parser().parse_args(options))
 
 
 if __name__ == "__main__":
