@@ -6,7 +6,7 @@ Figures, not pass/fail (``make bench``). Every process runs in a private network
 0. The host floor of this run (bench_graph's bare 1 ms sleep loop and bare UDP ping-pong).
 1. Lockstep reference: ``smm-launch --clock-mode lockstep`` case1, FPDESO, the same plant as the emulator
    (2^20 counts/rev, 20 N m saturation, no valve lag), 30 s; tracking RMS over whole reference periods.
-2. Real-time HIL, separate processes: ``smm_bench_emulator`` (own 1 kHz clock) <- UDP -> ``hw_bridge_node``
+2. Real-time HIL, separate processes (1 kHz, the acceptance rate, then 100 Hz): ``smm_bench_emulator`` (own 1 kHz clock) <- UDP -> ``hw_bridge_node``
    <- DDS -> ``controller_node`` (case1, FPDESO), 30 s of armed output: late-command fraction on the board's
    clock, feedback-to-command latency p50/p99 seen by the board, tracking RMS and its ratio to step 1
    (target <= 1.5).

@@ -138,6 +138,10 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
         and bridge["link.bind_port"] == 50100
     )
     assert hardware[0].name in graph.PLANT_NODE_NAMES  # the emulator's end is the end of the run
+    slow = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", control_period=0.01))
+    emulator, bridge = dict(slow[0].parameters), dict(slow[1].parameters)
+    assert emulator["control-period"] == 0.01 and bridge["bridge.admission.period_ns"] == 10_000_000
+    assert bridge["bridge.host_watchdog_ns"] == 100_000_000  # 10 ticks, as the 10 ms default at 1 kHz
 
 
 def test_hardware_plant_with_a_board_address_starts_no_emulator() -> None:
