@@ -262,6 +262,11 @@ class BoardCore:
         return self._feedback()
 
     @property
+    def answered_enabled(self) -> bool:
+        """:attr:`answered` by an enabled command (a lockstep waiting for the controller, not safe frames)."""
+        return self.answered and self._inbox is not None and self._inbox.enabled
+
+    @property
     def answered(self) -> bool:
         """True if a command answering the last feedback frame waits in the inbox (lockstep's trigger)."""
         return self._inbox is not None and self._inbox.answers_seq == self._fb_seq

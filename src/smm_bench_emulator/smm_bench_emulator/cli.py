@@ -34,6 +34,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--control", type=_endpoint, default=("127.0.0.1", 50102), help="JSON control port")
     parser.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")
     parser.add_argument(
+        "--lockstep-trigger",
+        choices=("any", "enabled"),
+        default="any",
+        help="lockstep: tick on any answer, or only on an enabled one (runs line up with the simulator's)",
+    )
+    parser.add_argument(
         "--duration", type=float, default=0.0, help="stop after this many seconds of board time"
     )
     parser.add_argument("--counts-per-rev", type=int, default=1 << 20)
@@ -68,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
             host=args.host,
             control=args.control,
             mode=args.mode,
+            lockstep_trigger=args.lockstep_trigger,
             duration_ticks=round(args.duration * 1e9 / plant.period_ns),
             seed=args.seed,
         )

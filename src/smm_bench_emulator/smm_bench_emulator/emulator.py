@@ -37,6 +37,9 @@ class EmulatorConfig:
         host: (address, port) of the bridge: feedback goes there, commands are accepted from there only.
         control: (address, port) of the JSON control socket, or None for none.
         mode: ``realtime`` (own 1 kHz timer) or ``lockstep`` (a tick when the last feedback is answered).
+        lockstep_trigger: ``any``: any valid command answering the last feedback ticks the board;
+            ``enabled``: only an enabled one (the plant waits at tick 0 until the controller drives it, so a
+            run lines up with the simulator's from its first step).
         resend_ns: Lockstep: re-send the unanswered feedback after this long (ns), > 0.
         duration_ticks: Stop after this many ticks (0 = run until stopped).
         seed: Seed of the injected corruption.
@@ -47,11 +50,14 @@ class EmulatorConfig:
     host: tuple[str, int] = ("127.0.0.1", 50100)
     control: tuple[str, int] | None = ("127.0.0.1", 50102)
     mode: Mode = "realtime"
+    lockstep_trigger: Literal["any", "enabled"] = "any"
     resend_ns: int = 50_000_000
     duration_ticks: int = 0
     seed: int = 0
 
     def __post_init__(self) -> None:
+        if self.lockstep_trigger not in ("any", "enabled"):
+            raise ValueError(f"lockstep_trigger must be 'any' or 'enabled', got {self.lockstep_trigger!r}")
         if self.mode not in ("realtime", "lockstep"):
             raise ValueError(f"mode must be 'realtime' or 'lockstep', got {self.mode!r}")
         if isinstance(self.resend_ns, bool) or not isinstance(self.resend_ns, int) or self.resend_ns <= 0:
@@ -248,7 +254,8 @@ class Emulator:
         while self.running:
             self._wait(resend - (self._clock() - sent))
             self._drain()
-            if self.board.answered:
+            enabled_only = self.config.lockstep_trigger == "enabled"
+            if self.board.answered_enabled if enabled_only else self.board.answered:
                 self._send(self.board.tick_lockstep())
                 sent = self._clock()
             elif self._clock() - sent >= resend and self.board.last_feedback is not None:

@@ -354,7 +354,9 @@ class HwBridgeNode(LifecycleNode):
             if core is None or self._transport is None:
                 return
             frame = core.on_datagram(data, now)
-            if frame is None:
+            # lockstep: the board re-sends its unanswered feedback; so do we (a DDS sample may be lost)
+            resent = core.config.lockstep and core.last_rejection is Reason.DUPLICATE
+            if frame is None and not resent:
                 return
             if core.needs_frame(now):
                 out = core.next_frame(now)

@@ -85,6 +85,9 @@ class BridgeConfig:
         link_timeout_ns: No admitted feedback for this long -> link down (ns), > 0.
         reboot_frames: Consecutive frames of one new board session that mean the board restarted, >= 1.
         supply_bar_per_code: Supply pressure per A/D code of channel 0 (bar), > 0.
+        lockstep: The board ticks only when an enabled command answers its last feedback (the emulator's
+            lockstep): activation then accepts a command answering the current measurement, which stays
+            current until the output is live.
     """
 
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
@@ -97,6 +100,7 @@ class BridgeConfig:
     link_timeout_ns: int = 100_000_000
     reboot_frames: int = 3
     supply_bar_per_code: float = 25.0 / 4095.0
+    lockstep: bool = False
 
     def __post_init__(self) -> None:
         for name, kind in (
@@ -118,6 +122,8 @@ class BridgeConfig:
             raise ValueError(f"validity_ticks must be <= 65535, got {self.validity_ticks!r}")
         check_pair("soft_limits", self.soft_limits, positive=True)
         check_scalar("supply_bar_per_code", self.supply_bar_per_code, positive=True)
+        if not isinstance(self.lockstep, bool):
+            raise ValueError(f"lockstep must be a bool, got {self.lockstep!r}")
 
     @property
     def period_ns(self) -> int:
@@ -180,6 +186,8 @@ class BridgeCore:
         self._seq = 0
         self._live = False
         self._cut = np.zeros(2, dtype=np.bool_)
+        self.last_rejection: Reason | None = None
+        """Why the last received frame was dropped (None if it was admitted)."""
 
     @property
     def config(self) -> BridgeConfig:
@@ -210,10 +218,12 @@ class BridgeCore:
 
     def on_datagram(self, data: bytes, rx_ns: int) -> FeedbackFrame | None:
         """Parses, checks and uses one received frame; returns it if admitted, None if dropped (counted)."""
+        self.last_rejection = None
         try:
             frame = decode_feedback(data)
         except ProtocolError as error:
             self._admission.count(error.reason)
+            self.last_rejection = error.reason
             return None
         if self.board_session is None:
             self._adopt(frame.session)
@@ -223,7 +233,8 @@ class BridgeCore:
             if frame.session != self.board_session:
                 return None
         self._candidate = None
-        if self._admission.admit(frame, rx_ns) is not None:
+        self.last_rejection = self._admission.admit(frame, rx_ns)
+        if self.last_rejection is not None:
             return None
         self._use(frame, rx_ns)
         return frame
@@ -416,7 +427,7 @@ class BridgeCore:
         self._active = True
         self._pending = None
         self._valve.reset()
-        self._arm_tick = self._admission.tick
+        self._arm_tick = self._admission.tick - (1 if self._config.lockstep else 0)
         self.state = BridgeState.ARMING
 
     def disarm(self) -> None:
