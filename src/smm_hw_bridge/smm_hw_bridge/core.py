@@ -341,7 +341,9 @@ class BridgeCore:
         sample = self._valve.step(np.where(self._cut, 0.0, demand), period * 1e-9)
         self._pending = _Pending(sample.codes, entry[0], entry[1], tick, rx_ns)
         last = self._last
-        locked = last is not None and last.host_session == self._host_session
+        # lockstep: the board re-sends the feedback it built before it locked to us (the board itself drops
+        # enabled frames from a host it is not locked to)
+        locked = last is not None and (last.host_session == self._host_session or self._config.lockstep)
         if self.state == BridgeState.ARMING and locked and self._admission.tick > self._arm_tick:
             self.state = BridgeState.ARMED
         return None
