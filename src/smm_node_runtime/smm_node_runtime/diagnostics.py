@@ -64,7 +64,9 @@ class DiagnosticsPublisher:
         period_s: Period of the regular status (s), > 0.
     """
 
-    def __init__(self, node: Node, collect: Callable[[], Health], period_s: float = DEFAULT_PERIOD_S) -> None:
+    def __init__(
+        self, node: Node, collect: Callable[[], Health], period_s: float = DEFAULT_PERIOD_S
+    ) -> None:
         if not period_s > 0.0:
             raise ValueError(f"diagnostics period must be > 0 s, got {period_s!r}")
         self._node = node

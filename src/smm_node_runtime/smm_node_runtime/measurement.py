@@ -36,6 +36,7 @@ Output = tuple[Publisher, Any]
 """A message ready to go: ``(publisher, message)``."""
 
 
+
 DEFAULT_CONTROL_PERIOD: Final[float] = 1e-3
 """Default control period (s): 1 kHz, the paper's."""
 
@@ -55,6 +56,8 @@ class ControlPeriodConfig:
         value = self.control_period
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 < value < float("inf"):
             raise ValueError(f"control_period must be a finite number of seconds > 0, got {value!r}")
+
+
 
 
 class Admission(enum.Enum):
