@@ -405,9 +405,9 @@ def test_controller_duplicate_and_stale_inputs(make_rig: Any, ros_context: Any) 
         ("pid.kd", [-1.5, 0.5], "kd must be >= 0 for both joints"),
         ("npd.rho_p", [0.0, 0.6], "rho_p must be > 0 for both joints"),
         ("fpd.fuzzy.k1", [100.0, 5.0], "k1 must be < kp0"),
-        ("model.I11", -0.1, "I11 must be > 0"),
+        ("model.I11", -0.1, "model.I11 out of range Min: 0.0"),
         ("algorithm", "lqr", "algorithm must be one of"),
-        ("switch_idle_time", -1.0, "switch_idle_time must be a finite number >= 0"),
+        ("switch_idle_time", -1.0, "switch_idle_time out of range Min: 0.0"),
     ],
 )
 def test_invalid_gains_are_rejected_with_the_reason_and_change_nothing(

@@ -221,7 +221,8 @@ def test_reference_clock_counts_from_the_first_stamp_in_exact_integers() -> None
 
 
 def test_reference_is_sampled_at_the_time_since_the_first_stamp(make_rig: Any, ros_context: Any) -> None:
-    rig = make_rig(reference_node_without_lookahead(ros_context))
+    # Gaps of up to 1.45 s: allowed by a wider stamp window (the default refuses more than 100 periods).
+    rig = make_rig(reference_node_without_lookahead(ros_context, **{"stamp.max_ahead_periods": 2000}))
     out = rig.record(topics.REFERENCE)
     first = 10**15 + 123  # any epoch: t counts from the first measurement
     stamps = [first, first + MS, first + 250 * MS, first + 1_700 * MS]
@@ -291,7 +292,7 @@ def test_reference_is_published_lookahead_periods_ahead(
 
 
 def test_reference_node_refuses_a_negative_lookahead(ros_context: Any) -> None:
-    with pytest.raises(ValueError, match="lookahead must be an int >= 0"):
+    with pytest.raises(ValueError, match=r"lookahead out of range\. Min: 0"):
         ReferenceNode(context=ros_context, parameter_overrides={"lookahead": -1})
 
 
@@ -299,7 +300,7 @@ def test_reference_node_refuses_a_negative_lookahead(ros_context: Any) -> None:
     ("name", "value", "reason"),
     [
         ("kind", "square", "kind must be one of"),
-        ("sine.angular_frequency", -1.0, "angular_frequency must be > 0"),
+        ("sine.angular_frequency", -1.0, "sine.angular_frequency out of range Min: 0.0"),
         ("sine.amplitude", [1.0, 2.0, 3.0], r"sine.amplitude must have 2 values"),
         ("ramp_hold.profile", "cubic", "profile must be"),
     ],

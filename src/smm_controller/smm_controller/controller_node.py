@@ -79,7 +79,6 @@ from smm_controller.td_node import TD_PREFIX, check_filter_factor
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
 from smm_node_runtime import (
-    ControlPeriodConfig,
     MeasurementDrivenNode,
     NodeOptions,
     Output,
@@ -218,7 +217,6 @@ class ControllerNode(MeasurementDrivenNode):
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
         self._last_input_time: float | None = None
-        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.placement = ConfigParameters(self, "", ChainPlacement(), read_only=True)
         self.reference_source = ConfigParameters(self, "", ReferenceSource(), read_only=True)
         internal = self.reference_source.config.reference_source == "internal"
@@ -289,11 +287,6 @@ class ControllerNode(MeasurementDrivenNode):
             self._on_disturbance_estimate,
             qos_for_topic(topics.DISTURBANCE_ESTIMATE),
         )
-
-    @property
-    def control_period(self) -> float:
-        """Step size dt of every step (s)."""
-        return self.timing.config.control_period
 
     @property
     def algorithm(self) -> str:

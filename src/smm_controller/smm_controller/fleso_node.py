@@ -44,7 +44,6 @@ from smm_controller.sync import DEFAULT_MAX_PENDING, ExactTimeSynchronizer, Matc
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
 from smm_node_runtime import (
-    ControlPeriodConfig,
     MeasurementDrivenNode,
     NodeOptions,
     Output,
@@ -91,7 +90,6 @@ class FlesoNode(MeasurementDrivenNode):
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
-        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.fleso_parameters = ConfigParameters(
             self, FLESO_PREFIX, FLESOConfig(), on_change=self._reconfigure
         )
@@ -126,11 +124,6 @@ class FlesoNode(MeasurementDrivenNode):
         self.create_subscription(
             Float64MultiArray, topics.TORQUE_COMMAND, self._on_command, qos_for_topic(topics.TORQUE_COMMAND)
         )
-
-    @property
-    def control_period(self) -> float:
-        """Step size dt of every step (s)."""
-        return self.timing.config.control_period
 
     @property
     def newest_command_stamp_ns(self) -> int | None:

@@ -37,7 +37,6 @@ from std_msgs.msg import Float64MultiArray
 from smm_controller.reference import REFERENCE_KINDS, ReferenceGenerator
 from smm_msgs_py import topics
 from smm_node_runtime import (
-    ControlPeriodConfig,
     MeasurementDrivenNode,
     NodeOptions,
     Output,
@@ -158,7 +157,6 @@ class ReferenceNode(MeasurementDrivenNode):
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
-        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.lookahead = ConfigParameters(self, "", ReferenceLookahead(), read_only=True)
         self.reference = ReferenceParameters(self)
         self.clock = ReferenceClock()

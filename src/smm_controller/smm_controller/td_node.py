@@ -27,7 +27,6 @@ from std_msgs.msg import Float64MultiArray
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_msgs_py import topics
 from smm_node_runtime import (
-    ControlPeriodConfig,
     MeasurementDrivenNode,
     NodeOptions,
     Output,
@@ -74,7 +73,6 @@ class TdNode(MeasurementDrivenNode):
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
-        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.td_parameters = ConfigParameters(
             self,
             TD_PREFIX,
@@ -92,11 +90,6 @@ class TdNode(MeasurementDrivenNode):
         self.create_subscription(
             JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
         )
-
-    @property
-    def control_period(self) -> float:
-        """Step size dt of every step (s)."""
-        return self.timing.config.control_period
 
     def _check_td_config(self, config: TrackingDifferentiatorConfig) -> None:
         check_filter_factor(config, self.timing.config.control_period)

@@ -4,6 +4,9 @@ from smm_node_runtime.diagnostics import DiagnosticsPublisher, Health, Level, le
 from smm_node_runtime.measurement import (
     COUNTER_ROWS,
     DEFAULT_CONTROL_PERIOD,
+    REFUSED,
+    STAMP_PREFIX,
+    WARN_COUNTERS,
     WARN_THROTTLE_S,
     Admission,
     ControlPeriodConfig,
@@ -11,9 +14,16 @@ from smm_node_runtime.measurement import (
     MeasurementDrivenNode,
     Output,
     StampGate,
+    StampPolicy,
 )
 from smm_node_runtime.node import NodeOptions, ParameterOverrides, SmmNode, as_parameter_list, node_arguments
-from smm_node_runtime.parameters import ConfigParameters, config_fields, parameter_name
+from smm_node_runtime.parameters import (
+    ConfigParameters,
+    bounds,
+    check_bounds,
+    config_fields,
+    parameter_name,
+)
 from smm_node_runtime.process import (
     EXIT_INVALID_PARAMETER,
     EXIT_OK,
@@ -32,7 +42,10 @@ __all__ = [
     "DEFAULT_CONTROL_PERIOD",
     "EXIT_INVALID_PARAMETER",
     "EXIT_OK",
+    "REFUSED",
     "SPIN_POLL_S",
+    "STAMP_PREFIX",
+    "WARN_COUNTERS",
     "WARN_THROTTLE_S",
     "Admission",
     "ConfigParameters",
@@ -48,7 +61,10 @@ __all__ = [
     "ParameterOverrides",
     "SmmNode",
     "StampGate",
+    "StampPolicy",
     "as_parameter_list",
+    "bounds",
+    "check_bounds",
     "config_fields",
     "ensure_localhost_discovery",
     "level_for",

@@ -62,17 +62,26 @@ class DiagnosticsPublisher:
         node: The node whose health this is (the status is named by its fully qualified name).
         collect: Returns the node's current :class:`Health`; called from the node's executor.
         period_s: Period of the regular status (s), > 0.
+        on_period: Called at the end of every period, before its status is collected (e.g. to roll the
+            counters the thresholds judge per period).
     """
 
     def __init__(
-        self, node: Node, collect: Callable[[], Health], period_s: float = DEFAULT_PERIOD_S
+        self,
+        node: Node,
+        collect: Callable[[], Health],
+        period_s: float = DEFAULT_PERIOD_S,
+        on_period: Callable[[], None] | None = None,
     ) -> None:
         if not period_s > 0.0:
             raise ValueError(f"diagnostics period must be > 0 s, got {period_s!r}")
         self._node = node
         self._collect = collect
         self._publisher = node.create_publisher(DiagnosticArray, DIAGNOSTICS, diagnostic_qos())
-        self._timer = node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._on_period = on_period
+        self._timer = node.create_timer(
+            period_s, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME)
+        )
         self._level: Level | None = None
         self.published = 0
         """Number of status messages sent."""
@@ -98,6 +107,11 @@ class DiagnosticsPublisher:
         self._level = health.level
         self.published += 1
         return health
+
+    def _on_timer(self) -> None:
+        if self._on_period is not None:
+            self._on_period()
+        self.publish()
 
     def check(self) -> None:
         """Send the status now if its level differs from the last one sent (call after an event)."""
