@@ -138,16 +138,20 @@ def test_fleso_duplicate_re_publishes_the_estimate_without_stepping(make_rig: An
         rig.publish(topics.JOINT_STATES, measurement(k * MS, effort=(1.0, -1.0)))
         rig.wait_for(topics.DISTURBANCE_ESTIMATE, k + 1)
         direct.step(np.array((0.001 * k, 0.0)), np.array((1.0, -1.0)), DT)
-    rig.publish(topics.JOINT_STATES, measurement(MS, effort=(50.0, 50.0)))
+    rig.publish(topics.JOINT_STATES, measurement(MS, effort=(50.0, 50.0)))  # same stamp, other values
+    rig.publish(topics.JOINT_STATES, measurement(MS, effort=(1.0, -1.0)))  # an identical re-transmission
     rig.wait_for(topics.DISTURBANCE_ESTIMATE, 3)
     assert list(estimates[2].data) == list(estimates[1].data)
     assert estimates[2].layout.dim[-1].label == estimates[1].layout.dim[-1].label
     rig.publish(topics.JOINT_STATES_FILTERED, filtered(2 * MS, (0.004, 0.001)))
     rig.publish(topics.JOINT_STATES, measurement(2 * MS, effort=(1.0, -1.0)))
     rig.wait_for(topics.DISTURBANCE_ESTIMATE, 4)
+    rig.settle()
+    assert len(estimates) == 4  # the conflicting duplicate got no answer
     expected = direct.step(np.array((0.004, 0.001)), np.array((1.0, -1.0)), DT)
     np.testing.assert_array_equal(msg_to_labelled(estimates[3]).row("xi_tilde"), expected)
     assert node.counters.duplicates_answered == 1
+    assert node.counters.conflicting_duplicates == 1
 
 
 def test_fleso_gain_change_is_validated_and_reconfigures_it(make_rig: Any, ros_context: Any) -> None:

@@ -48,6 +48,7 @@ from smm_node_runtime import (
     NodeOptions,
     Output,
     node_main,
+    values_of,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -167,7 +168,7 @@ class FlesoNode(MeasurementDrivenNode):
         except InterfaceError as error:
             self.reject(topic, error)
             return
-        if not self.admit(topic, sample.stamp_ns):
+        if not self.admit(topic, sample.stamp_ns, values_of(sample)):
             return
         matched = self.sync.add(topic, sample.stamp_ns, sample)
         self.counters.dropped_unmatched = self.sync.dropped

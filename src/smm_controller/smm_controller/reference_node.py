@@ -186,11 +186,6 @@ class ReferenceNode(MeasurementDrivenNode):
         if self.admit(topics.JOINT_STATES, stamp_ns):
             self.answer(stamp_ns, lambda: self._step(stamp_ns), lambda: self._diagnostics(stamp_ns))
 
-    @property
-    def period_ns(self) -> int:
-        """Control period (ns): the spacing of the plant's stamps."""
-        return round(self.timing.config.control_period * NANOSECONDS_PER_SECOND)
-
     def _step(self, stamp_ns: int) -> list[Output]:
         ahead_ns = self.lookahead.config.lookahead * self.period_ns
         if self.clock.first_stamp_ns is None:

@@ -15,6 +15,7 @@ from smm_node_runtime.measurement import (
     Output,
     StampGate,
     StampPolicy,
+    values_of,
 )
 from smm_node_runtime.node import NodeOptions, ParameterOverrides, SmmNode, as_parameter_list, node_arguments
 from smm_node_runtime.parameters import (
@@ -75,4 +76,5 @@ __all__ = [
     "run_node",
     "run_nodes",
     "spin_until_shutdown",
+    "values_of",
 ]

@@ -35,6 +35,7 @@ __all__ = [
     "Output",
     "StampGate",
     "StampPolicy",
+    "values_of",
 ]
 
 STAMP_PREFIX: Final[str] = "stamp"
@@ -274,6 +275,17 @@ _REFUSAL_TEXT: Final[Mapping[Admission, str]] = {
 }
 
 
+_VALUE_ATTRIBUTES: Final[tuple[str, ...]] = ("position", "velocity", "effort", "values")
+
+
+def values_of(item: object) -> tuple[tuple[float, ...], ...]:
+    """Values of a parsed input (arrays ``position``, ``velocity``, ``effort``, ``values``), comparable."""
+    found = (getattr(item, name, None) for name in _VALUE_ATTRIBUTES)
+    return tuple(
+        tuple(np.asarray(value, dtype=np.float64).ravel().tolist()) for value in found if value is not None
+    )
+
+
 class MeasurementDrivenNode(SmmNode):
     """Base class of a node that answers stamped measurements (policy: ``docs/NODES.md``).
 
@@ -304,13 +316,18 @@ class MeasurementDrivenNode(SmmNode):
         """Stamps answered."""
         self.last_error = ""
         """The newest reason an input or output was dropped ("" before any)."""
-        self._window = _Windows(self._period_counts())
+        self._window = _Windows({})  # every count starts at 0
         self.diagnostics = DiagnosticsPublisher(self, self.health, on_period=self._end_period)
 
     @property
     def control_period(self) -> float:
         """Step size dt of every step (s)."""
         return self.timing.config.control_period
+
+    @property
+    def period_ns(self) -> int:
+        """Control period (ns)."""
+        return round(self.control_period * _NS_PER_S)
 
     @property
     def last_answered_stamp_ns(self) -> int | None:
