@@ -19,8 +19,9 @@ from smm_controller.limits import (
     PlausibilityCheck,
     track_saturation,
 )
-from smm_dynamics import SMMParameters
 from smm_sim.plant import PlantConfig
+
+from smm_dynamics import SMMParameters
 
 MS = 1_000_000
 REFERENCE = [[0.5, -0.3], [0.0, 0.0], [0.0, 0.0]]
