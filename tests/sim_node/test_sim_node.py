@@ -158,7 +158,7 @@ def _bad_commands() -> list[tuple[str, Any]]:
 
 @pytest.mark.parametrize("clock_mode", ["lockstep", "realtime"])
 def test_bad_commands_are_dropped_and_never_applied(make_harness: Any, clock_mode: str) -> None:
-    h = make_harness(clock_mode=clock_mode, republish_period=0.02, command_timeout=10.0)
+    h = make_harness(clock_mode=clock_mode, republish_period=0.02, command_timeout=0.5)
     h.wait_matched()
     bad = _bad_commands()
     for _, msg in bad:
@@ -276,6 +276,8 @@ def test_lockstep_is_deterministic_for_a_seed(make_harness: Any, tmp_path: Path)
     [
         ("clock_mode", "fast", "clock_mode"),
         ("command_timeout", -1.0, "command_timeout"),
+        ("command_timeout", 1e9, "command_timeout out of range"),  # in effect no timeout: refused
+        ("command_timeout", 0.6, "command_timeout out of range"),
         ("republish_period", 0.0, "republish_period"),
         ("max_steps", -3, "max_steps"),
         ("noise_std", [-0.1, 0.0], "noise_std"),
@@ -304,6 +306,9 @@ def test_live_parameter_changes_are_validated(make_harness: Any) -> None:
     h = make_harness(**LOCKSTEP)
     bad = h.sim.set_parameters([Parameter("command_timeout", value=-0.5)])[0]
     assert not bad.successful and "command_timeout" in bad.reason
+    assert h.sim.config.command_timeout == 0.05
+    huge = h.sim.set_parameters([Parameter("command_timeout", value=1e9)])[0]
+    assert not huge.successful and "command_timeout out of range" in huge.reason and "Max: 0.5" in huge.reason
     assert h.sim.config.command_timeout == 0.05
     mode = h.sim.set_parameters([Parameter("clock_mode", value="realtime")])[0]
     assert not mode.successful and "clock_mode" in mode.reason

@@ -1,6 +1,6 @@
 """What every SMM node runs on: process main, executor, node base classes, parameters, ``/diagnostics``."""
 
-from smm_node_runtime.diagnostics import DiagnosticsPublisher, Health, Level, level_for
+from smm_node_runtime.diagnostics import CountWindows, DiagnosticsPublisher, Health, Level, level_for, worst
 from smm_node_runtime.measurement import (
     COUNTER_ROWS,
     DEFAULT_CONTROL_PERIOD,
@@ -51,6 +51,7 @@ __all__ = [
     "Admission",
     "ConfigParameters",
     "ControlPeriodConfig",
+    "CountWindows",
     "DiagnosticsPublisher",
     "Health",
     "InputCounters",
@@ -77,4 +78,5 @@ __all__ = [
     "run_nodes",
     "spin_until_shutdown",
     "values_of",
+    "worst",
 ]

@@ -17,7 +17,7 @@ import numpy.typing as npt
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
 
-from smm_node_runtime.diagnostics import DiagnosticsPublisher, Health, Level
+from smm_node_runtime.diagnostics import CountWindows, DiagnosticsPublisher, Health, Level, worst
 from smm_node_runtime.node import NodeOptions, SmmNode
 from smm_node_runtime.parameters import ConfigParameters, bounds, check_bounds
 
@@ -316,7 +316,7 @@ class MeasurementDrivenNode(SmmNode):
         """Stamps answered."""
         self.last_error = ""
         """The newest reason an input or output was dropped ("" before any)."""
-        self._window = _Windows({})  # every count starts at 0
+        self._window = CountWindows({})  # every count starts at 0
         self.diagnostics = DiagnosticsPublisher(self, self.health, on_period=self._end_period)
 
     @property
@@ -521,38 +521,6 @@ class MeasurementDrivenNode(SmmNode):
         steps = last.get("answered", 0)
         if steps and last.get("deadline_misses", 0) > DEADLINE_MISS_WARN_FRACTION * steps:
             findings.append((Level.WARN, f"{last['deadline_misses']} of {steps} steps missed the period"))
-        findings.sort(key=lambda finding: -int(finding[0]))
-        level = findings[0][0] if findings else Level.OK
-        message = (
-            "; ".join(text for _, text in findings)
-            if findings
-            else ("answering measurements" if self.answered else "waiting for measurements")
-        )
         values: dict[str, object] = {"loop_rate_hz": f"{rate:.1f}", **now, "last_error": self.last_error}
-        return Health(level, message, values)
-
-
-class _Windows:
-    """Counts per diagnostics period: those of the last complete period, and the start of the current one."""
-
-    def __init__(self, counts: Mapping[str, int]) -> None:
-        self.start = dict(counts)
-        self.last: dict[str, int] = {}
-        self.started = time.monotonic()
-        self.duration = 0.0
-
-    def since(self, counts: Mapping[str, int]) -> dict[str, int]:
-        """Increase of each count since the current period started."""
-        return {name: count - self.start.get(name, 0) for name, count in counts.items()}
-
-    def roll(self, counts: Mapping[str, int]) -> None:
-        """End the current period at ``counts``."""
-        now = time.monotonic()
-        self.last = self.since(counts)
-        self.start = dict(counts)
-        self.duration = now - self.started
-        self.started = now
-
-    def rate(self, name: str) -> float:
-        """Rate of ``name`` over the last complete period (1/s), 0 before the first."""
-        return self.last.get(name, 0) / self.duration if self.duration > 0.0 else 0.0
+        fine = "answering measurements" if self.answered else "waiting for measurements"
+        return worst(findings, fine, values)
