@@ -497,6 +497,19 @@ class ControllerNode(MeasurementDrivenNode):
             outputs.append((self._reference_publisher, reference_to_msg(np.array(self._reference), stamp_ns)))
         return outputs
 
+    def on_time_jump(self, *, backward: bool) -> None:
+        """Forget the old timeline's pending stamps; a new run (backward jump) starts from fresh state."""
+        self.sync.clear()
+        if backward:
+            self.controller.reset()
+            if self.chain is not None:
+                self.chain.reset()
+            self.limiter.reset()
+            if self.plausibility is not None:
+                self.plausibility.reset()
+            self.reference_clock = ReferenceClock()
+            self._last_command = np.zeros(2)
+
     def health_counts(self) -> dict[str, int]:
         """The base counts plus ``clamps`` (steps whose torque the output limits changed)."""
         return {**super().health_counts(), "clamps": self.limiter.clamps}

@@ -159,6 +159,13 @@ class FlesoNode(MeasurementDrivenNode):
     def _on_filtered(self, msg: JointState) -> None:
         self._on_input(topics.JOINT_STATES_FILTERED, msg)
 
+    def on_time_jump(self, *, backward: bool) -> None:
+        """Forget the old timeline's pending stamps and commands; a new run starts from a fresh observer."""
+        self.sync.clear()
+        self._commands.clear()
+        if backward:
+            self.fleso.reset()
+
     def _on_measurement(self, msg: JointState) -> None:
         self._on_input(topics.JOINT_STATES, msg)
 

@@ -186,6 +186,11 @@ class ReferenceNode(MeasurementDrivenNode):
         if self.admit(topics.JOINT_STATES, stamp_ns):
             self.answer(stamp_ns, lambda: self._step(stamp_ns), lambda: self._diagnostics(stamp_ns))
 
+    def on_time_jump(self, *, backward: bool) -> None:
+        """A new run (backward jump) starts its reference at t = 0 again."""
+        if backward:
+            self.clock = ReferenceClock()
+
     def _step(self, stamp_ns: int) -> list[Output]:
         ahead_ns = self.lookahead.config.lookahead * self.period_ns
         if self.clock.first_stamp_ns is None:

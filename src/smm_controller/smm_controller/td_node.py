@@ -114,6 +114,12 @@ class TdNode(MeasurementDrivenNode):
         # Same TD, new gains from the next sample: x1 and x2 carry on (no velocity restart from 0).
         self.td.reconfigure(config)
 
+    def on_time_jump(self, *, backward: bool) -> None:
+        """A new run (backward jump) starts from a fresh TD and no previous position."""
+        if backward:
+            self.td.reset()
+            self.plausibility.reset()
+
     def _on_measurement_limits(self, limits: MeasurementLimits) -> None:
         self.plausibility.reconfigure(limits)
 

@@ -396,6 +396,7 @@ class MeasurementDrivenNode(SmmNode):
                 f"{self.last_error} after {self._gate.policy.resync_samples} consistent samples"
             )
             self._answered_values[topic] = (stamp_ns, values)
+            self.on_time_jump(backward=last is not None and stamp_ns < last)
             self.diagnostics.check()
             return True
         if admission is Admission.DUPLICATE:
@@ -417,6 +418,13 @@ class MeasurementDrivenNode(SmmNode):
             f"dropped input on '{topic}': stamp {stamp_ns} ns is {_REFUSAL_TEXT[admission]} ({last} ns)",
         )
         return False
+
+    def on_time_jump(self, *, backward: bool) -> None:
+        """Called when the node resynchronised after a time jump (``backward``: to older stamps, a new run).
+
+        Subclasses forget what is tied to the old timeline (synchroniser, and for a new run the algorithm
+        state and the reference time), so the new run starts as a fresh one would (``docs/NODES.md``).
+        """
 
     def answer(
         self,
