@@ -23,6 +23,7 @@ from smm_analysis.reproduction import (
     controller_label,
     ideal_step_response,
     paper_fpdeso_ideal_step,
+    torque_limit_note,
 )
 from smm_analysis.retuned import RETUNED_SETS, RetunedSet, damping_ratio, matched_damping_kd0
 from smm_analysis.tune_td import TDSweepPoint, best_point, chosen_point, format_table
@@ -628,6 +629,9 @@ def render_report(
         f"'{retuned.label}' (see 'The retuned FPDESO set')"
         for retuned in _retuned_runs(result)
     )
+    limit, peak = torque_limit_note(result)
+    limit_text = " / ".join(f"{value:g}" for value in limit)
+    limit_reached = "the limit was reached" if peak >= min(limit) else "it was never reached"
     lines = [
         "# Reproduction of the FPDESO paper's simulations",
         "",
@@ -638,8 +642,9 @@ def render_report(
         "Setup (SPEC sections 1-5): the plant is the rigid-body model of SPEC section 1 integrated with RK4 "
         "at the control period, starting at rest at q = 0, with stops at +-1.3 rad, no torque saturation "
         "and no "
-        "valve lag. Each control step runs encoder sample -> TD -> FLESO (FPDESO only) -> controller -> "
-        "plant "
+        f"valve lag. The controller's output limit (smm_controller.limits) is +-{limit_text} N m per joint; "
+        f"the largest command of these runs is {peak:.1f} N m, so {limit_reached}. Each control step "
+        "runs encoder sample -> TD -> FLESO (FPDESO only) -> controller -> output limit -> plant "
         f"(docs/DESIGN.md). Every controller uses the paper's gains{retuned_note}. Errors are measured on "
         "the true plant position. Units: angles and errors in rad, times in s, control energy eps_u = "
         "integral of the commanded "

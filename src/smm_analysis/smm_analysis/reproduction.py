@@ -23,6 +23,9 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+from smm_controller.limits import OutputLimitConfig
+
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD, Trajectory, run_closed_loop
 from smm_analysis.errors import AnalysisError, UnknownControllerError
 from smm_analysis.metrics import (
@@ -611,6 +614,15 @@ def acceptance_verdict(checks: Sequence[AcceptanceCheck]) -> AcceptanceVerdict:
     )
 
 
+def torque_limit_note(result: ReproductionResult) -> tuple[tuple[float, float], float]:
+    """``(torque limit (N m) the chains ran with, largest |command| of every run (N m))``."""
+    limit = OutputLimitConfig().torque_limit
+    peak = max(
+        (float(np.max(np.abs(run.trajectory.command_torque))) for run in result.runs.values()), default=0.0
+    )
+    return limit, peak
+
+
 def _finite_or_none(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
@@ -670,7 +682,10 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
     ]
     verdict = acceptance_verdict(result.checks)
     document["acceptance_verdict"] = {"met": verdict.met, "message": verdict.message}
+    limit, peak = torque_limit_note(result)
     document["meta"] = {
+        "torque_limit_Nm": list(limit),
+        "peak_command_Nm": peak,
         "seed": result.seed,
         "control_period_s": result.control_period,
         "td_speed": list(result.td_config.speed),
