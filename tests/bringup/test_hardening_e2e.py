@@ -1,8 +1,10 @@
 """Issue 12 end to end: a real-time graph (smm-launch, one process per node) against hostile input.
 
 Rates are compared as ratios of counts over stamp windows (commands per simulated second, which in real
-time is per second), never against wall-clock figures. 100 Hz, like the real-time test of
-``test_graph_e2e.py``: slow enough that a loaded two-core machine answers nearly every measurement.
+time is per second), never against wall-clock figures. FPDESO at 100 Hz (TD h = 10 ms; tracks case 1 as
+closely as at 1 kHz offline, and the PID's beta loop is not stable at that rate): slow enough that a loaded
+two-core machine answers nearly every measurement; the rate before is taken once it is steady (start-up
+costs the first seconds).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from bringup.test_graph_e2e import launcher_argv
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import JointSample, msg_to_torque, sample_to_joint_state, stamp_to_ns
@@ -31,12 +34,6 @@ WINDOW_NS = 3 * 10**9
 STOPS_RAD = 1.3
 NAMESPACE = "/smm"
 NODES = ("smm_sim_node", "controller_node", "td_node", "fleso_node", "reference_node")
-
-
-def launcher_argv(*arguments: str) -> list[str]:
-    import sys
-
-    return [sys.executable, "-m", "smm_bringup.launcher", *arguments]
 
 
 def realtime_graph(ros_processes: Any, tmp_path: Path, *layout: str) -> Any:
@@ -128,6 +125,14 @@ def test_one_measurement_an_hour_ahead_does_not_stop_a_realtime_graph(
     probe = Probe(ros_context)
     try:
         probe.spin_until(lambda: probe.latest_stamp() >= 10**9, 90.0, launcher)  # running for 1 s
+
+        def steady() -> bool:  # two consecutive seconds within 5 % of each other
+            end = probe.latest_stamp()
+            first = commands_per_second(probe.commands, end - 2 * 10**9, end - 10**9)
+            second = commands_per_second(probe.commands, end - 10**9, end)
+            return end >= 3 * 10**9 and first > 0.0 and abs(second - first) <= 0.05 * first
+
+        probe.spin_until(steady, 60.0, launcher)
         start = probe.latest_stamp()
         probe.spin_until(lambda: probe.latest_stamp() >= start + WINDOW_NS, 60.0, launcher)
         before = commands_per_second(probe.commands, start, start + WINDOW_NS)
@@ -135,11 +140,12 @@ def test_one_measurement_an_hour_ahead_does_not_stop_a_realtime_graph(
         injected = probe.latest_stamp() + HOUR_NS
         stray = sample_to_joint_state(JointSample(injected, np.array([0.1, 0.1]), None, np.zeros(2)))
         probe.measurements.publish(stray)
-        settle = probe.latest_stamp() + 5 * 10 * PERIOD_NS
+        settle = probe.latest_stamp() + 10 * PERIOD_NS
         after_start = settle + 10 * PERIOD_NS
         probe.spin_until(lambda: probe.latest_stamp() >= after_start + WINDOW_NS, 60.0, launcher)
         after = commands_per_second(probe.commands, after_start, after_start + WINDOW_NS)
 
+        print(f"commands/s before {before:.1f}, after {after:.1f}")  # shown with -s
         assert before > 0.0
         assert abs(after - before) <= 0.1 * before, f"commands/s before {before:.1f}, after {after:.1f}"
         assert injected not in probe.commands  # the stray measurement got no command

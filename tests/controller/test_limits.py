@@ -41,12 +41,13 @@ def test_a_position_outside_the_range_is_implausible(position: tuple[float, floa
     assert "outside" in (PlausibilityCheck().reason(position, 0, MS) or "")
 
 
-def test_a_step_larger_than_max_step_per_period_is_implausible_and_the_allowance_grows_with_the_gap() -> None:
-    check = PlausibilityCheck(MeasurementLimits(max_step=(0.1, 0.1)))
+def test_a_move_faster_than_max_speed_is_implausible_and_the_allowance_grows_with_the_gap() -> None:
+    check = PlausibilityCheck(MeasurementLimits(max_speed=(100.0, 100.0)))
     assert check.reason((0.0, 0.0), 0, MS) is None
     check.accept((0.0, 0.0), 0)
     assert check.reason((0.09, -0.09), MS, MS) is None
-    assert "moved" in (check.reason((0.5, 0.0), MS, MS) or "")
+    assert "faster than" in (check.reason((0.5, 0.0), MS, MS) or "")
+    assert check.reason((0.5, 0.0), MS, 10 * MS) is None  # at 100 Hz one period allows 1 rad
     assert check.reason((0.5, 0.0), 5 * MS, MS) is None  # five periods later it is a plausible move
     check.reset()
     assert check.reason((0.5, 0.0), MS, MS) is None
@@ -145,4 +146,4 @@ def test_the_reproduced_scenarios_stay_below_the_default_limit() -> None:
     run = run_closed_loop("step", "fpdeso", record_internals=False)
     peak = np.abs(np.asarray(run.command_torque)).max(axis=0)
     assert np.all(peak < DEFAULT_TORQUE_LIMIT)
-    assert np.all(peak > 0.9 * np.asarray(DEFAULT_TORQUE_LIMIT[0]) * 0.5)  # the limit is not far above
+    assert peak.max() > 0.9 * DEFAULT_TORQUE_LIMIT[0]  # the limit sits just above the largest command

@@ -209,7 +209,7 @@ def test_no_input_sequence_stops_control_or_commands_an_absurd_torque(
             assert previous == list(command.values)
         # after the burst, valid measurements are answered again within a bounded number of periods:
         # a resync takes RESYNC_SAMPLES; a step from the last accepted position (at most 2.4 rad away)
-        # becomes plausible after 2.4 / 0.1 = 24 periods.
+        # becomes plausible after 2.4 rad / (100 rad/s) = 24 periods.
         answered = {command.stamp_ns for command in commands}
         bound = RESYNC_SAMPLES + 25
         resumed = [k for k, item in enumerate(after) if item.stamp_ns in answered]

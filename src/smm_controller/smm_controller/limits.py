@@ -13,7 +13,7 @@ from typing import Final, Protocol, runtime_checkable
 from smm_controller._validation import FloatArray, check_instance, check_pair, internals_view
 
 __all__ = [
-    "DEFAULT_MAX_STEP",
+    "DEFAULT_MAX_SPEED",
     "DEFAULT_POSITION_LIMIT",
     "DEFAULT_TORQUE_LIMIT",
     "MECHANICAL_STOPS",
@@ -34,9 +34,9 @@ DEFAULT_POSITION_LIMIT: Final[tuple[float, float]] = (
     MECHANICAL_STOPS[0] + POSITION_MARGIN,
     MECHANICAL_STOPS[1] + POSITION_MARGIN,
 )
-DEFAULT_MAX_STEP: Final[tuple[float, float]] = (0.1, 0.1)
-"""Largest plausible position change per control period (rad): 100 rad/s at 1 kHz, about 4 times the fastest
-sample-to-sample change of the reproduced scenarios (0.027 rad, FPDESO step)."""
+DEFAULT_MAX_SPEED: Final[tuple[float, float]] = (100.0, 100.0)
+"""Largest plausible joint speed between two samples (rad/s): about 4 times the fastest of the reproduced
+scenarios (27 rad/s, FPDESO step; 0.027 rad per 1 ms sample)."""
 DEFAULT_TORQUE_LIMIT: Final[tuple[float, float]] = (300.0, 300.0)
 """Default torque limit (alpha, beta) (N m): just above the largest command of the reproduced scenarios
 (288 N m, FPDESO step at t = 0), so the reproduction runs unclamped; the bench's actuator torque is not
@@ -50,16 +50,16 @@ class MeasurementLimits:
     Attributes:
         position_limit: Largest plausible |position| (alpha, beta) (rad), > 0: the mechanical stops (1.3 rad,
             SPEC section 1) plus a 0.2 rad margin.
-        max_step: Largest plausible position change per control period between two stamps (alpha, beta)
-            (rad), > 0; scaled by the number of periods between them.
+        max_speed: Largest plausible speed between two samples (alpha, beta) (rad/s), > 0: a position may
+            move at most this times the time between their stamps (at least one control period).
     """
 
     position_limit: tuple[float, float] = DEFAULT_POSITION_LIMIT
-    max_step: tuple[float, float] = DEFAULT_MAX_STEP
+    max_speed: tuple[float, float] = DEFAULT_MAX_SPEED
 
     def __post_init__(self) -> None:
         check_pair("position_limit", self.position_limit, positive=True)
-        check_pair("max_step", self.max_step, positive=True)
+        check_pair("max_speed", self.max_speed, positive=True)
 
 
 class PlausibilityCheck:
@@ -85,8 +85,8 @@ class PlausibilityCheck:
     def reason(self, position: tuple[float, float], stamp_ns: int, period_ns: int) -> str | None:
         """Why ``position`` (rad) at ``stamp_ns`` (ns) is implausible, or None when it is plausible.
 
-        The step allowed since the last accepted stamp is ``max_step`` times the periods (``period_ns``, ns)
-        between them, at least one period, so a genuine fast move is accepted again after a few samples.
+        The step allowed since the last accepted stamp is ``max_speed`` times the time between the stamps, at
+        least one period (``period_ns``, ns), so a genuine fast move is accepted again after a few samples.
         """
         limits = self.limits
         for joint, (value, bound) in enumerate(zip(position, limits.position_limit, strict=True)):
@@ -95,14 +95,14 @@ class PlausibilityCheck:
         if self._last is None:
             return None
         last_stamp, *last_position = self._last
-        periods = max(1, abs(stamp_ns - last_stamp) // max(1, period_ns))
-        for joint, (value, previous, step) in enumerate(
-            zip(position, last_position, limits.max_step, strict=True)
+        elapsed_s = max(abs(stamp_ns - last_stamp), period_ns) / 1e9
+        for joint, (value, previous, speed) in enumerate(
+            zip(position, last_position, limits.max_speed, strict=True)
         ):
-            if abs(value - previous) > step * periods:
+            if abs(value - previous) > speed * elapsed_s:
                 return (
-                    f"position[{joint}] moved {value - previous:+.6g} rad in {periods} period(s), "
-                    f"more than {step} rad per period"
+                    f"position[{joint}] moved {value - previous:+.6g} rad in {elapsed_s:.6g} s, "
+                    f"faster than {speed} rad/s"
                 )
         return None
 

@@ -415,7 +415,8 @@ class MeasurementDrivenNode(SmmNode):
         self._refused(
             _REFUSAL_COUNTERS[admission],
             topic,
-            f"dropped input on '{topic}': stamp {stamp_ns} ns is {_REFUSAL_TEXT[admission]} ({last} ns)",
+            f"dropped input on '{topic}': stamp {stamp_ns} ns is {_REFUSAL_TEXT[admission]} "
+            f"(last answered {last} ns)",
         )
         return False
 
