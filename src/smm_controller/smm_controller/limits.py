@@ -89,22 +89,25 @@ class PlausibilityCheck:
         least one period (``period_ns``, ns), so a genuine fast move is accepted again after a few samples.
         """
         limits = self.limits
-        for joint, (value, bound) in enumerate(zip(position, limits.position_limit, strict=True)):
-            if not abs(value) <= bound:
-                return f"position[{joint}] = {value!r} rad outside +-{bound} rad"
-        if self._last is None:
+        bound = limits.position_limit
+        # Straight-line fast path (every step of the loop); the loops below only word the refusal.
+        if not (abs(position[0]) <= bound[0] and abs(position[1]) <= bound[1]):
+            for joint in range(2):
+                if not abs(position[joint]) <= bound[joint]:
+                    return f"position[{joint}] = {position[joint]!r} rad outside +-{bound[joint]} rad"
+        last = self._last
+        if last is None:
             return None
-        last_stamp, *last_position = self._last
-        elapsed_s = max(abs(stamp_ns - last_stamp), period_ns) / 1e9
-        for joint, (value, previous, speed) in enumerate(
-            zip(position, last_position, limits.max_speed, strict=True)
-        ):
-            if abs(value - previous) > speed * elapsed_s:
-                return (
-                    f"position[{joint}] moved {value - previous:+.6g} rad in {elapsed_s:.6g} s, "
-                    f"faster than {speed} rad/s"
-                )
-        return None
+        elapsed_s = max(abs(stamp_ns - last[0]), period_ns) / 1e9
+        speed = limits.max_speed
+        moved = (position[0] - last[1], position[1] - last[2])
+        if abs(moved[0]) <= speed[0] * elapsed_s and abs(moved[1]) <= speed[1] * elapsed_s:
+            return None
+        joint = 0 if abs(moved[0]) > speed[0] * elapsed_s else 1
+        return (
+            f"position[{joint}] moved {moved[joint]:+.6g} rad in {elapsed_s:.6g} s, "
+            f"faster than {speed[joint]} rad/s"
+        )
 
     def admit(self, position: tuple[float, float], stamp_ns: int, period_ns: int) -> str | None:
         """:meth:`reason`; a plausible ``position`` is also accepted (the next is checked against it)."""
@@ -188,22 +191,19 @@ class OutputLimiter:
         """The limited command (N m) for the law's ``tau`` (N m), dt (s) since the previous one."""
         config = self.config
         previous = self._previous
-        limited = []
-        for joint in range(2):
-            value = tau[joint]
-            if previous is not None:
-                step = config.rate_limit[joint] * dt
-                value = _limit(value, previous[joint] - step, previous[joint] + step)
-            bound = config.torque_limit[joint]
-            limited.append(_limit(value, -bound, bound))
-        result = (limited[0], limited[1])
-        clamped = tuple(
-            0.0 if out == raw or math.isnan(out) else 1.0 for out, raw in zip(result, tau, strict=True)
-        )
-        if any(clamped):
+        a, b = tau
+        if previous is not None:
+            rate_a, rate_b = config.rate_limit
+            a = _limit(a, previous[0] - rate_a * dt, previous[0] + rate_a * dt)
+            b = _limit(b, previous[1] - rate_b * dt, previous[1] + rate_b * dt)
+        bound_a, bound_b = config.torque_limit
+        result = (_limit(a, -bound_a, bound_a), _limit(b, -bound_b, bound_b))
+        clamped_a = 0.0 if result[0] == tau[0] or math.isnan(result[0]) else 1.0
+        clamped_b = 0.0 if result[1] == tau[1] or math.isnan(result[1]) else 1.0
+        if clamped_a or clamped_b:
             self.clamps += 1
         self._previous = result
-        self._last = (tau[0], tau[1], result[0], result[1], clamped[0], clamped[1])
+        self._last = (tau[0], tau[1], result[0], result[1], clamped_a, clamped_b)
         return result
 
     @property
