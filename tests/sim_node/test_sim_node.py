@@ -366,3 +366,20 @@ def test_lockstep_publishes_sim_time_on_clock_for_its_subscribers(make_harness: 
     assert h.spin_until(lambda: any(stamp_to_ns(c.clock) == 3 * PERIOD_NS for c in clocks))
     times = {stamp_to_ns(c.clock) for c in clocks}
     assert {PERIOD_NS, 2 * PERIOD_NS, 3 * PERIOD_NS} <= times <= {k * PERIOD_NS for k in range(4)}
+
+
+def test_realtime_status_goes_to_error_when_the_watchdog_applies_zero_torque(make_harness: Any) -> None:
+    from smm_node_runtime import Level
+
+    h = make_harness(clock_mode="realtime", command_timeout=0.02)
+    h.wait_matched()
+    h.spin_until(lambda: len(h.measurements) >= 3)
+    assert h.sim.health().level is not Level.ERROR  # no command yet: waiting, not a fault
+    h.send([0.1, -0.1], h.stamps()[-1])
+    assert h.spin_until(lambda: h.sim.latency.count == 1)
+    assert h.spin_until(lambda: h.sim.command_timeouts > 0)  # then no command any more
+    health = h.sim.health()
+    assert health.level is Level.ERROR
+    assert "zero torque" in health.message
+    assert health.values["command_timeouts"] == h.sim.command_timeouts
+    assert h.spin_until(lambda: h.sim.diagnostics.level is Level.ERROR)  # sent at once, not a second later
