@@ -186,6 +186,7 @@ def format_tables(result: ReproductionResult) -> str:
     for scenario in result.scenarios:
         lines.append(f"{scenario.name}: {scenario.description}")
         header = f"  {'controller':<15} {'Ma (rad)':>19} {'Ave (rad)':>19} {'RMS (rad)':>19} {'eps_u':>19}"
+        header += f" {'du_rms (N m)':>19}"
         if scenario.is_step:
             header += f" {'rise (s)':>15} {'overshoot (%)':>15} {'settling (s)':>15}"
         lines.append(header)
@@ -195,7 +196,7 @@ def format_tables(result: ReproductionResult) -> str:
                 continue
             joints = run.joints
             row = f"  {controller:<15}"
-            for metric in ("Ma", "Ave", "RMS", "eps_u"):
+            for metric in ("Ma", "Ave", "RMS", "eps_u", "du_rms"):
                 pair = f"{getattr(joints['alpha'], metric):.4g} / {getattr(joints['beta'], metric):.4g}"
                 row += f" {pair:>19}"
             if run.step is not None:
