@@ -246,3 +246,13 @@ def test_joint_indices_carry_the_torque_increment() -> None:
     indices = joint_indices(t_ns, np.zeros((t_ns.size, 2)), np.zeros((t_ns.size, 2)), torque)
     assert indices["alpha"].du_rms == pytest.approx(0.1, rel=1e-12)
     assert indices["beta"].du_rms == 0.0
+
+
+def test_energy_above_a_cutoff_splits_a_two_tone_torque_by_parseval() -> None:
+    from smm_analysis.energy_study import energy_above
+
+    t_ns = np.arange(1000, dtype=np.int64) * 1_000_000  # 1 s at 1 kHz, whole periods of both tones
+    t = t_ns / 1e9
+    torque = 2.0 * np.sin(2 * np.pi * 5 * t) + 0.5 * np.sin(2 * np.pi * 100 * t)
+    assert energy_above(t_ns, torque, 20.0) == pytest.approx(0.5**2 / 2, rel=1e-9)
+    assert energy_above(t_ns, torque, 1.0) == pytest.approx(2.0**2 / 2 + 0.5**2 / 2, rel=1e-9)

@@ -116,8 +116,8 @@ class AcceptanceCheck:
         passed: Whether the claim holds.
         controller: The controller (gain set) the claim is checked on: ``"fpdeso"`` for the paper's
             gains, or a retuned set's name.
-        quantity: What ``value`` is: ``overshoot_fraction``, ``rise_time``, ``RMS``, ``Ma`` or
-            ``rms_reduction``; matches a retuned set's check with the paper set's.
+        quantity: What ``value`` is: ``overshoot_fraction``, ``rise_time``, ``RMS``, ``Ma``,
+            ``rms_reduction`` or ``eps_u``; matches a retuned set's check with the paper set's.
     """
 
     claim: str
@@ -539,6 +539,19 @@ def acceptance_checks(result: ReproductionResult) -> list[AcceptanceCheck]:
                     requirement=f">= {CASE2_RMS_REDUCTION:g}",
                     passed=reduction >= CASE2_RMS_REDUCTION,
                     quantity="rms_reduction",
+                )
+            )
+        for joint in JOINTS:
+            energy, fpd_energy = fpdeso2.joints[joint].eps_u, fpd2.joints[joint].eps_u
+            checks.append(
+                AcceptanceCheck(
+                    claim="case2: FPDESO control energy eps_u below FPD's (N^2 m^2 s)",
+                    scenario="case2",
+                    joint=joint,
+                    value=energy,
+                    requirement=f"< FPD {fpd_energy:.4g}",
+                    passed=energy < fpd_energy,
+                    quantity="eps_u",
                 )
             )
     return checks
