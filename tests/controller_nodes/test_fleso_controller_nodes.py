@@ -41,8 +41,11 @@ DT = 1e-3
 INTERNALS_TOPIC_OF_FLESO = "/fleso_node/internals"
 
 
-def estimate_msg(stamp_ns: int, xi: tuple[float, float] = (0.2, -0.1)) -> Float64MultiArray:
-    return labelled_to_msg([xi], DISTURBANCE_ESTIMATE_ROWS, stamp_ns)
+def estimate_msg(
+    stamp_ns: int, xi: tuple[float, float] = (0.2, -0.1), velocity: tuple[float, float] = (0.3, 0.4)
+) -> Float64MultiArray:
+    """disturbance_estimate: xi~ (N m) and the observer velocity x2^ (rad/s; default = filtered()'s)."""
+    return labelled_to_msg([xi, velocity], DISTURBANCE_ESTIMATE_ROWS, stamp_ns)
 
 
 def reference_msg(stamp_ns: int) -> Float64MultiArray:
@@ -292,6 +295,28 @@ def test_fleso_drops_a_bad_torque_command(make_rig: Any, ros_context: Any) -> No
 
 
 # ---------------------------------------------------------------------------------------- controller
+
+
+@pytest.mark.parametrize("velocity_source", ["observer", "td"])
+def test_the_law_takes_the_velocity_of_its_velocity_source(
+    make_rig: Any, ros_context: Any, velocity_source: str
+) -> None:
+    node = ControllerNode(
+        context=ros_context, parameter_overrides={"fpdeso.velocity_source": velocity_source}
+    )
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    td_velocity, observer_velocity = (0.3, 0.4), (-0.7, 0.9)
+    rig.publish(topics.JOINT_STATES_FILTERED, filtered(0, velocity=td_velocity))
+    rig.publish(topics.REFERENCE, reference_msg(0))
+    rig.publish(topics.DISTURBANCE_ESTIMATE, estimate_msg(0, velocity=observer_velocity))
+    rig.wait_for(topics.TORQUE_COMMAND, 1)
+    law = FPDESOController(FPDESOConfig(velocity_source=velocity_source), SMMParameters())
+    velocity = observer_velocity if velocity_source == "observer" else td_velocity
+    expected = law.step(
+        SineReference().evaluate(0.0), np.array((0.1, -0.2)), np.array(velocity), np.array((0.2, -0.1)), DT
+    )
+    np.testing.assert_array_equal(msg_to_torque(torques[0]).values, expected)
 
 
 def feed_controller(

@@ -5,7 +5,8 @@ previous interval tau_applied_{k-1}:
 
 1. TD: (q^, q^') = td(y_k)
 2. FLESO (if any): xi~_k = fleso(q^, tau_applied_{k-1})  (else xi~ = 0)
-3. controller: tau_k = controller(r_k, q^, q^', xi~_k)
+3. controller: tau_k = controller(r_k, q^, v_k, xi~_k), v_k = q^' or, for a law whose
+   ``velocity_source`` is ``"observer"``, the FLESO's velocity estimate x2^_k
 4. output limits: the torque and rate limits of :class:`smm_controller.limits.OutputLimiter` (a law that
    tracks saturation, the PID, is told, so its integrator does not wind up)
 
@@ -73,6 +74,8 @@ class ControlChain:
         controller: JointController,
         limiter: OutputLimiter | None = None,
     ) -> None:
+        if fleso is None and controller.velocity_source == "observer":
+            raise ValueError("the law's velocity_source is 'observer' but the chain has no FLESO")
         self.td = td
         self.fleso = fleso
         self.controller = controller
@@ -124,8 +127,12 @@ class ControlChain:
         q0, q1, qd0, qd1 = self.td.step_floats(y[0], y[1], dt)
         if self.fleso is not None:
             disturbance = self.fleso.step_floats(q0, q1, tau_applied[0], tau_applied[1], dt)
+            if self.controller.velocity_source == "observer":
+                qd0, qd1 = self.fleso.velocity_floats()
         else:
             disturbance = (0.0, 0.0)
+            if self.controller.velocity_source == "observer":
+                raise ValueError("the law's velocity_source is 'observer' but the chain has no FLESO")
         self._disturbance = disturbance
         tau = self.controller.step_floats(reference, (q0, q1), (qd0, qd1), disturbance, dt)
         limited = self.limiter.limit_floats(tau, dt)

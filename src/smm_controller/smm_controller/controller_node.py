@@ -4,7 +4,9 @@ Matches, by exact stamp, ``joint_states_filtered`` (TD position rad and velocity
 (3x2) and, for ``fpdeso`` only, ``disturbance_estimate`` (row ``xi_tilde``, N m); steps the law once per
 stamp with dt = ``control_period`` and publishes ``torque_command`` ([tau_alpha, tau_beta] N m), then
 ``controller_internals`` (the law's internals + the node counters), both stamped with the measurement's
-stamp. The baselines get xi~ = 0 and ``disturbance_estimate`` is then not read.
+stamp. The baselines get xi~ = 0 and ``disturbance_estimate`` is then not read. With FPDESO's
+``velocity_source: observer`` the law's velocity is the row ``x2_hat`` of ``disturbance_estimate`` (the
+FLESO's x2^) instead of the TD's.
 
 Parameters: ``algorithm`` (fpdeso | fpd | pid | npd) and ``switch_idle_time``; the gains of every law,
 ``fpdeso.<field>`` (nested ``fpdeso.fuzzy.<field>``), ``fpd.fuzzy.<field>``, ``pid.<field>``,
@@ -474,8 +476,10 @@ class ControllerNode(MeasurementDrivenNode):
         filtered = matched.items[topics.JOINT_STATES_FILTERED]
         estimate = matched.items.get(topics.DISTURBANCE_ESTIMATE)
         xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
+        observer = estimate is not None and self.controller.velocity_source == "observer"
+        velocity = estimate.values[1] if estimate is not None and observer else filtered.velocity
         law_tau = self.controller.step(
-            np.array(reference), filtered.position, filtered.velocity, xi, self.control_period
+            np.array(reference), filtered.position, velocity, xi, self.control_period
         )
         unlimited = (float(law_tau[0]), float(law_tau[1]))
         limited = self.limiter.limit_floats(unlimited, self.control_period)

@@ -2,9 +2,9 @@
 
 Matches, by exact stamp, ``joint_states_filtered`` (TD position, rad) and ``joint_states`` (effort = torque
 applied over the previous interval, N m); steps the FLESO once per stamp with dt = ``control_period`` and
-publishes ``disturbance_estimate`` (row ``xi_tilde``, N m), then the diagnostics ``observer_state`` (x1_hat,
-x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node counters), all stamped with
-the measurement's stamp.
+publishes ``disturbance_estimate`` (rows ``xi_tilde``, N m, and ``x2_hat``, rad/s), then the diagnostics
+``observer_state`` (x1_hat, x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node
+counters), all stamped with the measurement's stamp.
 
 Applied torque (SPEC section 4): the measurement's effort; where the plant reports none (empty ``effort``,
 e.g. a bridge without torque sensing), the ``torque_command`` stamped with the previous measurement's stamp,
@@ -191,7 +191,8 @@ class FlesoNode(MeasurementDrivenNode):
         effort = matched.items[topics.JOINT_STATES].effort
         applied_torque = effort if effort is not None else self._commanded_torque(previous_stamp_ns)
         estimate = self.fleso.step(position, applied_torque, self.control_period)
-        message = labelled_to_msg(estimate[np.newaxis, :], DISTURBANCE_ESTIMATE_ROWS, matched.stamp_ns)
+        rows = np.stack([estimate, self.fleso.velocity_floats()])
+        message = labelled_to_msg(rows, DISTURBANCE_ESTIMATE_ROWS, matched.stamp_ns)
         return [(self._estimate_publisher, message)]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
