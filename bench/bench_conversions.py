@@ -25,16 +25,10 @@ from smm_msgs_py.conversions import (
     torque_to_msg,
 )
 from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
+from smm_node_runtime import COUNTER_ROWS
 
 STAMP_NS = 1_700_000_000_123_456_789
 INTERNALS_ROWS = ("kp", "kd", "u", "feedforward", "feedback", "disturbance", "robust", "tau")
-COUNTER_ROWS = (
-    "dropped_invalid",
-    "dropped_stale",
-    "dropped_unmatched",
-    "duplicates_answered",
-    "invalid_outputs",
-)
 
 
 def _read_only(values: list[float]) -> np.ndarray:
