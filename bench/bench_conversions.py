@@ -26,15 +26,10 @@ from smm_msgs_py.conversions import (
 )
 from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
 
+from smm_node_runtime import COUNTER_ROWS
+
 STAMP_NS = 1_700_000_000_123_456_789
 INTERNALS_ROWS = ("kp", "kd", "u", "feedforward", "feedback", "disturbance", "robust", "tau")
-COUNTER_ROWS = (
-    "dropped_invalid",
-    "dropped_stale",
-    "dropped_unmatched",
-    "duplicates_answered",
-    "invalid_outputs",
-)
 
 
 def _read_only(values: list[float]) -> np.ndarray:
@@ -49,7 +44,7 @@ def cases() -> dict[str, Callable[[], object]]:
     position = np.array([0.1, 0.2])
     reference = np.arange(6.0).reshape(3, 2)
     observer = np.ones((len(OBSERVER_STATE_ROWS), 2))
-    estimate = np.array([0.3, -0.1])
+    estimate = np.ones((len(DISTURBANCE_ESTIMATE_ROWS), 2))
     # An algorithm's internals (read-only copies) merged with the node counters, as the nodes publish them.
     internals = {name: _read_only([index, -index]) for index, name in enumerate(INTERNALS_ROWS)}
     internals |= {name: np.full(2, 0.0) for name in COUNTER_ROWS}
@@ -60,7 +55,7 @@ def cases() -> dict[str, Callable[[], object]]:
     torque_msg = torque_to_msg(tau, STAMP_NS)
     reference_msg = reference_to_msg(reference, STAMP_NS)
     observer_msg = labelled_to_msg(observer, OBSERVER_STATE_ROWS, STAMP_NS)
-    estimate_msg = labelled_to_msg(estimate[np.newaxis, :], DISTURBANCE_ESTIMATE_ROWS, STAMP_NS)
+    estimate_msg = labelled_to_msg(estimate, DISTURBANCE_ESTIMATE_ROWS, STAMP_NS)
     return {
         "joint_state_to_sample (alpha, beta)": lambda: joint_state_to_sample(
             measurement, require_effort=True
@@ -73,15 +68,15 @@ def cases() -> dict[str, Callable[[], object]]:
         "msg_to_torque": lambda: msg_to_torque(torque_msg),
         "reference_to_msg": lambda: reference_to_msg(reference, STAMP_NS),
         "msg_to_reference": lambda: msg_to_reference(reference_msg),
-        "labelled_to_msg (1 row)": lambda: labelled_to_msg(
-            estimate[np.newaxis, :], DISTURBANCE_ESTIMATE_ROWS, STAMP_NS
+        "labelled_to_msg (disturbance estimate)": lambda: labelled_to_msg(
+            estimate, DISTURBANCE_ESTIMATE_ROWS, STAMP_NS
         ),
         "labelled_to_msg (4 rows)": lambda: labelled_to_msg(observer, OBSERVER_STATE_ROWS, STAMP_NS),
         "msg_to_labelled (4 rows)": lambda: msg_to_labelled(observer_msg),
-        "msg_to_labelled (1 row, expected rows)": lambda: msg_to_labelled(
+        "msg_to_labelled (disturbance estimate, expected rows)": lambda: msg_to_labelled(
             estimate_msg, expected_rows=DISTURBANCE_ESTIMATE_ROWS
         ),
-        "internals_to_msg (13 rows)": lambda: internals_to_msg(internals, STAMP_NS),
+        "internals_to_msg (+ counters)": lambda: internals_to_msg(internals, STAMP_NS),
     }
 
 
@@ -106,13 +101,13 @@ def lockstep_step() -> Callable[[], object]:
         calls["reference_to_msg"](),
         parse_measurement(),  # FLESO: filtered and measurement
         parse_measurement(),
-        calls["labelled_to_msg (1 row)"](),  # disturbance estimate
+        calls["labelled_to_msg (disturbance estimate)"](),  # disturbance estimate
         calls["labelled_to_msg (4 rows)"](),  # observer state
         parse_measurement(),  # controller: filtered, reference, estimate
         calls["msg_to_reference"](),
-        calls["msg_to_labelled (1 row, expected rows)"](),
+        calls["msg_to_labelled (disturbance estimate, expected rows)"](),
         calls["torque_to_msg"](),
-        *(calls["internals_to_msg (13 rows)"]() for _ in range(4)),  # TD, reference, FLESO, controller
+        *(calls["internals_to_msg (+ counters)"]() for _ in range(4)),  # TD, reference, FLESO, controller
     )
 
 
