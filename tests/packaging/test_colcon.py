@@ -66,7 +66,17 @@ def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_every_package_is_built(colcon_install: Path) -> None:
     assert (
-        sorted(["smm_analysis", "smm_controller", "smm_dynamics", "smm_hw_bridge", "smm_msgs_py", "smm_sim"])
+        sorted(
+            [
+                "smm_analysis",
+                "smm_bag",
+                "smm_controller",
+                "smm_dynamics",
+                "smm_hw_bridge",
+                "smm_msgs_py",
+                "smm_sim",
+            ]
+        )
         == PACKAGES
     )
     for package in PACKAGES:
