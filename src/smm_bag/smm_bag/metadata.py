@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+
 from smm_bag.errors import CorruptBagError, NotABagError
 from smm_bag.qos import QosProfile, load_profiles
 

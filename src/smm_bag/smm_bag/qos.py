@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import yaml
+
 from smm_bag.errors import CorruptBagError
 
 __all__ = ["INFINITE_NS", "QosProfile", "dump_profiles", "load_profiles", "profiles_from_rclpy"]

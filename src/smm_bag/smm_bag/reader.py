@@ -12,6 +12,7 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Schema
 from mcap.summary import Summary
+
 from smm_bag.errors import CorruptBagError, MissingTopicsError, NotABagError, TruncatedBagError
 from smm_bag.metadata import BagMetadata, read_metadata
 

@@ -20,6 +20,7 @@ from types import TracebackType
 from typing import IO, Literal
 
 from mcap.writer import CompressionType, Writer
+
 from smm_bag.cdr import stamp_of
 from smm_bag.errors import BagExistsError, WriterStateError
 from smm_bag.loss import LossAccounting
