@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,7 +65,7 @@ class _File:
         try:
             self.reader = SeekingReader(self.stream, validate_crcs=True)
             summary = self.reader.get_summary()
-        except (McapError, ValueError, EOFError, OSError) as error:
+        except (McapError, ValueError, EOFError, OSError, struct.error) as error:
             self.stream.close()
             raise CorruptBagError(f"{path}: unreadable MCAP summary ({error})") from None
         if summary is None or summary.statistics is None:
@@ -181,7 +182,7 @@ class BagReader:
                     read += 1
                     if progress is not None and read % 10_000 == 0:
                         progress(read)
-            except (McapError, ValueError, EOFError) as error:
+            except (McapError, ValueError, EOFError, struct.error) as error:
                 raise CorruptBagError(f"{file.path}: damaged data ({error})") from None
         if progress is not None:
             progress(read)

@@ -10,6 +10,7 @@ original kept as ``<file>.damaged`` (unless ``backup=False``).
 from __future__ import annotations
 
 import re
+import struct
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -94,7 +95,16 @@ def _scan(path: Path, on_message: Callable[[Message], None] | None = None) -> _C
                 record = next(records)
             except StopIteration:
                 break
-            except (McapError, ValueError, EOFError, OSError, MemoryError, IndexError, KeyError):
+            except (
+                McapError,
+                ValueError,
+                EOFError,
+                OSError,
+                MemoryError,
+                IndexError,
+                KeyError,
+                struct.error,
+            ):
                 break
             if isinstance(record, Schema):
                 content.schemas.setdefault(record.id, record)

@@ -133,6 +133,8 @@ class BagWriter:
         self._schema_ids: dict[str, int] = {}
         self._last_flush_ns = clock()
         self._unflushed = 0
+        self._written = 0
+        self._flushed = 0
         self._closed = False
         self._open_file()
 
@@ -283,6 +285,7 @@ class BagWriter:
             self.loss.received(topic)
         self.loss.written(topic, stamp)
         self._unflushed += 1
+        self._written += 1
         self.tick()
 
     def tick(self) -> None:
@@ -303,6 +306,7 @@ class BagWriter:
             os.fsync(self._stream.fileno())
         self._last_flush_ns = self._clock()
         self._unflushed = 0
+        self._flushed = self._written
 
     def _should_split(self, log_time_ns: int) -> bool:
         current = self._files[-1]
@@ -335,6 +339,11 @@ class BagWriter:
         metadata = self.metadata
         write_metadata(self.path, metadata)
         return metadata
+
+    @property
+    def flushed_count(self) -> int:
+        """Messages handed to the OS so far (what survives if the process is killed now)."""
+        return self._flushed
 
     @property
     def closed(self) -> bool:
