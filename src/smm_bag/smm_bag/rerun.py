@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import yaml
 from numpy.typing import NDArray
-from smm_msgs_py.parameters import config_from_parameters
+from smm_node_runtime.parameters import config_from_parameters
 
 from smm_bag.errors import ParamsFileError
 from smm_bag.recorded import RecordedRun
