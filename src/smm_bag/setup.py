@@ -26,6 +26,7 @@ setup(
     entry_points={
         "console_scripts": [
             "smm-bag = smm_bag.cli:main",
+            "recorder_node = smm_bag.recorder_node:main",
         ],
     },
 )
