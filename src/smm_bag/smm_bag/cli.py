@@ -1,4 +1,4 @@
-"""``smm-bag``: info, analyze, rerun, repair (and, with the node runtime, play) on rosbag2 MCAP bags."""
+"""``smm-bag``: info, analyze, play, rerun and repair on rosbag2 MCAP bags."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from smm_bag import commands
+from smm_bag.player import PlayOptions, parse_remaps
 
 __all__ = ["build_parser", "main"]
 
@@ -48,6 +49,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rerun.add_argument("--tolerance", type=float, default=0.0, help="N m (default 0: bit for bit)")
 
+    play = sub.add_parser("play", help="publish the bag with its original timing and QoS (ROS 2 graph)")
+    play.add_argument("bag", type=Path)
+    play.add_argument("--rate", type=float, default=1.0, help="speed factor (default 1)")
+    play.add_argument("--loop", action="store_true", help="play again at the end until stopped")
+    play.add_argument("--start-offset", type=float, default=0.0, help="skip this many seconds (s)")
+    play.add_argument("--topics", nargs="+", default=[], help="only these topics")
+    play.add_argument("--remap", nargs="+", default=[], metavar="OLD:=NEW", help="publish OLD as NEW")
+    play.add_argument("--clock", action="store_true", help="publish /clock from the bag's time")
+    play.add_argument("--clock-period", type=float, default=0.01, help="period of that /clock (s)")
+    play.add_argument(
+        "--wait-for-subscribers", type=float, default=0.0, help="wait up to this long for subscribers (s)"
+    )
+
     repair = sub.add_parser("repair", help="rebuild summaries, indexes and metadata.yaml after a crash")
     repair.add_argument("bag", type=Path)
     repair.add_argument("--no-backup", action="store_true", help="do not keep damaged files as *.damaged")
@@ -80,6 +94,22 @@ def main(argv: Sequence[str] | None = None) -> int:
                 tolerance=options.tolerance,
             )
         )
+    if options.command == "play":
+        try:
+            play_options = PlayOptions(
+                rate=options.rate,
+                loop=options.loop,
+                start_offset_s=options.start_offset,
+                topics=tuple(options.topics),
+                remaps=parse_remaps(options.remap),
+                clock=options.clock,
+                clock_period_s=options.clock_period,
+                wait_for_subscribers_s=options.wait_for_subscribers,
+            )
+        except ValueError as error:
+            print(f"smm-bag: error: {error}", file=sys.stderr)
+            return commands.EXIT_USAGE
+        return commands.play_command(options.bag, play_options)
     return commands.repair(options.bag, backup=not options.no_backup)
 
 

@@ -25,6 +25,7 @@ from smm_bag.errors import (
     TruncatedBagError,
 )
 from smm_bag.info import format_info
+from smm_bag.player import PlayOptions, play
 from smm_bag.plots import write_plots
 from smm_bag.progress import Progress
 from smm_bag.recorded import load_run
@@ -46,6 +47,7 @@ __all__ = [
     "analyze",
     "exit_code",
     "info",
+    "play_command",
     "repair",
     "rerun_command",
 ]
@@ -234,4 +236,46 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
             f"{float(difference.max()):.3g} N m (tolerance {options.tolerance:g})\n"
         )
         return EXIT_CHECK_FAILED
+    return EXIT_OK
+
+
+def play_command(
+    bag: Path, options: PlayOptions, ros_args: Sequence[str] = (), stderr: TextIO | None = None
+) -> int:
+    """``smm-bag play BAG``: publish the bag until its end (or SIGINT/SIGTERM when looping)."""
+    import signal  # noqa: PLC0415
+
+    import rclpy  # noqa: PLC0415
+    from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
+
+    from smm_node_runtime import ensure_localhost_discovery  # noqa: PLC0415
+
+    err = stderr or sys.stderr
+    ensure_localhost_discovery()
+    stop = {"requested": False}
+
+    def request_stop(_signum: int, _frame: object) -> None:
+        stop["requested"] = True
+
+    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    context = rclpy.Context()  # type: ignore[attr-defined]
+    rclpy.init(args=["smm-bag", *ros_args], context=context, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("smm_bag_player", context=context)
+    try:
+        result = play(
+            bag,
+            node,
+            options,
+            should_stop=lambda: stop["requested"],
+            progress=Progress(f"playing {bag.name}", 1, err),
+        )
+    except BagError as error:
+        return _fail(error, err)
+    finally:
+        node.destroy_node()  # type: ignore[no-untyped-call]
+        context.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    for topic, count in result.published.items():
+        err.write(f"{topic}: {count} messages published\n")
     return EXIT_OK
