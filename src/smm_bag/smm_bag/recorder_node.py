@@ -32,8 +32,17 @@ from smm_bag.writer import BagWriter, WriterOptions
 from smm_msgs_py import topics as stack
 from smm_node_runtime import ConfigParameters, DiagnosticsPublisher, Health, Level, SmmNode, node_main
 
-__all__ = ["DEFAULT_EXTRA_TOPICS", "RecorderConfig", "RecorderNode", "default_topics", "main"]
+__all__ = [
+    "DEFAULT_EXTRA_TOPICS",
+    "PUBLISHERS_FILE",
+    "RecorderConfig",
+    "RecorderNode",
+    "default_topics",
+    "main",
+]
 
+PUBLISHERS_FILE = ".publishers"
+"""File in the bag folder listing the recorded topics that have publishers (read by smm-launch)."""
 DEFAULT_EXTRA_TOPICS = ("/clock", "/diagnostics", "/parameter_events", "/rosout")
 _SUBSCRIPTION_DEPTH = 10_000
 _STAMPED = ("joint_states", "ground_truth", "reference", "torque_command")
@@ -146,6 +155,7 @@ class RecorderNode(SmmNode):
         self.paused = False
         self._recorded: dict[str, tuple[Subscription, str]] = {}
         self._pending = list(config.topic_list)
+        self._seen: list[str] = []
         self._discover()
         self._discovery_timer = self.create_timer(config.discovery_period, self._discover)
         self._flush_timer = self.create_timer(min(config.flush_interval, 0.1), self.writer.tick)
@@ -159,6 +169,7 @@ class RecorderNode(SmmNode):
 
     # -- subscriptions -----------------------------------------------------------------------------------
     def _discover(self) -> None:
+        self._write_seen()
         still = []
         for topic in self._pending:
             infos = self.get_publishers_info_by_topic(topic)
@@ -168,6 +179,16 @@ class RecorderNode(SmmNode):
                 continue
             self._subscribe(topic, type_name, [info.qos_profile for info in infos])
         self._pending = still
+
+    def _write_seen(self) -> None:
+        """``<bag>/.publishers``: the recorded topics that have a publisher (a launcher waits on it)."""
+        seen = sorted(topic for topic in self._recorded if self.count_publishers(topic) > 0)
+        if seen != self._seen:
+            self._seen = seen
+            marker = self.writer.path / PUBLISHERS_FILE
+            temporary = marker.with_suffix(".tmp")
+            temporary.write_text("".join(f"{topic}\n" for topic in seen))
+            temporary.replace(marker)
 
     def _known_type(self, topic: str) -> str | None:
         namespace = self.settings.config.stack_namespace
