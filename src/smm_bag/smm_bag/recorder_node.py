@@ -321,6 +321,7 @@ class RecorderNode(SmmNode):
             return
         drained = self.drain()
         metadata = self.writer.close()
+        (self.writer.path / PUBLISHERS_FILE).unlink(missing_ok=True)
         logger = self.get_logger()  # type: ignore[no-untyped-call]
         logger.info(
             f"closed {self.writer.path}: {metadata.message_count} messages ({drained} taken at shutdown), "
