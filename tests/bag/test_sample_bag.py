@@ -1,4 +1,4 @@
-"""The committed sample bag (a real recorder_node recording of the lockstep graph) reads, analyses, re-runs."""
+"""The committed sample bag (a real recorder_node recording of the graph) reads, analyses, re-runs."""
 
 from __future__ import annotations
 
