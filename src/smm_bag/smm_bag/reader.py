@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import struct
+import zlib
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 from typing import IO
 
+import zstandard
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
+from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
-from mcap.records import Channel, Schema
+from mcap.records import Channel, Chunk, Schema
 from mcap.summary import Summary
 
 from smm_bag.errors import CorruptBagError, MissingTopicsError, NotABagError, TruncatedBagError
@@ -20,6 +24,7 @@ from smm_bag.metadata import BagMetadata, read_metadata
 __all__ = ["MCAP_MAGIC", "BagMessage", "BagReader", "check_mcap_file"]
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+_MESSAGE_OPCODE = int(Opcode.MESSAGE)
 
 
 @dataclass(frozen=True)
@@ -187,6 +192,28 @@ class BagReader:
         if progress is not None:
             progress(read)
 
+    def raw_messages(self, topics: Iterable[str]) -> Iterator[tuple[str, int, bytes]]:
+        """``(topic, log time ns, CDR bytes)`` of ``topics`` in stored order, parsed straight from the chunks.
+
+        About five times faster than :meth:`messages` (no record objects); used by the analysis.
+
+        Raises:
+            CorruptBagError: A chunk fails its CRC, cannot be decompressed or is malformed.
+        """
+        wanted = set(topics)
+        for file in self._files:
+            names = {cid: c.topic for cid, c in file.summary.channels.items() if c.topic in wanted}
+            if not names:
+                continue
+            for index in file.summary.chunk_indexes:
+                try:
+                    file.stream.seek(index.chunk_start_offset + 9)
+                    chunk = Chunk.read(ReadDataStream(file.stream))
+                    data = _chunk_data(chunk)
+                except (McapError, ValueError, EOFError, struct.error, zstandard.ZstdError) as error:
+                    raise CorruptBagError(f"{file.path}: damaged chunk ({error})") from None
+                yield from _chunk_messages(data, names, file.path)
+
     def close(self) -> None:
         """Closes the storage files."""
         for file in self._files:
@@ -200,6 +227,38 @@ class BagReader:
         self, kind: type[BaseException] | None, value: BaseException | None, trace: TracebackType | None
     ) -> None:
         self.close()
+
+
+def _chunk_data(chunk: Chunk) -> bytes:
+    if chunk.compression == "zstd":
+        data = zstandard.decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+    elif chunk.compression == "":
+        data = chunk.data
+    else:
+        raise CorruptBagError(f"unsupported chunk compression {chunk.compression!r}")
+    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise CorruptBagError("chunk CRC mismatch")
+    return bytes(data)
+
+
+def _chunk_messages(data: bytes, names: dict[int, str], path: Path) -> Iterator[tuple[str, int, bytes]]:
+    unpack_header = struct.Struct("<BQ").unpack_from
+    unpack_message = struct.Struct("<HIQQ").unpack_from
+    position, end = 0, len(data)
+    while position < end:
+        if end - position < 9:
+            raise CorruptBagError(f"{path}: chunk record header past the end")
+        opcode, length = unpack_header(data, position)
+        body = position + 9
+        position = body + length
+        if position > end:
+            raise CorruptBagError(f"{path}: chunk record past the end")
+        if opcode != _MESSAGE_OPCODE:
+            continue
+        channel, _, log_time, _ = unpack_message(data, body)
+        topic = names.get(channel)
+        if topic is not None:
+            yield topic, log_time, data[body + 22 : position]
 
 
 def _type_name(schema: Schema | None, channel: Channel) -> str:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from smm_bag.cdr import DecodedArray, decode_float64_multi_array, decode_joint_state
+from smm_bag.bulk import decode_arrays, decode_joint_states
 from smm_bag.errors import CorruptBagError, MissingTopicsError
 from smm_bag.manifest import RunManifest
 from smm_bag.reader import BagReader
@@ -74,27 +74,107 @@ class RecordedRun:
         return self.manifest.controller or self.bag.name
 
 
+@dataclass
+class _Series:
+    """One topic's values by stamp: sorted unique stamps, values (n, k), receive times; last copy wins."""
+
+    stamps: IntArray
+    values: FloatArray
+    log_times: IntArray
+
+    @classmethod
+    def build(cls, stamps: IntArray, values: FloatArray, log_times: IntArray) -> _Series:
+        order = np.argsort(stamps, kind="stable")
+        stamps, values, log_times = stamps[order], values[order], log_times[order]
+        last = np.ones(stamps.size, dtype=bool)
+        last[:-1] = stamps[1:] != stamps[:-1]  # of equal stamps keep the last received
+        return cls(stamps[last], values[last], log_times[last])
+
+    def at(self, stamps: IntArray) -> FloatArray:
+        return self.values[np.searchsorted(self.stamps, stamps)]
+
+    def covers(self, stamps: IntArray) -> bool:
+        index = np.searchsorted(self.stamps, stamps)
+        return bool(np.all(index < self.stamps.size)) and bool(
+            np.all(self.stamps[np.minimum(index, self.stamps.size - 1)] == stamps)
+        )
+
+
+def _joint_series(topic: str, buffers: list[bytes], log_times: IntArray, field: str) -> _Series | None:
+    count = len(buffers)
+    stamps = np.empty(count, dtype=np.int64)
+    values = np.full((count, 2), np.nan)
+    present = np.zeros(count, dtype=bool)
+    for indices, columns in decode_joint_states(buffers):
+        order = _joint_order(columns.names, topic)
+        source = getattr(columns, field)
+        stamps[indices] = columns.stamps
+        if source is None or source.shape[1] == 0:
+            continue
+        if source.shape[1] <= max(order):
+            raise CorruptBagError(f"{topic}: JointState {field} has {source.shape[1]} values for 2 joints")
+        values[indices] = source[:, list(order)]
+        present[indices] = True
+    if not np.any(present):
+        return None
+    return _Series.build(stamps[present], values[present], log_times[present])
+
+
+def _array_series(
+    topic: str, buffers: list[bytes], log_times: IntArray, check: Callable[[tuple[str, ...], int], None]
+) -> _Series:
+    count = len(buffers)
+    stamps = np.empty(count, dtype=np.int64)
+    width: int | None = None
+    values: FloatArray | None = None
+    for indices, columns in decode_arrays(buffers):
+        check(columns.labels, columns.data.shape[1])
+        if values is None:
+            width = columns.data.shape[1]
+            values = np.empty((count, width))
+        if columns.data.shape[1] != width:
+            raise CorruptBagError(f"{topic}: messages of {width} and {columns.data.shape[1]} values")
+        stamps[indices] = columns.stamps
+        values[indices] = columns.data
+    assert values is not None
+    return _Series.build(stamps, values, log_times)
+
+
+def _labelled_series(topic: str, buffers: list[bytes], log_times: IntArray) -> dict[str, _Series]:
+    rows: dict[str, tuple[list[IntArray], list[FloatArray], list[IntArray]]] = {}
+    for indices, columns in decode_arrays(buffers):
+        quantities = _items(columns.labels, "quantity")
+        if _items(columns.labels, "joint") != JOINTS or quantities is None:
+            raise CorruptBagError(
+                f"{topic}: labelled array without quantity and joint (alpha, beta) dimensions"
+            )
+        if columns.data.shape[1] != 2 * len(quantities):
+            raise CorruptBagError(f"{topic}: {columns.data.shape[1]} values for {len(quantities)} quantities")
+        times = log_times[indices]
+        for row, quantity in enumerate(quantities):
+            entry = rows.setdefault(quantity, ([], [], []))
+            entry[0].append(columns.stamps)
+            entry[1].append(columns.data[:, 2 * row : 2 * row + 2])
+            entry[2].append(times)
+    return {
+        quantity: _Series.build(np.concatenate(s), np.concatenate(v), np.concatenate(t))
+        for quantity, (s, v, t) in rows.items()
+    }
+
+
+def _items(labels: tuple[str, ...], dimension: str) -> tuple[str, ...] | None:
+    prefix = dimension + ":"
+    for label in labels:
+        if label.startswith(prefix):
+            return tuple(label[len(prefix) :].split(","))
+    return None
+
+
 def _joint_order(names: tuple[str, ...], topic: str) -> tuple[int, int]:
     try:
         return names.index("alpha"), names.index("beta")
     except ValueError:
         raise CorruptBagError(f"{topic}: JointState names {list(names)} lack alpha or beta") from None
-
-
-def _pair(values: tuple[float, ...], order: tuple[int, int], topic: str, what: str) -> tuple[float, float]:
-    if len(values) <= max(order):
-        raise CorruptBagError(f"{topic}: JointState {what} has {len(values)} values for 2 joints")
-    return values[order[0]], values[order[1]]
-
-
-def _checked_array(decoded: DecodedArray, topic: str) -> tuple[int, tuple[str, ...] | None]:
-    stamp = decoded.stamp_ns
-    if stamp is None:
-        raise CorruptBagError(f"{topic}: Float64MultiArray without a stamp_ns dimension")
-    joints = decoded.items("joint")
-    if joints != JOINTS:
-        raise CorruptBagError(f"{topic}: joint dimension {joints} is not (alpha, beta)")
-    return stamp, decoded.items("quantity")
 
 
 def load_run(path: Path | str, *, progress: Callable[[int, int], None] | None = None) -> RecordedRun:
@@ -129,87 +209,94 @@ def load_run(path: Path | str, *, progress: Callable[[int, int], None] | None = 
         ]
         wanted = [topic for topic in wanted if counts.get(topic, 0) > 0]
         total = sum(counts[topic] for topic in wanted)
+        buffers: dict[str, list[bytes]] = {topic: [] for topic in wanted}
+        times: dict[str, list[int]] = {topic: [] for topic in wanted}
+        read = 0
+        for topic, log_time, data in reader.raw_messages(wanted):
+            buffers[topic].append(data)
+            times[topic].append(log_time)
+            read += 1
+            if progress is not None and read % 100_000 == 0:
+                progress(read, total)
+        if progress is not None:
+            progress(read, total)
 
-        measured: dict[int, tuple[float, float]] = {}
-        applied: dict[int, tuple[float, float]] = {}
-        truth: dict[int, tuple[float, float]] = {}
-        reference: dict[int, tuple[float, ...]] = {}
-        command: dict[int, tuple[float, ...]] = {}
-        estimate: dict[int, tuple[float, ...]] = {}
-        labelled: dict[str, dict[int, tuple[float, float]]] = {}
-        measured_at: dict[int, int] = {}
-        commanded_at: dict[int, int] = {}
+    def log_times(topic: str) -> IntArray:
+        return np.array(times[topic], dtype=np.int64)
 
-        report = None if progress is None else (lambda read: progress(read, total))
-        for message in reader.messages(wanted, ordered=False, progress=report):
-            topic = message.topic
-            if topic in (joint_states, ground_truth):
-                state = decode_joint_state(message.data)
-                order = _joint_order(state.name, topic)
-                position = _pair(state.position, order, topic, "position")
-                if topic == joint_states:
-                    measured[state.stamp_ns] = position
-                    measured_at[state.stamp_ns] = message.log_time_ns
-                    if state.effort:
-                        applied[state.stamp_ns] = _pair(state.effort, order, topic, "effort")
-                else:
-                    truth[state.stamp_ns] = position
-                continue
-            decoded = decode_float64_multi_array(message.data)
-            stamp, quantities = _checked_array(decoded, topic)
-            if topic == reference_topic:
-                if decoded.items("order") != _REFERENCE_ROWS or len(decoded.data) != 6:
-                    raise CorruptBagError(f"{topic}: not a 3x2 reference (dims {decoded.dims})")
-                reference[stamp] = decoded.data
-            elif topic == command_topic:
-                if len(decoded.data) != 2:
-                    raise CorruptBagError(f"{topic}: {len(decoded.data)} values, expected 2")
-                command[stamp] = decoded.data
-                commanded_at[stamp] = message.log_time_ns
-            elif topic == estimate_topic:
-                estimate[stamp] = decoded.data[:2]
-            else:
-                if quantities is None or len(decoded.data) != 2 * len(quantities):
-                    raise CorruptBagError(f"{topic}: labelled array without a matching quantity dimension")
-                data = decoded.data
-                for row, quantity in enumerate(quantities):
-                    labelled.setdefault(quantity, {})[stamp] = (data[2 * row], data[2 * row + 1])
+    def reference_layout(labels: tuple[str, ...], width: int) -> None:
+        if _items(labels, "order") != _REFERENCE_ROWS or _items(labels, "joint") != JOINTS or width != 6:
+            raise CorruptBagError(f"{reference_topic}: not a 3x2 reference (labels {labels})")
 
-    source, position_by_stamp = ("ground truth", truth) if truth else ("measured", measured)
-    every = set(measured) | set(reference) | set(command) | set(position_by_stamp)
-    complete = sorted(set(measured) & set(reference) & set(command) & set(position_by_stamp))
-    if len(complete) < 2:
+    def torque_layout(labels: tuple[str, ...], width: int) -> None:
+        if _items(labels, "joint") != JOINTS or width != 2:
+            raise CorruptBagError(f"{command_topic}: {width} values, expected 2 (labels {labels})")
+
+    def estimate_layout(labels: tuple[str, ...], width: int) -> None:
+        if _items(labels, "joint") != JOINTS or width < 2:
+            raise CorruptBagError(f"{estimate_topic}: not a per-joint estimate (labels {labels})")
+
+    measured = _joint_series(joint_states, buffers[joint_states], log_times(joint_states), "position")
+    if measured is None:
+        raise MissingTopicsError(f"{bag}: {joint_states} has no positions")
+    applied = _joint_series(joint_states, buffers[joint_states], log_times(joint_states), "effort")
+    truth = (
+        _joint_series(ground_truth, buffers[ground_truth], log_times(ground_truth), "position")
+        if ground_truth in buffers
+        else None
+    )
+    reference = _array_series(
+        reference_topic, buffers[reference_topic], log_times(reference_topic), reference_layout
+    )
+    command = _array_series(command_topic, buffers[command_topic], log_times(command_topic), torque_layout)
+    estimate = (
+        _array_series(estimate_topic, buffers[estimate_topic], log_times(estimate_topic), estimate_layout)
+        if estimate_topic in buffers
+        else None
+    )
+    labelled: dict[str, _Series] = {}
+    for topic in labelled_topics:
+        if topic in buffers:
+            labelled.update(_labelled_series(topic, buffers[topic], log_times(topic)))
+    del buffers
+
+    source, position = ("ground truth", truth) if truth is not None else ("measured", measured)
+    required = (measured, reference, command, position)
+    complete = required[0].stamps
+    for series in required[1:]:
+        complete = np.intersect1d(complete, series.stamps, assume_unique=True)
+    every = np.unique(np.concatenate([series.stamps for series in required]))
+    if complete.size < 2:
         raise MissingTopicsError(
             f"{bag}: fewer than 2 control steps have a measurement, a reference and a torque command "
-            f"with the same stamp ({len(complete)} found)"
+            f"with the same stamp ({complete.size} found)"
         )
-    t_ns = np.array(complete, dtype=np.int64)
 
-    def stack(table: Mapping[int, tuple[float, ...]], width: int) -> FloatArray:
-        return np.array([table[stamp] for stamp in complete], dtype=np.float64).reshape(len(complete), width)
-
-    def optional(table: Mapping[int, tuple[float, ...]]) -> FloatArray | None:
-        if not table or any(stamp not in table for stamp in complete):
+    def optional(series: _Series | None) -> FloatArray | None:
+        if series is None or not series.covers(complete):
             return None
-        return stack(table, 2)
+        return series.at(complete)[:, :2]
 
-    internals = {key: values for key, table in labelled.items() if (values := optional(table)) is not None}
+    internals = {key: values for key, series in labelled.items() if (values := optional(series)) is not None}
     estimate_array = optional(estimate)
     if estimate_array is None and "disturbance_estimate" in internals:
         estimate_array = internals["disturbance_estimate"]
-    latency = np.array([commanded_at[stamp] - measured_at[stamp] for stamp in complete], dtype=np.int64)
+    latency = (
+        command.log_times[np.searchsorted(command.stamps, complete)]
+        - measured.log_times[np.searchsorted(measured.stamps, complete)]
+    )
     return RecordedRun(
         bag=bag,
         manifest=manifest,
-        t_ns=t_ns,
-        reference=stack(reference, 6).reshape(len(complete), 3, 2),
-        position=stack(position_by_stamp, 2),
+        t_ns=complete.astype(np.int64),
+        reference=reference.at(complete).reshape(complete.size, 3, 2),
+        position=position.at(complete),
         position_source=source,
-        measured_position=stack(measured, 2),
-        command_torque=stack(command, 2),
+        measured_position=measured.at(complete),
+        command_torque=command.at(complete),
         applied_torque=optional(applied),
         disturbance_estimate=estimate_array,
         internals=internals,
         latency_ns=latency,
-        incomplete_steps=len(every) - len(complete),
+        incomplete_steps=int(every.size - complete.size),
     )
