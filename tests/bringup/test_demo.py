@@ -50,6 +50,13 @@ def test_demo_runs_the_graph_and_matches_the_offline_loop(
     assert bag.parent == tmp_path / "bags" and (bag / "metadata.yaml").is_file()
     assert not list(out.glob("*.npz"))  # the simulator's side channel is gone
     assert (out / "analysis" / "REPORT.md").is_file() and (out / "analysis" / "tracking.png").is_file()
+    from smm_bag.manifest import RunManifest
+    from smm_bag.metadata import read_metadata
+
+    manifest = RunManifest.from_custom_data(read_metadata(bag).custom_data)
+    assert (manifest.scenario, manifest.controller, manifest.plant) == ("case2", "fpdeso", "sim")
+    assert manifest.parameters["/smm/controller_node"]["algorithm"] == "fpdeso"  # every node's parameters
+    assert "/smm/smm_sim_node" in manifest.parameters
     analysed = json.loads((out / "analysis" / "metrics.json").read_text())["case2"]["fpdeso"]
     for joint in ("alpha", "beta"):
         assert analysed[joint]["RMS"] == pytest.approx(run["graph"][joint]["RMS"], rel=1e-12)

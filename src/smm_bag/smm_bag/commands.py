@@ -178,7 +178,14 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
     out, err = stdout or sys.stdout, stderr or sys.stderr
     try:
         run = load_run(options.bag, progress=Progress(f"reading {options.bag.name}", 1, err))
-        recorded = {str(k): v for k, v in run.manifest.parameters.get("controller_node", {}).items()}
+        recorded = next(
+            (
+                {str(k): v for k, v in values.items()}
+                for node, values in run.manifest.parameters.items()
+                if node.rstrip("/").split("/")[-1] == "controller_node"
+            ),
+            {},
+        )
         parameters = {**recorded, **read_params_files(options.params_files)}
         settings = chain_settings(parameters, run.manifest.controller or "fpdeso")
         result = rerun(run, settings)

@@ -11,6 +11,7 @@ and the log. See docs/BAGS.md.
 
 from __future__ import annotations
 
+import array
 import datetime
 import importlib
 import sys
@@ -20,6 +21,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
+import yaml
+from rcl_interfaces.srv import GetParameters, ListParameters
+from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 from smm_msgs_py.qos import qos_for_topic
@@ -156,6 +160,8 @@ class RecorderNode(SmmNode):
         self._recorded: dict[str, tuple[Subscription, str]] = {}
         self._pending = list(config.topic_list)
         self._seen: list[str] = []
+        self._asked: set[str] = set()
+        self._node_parameters: dict[str, dict[str, Any]] = {}
         self._discover()
         self._discovery_timer = self.create_timer(config.discovery_period, self._discover)
         self._flush_timer = self.create_timer(min(config.flush_interval, 0.1), self.writer.tick)
@@ -170,6 +176,7 @@ class RecorderNode(SmmNode):
     # -- subscriptions -----------------------------------------------------------------------------------
     def _discover(self) -> None:
         self._write_seen()
+        self._ask_parameters()
         still = []
         for topic in self._pending:
             infos = self.get_publishers_info_by_topic(topic)
@@ -179,6 +186,49 @@ class RecorderNode(SmmNode):
                 continue
             self._subscribe(topic, type_name, [info.qos_profile for info in infos])
         self._pending = still
+
+    def _ask_parameters(self) -> None:
+        """Asks every node that appeared for all its parameters (once), for the manifest."""
+        me = self.get_fully_qualified_name()
+        for name, namespace in self.get_node_names_and_namespaces():
+            node = f"{namespace.rstrip('/')}/{name}"
+            if node in self._asked or node == me:
+                continue
+            client = self.create_client(ListParameters, f"{node}/list_parameters")
+            if not client.service_is_ready():
+                self.destroy_client(client)
+                continue  # asked again at the next discovery tick
+            self._asked.add(node)
+            future = client.call_async(ListParameters.Request())
+            future.add_done_callback(  # type: ignore[no-untyped-call]
+                lambda done, node=node, client=client: self._on_list(node, client, done)
+            )
+
+    def _on_list(self, node: str, client: Any, done: Any) -> None:
+        self.destroy_client(client)
+        result = done.result()
+        if result is None:
+            return
+        names = list(result.result.names)
+        getter = self.create_client(GetParameters, f"{node}/get_parameters")
+        request = GetParameters.Request()
+        request.names = names
+        future = getter.call_async(request)
+        future.add_done_callback(  # type: ignore[no-untyped-call]
+            lambda got, node=node, names=names, getter=getter: self._on_get(node, names, getter, got)
+        )
+
+    def _on_get(self, node: str, names: list[str], client: Any, done: Any) -> None:
+        self.destroy_client(client)
+        result = done.result()
+        if result is None or self.writer.closed:
+            return
+        values = {}
+        for name, value in zip(names, result.values, strict=False):
+            python = parameter_value_to_python(value)
+            values[name] = list(python) if isinstance(python, (list, tuple, array.array)) else python
+        self._node_parameters[node] = values
+        self.writer.set_custom_data("smm.parameters", yaml.safe_dump(self._node_parameters, sort_keys=True))
 
     def _write_seen(self) -> None:
         """``<bag>/.publishers``: the recorded topics that have a publisher (a launcher waits on it)."""
