@@ -124,3 +124,14 @@ def test_td_options_reach_the_runs(tmp_path: Path) -> None:
     assert meta["td_speed"] == [2e5, 2e5]
     assert meta["td_filter_factor_s"] == [0.003, 0.003]
     assert not list(out.glob("*.png"))
+
+
+def test_the_reproduction_states_the_torque_limit_it_runs_with(tmp_path: Path) -> None:
+    from smm_controller.limits import DEFAULT_TORQUE_LIMIT
+
+    out = tmp_path / "out"
+    args = ["--out", str(out), "--scenarios", "step", "--controllers", "fpd", "--duration", "0.05"]
+    assert cli.main([*args, "--no-plots", "--quiet"]) == 0
+    meta = json.loads((out / "metrics.json").read_text(encoding="utf-8"))["meta"]
+    assert meta["torque_limit_Nm"] == list(DEFAULT_TORQUE_LIMIT)
+    assert 0.0 < meta["peak_command_Nm"] < DEFAULT_TORQUE_LIMIT[0]

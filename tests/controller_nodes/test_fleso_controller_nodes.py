@@ -41,8 +41,11 @@ DT = 1e-3
 INTERNALS_TOPIC_OF_FLESO = "/fleso_node/internals"
 
 
-def estimate_msg(stamp_ns: int, xi: tuple[float, float] = (0.2, -0.1)) -> Float64MultiArray:
-    return labelled_to_msg([xi], DISTURBANCE_ESTIMATE_ROWS, stamp_ns)
+def estimate_msg(
+    stamp_ns: int, xi: tuple[float, float] = (0.2, -0.1), velocity: tuple[float, float] = (0.3, 0.4)
+) -> Float64MultiArray:
+    """disturbance_estimate: xi~ (N m) and the observer velocity x2^ (rad/s; default = filtered()'s)."""
+    return labelled_to_msg([xi, velocity], DISTURBANCE_ESTIMATE_ROWS, stamp_ns)
 
 
 def reference_msg(stamp_ns: int) -> Float64MultiArray:
@@ -138,16 +141,20 @@ def test_fleso_duplicate_re_publishes_the_estimate_without_stepping(make_rig: An
         rig.publish(topics.JOINT_STATES, measurement(k * MS, effort=(1.0, -1.0)))
         rig.wait_for(topics.DISTURBANCE_ESTIMATE, k + 1)
         direct.step(np.array((0.001 * k, 0.0)), np.array((1.0, -1.0)), DT)
-    rig.publish(topics.JOINT_STATES, measurement(MS, effort=(50.0, 50.0)))
+    rig.publish(topics.JOINT_STATES, measurement(MS, effort=(50.0, 50.0)))  # same stamp, other values
+    rig.publish(topics.JOINT_STATES, measurement(MS, effort=(1.0, -1.0)))  # an identical re-transmission
     rig.wait_for(topics.DISTURBANCE_ESTIMATE, 3)
     assert list(estimates[2].data) == list(estimates[1].data)
     assert estimates[2].layout.dim[-1].label == estimates[1].layout.dim[-1].label
     rig.publish(topics.JOINT_STATES_FILTERED, filtered(2 * MS, (0.004, 0.001)))
     rig.publish(topics.JOINT_STATES, measurement(2 * MS, effort=(1.0, -1.0)))
     rig.wait_for(topics.DISTURBANCE_ESTIMATE, 4)
+    rig.settle()
+    assert len(estimates) == 4  # the conflicting duplicate got no answer
     expected = direct.step(np.array((0.004, 0.001)), np.array((1.0, -1.0)), DT)
     np.testing.assert_array_equal(msg_to_labelled(estimates[3]).row("xi_tilde"), expected)
     assert node.counters.duplicates_answered == 1
+    assert node.counters.conflicting_duplicates == 1
 
 
 def test_fleso_gain_change_is_validated_and_reconfigures_it(make_rig: Any, ros_context: Any) -> None:
@@ -290,6 +297,28 @@ def test_fleso_drops_a_bad_torque_command(make_rig: Any, ros_context: Any) -> No
 # ---------------------------------------------------------------------------------------- controller
 
 
+@pytest.mark.parametrize("velocity_source", ["observer", "td"])
+def test_the_law_takes_the_velocity_of_its_velocity_source(
+    make_rig: Any, ros_context: Any, velocity_source: str
+) -> None:
+    node = ControllerNode(
+        context=ros_context, parameter_overrides={"fpdeso.velocity_source": velocity_source}
+    )
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    td_velocity, observer_velocity = (0.3, 0.4), (-0.7, 0.9)
+    rig.publish(topics.JOINT_STATES_FILTERED, filtered(0, velocity=td_velocity))
+    rig.publish(topics.REFERENCE, reference_msg(0))
+    rig.publish(topics.DISTURBANCE_ESTIMATE, estimate_msg(0, velocity=observer_velocity))
+    rig.wait_for(topics.TORQUE_COMMAND, 1)
+    law = FPDESOController(FPDESOConfig(velocity_source=velocity_source), SMMParameters())
+    velocity = observer_velocity if velocity_source == "observer" else td_velocity
+    expected = law.step(
+        SineReference().evaluate(0.0), np.array((0.1, -0.2)), np.array(velocity), np.array((0.2, -0.1)), DT
+    )
+    np.testing.assert_array_equal(msg_to_torque(torques[0]).values, expected)
+
+
 def feed_controller(
     rig: Any, stamp_ns: int, with_estimate: bool, xi: tuple[float, float] = (0.2, -0.1)
 ) -> None:
@@ -405,9 +434,9 @@ def test_controller_duplicate_and_stale_inputs(make_rig: Any, ros_context: Any) 
         ("pid.kd", [-1.5, 0.5], "kd must be >= 0 for both joints"),
         ("npd.rho_p", [0.0, 0.6], "rho_p must be > 0 for both joints"),
         ("fpd.fuzzy.k1", [100.0, 5.0], "k1 must be < kp0"),
-        ("model.I11", -0.1, "I11 must be > 0"),
+        ("model.I11", -0.1, "model.I11 out of range Min: 0.0"),
         ("algorithm", "lqr", "algorithm must be one of"),
-        ("switch_idle_time", -1.0, "switch_idle_time must be a finite number >= 0"),
+        ("switch_idle_time", -1.0, "switch_idle_time out of range Min: 0.0"),
     ],
 )
 def test_invalid_gains_are_rejected_with_the_reason_and_change_nothing(

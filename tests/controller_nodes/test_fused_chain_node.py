@@ -171,7 +171,8 @@ def test_external_chain_declares_no_td_or_fleso_gains(ros_context: Any) -> None:
 
 
 def test_a_non_finite_chain_output_sends_nothing(make_rig: Any, ros_context: Any) -> None:
-    node = fused_node(ros_context)
+    # Plausibility limits wide open, so that the overflow reaches the chain (by default: refused before).
+    node = fused_node(ros_context, **{"measurement.position_limit": [1e308, 1e308]})
     rig = make_rig(node)
     torques = rig.record(topics.TORQUE_COMMAND)
     huge = measurement(0, (1e308, 1e308), (0.0, 0.0))  # finite input, overflowing torque
@@ -180,6 +181,25 @@ def test_a_non_finite_chain_output_sends_nothing(make_rig: Any, ros_context: Any
     rig.settle(0.2)
     assert torques == []
     assert node.counters.invalid_outputs == 1
+
+
+def test_an_implausible_measurement_gets_no_command_and_valid_ones_go_on(
+    make_rig: Any, ros_context: Any
+) -> None:
+    node = fused_node(ros_context)
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    feed(rig, 1)
+    rig.wait_for(topics.TORQUE_COMMAND, 1)
+    rig.publish(topics.REFERENCE, reference_msg(2 * MS))
+    rig.publish(topics.JOINT_STATES, measurement(2 * MS, (100.0, 100.0), (0.0, 0.0)))  # beyond the stops
+    rig.publish(topics.REFERENCE, reference_msg(3 * MS))
+    rig.publish(topics.JOINT_STATES, measurement(3 * MS, (POSITIONS[1][0] + 0.5, 0.0), (0.0, 0.0)))  # a jump
+    feed(rig, 4)
+    rig.wait_for(topics.TORQUE_COMMAND, 2)
+    rig.settle()
+    assert [msg_to_torque(msg).stamp_ns for msg in torques] == [MS, 4 * MS]
+    assert node.counters.dropped_implausible == 2
 
 
 def test_fused_node_re_answers_a_duplicate_and_drops_a_stale_measurement(

@@ -93,7 +93,7 @@ def test_external_chain_steps_the_law_with_the_sampled_reference(make_rig: Any, 
     position, velocity, xi = (0.1, -0.2), (0.5, 0.3), (0.2, -0.1)
     for k in range(3):
         rig.publish(topics.JOINT_STATES_FILTERED, filtered(stamp(k), position, velocity))
-        rig.publish(topics.DISTURBANCE_ESTIMATE, estimate_msg(stamp(k), xi))
+        rig.publish(topics.DISTURBANCE_ESTIMATE, estimate_msg(stamp(k), xi, velocity))
         rig.wait_for(topics.TORQUE_COMMAND, k + 1)
         reference = SineReference().evaluate(k * MS / 1e9)
         expected = law.step(reference, np.array(position), np.array(velocity), np.array(xi), DT)

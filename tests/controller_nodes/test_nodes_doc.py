@@ -25,7 +25,7 @@ def documented_parameters(node_name: str) -> set[str]:
     return set(re.findall(r"^\| `([^`]+)` \|", match.group(1), flags=re.MULTILINE))
 
 
-INTERNAL_ONLY = re.compile(r"^(td|fleso|reference)\.")
+INTERNAL_ONLY = re.compile(r"^(td|fleso|reference|measurement)\.")
 """Parameters controller_node declares only with ``chain: internal`` (td, fleso) or
 ``reference_source: internal`` (reference)."""
 
@@ -53,7 +53,7 @@ def test_controller_node_with_the_internal_chain_and_reference_declares_the_docu
         declared = set(node.list_parameters([], 0).names) - ROS_OWN
         assert documented_parameters(node.get_name()) == declared
         prefixes = {name.split(".")[0] for name in declared if INTERNAL_ONLY.match(name)}
-        assert prefixes == {"td", "fleso", "reference"}
+        assert prefixes == {"td", "fleso", "reference", "measurement"}
     finally:
         node.destroy_node()
 
@@ -66,7 +66,9 @@ def test_controller_reference_parameters_mirror_reference_node(ros_context: Any)
         generator_names = [
             name
             for name in reference.list_parameters([], 0).names
-            if name not in ROS_OWN and name not in {"control_period", "lookahead"}
+            if name not in ROS_OWN
+            and name not in {"control_period", "lookahead"}
+            and not name.startswith("stamp.")
         ]
         assert generator_names
         for name in generator_names:

@@ -158,7 +158,7 @@ def _bad_commands() -> list[tuple[str, Any]]:
 
 @pytest.mark.parametrize("clock_mode", ["lockstep", "realtime"])
 def test_bad_commands_are_dropped_and_never_applied(make_harness: Any, clock_mode: str) -> None:
-    h = make_harness(clock_mode=clock_mode, republish_period=0.02, command_timeout=10.0)
+    h = make_harness(clock_mode=clock_mode, republish_period=0.02, command_timeout=0.5)
     h.wait_matched()
     bad = _bad_commands()
     for _, msg in bad:
@@ -276,6 +276,8 @@ def test_lockstep_is_deterministic_for_a_seed(make_harness: Any, tmp_path: Path)
     [
         ("clock_mode", "fast", "clock_mode"),
         ("command_timeout", -1.0, "command_timeout"),
+        ("command_timeout", 1e9, "command_timeout out of range"),  # in effect no timeout: refused
+        ("command_timeout", 0.6, "command_timeout out of range"),
         ("republish_period", 0.0, "republish_period"),
         ("max_steps", -3, "max_steps"),
         ("noise_std", [-0.1, 0.0], "noise_std"),
@@ -304,6 +306,9 @@ def test_live_parameter_changes_are_validated(make_harness: Any) -> None:
     h = make_harness(**LOCKSTEP)
     bad = h.sim.set_parameters([Parameter("command_timeout", value=-0.5)])[0]
     assert not bad.successful and "command_timeout" in bad.reason
+    assert h.sim.config.command_timeout == 0.05
+    huge = h.sim.set_parameters([Parameter("command_timeout", value=1e9)])[0]
+    assert not huge.successful and "command_timeout out of range" in huge.reason and "Max: 0.5" in huge.reason
     assert h.sim.config.command_timeout == 0.05
     mode = h.sim.set_parameters([Parameter("clock_mode", value="realtime")])[0]
     assert not mode.successful and "clock_mode" in mode.reason
@@ -361,3 +366,20 @@ def test_lockstep_publishes_sim_time_on_clock_for_its_subscribers(make_harness: 
     assert h.spin_until(lambda: any(stamp_to_ns(c.clock) == 3 * PERIOD_NS for c in clocks))
     times = {stamp_to_ns(c.clock) for c in clocks}
     assert {PERIOD_NS, 2 * PERIOD_NS, 3 * PERIOD_NS} <= times <= {k * PERIOD_NS for k in range(4)}
+
+
+def test_realtime_status_goes_to_error_when_the_watchdog_applies_zero_torque(make_harness: Any) -> None:
+    from smm_node_runtime import Level
+
+    h = make_harness(clock_mode="realtime", command_timeout=0.02)
+    h.wait_matched()
+    h.spin_until(lambda: len(h.measurements) >= 3)
+    assert h.sim.health().level is not Level.ERROR  # no command yet: waiting, not a fault
+    h.send([0.1, -0.1], h.stamps()[-1])
+    assert h.spin_until(lambda: h.sim.latency.count == 1)
+    assert h.spin_until(lambda: h.sim.command_timeouts > 0)  # then no command any more
+    health = h.sim.health()
+    assert health.level is Level.ERROR
+    assert "zero torque" in health.message
+    assert health.values["command_timeouts"] == h.sim.command_timeouts
+    assert h.spin_until(lambda: h.sim.diagnostics.level is Level.ERROR)  # sent at once, not a second later

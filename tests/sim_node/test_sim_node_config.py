@@ -113,3 +113,11 @@ def test_every_parameter_has_a_description() -> None:
     for config in (PlantParameters, SimNodeConfig):
         for field in config_fields(config):
             assert field.description, f"{config.__name__}.{field.name} has no description"
+
+
+def test_command_timeout_is_bounded_to_what_still_protects_the_plant() -> None:
+    from smm_sim.sim_node import MAX_COMMAND_TIMEOUT, SimNodeConfig
+
+    assert SimNodeConfig(command_timeout=MAX_COMMAND_TIMEOUT).command_timeout == MAX_COMMAND_TIMEOUT
+    with pytest.raises(ValueError, match="command_timeout"):
+        SimNodeConfig(command_timeout=1e9)

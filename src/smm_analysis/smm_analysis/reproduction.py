@@ -23,6 +23,9 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+from smm_controller.limits import OutputLimitConfig
+
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD, Trajectory, run_closed_loop
 from smm_analysis.errors import AnalysisError, UnknownControllerError
 from smm_analysis.metrics import (
@@ -116,8 +119,8 @@ class AcceptanceCheck:
         passed: Whether the claim holds.
         controller: The controller (gain set) the claim is checked on: ``"fpdeso"`` for the paper's
             gains, or a retuned set's name.
-        quantity: What ``value`` is: ``overshoot_fraction``, ``rise_time``, ``RMS``, ``Ma`` or
-            ``rms_reduction``; matches a retuned set's check with the paper set's.
+        quantity: What ``value`` is: ``overshoot_fraction``, ``rise_time``, ``RMS``, ``Ma``,
+            ``rms_reduction`` or ``eps_u``; matches a retuned set's check with the paper set's.
     """
 
     claim: str
@@ -541,6 +544,19 @@ def acceptance_checks(result: ReproductionResult) -> list[AcceptanceCheck]:
                     quantity="rms_reduction",
                 )
             )
+        for joint in JOINTS:
+            energy, fpd_energy = fpdeso2.joints[joint].eps_u, fpd2.joints[joint].eps_u
+            checks.append(
+                AcceptanceCheck(
+                    claim="case2: FPDESO control energy eps_u below FPD's (N^2 m^2 s)",
+                    scenario="case2",
+                    joint=joint,
+                    value=energy,
+                    requirement=f"< FPD {fpd_energy:.4g}",
+                    passed=energy < fpd_energy,
+                    quantity="eps_u",
+                )
+            )
     return checks
 
 
@@ -611,6 +627,15 @@ def acceptance_verdict(checks: Sequence[AcceptanceCheck]) -> AcceptanceVerdict:
     )
 
 
+def torque_limit_note(result: ReproductionResult) -> tuple[tuple[float, float], float]:
+    """``(torque limit (N m) the chains ran with, largest |command| of every run (N m))``."""
+    limit = OutputLimitConfig().torque_limit
+    peak = max(
+        (float(np.max(np.abs(run.trajectory.command_torque))) for run in result.runs.values()), default=0.0
+    )
+    return limit, peak
+
+
 def _finite_or_none(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
@@ -623,8 +648,9 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
     on), ``"acceptance_verdict"`` (``{"met": bool, "message": str}``, see :func:`acceptance_verdict`) and
     ``"meta"`` (run settings, units and the retuned sets run, with their labels and changes).
     Controllers include the retuned sets' pseudo-names (``fpdeso_retuned``).
-    Per joint: Ma, Ave, RMS (rad), eps_u (N^2 m^2 s); for step scenarios also rise_time (s), overshoot
-    (rad), overshoot_fraction (of the step) and settling_time (s; null = not settled by the end).
+    Per joint: Ma, Ave, RMS (rad), eps_u (N^2 m^2 s), du_rms (N m per step); for step scenarios also
+    rise_time (s), overshoot (rad), overshoot_fraction (of the step) and settling_time (s; null = not
+    settled by the end).
     ``end_effector``: x, y, z each {max_mm, rms_mm}.
     """
     document: dict[str, object] = {}
@@ -639,6 +665,7 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
                 "Ave": indices.Ave,
                 "RMS": indices.RMS,
                 "eps_u": indices.eps_u,
+                "du_rms": indices.du_rms,
             }
             if run.step is not None:
                 metrics = run.step[joint]
@@ -670,7 +697,10 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
     ]
     verdict = acceptance_verdict(result.checks)
     document["acceptance_verdict"] = {"met": verdict.met, "message": verdict.message}
+    limit, peak = torque_limit_note(result)
     document["meta"] = {
+        "torque_limit_Nm": list(limit),
+        "peak_command_Nm": peak,
         "seed": result.seed,
         "control_period_s": result.control_period,
         "td_speed": list(result.td_config.speed),
@@ -697,6 +727,7 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
             "Ave": "rad",
             "RMS": "rad",
             "eps_u": "N^2 m^2 s (integral of the commanded torque squared)",
+            "du_rms": "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
             "rise_time": "s (10-90 %)",
             "overshoot": "rad",
             "overshoot_fraction": "fraction of the step (x100 = %)",

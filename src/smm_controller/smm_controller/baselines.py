@@ -155,6 +155,25 @@ class PIDController(TorqueLaw):
         )
         return taus[0], taus[1]
 
+    def track_saturation(
+        self, unlimited: tuple[float, float], limited: tuple[float, float], dt: float
+    ) -> None:
+        """Back-calculation anti-windup: integral += dt (limited - unlimited) / T_t, after a limit downstream.
+
+        T_t is control_toolbox's default tracking time: sqrt(kd / ki), or kp / ki without kd; a joint with
+        ki = 0 has no integral to correct. The integral stays within ``integrator_limit``.
+        """
+        config = self.config
+        for j in range(2):
+            ki = config.ki[j]
+            if ki <= 0.0:
+                continue
+            tracking_time = math.sqrt(config.kd[j] / ki) if config.kd[j] > 0.0 else config.kp[j] / ki
+            if tracking_time <= 0.0:
+                continue
+            corrected = self._integral[j] + dt * (limited[j] - unlimited[j]) / tracking_time
+            self._integral[j] = _clamp(corrected, config.integrator_limit[j])
+
     @property
     def internals(self) -> Mapping[str, FloatArray]:
         """Read-only copies, shape (2,): e (rad), p, i, d, tau (N m)."""

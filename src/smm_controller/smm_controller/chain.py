@@ -5,7 +5,10 @@ previous interval tau_applied_{k-1}:
 
 1. TD: (q^, q^') = td(y_k)
 2. FLESO (if any): xi~_k = fleso(q^, tau_applied_{k-1})  (else xi~ = 0)
-3. controller: tau_k = controller(r_k, q^, q^', xi~_k)
+3. controller: tau_k = controller(r_k, q^, v_k, xi~_k), v_k = q^' or, for a law whose
+   ``velocity_source`` is ``"observer"``, the FLESO's velocity estimate x2^_k
+4. output limits: the torque and rate limits of :class:`smm_controller.limits.OutputLimiter` (a law that
+   tracks saturation, the PID, is told, so its integrator does not wind up)
 
 All stages run on plain floats internally (``step_floats``), so one step converts arrays only once
 on the way in and once on the way out.
@@ -23,6 +26,7 @@ from smm_controller._validation import FloatArray, as_joint_vector, as_reference
 from smm_controller.baselines import FPDController, NPDController, PIDController
 from smm_controller.fleso import FLESO
 from smm_controller.fpdeso import FPDESOController
+from smm_controller.limits import OutputLimiter, track_saturation
 from smm_controller.td import TrackingDifferentiator
 from smm_controller.torque_law import TorqueLaw
 from smm_dynamics import SMMParameters
@@ -59,12 +63,23 @@ class ControlChain:
         td: Tracking differentiator applied to the measured position.
         fleso: Disturbance observer, or None (xi~ = 0, as for the baselines).
         controller: FPDESO or a baseline.
+        limiter: Output limits applied after the controller (default: :class:`OutputLimiter` with its
+            default torque limit).
     """
 
-    def __init__(self, td: TrackingDifferentiator, fleso: FLESO | None, controller: JointController) -> None:
+    def __init__(
+        self,
+        td: TrackingDifferentiator,
+        fleso: FLESO | None,
+        controller: JointController,
+        limiter: OutputLimiter | None = None,
+    ) -> None:
+        if fleso is None and controller.velocity_source == "observer":
+            raise ValueError("the law's velocity_source is 'observer' but the chain has no FLESO")
         self.td = td
         self.fleso = fleso
         self.controller = controller
+        self.limiter = limiter if limiter is not None else OutputLimiter()
         self._disturbance = (0.0, 0.0)
 
     def reset(self) -> None:
@@ -73,6 +88,7 @@ class ControlChain:
         if self.fleso is not None:
             self.fleso.reset()
         self.controller.reset()
+        self.limiter.reset()
         self._disturbance = (0.0, 0.0)
 
     def step(
@@ -111,18 +127,26 @@ class ControlChain:
         q0, q1, qd0, qd1 = self.td.step_floats(y[0], y[1], dt)
         if self.fleso is not None:
             disturbance = self.fleso.step_floats(q0, q1, tau_applied[0], tau_applied[1], dt)
+            if self.controller.velocity_source == "observer":
+                qd0, qd1 = self.fleso.velocity_floats()
         else:
             disturbance = (0.0, 0.0)
+            if self.controller.velocity_source == "observer":
+                raise ValueError("the law's velocity_source is 'observer' but the chain has no FLESO")
         self._disturbance = disturbance
-        return self.controller.step_floats(reference, (q0, q1), (qd0, qd1), disturbance, dt)
+        tau = self.controller.step_floats(reference, (q0, q1), (qd0, qd1), disturbance, dt)
+        limited = self.limiter.limit_floats(tau, dt)
+        track_saturation(self.controller, tau, limited, dt)
+        return limited
 
     @property
     def internals(self) -> Mapping[str, FloatArray]:
-        """All stages' internals, keys prefixed ``td.``, ``fleso.``, ``controller.``, shape (2,)."""
+        """Every stage's internals, keys prefixed ``td.``, ``fleso.``, ``controller.``, ``limiter.``; (2,)."""
         merged = stage_internals("td", self.td.internals)
         if self.fleso is not None:
             merged.update(stage_internals("fleso", self.fleso.internals))
         merged.update(stage_internals("controller", self.controller.internals))
+        merged.update(stage_internals("limiter", self.limiter.internals))
         disturbance = np.array(self._disturbance)
         disturbance.flags.writeable = False
         merged["disturbance_estimate"] = disturbance

@@ -4,7 +4,9 @@ Matches, by exact stamp, ``joint_states_filtered`` (TD position rad and velocity
 (3x2) and, for ``fpdeso`` only, ``disturbance_estimate`` (row ``xi_tilde``, N m); steps the law once per
 stamp with dt = ``control_period`` and publishes ``torque_command`` ([tau_alpha, tau_beta] N m), then
 ``controller_internals`` (the law's internals + the node counters), both stamped with the measurement's
-stamp. The baselines get xi~ = 0 and ``disturbance_estimate`` is then not read.
+stamp. The baselines get xi~ = 0 and ``disturbance_estimate`` is then not read. With FPDESO's
+``velocity_source: observer`` the law's velocity is the row ``x2_hat`` of ``disturbance_estimate`` (the
+FLESO's x2^) instead of the TD's.
 
 Parameters: ``algorithm`` (fpdeso | fpd | pid | npd) and ``switch_idle_time``; the gains of every law,
 ``fpdeso.<field>`` (nested ``fpdeso.fuzzy.<field>``), ``fpd.fuzzy.<field>``, ``pid.<field>``,
@@ -72,26 +74,35 @@ from smm_controller.chain import CONTROLLER_NAMES, ControlChain, JointController
 from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
+from smm_controller.limits import (
+    MeasurementLimits,
+    OutputLimitConfig,
+    OutputLimiter,
+    PlausibilityCheck,
+    track_saturation,
+)
 from smm_controller.reference_node import ReferenceClock, ReferenceParameters
 from smm_controller.sync import ExactTimeSynchronizer, Matched
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
-from smm_controller.td_node import TD_PREFIX, check_filter_factor
+from smm_controller.td_node import MEASUREMENT_PREFIX, TD_PREFIX, check_filter_factor
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
 from smm_node_runtime import (
-    ControlPeriodConfig,
     MeasurementDrivenNode,
     NodeOptions,
     Output,
     node_main,
+    values_of,
 )
 
 __all__ = [
     "CHAIN_MODES",
     "DEFAULT_SWITCH_IDLE_TIME",
     "FLESO_PREFIX",
+    "MEASUREMENT_PREFIX",
     "MODEL_PREFIX",
     "NODE_NAME",
+    "OUTPUT_PREFIX",
     "REFERENCE_PREFIX",
     "REFERENCE_SOURCES",
     "TD_PREFIX",
@@ -103,6 +114,9 @@ __all__ = [
 ]
 
 NODE_NAME: Final[str] = "controller_node"
+OUTPUT_PREFIX: Final[str] = "output"
+"""Parameters of :class:`~smm_controller.limits.OutputLimitConfig` are ``output.<field>``."""
+
 REFERENCE_PREFIX: Final[str] = "reference"
 """Prefix of the reference generator parameters (``reference.kind``, ``reference.sine.*``) when the node
 samples the reference itself."""
@@ -218,7 +232,6 @@ class ControllerNode(MeasurementDrivenNode):
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
         self._last_input_time: float | None = None
-        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.placement = ConfigParameters(self, "", ChainPlacement(), read_only=True)
         self.reference_source = ConfigParameters(self, "", ReferenceSource(), read_only=True)
         internal = self.reference_source.config.reference_source == "internal"
@@ -239,7 +252,25 @@ class ControllerNode(MeasurementDrivenNode):
         self.model_parameters = ConfigParameters(
             self, MODEL_PREFIX, SMMParameters(), on_change=self._on_model
         )
+        self.output_limits = ConfigParameters(
+            self,
+            OUTPUT_PREFIX,
+            OutputLimitConfig(),
+            on_change=self._on_output_limits,
+        )
+        self.limiter = OutputLimiter(self.output_limits.config)
+        """Torque and rate limits after the law (shared with the internal chain: one clamp count)."""
         self.internal_chain = self.placement.config.chain == "internal"
+        self.plausibility: PlausibilityCheck | None = None
+        """Range and step check of ``joint_states`` (internal chain only; else ``td_node`` checks)."""
+        if self.internal_chain:
+            self.measurement_limits = ConfigParameters(
+                self,
+                MEASUREMENT_PREFIX,
+                MeasurementLimits(),
+                on_change=lambda limits: self._plausibility().reconfigure(limits),
+            )
+            self.plausibility = PlausibilityCheck(self.measurement_limits.config)
         self.chain: ControlChain | None = None
         """The TD -> FLESO -> law chain this node runs with ``chain = internal`` (None otherwise)."""
         if self.internal_chain:
@@ -290,10 +321,12 @@ class ControllerNode(MeasurementDrivenNode):
             qos_for_topic(topics.DISTURBANCE_ESTIMATE),
         )
 
-    @property
-    def control_period(self) -> float:
-        """Step size dt of every step (s)."""
-        return self.timing.config.control_period
+    def _on_output_limits(self, config: OutputLimitConfig) -> None:
+        self.limiter.reconfigure(config)
+
+    def _plausibility(self) -> PlausibilityCheck:
+        assert self.plausibility is not None  # declared with the internal chain only
+        return self.plausibility
 
     @property
     def algorithm(self) -> str:
@@ -313,7 +346,9 @@ class ControllerNode(MeasurementDrivenNode):
                 if _LAWS[name].uses_disturbance_estimate
                 else None
             )
-            self.chain = ControlChain(TrackingDifferentiator(self.td_parameters.config), fleso, built)
+            self.chain = ControlChain(
+                TrackingDifferentiator(self.td_parameters.config), fleso, built, self.limiter
+            )
             self._last_command = np.zeros(2)
         return built
 
@@ -397,8 +432,14 @@ class ControllerNode(MeasurementDrivenNode):
         except InterfaceError as error:
             self.reject(topic, error)
             return
-        if not self.admit(topic, item.stamp_ns):
+        if not self.admit(topic, item.stamp_ns, values_of(item)):
             return
+        if self.plausibility is not None and topic == topics.JOINT_STATES:
+            position = (float(item.position[0]), float(item.position[1]))
+            reason = self.plausibility.admit(position, item.stamp_ns, self.period_ns)
+            if reason is not None:
+                self.reject_implausible(topic, item.stamp_ns, reason)
+                return
         matched = self.sync.add(topic, item.stamp_ns, item)
         self.counters.dropped_unmatched = self.sync.dropped
         if matched is not None:
@@ -435,22 +476,51 @@ class ControllerNode(MeasurementDrivenNode):
         filtered = matched.items[topics.JOINT_STATES_FILTERED]
         estimate = matched.items.get(topics.DISTURBANCE_ESTIMATE)
         xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
-        tau = self.controller.step(
-            np.array(reference), filtered.position, filtered.velocity, xi, self.control_period
+        observer = estimate is not None and self.controller.velocity_source == "observer"
+        velocity = estimate.values[1] if estimate is not None and observer else filtered.velocity
+        law_tau = self.controller.step(
+            np.array(reference), filtered.position, velocity, xi, self.control_period
         )
-        return [(self._torque_publisher, torque_to_msg(tau, matched.stamp_ns))]
+        unlimited = (float(law_tau[0]), float(law_tau[1]))
+        limited = self.limiter.limit_floats(unlimited, self.control_period)
+        track_saturation(self.controller, unlimited, limited, self.control_period)
+        return [(self._torque_publisher, torque_to_msg(np.array(limited), matched.stamp_ns))]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
         internals = (
             self.chain.internals
             if self.chain is not None
-            else stage_internals("controller", self.controller.internals)
+            else {
+                **stage_internals("controller", self.controller.internals),
+                **stage_internals("limiter", self.limiter.internals),
+            }
         )
         rows = {**internals, **self.counter_rows()}
         outputs = [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
         if self.internal_reference:
             outputs.append((self._reference_publisher, reference_to_msg(np.array(self._reference), stamp_ns)))
         return outputs
+
+    def on_time_jump(self, *, backward: bool) -> None:
+        """Forget the old timeline's pending stamps; a new run (backward jump) starts from fresh state."""
+        self.sync.clear()
+        if backward:
+            self.controller.reset()
+            if self.chain is not None:
+                self.chain.reset()
+            self.limiter.reset()
+            if self.plausibility is not None:
+                self.plausibility.reset()
+            self.reference_clock = ReferenceClock()
+            self._last_command = np.zeros(2)
+
+    def health_counts(self) -> dict[str, int]:
+        """The base counts plus ``clamps`` (steps whose torque the output limits changed)."""
+        return {**super().health_counts(), "clamps": self.limiter.clamps}
+
+    def health_warnings(self) -> tuple[str, ...]:
+        """A clamp within the period makes the status WARN."""
+        return (*super().health_warnings(), "clamps")
 
 
 def main(args: Sequence[str] | None = None) -> int:

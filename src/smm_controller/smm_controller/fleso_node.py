@@ -2,9 +2,9 @@
 
 Matches, by exact stamp, ``joint_states_filtered`` (TD position, rad) and ``joint_states`` (effort = torque
 applied over the previous interval, N m); steps the FLESO once per stamp with dt = ``control_period`` and
-publishes ``disturbance_estimate`` (row ``xi_tilde``, N m), then the diagnostics ``observer_state`` (x1_hat,
-x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node counters), all stamped with
-the measurement's stamp.
+publishes ``disturbance_estimate`` (rows ``xi_tilde``, N m, and ``x2_hat``, rad/s), then the diagnostics
+``observer_state`` (x1_hat, x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node
+counters), all stamped with the measurement's stamp.
 
 Applied torque (SPEC section 4): the measurement's effort; where the plant reports none (empty ``effort``,
 e.g. a bridge without torque sensing), the ``torque_command`` stamped with the previous measurement's stamp,
@@ -44,11 +44,11 @@ from smm_controller.sync import DEFAULT_MAX_PENDING, ExactTimeSynchronizer, Matc
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
 from smm_node_runtime import (
-    ControlPeriodConfig,
     MeasurementDrivenNode,
     NodeOptions,
     Output,
     node_main,
+    values_of,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -91,7 +91,6 @@ class FlesoNode(MeasurementDrivenNode):
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
-        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.fleso_parameters = ConfigParameters(
             self, FLESO_PREFIX, FLESOConfig(), on_change=self._reconfigure
         )
@@ -128,11 +127,6 @@ class FlesoNode(MeasurementDrivenNode):
         )
 
     @property
-    def control_period(self) -> float:
-        """Step size dt of every step (s)."""
-        return self.timing.config.control_period
-
-    @property
     def newest_command_stamp_ns(self) -> int | None:
         """Newest stamp (ns) among the torque commands held, None before the first."""
         return max(self._commands) if self._commands else None
@@ -165,6 +159,13 @@ class FlesoNode(MeasurementDrivenNode):
     def _on_filtered(self, msg: JointState) -> None:
         self._on_input(topics.JOINT_STATES_FILTERED, msg)
 
+    def on_time_jump(self, *, backward: bool) -> None:
+        """Forget the old timeline's pending stamps and commands; a new run starts from a fresh observer."""
+        self.sync.clear()
+        self._commands.clear()
+        if backward:
+            self.fleso.reset()
+
     def _on_measurement(self, msg: JointState) -> None:
         self._on_input(topics.JOINT_STATES, msg)
 
@@ -174,7 +175,7 @@ class FlesoNode(MeasurementDrivenNode):
         except InterfaceError as error:
             self.reject(topic, error)
             return
-        if not self.admit(topic, sample.stamp_ns):
+        if not self.admit(topic, sample.stamp_ns, values_of(sample)):
             return
         matched = self.sync.add(topic, sample.stamp_ns, sample)
         self.counters.dropped_unmatched = self.sync.dropped
@@ -190,7 +191,8 @@ class FlesoNode(MeasurementDrivenNode):
         effort = matched.items[topics.JOINT_STATES].effort
         applied_torque = effort if effort is not None else self._commanded_torque(previous_stamp_ns)
         estimate = self.fleso.step(position, applied_torque, self.control_period)
-        message = labelled_to_msg(estimate[np.newaxis, :], DISTURBANCE_ESTIMATE_ROWS, matched.stamp_ns)
+        rows = np.stack([estimate, self.fleso.velocity_floats()])
+        message = labelled_to_msg(rows, DISTURBANCE_ESTIMATE_ROWS, matched.stamp_ns)
         return [(self._estimate_publisher, message)]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:

@@ -37,7 +37,6 @@ from std_msgs.msg import Float64MultiArray
 from smm_controller.reference import REFERENCE_KINDS, ReferenceGenerator
 from smm_msgs_py import topics
 from smm_node_runtime import (
-    ControlPeriodConfig,
     MeasurementDrivenNode,
     NodeOptions,
     Output,
@@ -158,7 +157,6 @@ class ReferenceNode(MeasurementDrivenNode):
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
-        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.lookahead = ConfigParameters(self, "", ReferenceLookahead(), read_only=True)
         self.reference = ReferenceParameters(self)
         self.clock = ReferenceClock()
@@ -188,10 +186,10 @@ class ReferenceNode(MeasurementDrivenNode):
         if self.admit(topics.JOINT_STATES, stamp_ns):
             self.answer(stamp_ns, lambda: self._step(stamp_ns), lambda: self._diagnostics(stamp_ns))
 
-    @property
-    def period_ns(self) -> int:
-        """Control period (ns): the spacing of the plant's stamps."""
-        return round(self.timing.config.control_period * NANOSECONDS_PER_SECOND)
+    def on_time_jump(self, *, backward: bool) -> None:
+        """A new run (backward jump) starts its reference at t = 0 again."""
+        if backward:
+            self.clock = ReferenceClock()
 
     def _step(self, stamp_ns: int) -> list[Output]:
         ahead_ns = self.lookahead.config.lookahead * self.period_ns

@@ -24,19 +24,30 @@ from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
 from smm_node_runtime.parameters import ConfigParameters
 from std_msgs.msg import Float64MultiArray
 
+from smm_controller.limits import MeasurementLimits, PlausibilityCheck
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_msgs_py import topics
 from smm_node_runtime import (
-    ControlPeriodConfig,
     MeasurementDrivenNode,
     NodeOptions,
     Output,
     node_main,
+    values_of,
 )
 
-__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "TD_PREFIX", "TdNode", "check_filter_factor", "main"]
+__all__ = [
+    "INTERNALS_TOPIC",
+    "MEASUREMENT_PREFIX",
+    "NODE_NAME",
+    "TD_PREFIX",
+    "TdNode",
+    "check_filter_factor",
+    "main",
+]
 
 NODE_NAME = "td_node"
+MEASUREMENT_PREFIX = "measurement"
+"""Parameters of :class:`~smm_controller.limits.MeasurementLimits` are ``measurement.<field>``."""
 TD_PREFIX = "td"
 """Parameters of :class:`~smm_controller.td.TrackingDifferentiatorConfig` are ``td.<field>``."""
 INTERNALS_TOPIC = "~/internals"
@@ -74,7 +85,6 @@ class TdNode(MeasurementDrivenNode):
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
-        self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.td_parameters = ConfigParameters(
             self,
             TD_PREFIX,
@@ -83,6 +93,10 @@ class TdNode(MeasurementDrivenNode):
             on_change=self._on_td_config,
         )
         self.td = TrackingDifferentiator(self.td_parameters.config)
+        self.measurement_limits = ConfigParameters(
+            self, MEASUREMENT_PREFIX, MeasurementLimits(), on_change=self._on_measurement_limits
+        )
+        self.plausibility = PlausibilityCheck(self.measurement_limits.config)
         self._filtered_publisher = self.create_publisher(
             JointState, topics.JOINT_STATES_FILTERED, qos_for_topic(topics.JOINT_STATES_FILTERED)
         )
@@ -93,11 +107,6 @@ class TdNode(MeasurementDrivenNode):
             JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
         )
 
-    @property
-    def control_period(self) -> float:
-        """Step size dt of every step (s)."""
-        return self.timing.config.control_period
-
     def _check_td_config(self, config: TrackingDifferentiatorConfig) -> None:
         check_filter_factor(config, self.timing.config.control_period)
 
@@ -105,14 +114,28 @@ class TdNode(MeasurementDrivenNode):
         # Same TD, new gains from the next sample: x1 and x2 carry on (no velocity restart from 0).
         self.td.reconfigure(config)
 
+    def on_time_jump(self, *, backward: bool) -> None:
+        """A new run (backward jump) starts from a fresh TD and no previous position."""
+        if backward:
+            self.td.reset()
+            self.plausibility.reset()
+
+    def _on_measurement_limits(self, limits: MeasurementLimits) -> None:
+        self.plausibility.reconfigure(limits)
+
     def _on_measurement(self, msg: JointState) -> None:
         try:
             sample = joint_state_to_sample(msg)
         except InterfaceError as error:
             self.reject(topics.JOINT_STATES, error)
             return
-        if self.admit(topics.JOINT_STATES, sample.stamp_ns):
-            stamp_ns = sample.stamp_ns
+        stamp_ns = sample.stamp_ns
+        if self.admit(topics.JOINT_STATES, stamp_ns, values_of(sample)):
+            position = (float(sample.position[0]), float(sample.position[1]))
+            reason = self.plausibility.admit(position, stamp_ns, self.period_ns)
+            if reason is not None:
+                self.reject_implausible(topics.JOINT_STATES, stamp_ns, reason)
+                return
             self.answer(stamp_ns, lambda: self._step(sample), lambda: self._diagnostics(stamp_ns))
 
     def _step(self, sample: JointSample) -> list[Output]:

@@ -1,9 +1,12 @@
 """What every SMM node runs on: process main, executor, node base classes, parameters, ``/diagnostics``."""
 
-from smm_node_runtime.diagnostics import DiagnosticsPublisher, Health, Level, level_for
+from smm_node_runtime.diagnostics import CountWindows, DiagnosticsPublisher, Health, Level, level_for, worst
 from smm_node_runtime.measurement import (
     COUNTER_ROWS,
     DEFAULT_CONTROL_PERIOD,
+    REFUSED,
+    STAMP_PREFIX,
+    WARN_COUNTERS,
     WARN_THROTTLE_S,
     Admission,
     ControlPeriodConfig,
@@ -11,9 +14,17 @@ from smm_node_runtime.measurement import (
     MeasurementDrivenNode,
     Output,
     StampGate,
+    StampPolicy,
+    values_of,
 )
 from smm_node_runtime.node import NodeOptions, ParameterOverrides, SmmNode, as_parameter_list, node_arguments
-from smm_node_runtime.parameters import ConfigParameters, config_fields, parameter_name
+from smm_node_runtime.parameters import (
+    ConfigParameters,
+    bounds,
+    check_bounds,
+    config_fields,
+    parameter_name,
+)
 from smm_node_runtime.process import (
     EXIT_INVALID_PARAMETER,
     EXIT_OK,
@@ -32,11 +43,15 @@ __all__ = [
     "DEFAULT_CONTROL_PERIOD",
     "EXIT_INVALID_PARAMETER",
     "EXIT_OK",
+    "REFUSED",
     "SPIN_POLL_S",
+    "STAMP_PREFIX",
+    "WARN_COUNTERS",
     "WARN_THROTTLE_S",
     "Admission",
     "ConfigParameters",
     "ControlPeriodConfig",
+    "CountWindows",
     "DiagnosticsPublisher",
     "Health",
     "InputCounters",
@@ -48,7 +63,10 @@ __all__ = [
     "ParameterOverrides",
     "SmmNode",
     "StampGate",
+    "StampPolicy",
     "as_parameter_list",
+    "bounds",
+    "check_bounds",
     "config_fields",
     "ensure_localhost_discovery",
     "level_for",
@@ -59,4 +77,6 @@ __all__ = [
     "run_node",
     "run_nodes",
     "spin_until_shutdown",
+    "values_of",
+    "worst",
 ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -13,7 +14,16 @@ from rclpy.node import Node
 from smm_msgs_py.qos import diagnostic_qos
 from smm_msgs_py.topics import DIAGNOSTICS
 
-__all__ = ["DEFAULT_PERIOD_S", "HARDWARE_ID", "DiagnosticsPublisher", "Health", "Level", "level_for"]
+__all__ = [
+    "DEFAULT_PERIOD_S",
+    "HARDWARE_ID",
+    "CountWindows",
+    "DiagnosticsPublisher",
+    "Health",
+    "Level",
+    "level_for",
+    "worst",
+]
 
 DEFAULT_PERIOD_S = 1.0
 """Period of the status messages (s), wall clock (steady), also when the node runs on sim time."""
@@ -55,6 +65,14 @@ def level_for(value: float, warn: float, error: float) -> Level:
     return Level.OK
 
 
+def worst(findings: list[tuple[Level, str]], fine: str, values: Mapping[str, object]) -> Health:
+    """The :class:`Health` of ``findings`` ``(level, text)``: worst level, worst text first; else ``fine``."""
+    ordered = sorted(findings, key=lambda finding: -int(finding[0]))
+    if not ordered:
+        return Health(Level.OK, fine, values)
+    return Health(ordered[0][0], "; ".join(text for _, text in ordered), values)
+
+
 class DiagnosticsPublisher:
     """Publishes ``collect()`` on ``/diagnostics`` every ``period_s`` and when :meth:`check` sees a new level.
 
@@ -62,17 +80,26 @@ class DiagnosticsPublisher:
         node: The node whose health this is (the status is named by its fully qualified name).
         collect: Returns the node's current :class:`Health`; called from the node's executor.
         period_s: Period of the regular status (s), > 0.
+        on_period: Called at the end of every period, before its status is collected (e.g. to roll the
+            counters the thresholds judge per period).
     """
 
     def __init__(
-        self, node: Node, collect: Callable[[], Health], period_s: float = DEFAULT_PERIOD_S
+        self,
+        node: Node,
+        collect: Callable[[], Health],
+        period_s: float = DEFAULT_PERIOD_S,
+        on_period: Callable[[], None] | None = None,
     ) -> None:
         if not period_s > 0.0:
             raise ValueError(f"diagnostics period must be > 0 s, got {period_s!r}")
         self._node = node
         self._collect = collect
         self._publisher = node.create_publisher(DiagnosticArray, DIAGNOSTICS, diagnostic_qos())
-        self._timer = node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._on_period = on_period
+        self._timer = node.create_timer(
+            period_s, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME)
+        )
         self._level: Level | None = None
         self.published = 0
         """Number of status messages sent."""
@@ -99,6 +126,11 @@ class DiagnosticsPublisher:
         self.published += 1
         return health
 
+    def _on_timer(self) -> None:
+        if self._on_period is not None:
+            self._on_period()
+        self.publish()
+
     def check(self) -> None:
         """Send the status now if its level differs from the last one sent (call after an event)."""
         if self._collect().level != self._level:
@@ -108,3 +140,29 @@ class DiagnosticsPublisher:
         """Stop the timer and destroy the publisher."""
         self._node.destroy_timer(self._timer)
         self._node.destroy_publisher(self._publisher)
+
+
+class CountWindows:
+    """Counts per diagnostics period: the increase over the last complete period; the current one's start."""
+
+    def __init__(self, counts: Mapping[str, int]) -> None:
+        self.start = dict(counts)
+        self.last: dict[str, int] = {}
+        self.started = time.monotonic()
+        self.duration = 0.0
+
+    def since(self, counts: Mapping[str, int]) -> dict[str, int]:
+        """Increase of each count since the current period started."""
+        return {name: count - self.start.get(name, 0) for name, count in counts.items()}
+
+    def roll(self, counts: Mapping[str, int]) -> None:
+        """End the current period at ``counts``."""
+        now = time.monotonic()
+        self.last = self.since(counts)
+        self.start = dict(counts)
+        self.duration = now - self.started
+        self.started = now
+
+    def rate(self, name: str) -> float:
+        """Rate of ``name`` over the last complete period (1/s), 0 before the first."""
+        return self.last.get(name, 0) / self.duration if self.duration > 0.0 else 0.0

@@ -6,6 +6,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, TypedDict, Unpack
 
 from rclpy.context import Context
+from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -57,6 +58,14 @@ class SmmNode(Node):
         if not name:
             raise TypeError(f"{type(self).__name__} needs node_name: the class sets no NODE_NAME")
         super().__init__(name, **arguments)
+
+    def _check_undeclared_parameters(self, parameter_list: list[Parameter]) -> None:
+        """Refuse undeclared names, naming them (rclpy's own check exhausts a generator and names none)."""
+        if not all(isinstance(parameter, Parameter) for parameter in parameter_list):
+            raise TypeError(f"parameter must be instance of type {Parameter!r}")
+        undeclared = [p.name for p in parameter_list if not self.has_parameter(p.name)]
+        if undeclared and not self._allow_undeclared_parameters:
+            raise ParameterNotDeclaredException(undeclared)
 
 
 def as_parameter_list(overrides: ParameterOverrides | None) -> list[Parameter] | None:

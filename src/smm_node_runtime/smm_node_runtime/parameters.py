@@ -22,6 +22,11 @@ validation (some fields accept infinity as "no limit"); its
 ``ValueError`` message is what a rejected ``set_parameters`` call reports as ``reason``. ROS ranges
 (``FloatingPointRange``) only apply to scalars, so array bounds are always checked by the dataclass.
 
+Ranges: a scalar field's ROS range (``FloatingPointRange`` / ``IntegerRange``, closed) comes from its
+dataclass field metadata (:func:`bounds`, checked by :func:`check_bounds` in ``__post_init__``), else from
+the bound its docstring states (``> 0``, ``>= 3``, ``<= 1``: the ROS range is closed, the dataclass keeps
+refusing the open end), so every node declares the same ranges without listing them.
+
 Descriptions come from the dataclass docstring's Google-style ``Attributes:`` section (one source of truth
 for units and meaning), unless overridden by the ``descriptions`` argument.
 
@@ -36,6 +41,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import inspect
+import math
 import re
 import typing
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -49,13 +55,17 @@ from rcl_interfaces.msg import (
     ParameterType,
     SetParametersResult,
 )
+from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 __all__ = [
+    "RANGE_METADATA",
     "ConfigField",
     "ConfigParameters",
     "FieldKind",
+    "bounds",
+    "check_bounds",
     "config_fields",
     "config_from_parameters",
     "config_to_parameters",
@@ -68,6 +78,38 @@ ConfigT = TypeVar("ConfigT")
 
 PER_JOINT_LENGTH = 2
 """Length of a per-joint field ``tuple[float, float]`` (alpha, beta)."""
+
+RANGE_METADATA = "smm_range"
+"""Dataclass field metadata key of a scalar field's closed range ``(low, high)``."""
+
+_INT64_MAX = 2**63 - 1
+
+
+def bounds(low: float, high: float) -> dict[str, tuple[float, float]]:
+    """Field metadata: the scalar field's closed range [low, high] (ROS range and :func:`check_bounds`)."""
+    if not low <= high:
+        raise ValueError(f"empty range [{low}, {high}]")
+    return {RANGE_METADATA: (low, high)}
+
+
+def check_bounds(config: object) -> None:
+    """Check every field of ``config`` with :func:`bounds` metadata: a number (int for int fields) in range.
+
+    Raises:
+        ValueError: naming the field, its range and the value.
+    """
+    hints = typing.get_type_hints(type(config))
+    for item in dataclasses.fields(config):  # type: ignore[arg-type]
+        value_range = item.metadata.get(RANGE_METADATA)
+        if value_range is None:
+            continue
+        value = getattr(config, item.name)
+        low, high = value_range
+        integer = hints[item.name] is int
+        number = isinstance(value, int) if integer else isinstance(value, (int, float))
+        if isinstance(value, bool) or not number or not low <= value <= high:
+            kind = "an integer" if integer else "a number"
+            raise ValueError(f"{item.name} must be {kind} in [{low:g}, {high:g}], got {value!r}")
 
 
 class FieldKind(enum.Enum):
@@ -92,6 +134,7 @@ class ConfigField:
         length: Required number of values for a fixed-length tuple field, None for scalars and
             variable-length tuples.
         description: Human-readable meaning and unit (from the docstring), may be empty.
+        value_range: Closed range of a scalar number field (from :func:`bounds` or the docstring), or None.
     """
 
     name: str
@@ -99,6 +142,7 @@ class ConfigField:
     kind: FieldKind
     length: int | None
     description: str
+    value_range: tuple[float, float] | None = None
 
 
 def parameter_name(prefix: str, name: str) -> str:
@@ -203,8 +247,29 @@ def _config_fields(config_cls: type, path: tuple[str, ...]) -> tuple[ConfigField
             result.extend(_config_fields(hint, field_path))
             continue
         kind, length = _leaf_kind(hint, ".".join(field_path))
-        result.append(ConfigField(".".join(field_path), field_path, kind, length, docs.get(field.name, "")))
+        description = docs.get(field.name, "")
+        value_range = field.metadata.get(RANGE_METADATA)
+        if value_range is None and kind in (FieldKind.DOUBLE, FieldKind.INTEGER):
+            value_range = stated_range(description)
+        if kind not in (FieldKind.DOUBLE, FieldKind.INTEGER):
+            value_range = None
+        result.append(ConfigField(".".join(field_path), field_path, kind, length, description, value_range))
     return tuple(result)
+
+
+_NUMBER = r"(-?\d+(?:\.\d+)?(?:[eE]-?\d+)?)"
+_NOT_A_UNIT = r"(?!\w)(?!\s*(?:ns|us|ms|s|rad|Hz|N|m|kg)\b)"  # ">= 1 ns" is no bound on a value in seconds
+_LOWER = re.compile(r"(?<![<>=-])(>=?)\s*" + _NUMBER + _NOT_A_UNIT)
+_UPPER = re.compile(r"(?<![<>=-])(<=?)\s*" + _NUMBER + _NOT_A_UNIT)
+
+
+def stated_range(description: str) -> tuple[float, float] | None:
+    """The closed range a docstring states for a scalar (``> 0`` gives [0, inf]); None if it states none."""
+    lows = [float(match.group(2)) for match in _LOWER.finditer(description)]
+    highs = [float(match.group(2)) for match in _UPPER.finditer(description)]
+    if not lows and not highs:
+        return None
+    return (max(lows) if lows else -math.inf, min(highs) if highs else math.inf)
 
 
 def _value_at(config: object, path: Sequence[str]) -> Any:
@@ -350,6 +415,9 @@ def _descriptor(
     )
     if value_range is not None:
         low, high = value_range
+        if field.kind is FieldKind.INTEGER:
+            low = -_INT64_MAX - 1 if math.isinf(low) else low
+            high = _INT64_MAX if math.isinf(high) else high
         if field.kind is FieldKind.DOUBLE:
             descriptor.floating_point_range = [
                 FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)
@@ -406,11 +474,17 @@ def declare_config_parameters(
             field,
             full_name,
             descriptions.get(field.name, field.description),
-            ranges.get(field.name),
+            ranges.get(field.name, field.value_range),
             read_only,
         )
         default = _to_parameter_value(field, _value_at(config_instance, field.path))
-        declared[full_name] = node.declare_parameter(full_name, default, descriptor).value
+        value_range = ranges.get(field.name, field.value_range)
+        if value_range is not None and not value_range[0] <= default <= value_range[1]:
+            raise ValueError(f"{full_name}: default {default!r} lies outside its range {value_range}")
+        try:
+            declared[full_name] = node.declare_parameter(full_name, default, descriptor).value
+        except InvalidParameterValueException as error:  # an override outside the ROS range
+            raise ValueError(str(error)) from error
     return config_from_parameters(type(config_instance), config_instance, declared, prefix)
 
 

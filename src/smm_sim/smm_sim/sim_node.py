@@ -60,12 +60,22 @@ from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import JointSample, clock_msg, msg_to_torque, sample_to_joint_state
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.qos import qos_for_topic
-from smm_node_runtime.parameters import ConfigParameters
+from smm_node_runtime.parameters import ConfigParameters, bounds, check_bounds
 from std_msgs.msg import Float64MultiArray
 
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
-from smm_node_runtime import WARN_THROTTLE_S, NodeOptions, SmmNode, run_node
+from smm_node_runtime import (
+    WARN_THROTTLE_S,
+    CountWindows,
+    DiagnosticsPublisher,
+    Health,
+    Level,
+    NodeOptions,
+    SmmNode,
+    run_node,
+    worst,
+)
 from smm_sim.plant import GroundTruth, Measurement, PlantConfig, SimulatedPlant
 
 __all__ = [
@@ -86,6 +96,10 @@ CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
 _NS_PER_S: Final[int] = 1_000_000_000
 _STARTUP_ONLY: Final[frozenset[str]] = frozenset({"clock_mode"})
 _PUBLISHED_STAMPS_KEPT: Final[int] = 1000
+MAX_COMMAND_TIMEOUT: Final[float] = 0.5
+"""Largest ``command_timeout`` (s): beyond it a stale torque is held while the plant could reach its stop."""
+DEADLINE_MISS_WARN_FRACTION: Final[float] = 0.1
+"""Real time: WARN when more than this fraction of a period's ticks found the previous one unanswered."""
 """Realtime: publish times of this many recent measurements are kept to match answers (1 s at 1 kHz)."""
 
 FloatArray = npt.NDArray[np.float64]
@@ -169,7 +183,8 @@ class SimNodeConfig:
     Attributes:
         clock_mode: "lockstep" (step when the answering command arrives; publishes /clock) or "realtime"
             (wall-clock timer at the control period).
-        command_timeout: Realtime: a command older than this gives zero torque (s), > 0.
+        command_timeout: Realtime: a command older than this gives zero torque (s), in [0.001, 0.5]: longer
+            would hold a stale torque for as long as the plant takes to fall onto its stop.
         republish_period: Lockstep: re-publish an unanswered measurement after this many wall seconds (s),
             > 0.
         max_steps: Stop after this many steps, >= 0; 0 = no limit.
@@ -184,7 +199,7 @@ class SimNodeConfig:
     """
 
     clock_mode: Literal["lockstep", "realtime"] = "realtime"
-    command_timeout: float = 0.05
+    command_timeout: float = field(default=0.05, metadata=bounds(1e-3, MAX_COMMAND_TIMEOUT))
     republish_period: float = 0.1
     max_steps: int = 0
     duration: float = 0.0
@@ -195,6 +210,7 @@ class SimNodeConfig:
     def __post_init__(self) -> None:
         if self.clock_mode not in CLOCK_MODES:
             raise ValueError(f"clock_mode must be one of {CLOCK_MODES}, got {self.clock_mode!r}")
+        check_bounds(self)
         for name in ("command_timeout", "republish_period"):
             value = getattr(self, name)
             if not (isinstance(value, float) and math.isfinite(value) and value > 0.0):
@@ -380,6 +396,14 @@ class SimNode(SmmNode):
         if self._recorder is not None:
             self._recorder.sample(self._truth, self._measurement)
         self._finished = False
+        self.command_timeouts = 0
+        """Real-time ticks that applied zero torque because the command in force had timed out."""
+        self.ticks_on_stop = 0
+        """Steps that ended with a joint on its mechanical stop."""
+        self.last_error = ""
+        self._joint_limits = plant_parameters.joint_limits
+        self._windows = CountWindows({})
+        self.diagnostics = DiagnosticsPublisher(self, self.health, on_period=self._end_period)
 
         self._joint_states_pub = self.create_publisher(
             JointState, topics.JOINT_STATES, qos_for_topic(topics.JOINT_STATES)
@@ -591,6 +615,9 @@ class SimNode(SmmNode):
         if self._recorder is not None:
             self._recorder.command_applied(command_stamp_ns, command)
             self._recorder.sample(self._truth, self._measurement)
+        position = self._truth.position
+        if abs(position[0]) >= self._joint_limits[0] or abs(position[1]) >= self._joint_limits[1]:
+            self.ticks_on_stop += 1
         state = (*self._truth.position.tolist(), *self._truth.velocity.tolist())
         if not all(map(math.isfinite, state)):
             self._diverged(command)
@@ -661,6 +688,10 @@ class SimNode(SmmNode):
             command = (0.0, 0.0)
             self.stale_ticks += 1
             if received is not None:
+                self.command_timeouts += 1
+                if self.command_timeouts == 1 or self.diagnostics.level != Level.ERROR:
+                    self.last_error = f"command timed out (> {self.config.command_timeout:g} s): zero torque"
+                    self.diagnostics.check()
                 self._warn(
                     f"no torque command for {(now_ns - received) / 1e6:.1f} ms "
                     f"(> command_timeout {self.config.command_timeout * 1e3:g} ms): applying zero torque"
@@ -672,6 +703,53 @@ class SimNode(SmmNode):
             return
         self._answered_previous = False
         self._publish_measurement()
+
+    # ------------------------------------------------------------------------------------- /diagnostics
+
+    def health_counts(self) -> dict[str, int]:
+        """Counts judged per diagnostics period (``docs/NODES.md``, smm_sim_node status)."""
+        return {
+            "steps": self.steps,
+            "dropped_invalid": self.dropped_invalid,
+            "dropped_unknown_stamp": self.dropped_unknown_stamp,
+            "command_timeouts": self.command_timeouts,
+            "deadline_misses": self.deadline_misses,
+            "late_ticks": self.late_ticks,
+            "ticks_on_stop": self.ticks_on_stop,
+            "republished": self.republished,
+        }
+
+    def _end_period(self) -> None:
+        self._windows.roll(self.health_counts())
+
+    def health(self) -> Health:
+        """OK / WARN / ERROR by the thresholds of ``docs/NODES.md``."""
+        now = self.health_counts()
+        last, current = self._windows.last, self._windows.since(now)
+
+        def recent(name: str) -> int:
+            return last.get(name, 0) + current.get(name, 0)
+
+        findings: list[tuple[Level, str]] = []
+        if self._finished and self.done.exception() is not None:  # type: ignore[no-untyped-call]
+            findings.append((Level.ERROR, "the plant diverged"))
+        if recent("command_timeouts"):
+            findings.append((Level.ERROR, "no valid command in time: zero torque applied"))
+        for name in ("dropped_invalid", "dropped_unknown_stamp", "ticks_on_stop", "late_ticks"):
+            if recent(name):
+                findings.append((Level.WARN, f"{name}: {recent(name)} in the last period"))
+        steps = last.get("steps", 0)
+        if steps and last.get("deadline_misses", 0) > DEADLINE_MISS_WARN_FRACTION * steps:
+            findings.append(
+                (Level.WARN, f"{last['deadline_misses']} of {steps} ticks found no answer in time")
+            )
+        values: dict[str, object] = {
+            "loop_rate_hz": f"{self._windows.rate('steps'):.1f}",
+            "clock_mode": self._clock_mode,
+            **now,
+            "last_error": self.last_error,
+        }
+        return worst(findings, "stepping" if self.steps else "waiting for the first command", values)
 
     # ------------------------------------------------------------------------------------------ the end
 

@@ -1,0 +1,149 @@
+"""Limits around the law (smm_controller.limits): plausibility, torque and rate limits, PID anti-windup."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from smm_controller.baselines import PIDConfig, PIDController
+from smm_controller.chain import make_chain
+from smm_controller.limits import (
+    DEFAULT_TORQUE_LIMIT,
+    MECHANICAL_STOPS,
+    MeasurementLimits,
+    OutputLimitConfig,
+    OutputLimiter,
+    PlausibilityCheck,
+    track_saturation,
+)
+from smm_sim.plant import PlantConfig
+
+from smm_dynamics import SMMParameters
+
+MS = 1_000_000
+REFERENCE = [[0.5, -0.3], [0.0, 0.0], [0.0, 0.0]]
+
+
+def test_the_default_range_is_the_simulators_stops_plus_a_margin_below_the_singularity() -> None:
+    assert PlantConfig().joint_limits == MECHANICAL_STOPS
+    limits = MeasurementLimits()
+    assert all(
+        stop < bound < math.pi / 2
+        for stop, bound in zip(MECHANICAL_STOPS, limits.position_limit, strict=True)
+    )
+
+
+@pytest.mark.parametrize("position", [(1.6, 0.0), (0.0, -1.6), (100.0, 100.0), (1e300, 0.2)])
+def test_a_position_outside_the_range_is_implausible(position: tuple[float, float]) -> None:
+    assert "outside" in (PlausibilityCheck().reason(position, 0, MS) or "")
+
+
+def test_a_move_faster_than_max_speed_is_implausible_and_the_allowance_grows_with_the_gap() -> None:
+    check = PlausibilityCheck(MeasurementLimits(max_speed=(100.0, 100.0)))
+    assert check.reason((0.0, 0.0), 0, MS) is None
+    check.accept((0.0, 0.0), 0)
+    assert check.reason((0.09, -0.09), MS, MS) is None
+    assert "faster than" in (check.reason((0.5, 0.0), MS, MS) or "")
+    assert check.reason((0.5, 0.0), MS, 10 * MS) is None  # at 100 Hz one period allows 1 rad
+    assert check.reason((0.5, 0.0), 5 * MS, MS) is None  # five periods later it is a plausible move
+    check.reset()
+    assert check.reason((0.5, 0.0), MS, MS) is None
+
+
+def test_the_torque_limit_clamps_each_joint_and_shows_in_the_internals() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(10.0, 20.0)))
+    assert limiter.limit_floats((15.0, -25.0), 1e-3) == (10.0, -20.0)
+    internals = limiter.internals
+    np.testing.assert_array_equal(internals["tau_unlimited"], [15.0, -25.0])
+    np.testing.assert_array_equal(internals["tau"], [10.0, -20.0])
+    np.testing.assert_array_equal(internals["clamped"], [1.0, 1.0])
+    assert limiter.limit_floats((5.0, 19.0), 1e-3) == (5.0, 19.0)
+    np.testing.assert_array_equal(limiter.internals["clamped"], [0.0, 0.0])
+    np.testing.assert_array_equal(limiter.internals["clamps"], [1.0, 1.0])
+
+
+def test_the_rate_limit_bounds_the_change_per_step() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(rate_limit=(1000.0, math.inf)))
+    assert limiter.limit_floats((0.0, 0.0), 1e-3) == (0.0, 0.0)
+    assert limiter.limit_floats((50.0, 50.0), 1e-3) == (1.0, 50.0)
+    assert limiter.limit_floats((50.0, 50.0), 1e-3) == (2.0, 50.0)
+
+
+def test_a_non_finite_law_output_is_not_turned_into_a_finite_torque() -> None:
+    limiter = OutputLimiter()
+    tau = limiter.limit_floats((math.inf, math.nan), 1e-3)
+    assert math.isinf(tau[0])
+    assert math.isnan(tau[1])
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(min_value=-1e6, max_value=1e6, allow_subnormal=False),
+            st.floats(min_value=-1e6, max_value=1e6, allow_subnormal=False),
+        ),
+        min_size=1,
+        max_size=30,
+    )
+)
+def test_no_limited_output_exceeds_either_limit(taus: list[tuple[float, float]]) -> None:
+    config = OutputLimitConfig(torque_limit=(30.0, 40.0), rate_limit=(5000.0, 8000.0))
+    limiter = OutputLimiter(config)
+    previous = None
+    for tau in taus:
+        out = limiter.limit_floats(tau, 1e-3)
+        for joint in range(2):
+            assert abs(out[joint]) <= config.torque_limit[joint]
+            if previous is not None:
+                assert abs(out[joint] - previous[joint]) <= config.rate_limit[joint] * 1e-3 * (1 + 1e-12)
+        previous = out
+
+
+@pytest.mark.parametrize("name", ["fpdeso", "fpd", "pid", "npd"])
+def test_the_chain_applies_the_default_torque_limit_to_absurd_measurements(name: str) -> None:
+    chain = make_chain(name, SMMParameters())
+    chain.step((0.0, 0.0), (0.0, 0.0), REFERENCE, 1e-3)
+    clamped = np.zeros(2)
+    for _ in range(50):  # the issue's (100, 100) rad gave -670 / -890 N m
+        tau = chain.step((100.0, -100.0), (0.0, 0.0), REFERENCE, 1e-3)
+        assert np.all(np.abs(tau) <= DEFAULT_TORQUE_LIMIT)
+        clamped = np.maximum(clamped, chain.internals["limiter.clamped"])
+    np.testing.assert_array_equal(clamped, [1.0, 1.0])
+
+
+def windup(limited: bool, seconds: float = 20.0) -> PIDController:
+    """A PID whose output is held at 5 N m while a 1 rad error persists, then the error reverses."""
+    pid = PIDController(PIDConfig())
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(5.0, 5.0)))
+    dt = 1e-3
+    for _ in range(round(seconds / dt)):
+        tau = pid.step_floats([[1.0, 1.0], [0.0, 0.0], [0.0, 0.0]], (0.0, 0.0), (0.0, 0.0), (0.0, 0.0), dt)
+        out = limiter.limit_floats(tau, dt)
+        if limited:
+            track_saturation(pid, tau, out, dt)
+    return pid
+
+
+def test_back_calculation_stops_the_pid_integrator_winding_up_while_clamped() -> None:
+    free = windup(limited=False)
+    tracked = windup(limited=True)
+    # Without back-calculation the integral grows with ki * t (0.9 * 20 = 18 N m on alpha, 60 on beta).
+    assert free.internals["i"][0] > 15.0
+    assert free.internals["i"][1] > 50.0
+    # With it, the law's own output settles at the limit plus ki * T_t * e (1.16 / 1.22 N m here).
+    assert np.all(tracked.internals["tau"] < 5.0 + 1.5)
+    assert np.all(free.internals["tau"] > 25.0)
+
+
+def test_the_reproduced_scenarios_stay_below_the_default_limit() -> None:
+    """The reproduction runs with the default limit and never reaches it (largest command 288 N m)."""
+    from smm_analysis.closed_loop import run_closed_loop
+
+    run = run_closed_loop("step", "fpdeso", record_internals=False)
+    peak = np.abs(np.asarray(run.command_torque)).max(axis=0)
+    assert np.all(peak < DEFAULT_TORQUE_LIMIT)
+    assert peak.max() > 0.9 * DEFAULT_TORQUE_LIMIT[0]  # the limit sits just above the largest command
