@@ -40,7 +40,7 @@ def test_indices_equal_the_offline_evaluation(case2_runs: dict[str, tuple[Trajec
         assert run.t_ns.size == trajectory.t_ns.size and run.incomplete_steps == 0
         recorded, offline = evaluate(run), evaluate_run(trajectory, scenario)
         for joint in JOINTS:
-            for name in ("Ma", "Ave", "RMS", "eps_u"):
+            for name in ("Ma", "Ave", "RMS", "eps_u", "du_rms"):
                 assert getattr(recorded.joints[joint], name) == pytest.approx(
                     getattr(offline.joints[joint], name), rel=1e-12, abs=1e-15
                 )
@@ -98,7 +98,7 @@ def test_cli_json_table_report_and_plots(
     assert set(document["case2"]) == {"fpdeso", "fpd"}
     for controller in ("fpdeso", "fpd"):
         assert set(document["case2"][controller]) == {"alpha", "beta", "end_effector"}
-        assert set(document["case2"][controller]["alpha"]) == {"Ma", "Ave", "RMS", "eps_u"}
+        assert set(document["case2"][controller]["alpha"]) == {"Ma", "Ave", "RMS", "eps_u", "du_rms"}
     assert document["meta"]["bags"][bags[0]]["position_source"] == "ground truth"
     out = tmp_path / "report"
     assert main(["analyze", "--quiet", "--out", str(out), *bags]) == 0

@@ -102,8 +102,9 @@ def _run_key(metrics: RunMetrics, taken: set[tuple[str, str]]) -> tuple[str, str
 def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
     """``metrics.json``'s schema (as ``smm-reproduce`` writes it) for recorded runs.
 
-    ``{scenario: {controller: {"alpha"|"beta": {Ma, Ave, RMS, eps_u[, step metrics]}, "end_effector": {x, y,
-    z: {max_mm, rms_mm}}}}, "meta": {...}}``; the scenario and controller come from the run manifest
+    ``{scenario: {controller: {"alpha"|"beta": {Ma, Ave, RMS, eps_u, du_rms[, step metrics]},
+    "end_effector": {x, y, z: {max_mm, rms_mm}}}}, "meta": {...}}``; the scenario and controller come from
+    the run manifest
     (``recorded`` and the bag name when absent). ``meta.bags`` says per bag where the position came from
     (``ground truth`` or ``measured``), how many steps were used and left out, and the loop latency.
     """
@@ -122,6 +123,7 @@ def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
                 "Ave": indices.Ave,
                 "RMS": indices.RMS,
                 "eps_u": indices.eps_u,
+                "du_rms": indices.du_rms,
             }
             if result.step is not None and joint in result.step:
                 step = result.step[joint]
@@ -167,6 +169,7 @@ def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
             "Ave": "rad",
             "RMS": "rad",
             "eps_u": "N^2 m^2 s (integral of the commanded torque squared)",
+            "du_rms": "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
             "rise_time": "s (10-90 %)",
             "overshoot": "rad",
             "overshoot_fraction": "fraction of the step (x100 = %)",
@@ -191,7 +194,8 @@ def comparison_table(results: Sequence[RunMetrics]) -> str:
     headers = [f"{r.run.label} ({r.run.position_source})" for r in results]
     rows: list[tuple[str, list[str]]] = []
     for joint in JOINTS:
-        for name, unit in (("Ma", "rad"), ("Ave", "rad"), ("RMS", "rad"), ("eps_u", "N^2 m^2 s")):
+        indices = (("Ma", "rad"), ("Ave", "rad"), ("RMS", "rad"), ("eps_u", "N^2 m^2 s"), ("du_rms", "N m"))
+        for name, unit in indices:
             rows.append(
                 (f"{joint} {name} ({unit})", [_number(getattr(r.joints[joint], name)) for r in results])
             )
