@@ -161,6 +161,7 @@ class RecorderNode(SmmNode):
         self._pending = list(config.topic_list)
         self._seen: list[str] = []
         self._asked: set[str] = set()
+        self._waiting: dict[str, Any] = {}
         self._node_parameters: dict[str, dict[str, Any]] = {}
         self._discover()
         self._discovery_timer = self.create_timer(config.discovery_period, self._discover)
@@ -188,19 +189,25 @@ class RecorderNode(SmmNode):
         self._pending = still
 
     def _ask_parameters(self) -> None:
-        """Asks every node that appeared for all its parameters (once), for the manifest."""
+        """Asks every node that appeared for all its parameters (once), for the manifest.
+
+        One client per node, kept until its service is ready: creating and destroying endpoints at every
+        tick would flood discovery and delay the matching of the topics being recorded.
+        """
         me = self.get_fully_qualified_name()
         for name, namespace in self.get_node_names_and_namespaces():
             node = f"{namespace.rstrip('/')}/{name}"
             if node in self._asked or node == me:
                 continue
-            client = self.create_client(ListParameters, f"{node}/list_parameters")
+            client = self._waiting.get(node)
+            if client is None:
+                client = self._waiting[node] = self.create_client(ListParameters, f"{node}/list_parameters")
             if not client.service_is_ready():
-                self.destroy_client(client)
                 continue  # asked again at the next discovery tick
+            del self._waiting[node]
             self._asked.add(node)
             future = client.call_async(ListParameters.Request())
-            future.add_done_callback(  # type: ignore[no-untyped-call]
+            future.add_done_callback(
                 lambda done, node=node, client=client: self._on_list(node, client, done)
             )
 

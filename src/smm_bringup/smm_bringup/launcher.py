@@ -191,19 +191,24 @@ class GraphProcesses:
         Raises:
             ExecutableNotFoundError: A console script is missing (nothing is started then).
         """
-        commands = [spec.command_line(resolve_executable(spec)) for spec in self._specs]
-        recorder: NodeSpec | None = None
-        for spec, command in zip(self._specs, commands, strict=True):
+        specs = list(self._specs)
+        recorder = next((spec for spec in specs if spec.name == RECORDER_NODE), None)
+        if recorder is not None:
+            # Recording: the recorder first, the plant last. The plant's first measurement is republished
+            # until answered, so nothing steps before the plant exists; the recorder has then seen every
+            # controller-side publisher and discovers the plant while idle, with the controller.
+            specs.sort(key=lambda spec: (spec.name != RECORDER_NODE) + 2 * (spec.name in PLANT_NODE_NAMES))
+        commands = [spec.command_line(resolve_executable(spec)) for spec in specs]
+        for index, (spec, command) in enumerate(zip(specs, commands, strict=True)):
             popen = subprocess.Popen(command, env=self._env, stdin=subprocess.DEVNULL, start_new_session=True)
             self.children.append(_Child(spec, popen))
             _say(f"started {spec.name} (pid {popen.pid}): {' '.join(command)}")
-            if spec.name == RECORDER_NODE:
-                recorder = spec
+            if spec is recorder:
                 _wait_for_recorder(spec, popen)
-            elif spec.name in PLANT_NODE_NAMES and recorder is not None:
-                # The controller starts only once the recorder sees the plant's topics, so the recorder
-                # has the plant's first measurement (republished until answered) and its ground truth.
-                _wait_for_plant_topics(recorder, spec, popen)
+            elif (
+                recorder is not None and index + 1 < len(specs) and specs[index + 1].name in PLANT_NODE_NAMES
+            ):
+                _wait_for_controller_topics(recorder, spec, popen)
 
     def first_exit(self) -> tuple[NodeSpec, int] | None:
         """The first child found exited and its exit code (negative: killed by that signal); None if none."""
@@ -261,22 +266,22 @@ def _recorder_output(spec: NodeSpec) -> Path | None:
     return Path(output) if isinstance(output, str) else None
 
 
-def _wait_for_plant_topics(
-    recorder: NodeSpec, plant: NodeSpec, popen: subprocess.Popen[bytes], timeout_s: float = 20.0
+def _wait_for_controller_topics(
+    recorder: NodeSpec, last: NodeSpec, popen: subprocess.Popen[bytes], timeout_s: float = 20.0
 ) -> None:
-    """Wait until the recorder lists the plant's measurement and ground truth among topics with publishers."""
+    """Wait until the recorder lists the controller's torque command among topics with publishers."""
     output = _recorder_output(recorder)
     if output is None:
         return
-    wanted = {f"/{plant.namespace}/joint_states", f"/{plant.namespace}/ground_truth"}
+    wanted = f"/{last.namespace}/torque_command"
     marker = output / ".publishers"
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline and popen.poll() is None:
-        if marker.is_file() and wanted <= set(marker.read_text().split()):
-            time.sleep(0.2)  # the recorder subscribed before the plant existed: matching follows discovery
+        if marker.is_file() and wanted in marker.read_text().split():
+            time.sleep(0.2)  # the other controller-side publishers come with the same discovery
             return
         time.sleep(0.02)
-    _say(f"the recorder did not see {sorted(wanted)} within {timeout_s:g} s; starting the rest anyway")
+    _say(f"the recorder did not see {wanted} within {timeout_s:g} s; starting the plant anyway")
 
 
 def _wait_for_recorder(spec: NodeSpec, popen: subprocess.Popen[bytes], timeout_s: float = 20.0) -> None:
