@@ -45,6 +45,7 @@ __all__ = [
     "NAMESPACE",
     "PLANTS",
     "PLANT_NODE_NAMES",
+    "RECORDER_NODE",
     "REFERENCE_NODE",
     "REFERENCE_PLACEMENTS",
     "SCENARIO_NAMES",
@@ -91,6 +92,7 @@ TD_NODE: Final[str] = "td_node"
 FLESO_NODE: Final[str] = "fleso_node"
 REFERENCE_NODE: Final[str] = "reference_node"
 CONTROLLER_NODE: Final[str] = "controller_node"
+RECORDER_NODE: Final[str] = "recorder_node"
 
 PLANT_NODE_NAMES: Final[frozenset[str]] = frozenset((SIM_NODE, HW_NODE))
 """Names of the plant nodes: when one of them exits 0 the run is complete (see ``docs/LAUNCH.md``)."""
@@ -140,6 +142,8 @@ class GraphOptions:
         params_files: Extra ROS 2 parameter files, applied after the scenario file, in order.
         control_period: Control period of every node (s), > 0; ``None`` keeps the configured one (1 ms).
             The plant and the controller nodes must agree on it: each node steps once per measurement.
+        record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
+            after them; ``None`` records nothing.
     """
 
     plant: Literal["sim", "hw"] = "sim"
@@ -152,6 +156,7 @@ class GraphOptions:
     seed: int | None = None
     params_files: tuple[str, ...] = ()
     control_period: float | None = None
+    record: str | None = None
 
     def __post_init__(self) -> None:
         if self.plant not in PLANTS:
@@ -184,6 +189,8 @@ class GraphOptions:
         seed = self.seed
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
             raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
+        if self.record is not None and (not isinstance(self.record, str) or not self.record.strip()):
+            raise ValueError(f"record must be a bag folder path or None, got {self.record!r}")
 
 
 @dataclass(frozen=True)
@@ -415,7 +422,29 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
                 parameters=parameters,
             )
         )
-    return (sim, *controller_side)
+    recorder = () if options.record is None else (_recorder_spec(options),)
+    return (*recorder, sim, *controller_side)
+
+
+def _recorder_spec(options: GraphOptions) -> NodeSpec:
+    """``recorder_node`` writing ``options.record``, with the run manifest's entries as parameters."""
+    assert options.record is not None
+    parameters: tuple[tuple[str, ParameterValue], ...] = (
+        ("output", str(Path(options.record).resolve())),
+        ("scenario", options.scenario or ""),
+        ("seed", -1 if options.seed is None else options.seed),
+        ("plant", "hardware" if options.plant == "hw" else "sim"),
+        ("controller", options.algorithm),
+        ("clock_mode", options.clock_mode),
+        *_period_parameters(options),
+    )
+    return NodeSpec(
+        package="smm_bag",
+        executable=RECORDER_NODE,
+        name=RECORDER_NODE,
+        node_class="smm_bag.recorder_node:RecorderNode",
+        parameters=parameters,
+    )
 
 
 # ------------------------------------------------------------------------------- composed mode support
