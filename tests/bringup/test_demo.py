@@ -29,6 +29,8 @@ def test_demo_runs_the_graph_and_matches_the_offline_loop(
             "0.3",
             "--out",
             str(out),
+            "--bags",
+            str(tmp_path / "bags"),
             "--chain",
             chain,
             "--reference",
@@ -39,9 +41,23 @@ def test_demo_runs_the_graph_and_matches_the_offline_loop(
     document = json.loads((out / "metrics.json").read_text())
     assert (document["chain"], document["reference"]) == (chain, reference)
     run = document["runs"]["fpdeso"]
-    assert run["steps"] == 300
+    assert run["steps"] == 300 and run["missing_steps"] == 0  # every commanded step is in the bag
+    assert 1 <= run["recording_attempts"] <= 3
     for joint in ("alpha", "beta"):
         graph, offline = run["graph"][joint], run["offline"][joint]
         assert graph["RMS"] > 0
         assert graph == pytest.approx(offline, rel=1e-9)
-    assert (out / "fpdeso.npz").is_file()
+    bag = Path(run["bag"])
+    assert bag.parent == tmp_path / "bags" and (bag / "metadata.yaml").is_file()
+    assert not list(out.glob("*.npz"))  # the simulator's side channel is gone
+    assert (out / "analysis" / "REPORT.md").is_file() and (out / "analysis" / "tracking.png").is_file()
+    from smm_bag.manifest import RunManifest
+    from smm_bag.metadata import read_metadata
+
+    manifest = RunManifest.from_custom_data(read_metadata(bag).custom_data)
+    assert (manifest.scenario, manifest.controller, manifest.plant) == ("case2", "fpdeso", "sim")
+    assert manifest.parameters["/smm/controller_node"]["algorithm"] == "fpdeso"  # every node's parameters
+    assert "/smm/smm_sim_node" in manifest.parameters
+    analysed = json.loads((out / "analysis" / "metrics.json").read_text())["case2"]["fpdeso"]
+    for joint in ("alpha", "beta"):
+        assert analysed[joint]["RMS"] == pytest.approx(run["graph"][joint]["RMS"], rel=1e-12)

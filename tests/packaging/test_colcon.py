@@ -66,6 +66,7 @@ def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_every_package_is_built(colcon_install: Path) -> None:
     assert {
+        "smm_bag",
         "smm_bringup",
         "smm_controller",
         "smm_hw_bridge",

@@ -50,6 +50,7 @@ __all__ = [
     "PLANTS",
     "PLANT_ALIASES",
     "PLANT_NODE_NAMES",
+    "RECORDER_NODE",
     "REFERENCE_NODE",
     "REFERENCE_PLACEMENTS",
     "SCENARIO_NAMES",
@@ -103,6 +104,7 @@ TD_NODE: Final[str] = "td_node"
 FLESO_NODE: Final[str] = "fleso_node"
 REFERENCE_NODE: Final[str] = "reference_node"
 CONTROLLER_NODE: Final[str] = "controller_node"
+RECORDER_NODE: Final[str] = "recorder_node"
 
 PLANT_NODE_NAMES: Final[frozenset[str]] = frozenset((SIM_NODE, HW_NODE, EMULATOR_NODE))
 """Names of the plant processes: when one of them exits 0 the run is complete (see ``docs/LAUNCH.md``);
@@ -156,6 +158,8 @@ class GraphOptions:
             The plant and the controller nodes must agree on it: each node steps once per measurement.
         board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board; ``None`` starts
             ``smm_bench_emulator`` on loopback instead.
+        record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
+            after them; ``None`` records nothing.
     """
 
     plant: Literal["sim", "hardware", "hw"] = "sim"
@@ -169,6 +173,7 @@ class GraphOptions:
     params_files: tuple[str, ...] = ()
     control_period: float | None = None
     board: str | None = None
+    record: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "plant", PLANT_ALIASES.get(self.plant, self.plant))
@@ -202,6 +207,8 @@ class GraphOptions:
         seed = self.seed
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
             raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
+        if self.record is not None and (not isinstance(self.record, str) or not self.record.strip()):
+            raise ValueError(f"record must be a bag folder path or None, got {self.record!r}")
         if self.board is not None:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
@@ -458,7 +465,8 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
                 parameters=parameters,
             )
         )
-    return (*plant_side, *controller_side)
+    recorder = () if options.record is None else (_recorder_spec(options),)
+    return (*recorder, *plant_side, *controller_side)
 
 
 def _hardware_specs(options: GraphOptions) -> tuple[NodeSpec, ...]:
@@ -506,6 +514,27 @@ def _hardware_specs(options: GraphOptions) -> tuple[NodeSpec, ...]:
         parameters=tuple(emulator_parameters),
     )
     return (emulator, bridge)
+
+
+def _recorder_spec(options: GraphOptions) -> NodeSpec:
+    """``recorder_node`` writing ``options.record``, with the run manifest's entries as parameters."""
+    assert options.record is not None
+    parameters: tuple[tuple[str, ParameterValue], ...] = (
+        ("output", str(Path(options.record).resolve())),
+        ("scenario", options.scenario or ""),
+        ("seed", -1 if options.seed is None else options.seed),
+        ("plant", options.plant),
+        ("controller", options.algorithm),
+        ("clock_mode", options.clock_mode),
+        *_period_parameters(options),
+    )
+    return NodeSpec(
+        package="smm_bag",
+        executable=RECORDER_NODE,
+        name=RECORDER_NODE,
+        node_class="smm_bag.recorder_node:RecorderNode",
+        parameters=parameters,
+    )
 
 
 # ------------------------------------------------------------------------------- composed mode support

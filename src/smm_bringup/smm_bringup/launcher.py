@@ -52,6 +52,7 @@ from smm_bringup.graph import (
     PLANT_ALIASES,
     PLANT_NODE_NAMES,
     PLANTS,
+    RECORDER_NODE,
     REFERENCE_PLACEMENTS,
     SCENARIO_NAMES,
     GraphError,
@@ -191,11 +192,24 @@ class GraphProcesses:
         Raises:
             ExecutableNotFoundError: A console script is missing (nothing is started then).
         """
-        commands = [spec.command_line(resolve_executable(spec)) for spec in self._specs]
-        for spec, command in zip(self._specs, commands, strict=True):
+        specs = list(self._specs)
+        recorder = next((spec for spec in specs if spec.name == RECORDER_NODE), None)
+        if recorder is not None:
+            # Recording: the recorder first, the plant last. The plant's first measurement is republished
+            # until answered, so nothing steps before the plant exists; the recorder has then seen every
+            # controller-side publisher and discovers the plant while idle, with the controller.
+            specs.sort(key=lambda spec: (spec.name != RECORDER_NODE) + 2 * (spec.name in PLANT_NODE_NAMES))
+        commands = [spec.command_line(resolve_executable(spec)) for spec in specs]
+        for index, (spec, command) in enumerate(zip(specs, commands, strict=True)):
             popen = subprocess.Popen(command, env=self._env, stdin=subprocess.DEVNULL, start_new_session=True)
             self.children.append(_Child(spec, popen))
             _say(f"started {spec.name} (pid {popen.pid}): {' '.join(command)}")
+            if spec is recorder:
+                _wait_for_recorder(spec, popen)
+            elif (
+                recorder is not None and index + 1 < len(specs) and specs[index + 1].name in PLANT_NODE_NAMES
+            ):
+                _wait_for_controller_topics(recorder, spec, popen)
 
     def first_exit(self) -> tuple[NodeSpec, int] | None:
         """The first child found exited and its exit code (negative: killed by that signal); None if none."""
@@ -208,11 +222,28 @@ class GraphProcesses:
     def stop(self) -> dict[str, int]:
         """Stop every child still running: SIGINT to its group, then SIGTERM, then SIGKILL; reap all.
 
+        A recorder is stopped after every other node, so that it records their last messages.
+
         Returns:
             ``{node name: exit code}`` of every child.
         """
+        others = [child for child in self.children if child.name != RECORDER_NODE]
+        recorders = [child for child in self.children if child.name == RECORDER_NODE]
+        self._stop_children(others)
+        if any(child.popen.poll() is None for child in recorders):
+            time.sleep(RECORDER_SETTLE_S)  # let it write what it has received but not yet taken
+        self._stop_children(recorders)
+        codes = {}
+        for child in self.children:
+            codes[child.name] = child.popen.wait()
+            # A node's own children (if any) share its process group: make sure none outlives it.
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(child.popen.pid, signal.SIGKILL)
+        return codes
+
+    def _stop_children(self, children: Sequence[_Child]) -> None:
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
-            running = [child for child in self.children if child.popen.poll() is None]
+            running = [child for child in children if child.popen.poll() is None]
             if not running:
                 break
             if sig != signal.SIGINT:
@@ -225,13 +256,45 @@ class GraphProcesses:
             for child in running:
                 with contextlib.suppress(subprocess.TimeoutExpired):
                     child.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
-        codes = {}
-        for child in self.children:
-            codes[child.name] = child.popen.wait()
-            # A node's own children (if any) share its process group: make sure none outlives it.
-            with contextlib.suppress(ProcessLookupError, PermissionError):
-                os.killpg(child.popen.pid, signal.SIGKILL)
-        return codes
+
+
+RECORDER_SETTLE_S: Final[float] = 1.0
+"""Time the recorder gets, after the other nodes stopped, to write its backlog before it is stopped (s)."""
+
+
+def _recorder_output(spec: NodeSpec) -> Path | None:
+    output = dict(spec.parameters).get("output")
+    return Path(output) if isinstance(output, str) else None
+
+
+def _wait_for_controller_topics(
+    recorder: NodeSpec, last: NodeSpec, popen: subprocess.Popen[bytes], timeout_s: float = 20.0
+) -> None:
+    """Wait until the recorder lists the controller's torque command among topics with publishers."""
+    output = _recorder_output(recorder)
+    if output is None:
+        return
+    wanted = f"/{last.namespace}/torque_command"
+    marker = output / ".publishers"
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and popen.poll() is None:
+        if marker.is_file() and wanted in marker.read_text().split():
+            time.sleep(0.2)  # the other controller-side publishers come with the same discovery
+            return
+        time.sleep(0.02)
+    _say(f"the recorder did not see {wanted} within {timeout_s:g} s; starting the plant anyway")
+
+
+def _wait_for_recorder(spec: NodeSpec, popen: subprocess.Popen[bytes], timeout_s: float = 20.0) -> None:
+    """Wait until the recorder has opened its bag (and so subscribed), so that it sees the first step."""
+    output = _recorder_output(spec)
+    if output is None:
+        return
+    marker = output / "metadata.yaml"
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and popen.poll() is None and not marker.is_file():
+        time.sleep(0.02)
+    time.sleep(0.3)  # its subscriptions are created right after the bag is opened
 
 
 def launch_processes(
@@ -423,6 +486,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="extra ROS 2 parameter file for every node (repeatable; applied after the scenario's)",
     )
+    parser.add_argument(
+        "--record",
+        metavar="DIR",
+        default=None,
+        help="record every topic to a rosbag2 MCAP bag in DIR (new folder) with smm_bag's recorder_node",
+    )
     parser.add_argument("--composed", action="store_true", help="run all nodes in this process")
     parser.add_argument("--dry-run", action="store_true", help="print the node command lines and exit")
     parser.add_argument(
@@ -453,6 +522,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         params_files=tuple(arguments.params_file),
         control_period=arguments.control_period,
         board=arguments.board,
+        record=arguments.record,
     )
 
 
@@ -471,6 +541,8 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--params-file", params_file]
     if options.board is not None:
         arguments += ["--board", options.board]
+    if options.record is not None:
+        arguments += ["--record", options.record]
     return arguments
 
 

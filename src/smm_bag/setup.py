@@ -1,0 +1,32 @@
+"""Packaging of smm_bag (ament_python: colcon build and pip install -e both work)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "smm_bag"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "tests"]),
+    package_data={PACKAGE: ["py.typed"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools", "numpy", "PyYAML", "mcap", "mcap-ros2-support", "rosbags"],
+    zip_safe=True,
+    maintainer="SMM control stack maintainers",
+    maintainer_email="smm-maintainers@example.org",
+    description="MCAP rosbag2 recorder, reader, repair, replay and offline analysis of SMM runs.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "smm-bag = smm_bag.cli:main",
+            "recorder_node = smm_bag.recorder_node:main",
+        ],
+    },
+)

@@ -1,0 +1,223 @@
+"""SPEC section 5 indices of recorded runs with ``smm_analysis.metrics`` (the module ``smm-reproduce`` uses).
+
+Per joint Ma, Ave, RMS (rad) and eps_u (N^2 m^2 s, of the commanded torque) over the recorded control steps;
+end-effector errors (mm); step metrics when the recorded reference is a step (q_d constant, q_d' = q_d'' = 0).
+The error is measured on the ground truth where the bag has it (``ground_truth``), else on the measured
+position, and every result says which.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from smm_analysis.metrics import (
+    AxisError,
+    JointIndices,
+    StepMetrics,
+    end_effector_errors,
+    joint_indices,
+    step_metrics,
+)
+
+from smm_bag.recorded import JOINTS, RecordedRun
+from smm_dynamics import SMMParameters
+
+__all__ = ["RunMetrics", "comparison_table", "evaluate", "metrics_document", "step_target"]
+
+
+@dataclass(frozen=True)
+class RunMetrics:
+    """Indices of one recorded run.
+
+    Attributes:
+        run: The run.
+        joints: Eq. 42-45 per joint.
+        end_effector: Errors along x, y, z (mm).
+        step: Step metrics per joint, or None when the reference is not a step.
+    """
+
+    run: RecordedRun
+    joints: Mapping[str, JointIndices]
+    end_effector: Mapping[str, AxisError]
+    step: Mapping[str, StepMetrics] | None
+
+
+def step_target(run: RecordedRun) -> tuple[float, float] | None:
+    """The step target (rad) if the recorded reference is a step, else None."""
+    desired = run.desired_position
+    derivatives = run.reference[:, 1:, :]
+    if np.any(derivatives != 0.0) or np.any(desired != desired[0]):
+        return None
+    if np.all(desired[0] == run.position[0]):
+        return None  # a constant reference at the start position is a hold, not a step
+    return float(desired[0, 0]), float(desired[0, 1])
+
+
+def evaluate(run: RecordedRun, params: SMMParameters | None = None) -> RunMetrics:
+    """Computes the indices of a recorded run.
+
+    Args:
+        run: The run.
+        params: Parameters giving the link length for the end-effector errors (default ``SMMParameters()``).
+
+    Returns:
+        The metrics.
+    """
+    model = params if params is not None else SMMParameters()
+    target = step_target(run)
+    step = None
+    if target is not None:
+        step = {
+            joint: step_metrics(
+                run.t_ns, run.position[:, index], target[index], initial=float(run.position[0, index])
+            )
+            for index, joint in enumerate(JOINTS)
+            if target[index] != float(run.position[0, index])
+        }
+    return RunMetrics(
+        run=run,
+        joints=joint_indices(run.t_ns, run.desired_position, run.position, run.command_torque),
+        end_effector=end_effector_errors(run.t_ns, run.desired_position, run.position, model),
+        step=step,
+    )
+
+
+def _finite_or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def _run_key(metrics: RunMetrics, taken: set[tuple[str, str]]) -> tuple[str, str]:
+    scenario = metrics.run.manifest.scenario or "recorded"
+    controller = metrics.run.label
+    key = (scenario, controller)
+    if key in taken:
+        key = (scenario, f"{controller}@{metrics.run.bag.name}")
+    taken.add(key)
+    return key
+
+
+def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
+    """``metrics.json``'s schema (as ``smm-reproduce`` writes it) for recorded runs.
+
+    ``{scenario: {controller: {"alpha"|"beta": {Ma, Ave, RMS, eps_u, du_rms[, step metrics]},
+    "end_effector": {x, y, z: {max_mm, rms_mm}}}}, "meta": {...}}``; the scenario and controller come from
+    the run manifest
+    (``recorded`` and the bag name when absent). ``meta.bags`` says per bag where the position came from
+    (``ground truth`` or ``measured``), how many steps were used and left out, and the loop latency.
+    """
+    document: dict[str, object] = {}
+    bags: dict[str, object] = {}
+    taken: set[tuple[str, str]] = set()
+    for result in results:
+        scenario, controller = _run_key(result, taken)
+        per_scenario = document.setdefault(scenario, {})
+        assert isinstance(per_scenario, dict)
+        entry: dict[str, object] = {}
+        for joint in JOINTS:
+            indices = result.joints[joint]
+            values: dict[str, float | None] = {
+                "Ma": indices.Ma,
+                "Ave": indices.Ave,
+                "RMS": indices.RMS,
+                "eps_u": indices.eps_u,
+                "du_rms": indices.du_rms,
+            }
+            if result.step is not None and joint in result.step:
+                step = result.step[joint]
+                values.update(
+                    {
+                        "rise_time": _finite_or_none(step.rise_time),
+                        "overshoot": step.overshoot,
+                        "overshoot_fraction": step.overshoot_fraction,
+                        "settling_time": _finite_or_none(step.settling_time),
+                    }
+                )
+            entry[joint] = values
+        entry["end_effector"] = {
+            axis: {"max_mm": error.max_mm, "rms_mm": error.rms_mm}
+            for axis, error in result.end_effector.items()
+        }
+        per_scenario[controller] = entry
+        run = result.run
+        latency = run.latency_ns
+        bags[str(run.bag)] = {
+            "scenario": scenario,
+            "controller": controller,
+            "position_source": run.position_source,
+            "steps": int(run.t_ns.size),
+            "incomplete_steps": run.incomplete_steps,
+            "duration_s": float((run.t_ns[-1] - run.t_ns[0]) / 1e9),
+            "seed": run.manifest.seed,
+            "plant": run.manifest.plant,
+            "version": run.manifest.version,
+            "latency_ms": None
+            if latency is None
+            else {
+                "median": float(np.median(latency) / 1e6),
+                "p99": float(np.percentile(latency, 99) / 1e6),
+                "max": float(np.max(latency) / 1e6),
+            },
+        }
+    document["meta"] = {
+        "source": "smm-bag analyze",
+        "bags": bags,
+        "units": {
+            "Ma": "rad",
+            "Ave": "rad",
+            "RMS": "rad",
+            "eps_u": "N^2 m^2 s (integral of the commanded torque squared)",
+            "du_rms": "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
+            "rise_time": "s (10-90 %)",
+            "overshoot": "rad",
+            "overshoot_fraction": "fraction of the step (x100 = %)",
+            "settling_time": "s (2 % band; null = not settled)",
+            "end_effector": "mm",
+            "latency_ms": "ms, receive time of the command minus receive time of its measurement",
+        },
+    }
+    return document
+
+
+def _number(value: float | None) -> str:
+    if value is None or math.isnan(value):
+        return "-"
+    if math.isinf(value):
+        return "not reached"
+    return f"{value:.4g}"
+
+
+def comparison_table(results: Sequence[RunMetrics]) -> str:
+    """Side-by-side Markdown table: one column per bag, one row per index."""
+    headers = [f"{r.run.label} ({r.run.position_source})" for r in results]
+    rows: list[tuple[str, list[str]]] = []
+    for joint in JOINTS:
+        indices = (("Ma", "rad"), ("Ave", "rad"), ("RMS", "rad"), ("eps_u", "N^2 m^2 s"), ("du_rms", "N m"))
+        for name, unit in indices:
+            rows.append(
+                (f"{joint} {name} ({unit})", [_number(getattr(r.joints[joint], name)) for r in results])
+            )
+        if any(r.step is not None and joint in r.step for r in results):
+            for name, unit in (("rise_time", "s"), ("overshoot_fraction", "-"), ("settling_time", "s")):
+                rows.append(
+                    (
+                        f"{joint} {name} ({unit})",
+                        [
+                            _number(getattr(r.step[joint], name)) if r.step and joint in r.step else "-"
+                            for r in results
+                        ],
+                    )
+                )
+    for axis in ("x", "y", "z"):
+        rows.append(
+            (f"end effector {axis} max (mm)", [_number(r.end_effector[axis].max_mm) for r in results])
+        )
+        rows.append(
+            (f"end effector {axis} RMS (mm)", [_number(r.end_effector[axis].rms_mm) for r in results])
+        )
+    rows.append(("steps", [str(r.run.t_ns.size) for r in results]))
+    lines = ["| index | " + " | ".join(headers) + " |", "|---|" + "---|" * len(results)]
+    lines.extend(f"| {name} | " + " | ".join(values) + " |" for name, values in rows)
+    return "\n".join(lines)

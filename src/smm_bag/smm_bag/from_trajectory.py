@@ -1,0 +1,140 @@
+"""Writes an offline closed-loop run (``smm_analysis.closed_loop.Trajectory``) as the graph's topics in a bag.
+
+The messages are those the lockstep graph publishes for the same run (docs/INTERFACES.md): per step k the
+measurement ``joint_states`` (encoder position, effort = torque applied over the previous interval),
+``ground_truth``, ``reference``, ``torque_command`` and ``controller_internals``, all stamped t_k; log times
+are t_k plus ``epoch_ns`` plus a small per-topic offset in the graph's order. Used for the committed sample
+bag, the benchmark's long bags, and tests that need a run whose metrics are known.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+from smm_analysis.closed_loop import Trajectory
+
+from smm_bag.cdr import encode_float64_multi_array, encode_joint_state
+from smm_bag.manifest import RunManifest
+from smm_bag.metadata import BagMetadata
+from smm_bag.qos import QosProfile
+from smm_bag.writer import BagWriter, WriterOptions
+
+__all__ = ["write_trajectory_bag"]
+
+_NAMES = ("alpha", "beta")
+_JOINT_DIM = "joint:alpha,beta"
+_REFERENCE_DIMS = (("order:position,velocity,acceleration", 3, 6), (_JOINT_DIM, 2, 2))
+_CONTROL = QosProfile(depth=10)
+_DIAGNOSTIC = QosProfile(depth=100)
+
+
+def _stamp_dim(stamp_ns: int) -> tuple[str, int, int]:
+    return (f"stamp_ns:{stamp_ns}", 1, 1)
+
+
+def write_trajectory_bag(
+    trajectory: Trajectory,
+    path: Path | str,
+    *,
+    options: WriterOptions | None = None,
+    epoch_ns: int = 1_700_000_000_000_000_000,
+    version: str = "",
+    internals: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> BagMetadata:
+    """Writes the run as a bag; returns its metadata.
+
+    Args:
+        trajectory: The run.
+        path: New bag folder.
+        options: Writer options (the manifest is added to their custom data).
+        epoch_ns: Wall-clock time of step 0 (ns) used for the log times.
+        version: ``git describe`` for the manifest.
+        internals: Also write ``controller_internals`` (every chain internal).
+        progress: Called with (steps written, steps).
+    """
+    manifest = RunManifest(
+        version=version,
+        scenario=trajectory.scenario,
+        seed=trajectory.seed,
+        plant="sim",
+        controller=trajectory.controller,
+        control_period_ns=round(trajectory.control_period * 1e9),
+        clock_mode="lockstep",
+    )
+    base = options if options is not None else WriterOptions()
+    chosen = WriterOptions(
+        max_duration_ns=base.max_duration_ns,
+        max_size_bytes=base.max_size_bytes,
+        compression=base.compression,
+        flush_interval_ns=base.flush_interval_ns,
+        chunk_size=base.chunk_size,
+        fsync=base.fsync,
+        custom_data={**base.custom_data, **manifest.to_custom_data()},
+        ros_distro=base.ros_distro,
+        period_ns=manifest.control_period_ns,
+        stamped_topics=base.stamped_topics,
+    )
+    topic = manifest.topic
+    keys: tuple[str, ...] = tuple(trajectory.internals) if internals else ()
+    internal_rows: Mapping[str, np.ndarray] = trajectory.internals
+    internal_dims = (
+        (("quantity:" + ",".join(keys), len(keys), 2 * len(keys)), (_JOINT_DIM, 2, 2)) if keys else ()
+    )
+    with BagWriter(path, chosen) as writer:
+        writer.create_topic(topic("joint_states"), "sensor_msgs/msg/JointState", [_CONTROL])
+        writer.create_topic(topic("ground_truth"), "sensor_msgs/msg/JointState", [_DIAGNOSTIC])
+        writer.create_topic(topic("reference"), "std_msgs/msg/Float64MultiArray", [_CONTROL])
+        writer.create_topic(topic("torque_command"), "std_msgs/msg/Float64MultiArray", [_CONTROL])
+        if keys:
+            writer.create_topic(
+                topic("controller_internals"), "std_msgs/msg/Float64MultiArray", [_DIAGNOSTIC]
+            )
+        steps = trajectory.t_ns.size
+        names = list(_NAMES)
+        for k in range(steps):
+            stamp = int(trajectory.t_ns[k])
+            at = epoch_ns + stamp
+            applied = trajectory.applied_torque[k - 1].tolist() if k > 0 else [0.0, 0.0]
+            writer.write(
+                topic("reference"),
+                encode_float64_multi_array(
+                    (*_REFERENCE_DIMS, _stamp_dim(stamp)), trajectory.reference[k].ravel().tolist()
+                ),
+                at,
+            )
+            writer.write(
+                topic("joint_states"),
+                encode_joint_state(stamp, names, trajectory.measured_position[k].tolist(), [], applied),
+                at + 10_000,
+            )
+            writer.write(
+                topic("ground_truth"),
+                encode_joint_state(
+                    stamp,
+                    names,
+                    trajectory.position[k].tolist(),
+                    trajectory.velocity[k].tolist(),
+                    applied,
+                ),
+                at + 20_000,
+            )
+            writer.write(
+                topic("torque_command"),
+                encode_float64_multi_array(
+                    ((_JOINT_DIM, 2, 2), _stamp_dim(stamp)), trajectory.command_torque[k].tolist()
+                ),
+                at + 200_000,
+            )
+            if keys:
+                rows = [value for key in keys for value in internal_rows[key][k].tolist()]
+                writer.write(
+                    topic("controller_internals"),
+                    encode_float64_multi_array((*internal_dims, _stamp_dim(stamp)), rows),
+                    at + 210_000,
+                )
+            if progress is not None and (k % 10_000 == 0 or k == steps - 1):
+                progress(k + 1, steps)
+        return writer.close()

@@ -1,0 +1,101 @@
+"""``smm-bag info``: what ``ros2 bag info`` (Jazzy) prints, plus the run manifest and the loss report.
+
+The layout follows rosbag2_py/src/rosbag2_py/format_bag_metadata.cpp (Jazzy).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from smm_bag.metadata import BagMetadata
+from smm_bag.reader import BagReader
+
+__all__ = ["bag_size", "format_info"]
+
+_INDENT = " " * 19
+_NS = 1_000_000_000
+
+
+def bag_size(directory: Path) -> int:
+    """Bytes of every file in the bag folder (rosbag2 counts the whole directory)."""
+    return sum(path.stat().st_size for path in directory.rglob("*") if path.is_file())
+
+
+def _size(size: int) -> str:
+    value = float(size)
+    units = ("B", "KiB", "MiB", "GiB", "TiB")
+    index = 0
+    while value >= 1024 and index < 4:
+        value /= 1024
+        index += 1
+    return f"{value:.0f} {units[index]}" if index == 0 else f"{value:.1f} {units[index]}"
+
+
+def _seconds(ns: int) -> str:
+    return f"{ns // _NS}.{ns % _NS:09d}"
+
+
+def _time_point(ns: int) -> str:
+    local = time.localtime(ns // _NS)
+    day = f"{local.tm_mday:2d}"
+    clock = time.strftime("%H:%M:%S", local)
+    return f"{time.strftime('%b', local)} {day} {local.tm_year} {clock}.{ns % _NS:09d} ({_seconds(ns)})"
+
+
+def format_metadata(metadata: BagMetadata, size: int) -> str:
+    """The ``ros2 bag info`` text of a bag's metadata."""
+    lines = [""]
+    paths = metadata.relative_file_paths
+    lines.append("Files:             " + (paths[0] if paths else ""))
+    lines.extend(_INDENT + path for path in paths[1:])
+    lines.append(f"Bag size:          {_size(size)}")
+    lines.append(f"Storage id:        {metadata.storage_identifier}")
+    lines.append(f"ROS Distro:        {metadata.ros_distro or 'unknown'}")
+    lines.append(f"Duration:          {_seconds(metadata.duration_ns)}s")
+    lines.append(f"Start:             {_time_point(metadata.starting_time_ns)}")
+    lines.append(f"End:               {_time_point(metadata.starting_time_ns + metadata.duration_ns)}")
+    lines.append(f"Messages:          {metadata.message_count}")
+    topics = [
+        f"Topic: {t.name} | Type: {t.type} | Count: {t.message_count} | "
+        f"Serialization Format: {t.serialization_format}"
+        for t in metadata.topics
+    ]
+    lines.append("Topic information: " + (topics[0] if topics else ""))
+    lines.extend(_INDENT + line for line in topics[1:])
+    lines.append("Service:           0")
+    lines.append("Service information: ")
+    return "\n".join(lines)
+
+
+def format_info(path: Path) -> str:
+    """``ros2 bag info`` text of a bag (checked by opening it), then its manifest and loss report.
+
+    Raises:
+        BagError: The bag cannot be opened (see :class:`smm_bag.reader.BagReader`).
+    """
+    with BagReader(path) as reader:
+        metadata = reader.metadata
+    text = format_metadata(metadata, bag_size(path))
+    custom = {
+        key: value for key, value in metadata.custom_data.items() if key not in ("smm.parameters", "smm.loss")
+    }
+    extra = []
+    if custom:
+        extra.append("Custom data:")
+        extra.extend(f"  {key}: {value}" for key, value in sorted(custom.items()))
+    loss = metadata.custom_data.get("smm.loss")
+    if loss:
+        extra.append("Recorder loss accounting (received / written / lost, stamp gaps):")
+        try:
+            topics = json.loads(loss).get("topics", {})
+        except json.JSONDecodeError:
+            topics = {}
+        for topic, counters in sorted(topics.items()):
+            extra.append(
+                f"  {topic}: {counters.get('received')} / {counters.get('written')} / "
+                f"{counters.get('lost')}, "
+                f"gaps {counters.get('stamp_gaps')} ({counters.get('stamp_missing')} samples)"
+            )
+    return text + ("\n" + "\n".join(extra) if extra else "")

@@ -1,0 +1,219 @@
+"""``smm-bag rerun``: the pure control chain offline on a bag's measurements, with other gains.
+
+The chain (``smm_controller.ControlChain``: TD -> FLESO -> law, no ROS) steps through the recorded
+measurements y_k, the recorded applied torques (``joint_states`` effort; the recorded commands shifted by
+one step when the plant sent none) and the recorded references, and its commands and estimates are set
+beside the recorded ones. Gains come from ROS parameter files in controller_node's names
+(``fpdeso.fuzzy.kp0``, ``fleso.w0``, ``td.speed``, ``model.*``), over the parameters recorded in the run
+manifest, over the defaults.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from smm_node_runtime.parameters import config_from_parameters
+
+from smm_bag.errors import ParamsFileError
+from smm_bag.recorded import RecordedRun
+from smm_controller import (
+    CONTROLLER_NAMES,
+    FLESO,
+    ControlChain,
+    FLESOConfig,
+    FPDConfig,
+    FPDController,
+    FPDESOConfig,
+    FPDESOController,
+    JointController,
+    NPDConfig,
+    NPDController,
+    PIDConfig,
+    PIDController,
+    TrackingDifferentiator,
+    TrackingDifferentiatorConfig,
+)
+from smm_dynamics import SMMParameters
+
+__all__ = ["ChainSettings", "RerunResult", "chain_settings", "read_params_files", "rerun"]
+
+FloatArray = NDArray[np.float64]
+
+# Parameter prefixes of controller_node, fleso_node and td_node (docs/NODES.md).
+TD_PREFIX = "td"
+FLESO_PREFIX = "fleso"
+MODEL_PREFIX = "model"
+_NODES = ("controller_node", "fleso_node", "td_node", "**")
+_LAW_CONFIGS: Mapping[str, type] = {
+    "fpdeso": FPDESOConfig,
+    "fpd": FPDConfig,
+    "pid": PIDConfig,
+    "npd": NPDConfig,
+}
+
+
+@dataclass(frozen=True)
+class ChainSettings:
+    """Everything that defines a chain: law name and gains, nominal model, TD and FLESO parameters."""
+
+    algorithm: str
+    law: Any
+    model: SMMParameters
+    td: TrackingDifferentiatorConfig
+    fleso: FLESOConfig
+
+    def build(self) -> ControlChain:
+        """A fresh chain (FLESO only for FPDESO, as in the graph)."""
+        law: JointController
+        if self.algorithm == "fpdeso":
+            law = FPDESOController(self.law, self.model)
+        elif self.algorithm == "fpd":
+            law = FPDController(self.law)
+        elif self.algorithm == "pid":
+            law = PIDController(self.law)
+        else:
+            law = NPDController(self.law)
+        fleso = FLESO(self.fleso, self.model) if self.algorithm == "fpdeso" else None
+        return ControlChain(TrackingDifferentiator(self.td), fleso, law)
+
+
+def _flatten(prefix: str, node: Any, into: dict[str, Any]) -> None:
+    if isinstance(node, Mapping):
+        for key, value in node.items():
+            _flatten(f"{prefix}.{key}" if prefix else str(key), value, into)
+    else:
+        into[prefix] = node
+
+
+def read_params_files(paths: Sequence[Path]) -> dict[str, Any]:
+    """Flat ``{parameter: value}`` of the chain's nodes in ROS parameter files (later files win).
+
+    Raises:
+        ParamsFileError: Unreadable file or not a ROS parameter file.
+    """
+    merged: dict[str, Any] = {}
+    for path in paths:
+        try:
+            document = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+        except (OSError, yaml.YAMLError, UnicodeDecodeError) as error:
+            raise ParamsFileError(f"cannot read parameters file {path}: {error}") from None
+        if not isinstance(document, Mapping):
+            raise ParamsFileError(f"{path} is not a ROS parameters file (top level must be a mapping)")
+        found = False
+        for key, section in document.items():
+            if str(key).rstrip("/").split("/")[-1] not in _NODES:
+                continue
+            if not isinstance(section, Mapping) or not isinstance(section.get("ros__parameters"), Mapping):
+                raise ParamsFileError(f"{path}: {key} has no ros__parameters mapping")
+            _flatten("", section["ros__parameters"], merged)
+            found = True
+        if not found:
+            raise ParamsFileError(f"{path} has no section for controller_node, fleso_node, td_node or /**")
+    return merged
+
+
+def chain_settings(parameters: Mapping[str, Any], algorithm: str = "fpdeso") -> ChainSettings:
+    """Chain settings from flat parameters over the defaults.
+
+    Args:
+        parameters: ``{name: value}`` in controller_node's names; ``algorithm`` overrides ``algorithm``.
+        algorithm: Law when ``parameters`` has no ``algorithm``.
+
+    Raises:
+        ParamsFileError: Unknown algorithm or a value the configs reject (the message says which).
+    """
+    name = str(parameters.get("algorithm", algorithm))
+    if name not in CONTROLLER_NAMES:
+        raise ParamsFileError(f"algorithm must be one of {', '.join(CONTROLLER_NAMES)}, got {name!r}")
+    try:
+        law_type = _LAW_CONFIGS[name]
+        return ChainSettings(
+            algorithm=name,
+            law=config_from_parameters(law_type, law_type(), parameters, name),
+            model=config_from_parameters(SMMParameters, SMMParameters(), parameters, MODEL_PREFIX),
+            td=config_from_parameters(
+                TrackingDifferentiatorConfig, TrackingDifferentiatorConfig(), parameters, TD_PREFIX
+            ),
+            fleso=config_from_parameters(FLESOConfig, FLESOConfig(), parameters, FLESO_PREFIX),
+        )
+    except (ValueError, TypeError) as error:
+        raise ParamsFileError(f"invalid gains: {error}") from None
+
+
+@dataclass(frozen=True, eq=False)
+class RerunResult:
+    """The offline chain's outputs beside the recorded ones, at the recorded steps.
+
+    Attributes:
+        settings: The chain that ran.
+        t_ns: Stamps (ns), shape (N,).
+        command: Offline torque command (N m), shape (N, 2).
+        recorded_command: Recorded torque command (N m), shape (N, 2).
+        estimate: Offline disturbance estimate (N m), shape (N, 2) (zeros without FLESO).
+        recorded_estimate: Recorded estimate, or None.
+        internals: Offline chain internals by key, each (N, 2).
+        applied_source: ``"recorded effort"`` or ``"recorded commands (no effort in the bag)"``.
+    """
+
+    settings: ChainSettings
+    t_ns: NDArray[np.int64]
+    command: FloatArray
+    recorded_command: FloatArray
+    estimate: FloatArray
+    recorded_estimate: FloatArray | None
+    internals: Mapping[str, FloatArray]
+    applied_source: str
+
+    @property
+    def max_command_difference(self) -> float:
+        """Max |offline - recorded| torque over steps and joints (N m)."""
+        return float(np.max(np.abs(self.command - self.recorded_command)))
+
+
+def rerun(run: RecordedRun, settings: ChainSettings) -> RerunResult:
+    """Runs the chain over the recorded steps.
+
+    Args:
+        run: The recorded run.
+        settings: The chain to run.
+
+    Returns:
+        Offline and recorded outputs side by side.
+    """
+    chain = settings.build()
+    dt = run.manifest.control_period_ns / 1e9
+    if run.applied_torque is not None:
+        applied, source = run.applied_torque, "recorded effort"
+    else:
+        applied = np.vstack([np.zeros((1, 2)), run.command_torque[:-1]])
+        source = "recorded commands (no effort in the bag)"
+    steps = run.t_ns.size
+    command = np.empty((steps, 2))
+    estimate = np.empty((steps, 2))
+    snapshots: list[Mapping[str, FloatArray]] = []
+    measured = run.measured_position.tolist()
+    applied_rows = applied.tolist()
+    references = run.reference.tolist()
+    for k in range(steps):
+        y, tau = measured[k], applied_rows[k]
+        command[k] = chain.step_floats((y[0], y[1]), (tau[0], tau[1]), references[k], dt)
+        internals = chain.internals
+        estimate[k] = internals["disturbance_estimate"]
+        snapshots.append(internals)
+    keys = tuple(snapshots[0]) if snapshots else ()
+    return RerunResult(
+        settings=settings,
+        t_ns=run.t_ns,
+        command=command,
+        recorded_command=run.command_torque,
+        estimate=estimate,
+        recorded_estimate=run.disturbance_estimate,
+        internals={key: np.array([snapshot[key] for snapshot in snapshots]) for key in keys},
+        applied_source=source,
+    )

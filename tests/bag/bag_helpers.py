@@ -1,0 +1,125 @@
+"""Helpers of the bag tests: messages of every recorded type, serialized as on the wire, and both readers."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+from smm_bag.cdr import encode_float64_multi_array, encode_joint_state
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+T0 = 1_700_000_000_000_000_000
+
+
+def joint_state(k: int) -> bytes:
+    return encode_joint_state(k * 1_000_000, ["alpha", "beta"], [0.001 * k, -0.002 * k], [], [0.5 * k, 1.0])
+
+
+def torque(k: int) -> bytes:
+    return encode_float64_multi_array(
+        [("joint:alpha,beta", 2, 2), (f"stamp_ns:{k * 1_000_000}", 1, 1)], [float(k), -float(k)]
+    )
+
+
+def _rosbags(typename: str, **fields: Any) -> bytes:
+    cls = TYPESTORE.types[typename]
+    return bytes(TYPESTORE.serialize_cdr(cls(**fields), typename))
+
+
+def clock(k: int) -> bytes:
+    time = TYPESTORE.types["builtin_interfaces/msg/Time"](sec=k, nanosec=0)
+    return _rosbags("rosgraph_msgs/msg/Clock", clock=time)
+
+
+def diagnostics(k: int) -> bytes:
+    types = TYPESTORE.types
+    header = types["std_msgs/msg/Header"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=k, nanosec=1), frame_id=""
+    )
+    status = types["diagnostic_msgs/msg/DiagnosticStatus"](
+        level=b"\x00"[0],
+        name="recorder",
+        message="ok",
+        hardware_id="",
+        values=[types["diagnostic_msgs/msg/KeyValue"](key="written", value=str(k))],
+    )
+    return _rosbags("diagnostic_msgs/msg/DiagnosticArray", header=header, status=[status])
+
+
+def log(k: int) -> bytes:
+    types = TYPESTORE.types
+    return _rosbags(
+        "rcl_interfaces/msg/Log",
+        stamp=types["builtin_interfaces/msg/Time"](sec=k, nanosec=0),
+        level=20,
+        name="node",
+        msg=f"message {k}",
+        file="f.py",
+        function="f",
+        line=k,
+    )
+
+
+def parameter_event(k: int) -> bytes:
+    types = TYPESTORE.types
+    return _rosbags(
+        "rcl_interfaces/msg/ParameterEvent",
+        stamp=types["builtin_interfaces/msg/Time"](sec=k, nanosec=0),
+        node="/smm/controller_node",
+        new_parameters=[],
+        changed_parameters=[],
+        deleted_parameters=[],
+    )
+
+
+TOPICS: dict[str, tuple[str, Any]] = {
+    "/smm/joint_states": ("sensor_msgs/msg/JointState", joint_state),
+    "/smm/torque_command": ("std_msgs/msg/Float64MultiArray", torque),
+    "/clock": ("rosgraph_msgs/msg/Clock", clock),
+    "/diagnostics": ("diagnostic_msgs/msg/DiagnosticArray", diagnostics),
+    "/rosout": ("rcl_interfaces/msg/Log", log),
+    "/parameter_events": ("rcl_interfaces/msg/ParameterEvent", parameter_event),
+}
+
+
+def rosbags_messages(bag: Path) -> dict[str, list[tuple[int, Any]]]:
+    """Topic -> [(log time, decoded message)] through rosbags' AnyReader."""
+    found: dict[str, list[tuple[int, Any]]] = {}
+    with AnyReader([bag], default_typestore=TYPESTORE) as reader:
+        for connection, timestamp, raw in reader.messages():
+            found.setdefault(connection.topic, []).append(
+                (timestamp, reader.deserialize(raw, connection.msgtype))
+            )
+    return found
+
+
+def mcap_messages(bag: Path) -> dict[str, list[tuple[int, Any]]]:
+    """Topic -> [(log time, decoded message)] through mcap + mcap-ros2-support, file after file."""
+    found: dict[str, list[tuple[int, Any]]] = {}
+    for path in sorted(bag.glob("*.mcap"), key=lambda p: int(p.stem.rsplit("_", 1)[1])):
+        with path.open("rb") as stream:
+            reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+            for _, channel, message, decoded in reader.iter_decoded_messages():
+                found.setdefault(channel.topic, []).append((message.log_time, decoded))
+    return found
+
+
+def iter_mcap_files(bag: Path) -> Iterator[Path]:
+    yield from sorted(bag.glob("*.mcap"))
+
+
+def as_array(values: Any) -> np.ndarray:
+    return np.asarray(list(values), dtype=np.float64)
+
+
+def reference(k: int) -> bytes:
+    dims = [("order:position,velocity,acceleration", 3, 6), ("joint:alpha,beta", 2, 2)]
+    return encode_float64_multi_array(
+        [*dims, (f"stamp_ns:{k * 1_000_000}", 1, 1)], [0.01 * k, 0.0, 0, 0, 0, 0]
+    )
