@@ -141,11 +141,11 @@ def control(bench: Bench, request: dict[str, object]) -> dict[str, object]:
 
 
 def assert_safe_now(bench: Bench) -> None:
-    """The board got a safe frame: valves at null, and not by its own watchdog (validity is 5000 ticks here)."""
+    """The board got a safe frame: valves at null, not by its own watchdog (validity is 5000 ticks here)."""
     assert bench.spin_until(lambda: not bench.live(), 2.0)
     assert not bench.board.status_enabled
     assert bench.board.last_feedback is not None
-    assert not bench.board.last_feedback.status & 0x0008, "nulled by the board's watchdog, not by a safe frame"
+    assert not bench.board.last_feedback.status & 0x0008, "nulled by the board's watchdog, not a safe frame"
 
 
 def test_configure_without_a_board_fails_and_stays_unconfigured(ros_context: Any) -> None:
