@@ -2,15 +2,21 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
+from numpy.testing import assert_allclose, assert_array_equal
 from smm_bench_emulator.board import BoardConfig, BoardCore
+from smm_controller.chain import make_chain
+from smm_controller.reference import SineReference
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
 from smm_hw_bridge.encoder import EncoderConfig
 from smm_hw_bridge.protocol import CODE_MAX, decode_feedback, encode
 from smm_hw_bridge.valve_output import ValveOutputConfig
 from smm_sim.plant import PlantConfig, SimulatedPlant
+
+from smm_dynamics import SMMParameters
 
 CPR = 1 << 14
 FULL_SCALE = 10.0
@@ -89,6 +95,52 @@ def test_lockstep_hil_equals_the_simulator_within_encoder_quantisation() -> None
     assert peak > 0.5  # it moved
     assert worst <= quantum * (1 + 1e-9), f"HIL vs simulator {worst:.2e} rad > one count {quantum:.2e} rad"
     assert loop.board.late_commands == 0
+
+
+def test_lockstep_hil_with_the_fpdeso_chain_equals_the_simulator_with_the_same_d_a_quantum() -> None:
+    # The controller's observer feeds on the effort, so the board's 16-bit D/A must be in the simulator too
+    # (PlantConfig.torque_quantum): without it the runs part by count flips (docs/HW_PROTOCOL.md, Lockstep).
+    full_scale, cpr = 400.0, 1 << 16
+    plant = dataclasses.replace(PLANT, encoder_counts_per_rev=cpr, seed=0)
+    loop = Loop(BoardConfig(plant=plant, full_scale_torque=(full_scale,) * 2, adc_noise=0.0))
+    loop.bridge = BridgeCore(
+        BridgeConfig(
+            encoder=EncoderConfig(counts_per_rev=(cpr, cpr)),
+            valve=ValveOutputConfig(gain=(CODE_MAX / full_scale,) * 2, rate_limit=(math.inf, math.inf)),
+            lockstep=True,
+        ),
+        host_session=0x2222,
+    )
+    loop.deliver(encode(loop.board.last_feedback))  # type: ignore[arg-type]
+    loop.send()  # safe frame: the board locks to this host; in lockstep the board waits for an enabled one
+    loop.deliver(encode(loop.board.last_feedback))  # type: ignore[arg-type]
+    loop.bridge.arm()
+    loop.send()
+    loop.deliver(encode(loop.board.last_feedback))  # type: ignore[arg-type]
+    quantum = full_scale / CODE_MAX  # N m per code of the board's 16-bit D/A
+    sim = SimulatedPlant(
+        dataclasses.replace(plant, torque_limit=(full_scale,) * 2, torque_quantum=(quantum, quantum))
+    )
+    chains = make_chain("fpdeso", SMMParameters()), make_chain("fpdeso", SMMParameters())
+    reference = SineReference()
+    worst = 0.0
+    for step in range(1500):
+        rows = reference.rows(step * 1e-3)
+        y_sim = sim.measure()
+        tau_sim = chains[0].step(y_sim.position, y_sim.applied_torque, rows, 1e-3)
+        assert loop.bridge.stamp_ns == step * MS
+        assert_array_equal(loop.bridge.position, y_sim.position)
+        assert_allclose(loop.bridge.applied_torque, y_sim.applied_torque, rtol=0, atol=1e-12)
+        tau_hil = chains[1].step(loop.bridge.position, loop.bridge.applied_torque, rows, 1e-3)
+        assert loop.bridge.on_command(tau_hil, loop.bridge.stamp_ns, loop.now) is None
+        loop.send()
+        assert loop.board.answered_enabled
+        loop.tick()
+        sim.step(tau_sim, 1e-3)
+        gap = np.subtract(loop.board.plant.state_floats, sim.state_floats)
+        worst = max(worst, float(np.max(np.abs(gap))))
+    assert np.max(np.abs(sim.ground_truth.position)) > 0.5  # it moved
+    assert worst < 1e-12, worst
 
 
 def test_reboot_mid_run_no_pre_reboot_command_reaches_a_valve() -> None:

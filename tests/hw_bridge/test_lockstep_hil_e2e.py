@@ -22,9 +22,11 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 COUNTS = 1 << 16
 FULL_SCALE = 400.0
 """N m at D/A code 32767, and the simulator's saturation: above the controller's 300 N m output limit."""
-TOLERANCE_COUNTS = 2.5
-"""Measured: 0.64 counts before main's controller output limiter (#15) was merged, 1.90 counts after (the
-run is deterministic; the cause of the extra count is open, see docs/HW_PROTOCOL.md)."""
+DAC_QUANTUM = FULL_SCALE / 32767
+"""N m per D/A code of the board's 16-bit D/A: the simulator gets the same (torque_quantum)."""
+TOLERANCE_COUNTS = 1.0
+"""The acceptance: one encoder count. Without the D/A quantum in the simulator the runs part by 1.90 counts
+(docs/HW_PROTOCOL.md, Lockstep)."""
 SECONDS = 5.0
 
 
@@ -40,6 +42,7 @@ def simulator_run(tmp_path: Path) -> Any:
     params.write_text(
         f'/**/smm_sim_node:\n  ros__parameters:\n    record_file: "{record}"\n'
         f"    encoder_counts_per_rev: {COUNTS}\n    torque_limit: [{FULL_SCALE}, {FULL_SCALE}]\n"
+        f"    torque_quantum: [{DAC_QUANTUM!r}, {DAC_QUANTUM!r}]\n"
     )
     command = [
         sys.executable,

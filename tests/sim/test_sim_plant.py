@@ -142,6 +142,21 @@ def test_saturated_plant_moves_like_one_commanded_at_the_limit() -> None:
     assert_array_equal(saturated.ground_truth.position, direct.ground_truth.position)
 
 
+def test_torque_quantum_rounds_the_applied_torque_to_whole_codes_and_effort_reports_it() -> None:
+    plant = SimulatedPlant(PlantConfig(torque_limit=(2.0, 2.0), torque_quantum=(0.25, 0.1)))
+    plant.step((0.3, -0.26), DT)
+    assert_allclose(plant.measure().applied_torque, [0.25, -0.3], rtol=0, atol=1e-15)
+    plant.step((0.375, 100.0), DT)  # half a code rounds to even; saturation comes first
+    assert_allclose(plant.measure().applied_torque, [0.5, 2.0], rtol=0, atol=1e-15)
+    direct = SimulatedPlant(PlantConfig())
+    direct.step((0.25, -0.3), DT)
+    direct.step((0.5, 2.0), DT)
+    quantised = SimulatedPlant(PlantConfig(torque_limit=(2.0, 2.0), torque_quantum=(0.25, 0.1)))
+    quantised.step((0.3, -0.26), DT)
+    quantised.step((0.375, 100.0), DT)
+    assert_allclose(quantised.ground_truth.position, direct.ground_truth.position, rtol=0, atol=1e-15)
+
+
 def test_effort_before_first_step_is_zero() -> None:
     assert_array_equal(SimulatedPlant(PlantConfig()).measure().applied_torque, [0.0, 0.0])
 
@@ -323,6 +338,8 @@ def test_internals_are_copies_of_shape_two() -> None:
         ("joint_limits", (1.3, 1.6)),
         ("torque_limit", (0.0, 1.0)),
         ("torque_limit", (math.nan, 1.0)),
+        ("torque_quantum", (-0.1, 0.0)),
+        ("torque_quantum", (math.inf, 0.0)),
         ("valve_time_constants", (0.0, 0.01)),
         ("valve_time_constants", (0.01,)),
         ("substeps", 0),

@@ -5,7 +5,9 @@ What happens to a torque command in :meth:`SimulatedPlant.step` (in this order):
 1. **Validation.** A command that is not shape (2,) or holds NaN/Inf raises ``ValueError`` before
    anything else happens, so a bad command never reaches the integrator.
 2. **Saturation** (``torque_limit``): the command is clipped element-wise to ``+-torque_limit``
-   (the D/A and valve range). ``inf`` switches it off.
+   (the D/A and valve range). ``inf`` switches it off. With ``torque_quantum`` (an option, off by
+   default) it is then rounded to the nearest multiple of the quantum (half to even), as a D/A converter
+   of that resolution does (the bench emulator's 16-bit D/A: full-scale torque / 32767).
 3. **Servo-valve lag** (``valve_time_constants``): a first-order lag ``tau_a' = (tau_s - tau_a) / T``
    with two time constants, ``T = T_rise`` while ``|tau_a|`` grows (the valve opens: the lag output
    moves away from zero) and ``T = T_fall`` while it shrinks (it moves back towards zero). The paper's
@@ -156,6 +158,8 @@ class PlantConfig:
         joint_limits: Mechanical stops at +-limit (alpha, beta) (rad), in (0, pi/2) so the state
             never reaches the coordinate singularity at cos(beta) = 0.
         torque_limit: Saturation of the applied torque (alpha, beta) (N m), > 0; ``inf`` = off.
+        torque_quantum: D/A resolution: torque of one D/A code (alpha, beta) (N m), >= 0; the saturated
+            command is rounded to a whole number of codes. 0 = none (the default).
         valve_time_constants: (T_rise, T_fall) of the first-order valve lag (s), both > 0, or
             ``None`` (off). See :func:`valve_time_constants_from_response_times`.
         substeps: RK4 sub-steps per :meth:`SimulatedPlant.step` call, >= 1.
@@ -171,6 +175,7 @@ class PlantConfig:
     disturbance: DisturbanceModel = "none"
     joint_limits: tuple[float, float] = (1.3, 1.3)
     torque_limit: tuple[float, float] = (math.inf, math.inf)
+    torque_quantum: tuple[float, float] = (0.0, 0.0)
     valve_time_constants: tuple[float, float] | None = None
     substeps: int = 1
     control_period: float = 1e-3
@@ -195,6 +200,7 @@ class PlantConfig:
         if max(self.joint_limits) >= math.pi / 2:
             raise ValueError(f"joint_limits must be < pi/2 rad (singularity), got {self.joint_limits!r}")
         check_pair("torque_limit", self.torque_limit, positive=True, allow_inf=True)
+        check_pair("torque_quantum", self.torque_quantum, non_negative=True)
         if self.valve_time_constants is not None:
             check_pair("valve_time_constants", self.valve_time_constants, positive=True)
         if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1:
@@ -299,6 +305,7 @@ class SimulatedPlant:
         self._normals: list[float] = []
         self._normal_index = 0
         self._unlimited = math.isinf(config.torque_limit[0]) and math.isinf(config.torque_limit[1])
+        self._quantised = config.torque_quantum != (0.0, 0.0)
         # dt of the last step and its validated length in ns (the loops pass the same dt every step).
         self._last_dt: object = None
         self._last_dt_ns = 0
@@ -420,6 +427,8 @@ class SimulatedPlant:
             self._last_dt, self._last_dt_ns = dt, dt_ns
         config = self._config
         saturated = command if self._unlimited else self._saturate(command)
+        if self._quantised:
+            saturated = self._quantise(saturated)
         substeps = config.substeps
         h = dt_ns / _NS_PER_S / substeps
         t0 = self._t_ns / _NS_PER_S
@@ -444,6 +453,12 @@ class SimulatedPlant:
     def _saturate(self, command: tuple[float, float]) -> tuple[float, float]:
         limit_a, limit_b = self._saturation
         return (min(max(command[0], -limit_a), limit_a), min(max(command[1], -limit_b), limit_b))
+
+    def _quantise(self, torque: tuple[float, float]) -> tuple[float, float]:
+        quantised = []
+        for value, quantum in zip(torque, self._config.torque_quantum, strict=True):
+            quantised.append(round(value / quantum) * quantum if quantum > 0.0 else value)
+        return quantised[0], quantised[1]
 
     def _valve_substep(self, target: tuple[float, float], h: float) -> tuple[float, float]:
         """Advances the valve lag by h towards ``target``; returns the mean torque over the sub-step."""

@@ -122,6 +122,7 @@ class PlantParameters:
         disturbance: External disturbance model, "none" or "eq46".
         joint_limits: Mechanical stops at +-limit (alpha, beta) (rad), in (0, pi/2).
         torque_limit: Saturation of the applied torque (alpha, beta) (N m), > 0; 0 = no saturation.
+        torque_quantum: D/A resolution, torque of one code (alpha, beta) (N m), >= 0; 0 = none.
         valve_time_constants: Servo-valve lag (T_rise, T_fall) (s), > 0; (0, 0) = no lag.
         substeps: RK4 sub-steps per control period, >= 1.
         control_period: Control period (s), >= 1 ns.
@@ -136,6 +137,7 @@ class PlantParameters:
     disturbance: Literal["none", "eq46"] = "none"
     joint_limits: tuple[float, float] = (1.3, 1.3)
     torque_limit: tuple[float, float] = (0.0, 0.0)
+    torque_quantum: tuple[float, float] = (0.0, 0.0)
     valve_time_constants: tuple[float, float] = (0.0, 0.0)
     substeps: int = 1
     control_period: float = 1e-3
@@ -158,6 +160,7 @@ class PlantParameters:
             disturbance=self.disturbance,
             joint_limits=self.joint_limits,
             torque_limit=torque_limit,  # type: ignore[arg-type]
+            torque_quantum=self.torque_quantum,
             valve_time_constants=valve,
             substeps=self.substeps,
             control_period=self.control_period,
