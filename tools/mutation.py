@@ -144,8 +144,8 @@ def read_equivalent(path: Path = EQUIVALENT_FILE) -> dict[str, str]:
     return entries
 
 
-def mutmut_config(modules: Sequence[Module]) -> str:
-    """The ``[tool.mutmut]`` section for one package's modules (TOML)."""
+def mutmut_config(modules: Sequence[Module], also_copy: Sequence[str] = ()) -> str:
+    """The ``[tool.mutmut]`` section for one package's modules (TOML); ``also_copy``: extra paths."""
     packages = {m.package for m in modules}
     if len(packages) != 1:
         raise ValueError(f"one package per mutmut run, got {sorted(packages)}")
@@ -163,22 +163,31 @@ def mutmut_config(modules: Sequence[Module]) -> str:
             f"pytest_add_cli_args_test_selection = {array(tests)}",
             'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
             "use_git_change_detection = false",
+            f"also_copy = {array(also_copy)}",
             "",
         )
     )
 
 
 def stage(package: str, modules: Sequence[Module], work: Path) -> None:
-    """Creates ``work`` afresh: the package as ``src/<pkg>``, ``tests/``, and pyproject.toml."""
+    """Creates ``work`` afresh: ``src/<pkg>``, the package's other folders beside it, tests/, pyproject.toml.
+
+    Folders such as ``tools`` or ``config`` keep their place beside the package, as tests find them there.
+    """
     if work.exists():
         shutil.rmtree(work)
-    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".hypothesis")
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".hypothesis", "*.egg-info")
     shutil.copytree(REPO / "src" / package / package, work / "src" / package, ignore=ignore)
+    siblings = []
+    for entry in sorted((REPO / "src" / package).iterdir()):
+        if entry.is_dir() and entry.name != package and not entry.name.endswith(".egg-info"):
+            shutil.copytree(entry, work / "src" / entry.name, ignore=ignore)
+            siblings.append(f"src/{entry.name}")
     shutil.copytree(REPO / "tests", work / "tests", ignore=ignore)
     pyproject = (REPO / "pyproject.toml").read_text()
     if "[tool.mutmut]" in pyproject:
         raise ValueError("pyproject.toml has its own [tool.mutmut]; the driver writes that section")
-    (work / "pyproject.toml").write_text(pyproject + "\n" + mutmut_config(modules))
+    (work / "pyproject.toml").write_text(pyproject + "\n" + mutmut_config(modules, siblings))
 
 
 def mutmut_environment(profile: str) -> dict[str, str]:
