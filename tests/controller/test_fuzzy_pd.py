@@ -10,7 +10,7 @@ from numpy.testing import assert_allclose
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, PAPER_FPDESO_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
 from smm_controller.rules import TABLE_1, TABLE_7, pd_gain_system
 
-signals = st.floats(-3.0, 3.0)
+signals = st.floats(-3.0, 3.0, allow_subnormal=True)
 
 
 @settings(deadline=None, max_examples=60)

@@ -9,10 +9,9 @@ Together they catch a beta quantity computed from alpha's state or config (docs/
 planted mutant these tests fail on). Laws without fuzzy rules agree bit for bit. Where the fuzzy rule
 base is evaluated, the joints' four-rule cells are clipped and defuzzified in one numpy pass whose dot
 product rounds differently with one or two rows, so those agree to rounding (1e-12 rel., 1e-15 abs.).
-The FLESO couples the joints through the model (M^-1 in eq. 21) by design, so its per-joint quantities
-(innovation E, its rate E', fuzzy input s, bandwidth w, that joint's corrected states) are checked at the
-step where the other joint's measurement differs, and the swap at the first innovation, which the model
-does not enter.
+The FLESO and the FPDESO law couple the joints only through the nominal model (M, C, G); given a
+decoupled model (``DecoupledModel``, each joint's terms from its own coordinates) both must be two
+independent per-joint algorithms, which the same two properties check over whole histories.
 """
 
 from __future__ import annotations
@@ -84,8 +83,8 @@ def listed(pairs: Mapping[str, Any]) -> dict[str, list[float]]:
     return {key: list(np.asarray(value)) for key, value in pairs.items()}
 
 
-def alpha_of(pairs: Mapping[str, Any], keys: Sequence[str] | None = None) -> dict[str, float]:
-    return {key: float(np.asarray(value)[0]) for key, value in pairs.items() if keys is None or key in keys}
+def joint_of(pairs: Mapping[str, Any], joint: int) -> dict[str, float]:
+    return {key: float(np.asarray(value)[joint]) for key, value in pairs.items()}
 
 
 def reference_rows(sample: tuple[float, float, float, float]) -> list[list[float]]:
@@ -97,8 +96,46 @@ def swap_rows(rows: Sequence[Sequence[float]]) -> list[list[float]]:
     return [[row[1], row[0]] for row in rows]
 
 
-def beta_changed(history: list[tuple[float, float, float, float]], shift: float) -> list[Any]:
-    return [(a, b + shift * (k + 1), ad, bd - shift) for k, (a, b, ad, bd) in enumerate(history)]
+def changed(history: list[tuple[float, float, float, float]], joint: int, shift: float) -> list[Any]:
+    """The history with the given joint's position and rate moved (by a different amount each step)."""
+    moved = []
+    for k, (a, b, ad, bd) in enumerate(history):
+        if joint == 0:
+            moved.append((a + shift * (k + 1), b, ad - shift, bd))
+        else:
+            moved.append((a, b + shift * (k + 1), ad, bd - shift))
+    return moved
+
+
+shifts = st.floats(0.01, 0.5, allow_subnormal=False)
+joints = st.sampled_from([0, 1])
+
+
+class DecoupledModel:
+    """A nominal model whose M is diagonal and whose terms for joint j depend on joint j only."""
+
+    def __init__(
+        self, inertia: tuple[float, float], friction: tuple[float, float], gravity: tuple[float, float]
+    ) -> None:
+        self.inertia, self.friction, self.gravity = inertia, friction, gravity
+
+    def swapped(self) -> DecoupledModel:
+        return DecoupledModel(self.inertia[::-1], self.friction[::-1], self.gravity[::-1])
+
+    def mass(self, alpha: float, beta: float) -> tuple[float, float, float]:
+        return self.inertia[0] * (1.0 + 0.1 * alpha * alpha), 0.0, self.inertia[1] * (1.0 + 0.1 * beta * beta)
+
+    def bias(
+        self, alpha: float, beta: float, alpha_dot: float, beta_dot: float
+    ) -> tuple[float, float, float, float, float, float, float]:
+        m11, m12, m22 = self.mass(alpha, beta)
+        c0, c1 = self.friction[0] * alpha_dot * abs(alpha_dot), self.friction[1] * beta_dot * abs(beta_dot)
+        return m11, m12, m22, c0, c1, self.gravity[0] * math.sin(alpha), self.gravity[1] * math.sin(beta)
+
+
+decoupled_models = st.builds(
+    DecoupledModel, inertia=positive(0.05, 0.5), friction=positive(0.0, 0.2), gravity=positive(0.0, 0.5)
+)
 
 
 # Tracking differentiator --------------------------------------------------------------------------------
@@ -120,16 +157,16 @@ def test_td_swap(config: TrackingDifferentiatorConfig, history: list[Any]) -> No
 
 
 @settings(max_examples=60)
-@given(config=td_configs, history=histories, shift=st.floats(0.01, 0.5, allow_subnormal=False))
-def test_td_alpha_ignores_beta_history(
-    config: TrackingDifferentiatorConfig, history: list[Any], shift: float
+@given(config=td_configs, history=histories, joint=joints, shift=shifts)
+def test_td_joint_ignores_the_other_history(
+    config: TrackingDifferentiatorConfig, history: list[Any], joint: int, shift: float
 ) -> None:
     first, second = TrackingDifferentiator(config), TrackingDifferentiator(config)
-    for (a, b, _, _), (a2, b2, _, _) in zip(history, beta_changed(history, shift), strict=True):
+    for (a, b, _, _), (a2, b2, _, _) in zip(history, changed(history, 1 - joint, shift), strict=True):
         x1, x2 = first.step([a, b], DT)
         y1, y2 = second.step([a2, b2], DT)
-        assert (y1[0], y2[0]) == (x1[0], x2[0])
-        assert alpha_of(second.internals) == alpha_of(first.internals)
+        assert (y1[joint], y2[joint]) == (x1[joint], x2[joint])
+        assert joint_of(second.internals, joint) == joint_of(first.internals, joint)
 
 
 # Fuzzy PD gain schedule ----------------------------------------------------------------------------------
@@ -159,14 +196,16 @@ def test_fuzzy_schedule_swap(config: FuzzyPDConfig, history: list[Any]) -> None:
 
 
 @settings(max_examples=40)
-@given(config=fuzzy_configs, history=histories, shift=st.floats(0.01, 0.5, allow_subnormal=False))
-def test_fuzzy_schedule_alpha_ignores_beta(config: FuzzyPDConfig, history: list[Any], shift: float) -> None:
+@given(config=fuzzy_configs, history=histories, joint=joints, shift=shifts)
+def test_fuzzy_schedule_joint_ignores_the_other(
+    config: FuzzyPDConfig, history: list[Any], joint: int, shift: float
+) -> None:
     first, second = FuzzyPDGainSchedule(config), FuzzyPDGainSchedule(config)
-    for (a, b, ad, bd), (_, b2, _, bd2) in zip(history, beta_changed(history, shift), strict=True):
+    for (a, b, ad, bd), (a2, b2, ad2, bd2) in zip(history, changed(history, 1 - joint, shift), strict=True):
         kp, kd = first.step([a, b], [ad, bd])
-        kp2, kd2 = second.step([a, b2], [ad, bd2])
-        assert agree((kp2[0], kd2[0]), (kp[0], kd[0]))
-        assert agree(alpha_of(second.internals), alpha_of(first.internals))
+        kp2, kd2 = second.step([a2, b2], [ad2, bd2])
+        assert agree((kp2[joint], kd2[joint]), (kp[joint], kd[joint]))
+        assert agree(joint_of(second.internals, joint), joint_of(first.internals, joint))
 
 
 # Baselines and the FPDESO law ------------------------------------------------------------------------------
@@ -193,98 +232,107 @@ fpdeso_configs = st.builds(
     FPDESOConfig,
     fuzzy=fuzzy_configs,
     robust_gain=positive(0.0, 0.2),
-    boundary_layer=positive(0.0, 1.0),
+    boundary_layer=st.one_of(st.just((0.0, 0.0)), positive(0.0, 1.0)),
 )
 
 
-def pid(config: Any) -> PIDController:
+def pid(config: Any, model: DecoupledModel, mirrored: bool) -> PIDController:
     return PIDController(config)
 
 
-def npd(config: Any) -> NPDController:
+def npd(config: Any, model: DecoupledModel, mirrored: bool) -> NPDController:
     return NPDController(config)
 
 
-def fpd(config: Any, tables: tuple[Any, Any] = (TABLE_1, TABLE_7)) -> FPDController:
+def fpd(config: Any, model: DecoupledModel, mirrored: bool) -> FPDController:
     controller = FPDController(FPDConfig(config))
-    controller.schedule = FuzzyPDGainSchedule(config, tables)  # the FPD law's own schedule, tables chosen
-    controller.reset()
+    if mirrored:  # beta's rule table on alpha and vice versa
+        controller.schedule = FuzzyPDGainSchedule(config, (TABLE_7, TABLE_1))
     return controller
 
 
-LAWS: dict[str, tuple[Callable[..., Any], st.SearchStrategy[Any]]] = {
-    "pid": (pid, pid_configs),
-    "npd": (npd, npd_configs),
-    "fpd": (fpd, st.one_of(st.just(PAPER_FPD_FUZZY), fuzzy_configs)),
+def fpdeso(config: Any, model: DecoupledModel, mirrored: bool) -> FPDESOController:
+    controller = FPDESOController(config, PARAMS)
+    controller.model = model  # type: ignore[assignment]
+    if mirrored:
+        controller.schedule = FuzzyPDGainSchedule(config.fuzzy, (TABLE_7, TABLE_1))
+    return controller
+
+
+# name: (factory, config strategy, bit for bit)
+LAWS: dict[str, tuple[Callable[..., Any], st.SearchStrategy[Any], bool]] = {
+    "pid": (pid, pid_configs, True),
+    "npd": (npd, npd_configs, True),
+    "fpd": (fpd, st.one_of(st.just(PAPER_FPD_FUZZY), fuzzy_configs), False),
+    "fpdeso": (fpdeso, fpdeso_configs, False),
 }
+MODEL = DecoupledModel((0.1, 0.3), (0.05, 0.1), (0.3, 0.2))
 
 
 def run_law(
     controller: Any, rows: list[list[float]], q: Sequence[float], q_dot: Sequence[float]
 ) -> list[float]:
-    return list(controller.step(np.array(rows), np.array(q), np.array(q_dot), np.zeros(2), DT))
+    disturbance = 0.02 * np.asarray(q) - 0.01 * np.asarray(q_dot)  # per joint, the same rule for both
+    return list(controller.step(np.array(rows), np.array(q), np.array(q_dot), disturbance, DT))
+
+
+def plant_state(sample: tuple[float, float, float, float]) -> tuple[tuple[float, float], tuple[float, float]]:
+    a, b, ad, bd = sample
+    return (0.1 * a - 0.05, 0.2 * b + 0.02), (0.3 * ad + 0.1, -0.2 * bd)
 
 
 @settings(max_examples=40)
 @given(data=st.data(), law=st.sampled_from(sorted(LAWS)), history=histories)
-def test_baseline_swap(data: st.DataObject, law: str, history: list[Any]) -> None:
-    make, configs = LAWS[law]
+def test_law_swap(data: st.DataObject, law: str, history: list[Any]) -> None:
+    make, configs, exact = LAWS[law]
     config = data.draw(configs)
-    straight = make(config)
-    mirrored = make(swapped(config), (TABLE_7, TABLE_1)) if law == "fpd" else make(swapped(config))
+    straight, mirrored = make(config, MODEL, False), make(swapped(config), MODEL.swapped(), True)
+    same = (lambda x, y: x == y) if exact else agree
     for sample in history:
         rows = reference_rows(sample)
-        q, q_dot = (0.1 * sample[1], -0.2 * sample[0]), (sample[3], 0.3)
+        q, q_dot = plant_state(sample)
         tau = run_law(straight, rows, q, q_dot)
         tau_m = run_law(mirrored, swap_rows(rows), q[::-1], q_dot[::-1])
-        exact = law != "fpd"
-        assert tau_m == tau[::-1] if exact else agree(tau_m, tau[::-1])
-        assert (
-            (listed(mirrored.internals) == flipped(straight.internals))
-            if exact
-            else agree(listed(mirrored.internals), flipped(straight.internals))
-        )
+        assert same(tau_m, tau[::-1])
+        assert same(listed(mirrored.internals), flipped(straight.internals))
 
 
 @settings(max_examples=40)
-@given(
-    data=st.data(),
-    law=st.sampled_from(sorted(LAWS)),
-    history=histories,
-    shift=st.floats(0.01, 0.5, allow_subnormal=False),
-)
-def test_baseline_alpha_ignores_beta_history(
-    data: st.DataObject, law: str, history: list[Any], shift: float
+@given(data=st.data(), law=st.sampled_from(sorted(LAWS)), history=histories, joint=joints, shift=shifts)
+def test_law_joint_ignores_the_other_history(
+    data: st.DataObject, law: str, history: list[Any], joint: int, shift: float
 ) -> None:
-    make, configs = LAWS[law]
+    make, configs, exact = LAWS[law]
     config = data.draw(configs)
-    first, second = make(config), make(config)
-    for sample, changed in zip(history, beta_changed(history, shift), strict=True):
-        q_dot = (0.2, sample[2])
-        tau = run_law(first, reference_rows(sample), (0.05, 0.1), q_dot)
-        tau2 = run_law(second, reference_rows(changed), (0.05, -0.3), (0.2, -sample[2]))
-        exact = law != "fpd"
-        assert tau2[0] == tau[0] if exact else agree(tau2[0], tau[0])
-        assert (
-            (alpha_of(second.internals) == alpha_of(first.internals))
-            if exact
-            else agree(alpha_of(second.internals), alpha_of(first.internals))
-        )
+    first, second = make(config, MODEL, False), make(config, MODEL, False)
+    same = (lambda x, y: x == y) if exact else agree
+    for sample, moved in zip(history, changed(history, 1 - joint, shift), strict=True):
+        q, q_dot = plant_state(sample)
+        q2, q_dot2 = plant_state(moved)
+        tau = run_law(first, reference_rows(sample), q, q_dot)
+        tau2 = run_law(second, reference_rows(moved), q2, q_dot2)
+        assert same(tau2[joint], tau[joint])
+        assert same(joint_of(second.internals, joint), joint_of(first.internals, joint))
 
 
 @settings(max_examples=40)
-@given(config=fpdeso_configs, history=histories, shift=st.floats(0.01, 0.5, allow_subnormal=False))
-def test_fpdeso_pd_terms_alpha_ignores_beta(config: FPDESOConfig, history: list[Any], shift: float) -> None:
-    """kp, kd and u (eq. 11-12) are per joint; the model terms couple the joints by design."""
+@given(config=fpdeso_configs, history=histories, joint=joints, shift=shifts)
+def test_fpdeso_pd_terms_ignore_the_other_joint_with_the_real_model(
+    config: FPDESOConfig, history: list[Any], joint: int, shift: float
+) -> None:
+    """kp, kd and u (eq. 11-12) are per joint also with the coupled SMM model."""
     first, second = FPDESOController(config, PARAMS), FPDESOController(config, PARAMS)
-    keys = ("kp", "kd", "u")
-    for sample, changed in zip(history, beta_changed(history, shift), strict=True):
-        run_law(first, reference_rows(sample), (0.1, 0.2), (0.0, 0.1))
-        run_law(second, reference_rows(changed), (0.1, -0.2), (0.0, 0.4))
-        assert agree(alpha_of(second.internals, keys), alpha_of(first.internals, keys))
+    for sample, moved in zip(history, changed(history, 1 - joint, shift), strict=True):
+        run_law(first, reference_rows(sample), *plant_state(sample))
+        run_law(second, reference_rows(moved), *plant_state(moved))
+        keys = ("kp", "kd", "u")
+        assert agree(
+            {k: v for k, v in joint_of(second.internals, joint).items() if k in keys},
+            {k: v for k, v in joint_of(first.internals, joint).items() if k in keys},
+        )
 
 
-# FLESO: per-joint innovation, its rate, fuzzy input and bandwidth ----------------------------------------
+# FLESO --------------------------------------------------------------------------------------------------
 
 fleso_configs = st.builds(
     FLESOConfig,
@@ -295,42 +343,43 @@ fleso_configs = st.builds(
     w_min=positive(1.0, 30.0),
     grid_points=st.sampled_from([51, 201]),
 )
-PER_JOINT_FLESO = ("estimation_error", "estimation_error_rate", "fuzzy_input", "bandwidth")
-small = st.floats(-0.01, 0.01, allow_nan=False, allow_subnormal=True)
+
+
+def observer(config: FLESOConfig, model: DecoupledModel) -> FLESO:
+    fleso = FLESO(config, PARAMS)
+    fleso.model = model  # type: ignore[assignment]
+    return fleso
+
+
+def measurement(sample: tuple[float, float, float, float]) -> tuple[list[float], list[float]]:
+    a, b, ad, bd = sample
+    return [0.05 * a, 0.05 * b], [ad, bd]
 
 
 @settings(max_examples=60)
-@given(config=fleso_configs, y=st.tuples(small, small), start=st.tuples(small, small))
-def test_fleso_swap_at_the_first_innovation(
-    config: FLESOConfig, y: tuple[float, float], start: tuple[float, float]
-) -> None:
-    straight, mirrored = FLESO(config, PARAMS), FLESO(swapped(config), PARAMS)
-    straight.step(list(start), [0.0, 0.0], DT)
-    mirrored.step(list(start[::-1]), [0.0, 0.0], DT)
-    straight.step(list(y), [0.0, 0.0], DT)
-    mirrored.step(list(y[::-1]), [0.0, 0.0], DT)
-    for key in (*PER_JOINT_FLESO, "x1_hat"):
-        assert agree(list(mirrored.internals[key]), list(straight.internals[key][::-1])), key
+@given(config=fleso_configs, model=decoupled_models, history=histories)
+def test_fleso_swap(config: FLESOConfig, model: DecoupledModel, history: list[Any]) -> None:
+    straight, mirrored = observer(config, model), observer(swapped(config), model.swapped())
+    for sample in history:
+        y, tau = measurement(sample)
+        xi = straight.step(y, tau, DT)
+        xi_m = mirrored.step(y[::-1], tau[::-1], DT)
+        assert agree(list(xi_m), list(xi[::-1]))
+        assert agree(listed(mirrored.internals), flipped(straight.internals))
 
 
 @settings(max_examples=60)
-@given(config=fleso_configs, history=histories, shift=st.floats(0.001, 0.05, allow_subnormal=False))
-def test_fleso_alpha_ignores_beta_input_at_that_step(
-    config: FLESOConfig, history: list[Any], shift: float
+@given(config=fleso_configs, model=decoupled_models, history=histories, joint=joints, shift=shifts)
+def test_fleso_joint_ignores_the_other_history(
+    config: FLESOConfig, model: DecoupledModel, history: list[Any], joint: int, shift: float
 ) -> None:
-    """Same past, beta's measurement differs at step k: alpha's per-joint quantities do not.
-
-    (The torque is kept: it enters the prediction through M^-1, which couples the joints by design.)
-    """
-    first, second = FLESO(config, PARAMS), FLESO(config, PARAMS)
-    for a, b, ad, bd in history[:-1]:
-        for observer in (first, second):
-            observer.step([0.1 * a, 0.1 * b], [ad, bd], DT)
-    a, b, ad, bd = history[-1]
-    first.step([0.1 * a, 0.1 * b], [ad, bd], DT)
-    second.step([0.1 * a, 0.1 * b + shift], [ad, bd], DT)
-    keys = (*PER_JOINT_FLESO, "x1_hat", "x2_hat", "x3_hat")
-    assert agree(alpha_of(second.internals, keys), alpha_of(first.internals, keys))
+    """Error, its rate, fuzzy input, bandwidth, states and estimate of one joint, whatever the other does."""
+    first, second = observer(config, model), observer(config, model)
+    for sample, moved in zip(history, changed(history, 1 - joint, 0.1 * shift), strict=True):
+        xi = first.step(*measurement(sample), DT)
+        xi2 = second.step(*measurement(moved), DT)
+        assert agree(xi2[joint], xi[joint])
+        assert agree(joint_of(second.internals, joint), joint_of(first.internals, joint))
 
 
 # Reference generators ------------------------------------------------------------------------------------

@@ -11,10 +11,10 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig, fhan, fst
 
-errors = st.floats(-2.0, 2.0)
-rates = st.floats(-50.0, 50.0)
-speeds = st.floats(1.0, 1e6)
-steps = st.floats(1e-4, 1e-2)
+errors = st.floats(-2.0, 2.0, allow_subnormal=True)
+rates = st.floats(-50.0, 50.0, allow_subnormal=True)
+speeds = st.floats(1.0, 1e6, allow_subnormal=False)
+steps = st.floats(1e-4, 1e-2, allow_subnormal=False)
 
 
 @settings(deadline=None, max_examples=300)

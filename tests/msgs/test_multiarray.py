@@ -31,7 +31,7 @@ from smm_msgs_py import (
     torque_to_msg,
 )
 
-finite = st.floats(allow_nan=False, allow_infinity=False)
+finite = st.floats(allow_nan=False, allow_infinity=False, allow_subnormal=True)
 stamps = st.integers(min_value=0, max_value=MAX_STAMP_NS)
 row_names = st.lists(
     st.text(alphabet="abcdefghijklmnopqrstuvwxyz_0123456789", min_size=1, max_size=12),
