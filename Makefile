@@ -9,7 +9,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.smm-installed
-PACKAGES := smm_msgs_py smm_dynamics smm_controller smm_sim smm_hw_bridge smm_analysis
+PACKAGES := smm_msgs_py smm_node_runtime smm_dynamics smm_controller smm_sim smm_hw_bridge smm_analysis smm_bringup
 PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg src/$(p)/package.xml)
 
 # Keep DDS discovery on this machine unless the caller chose otherwise.
@@ -31,7 +31,7 @@ test: $(STAMP)
 	$(PY) -m pytest tests
 
 demo: $(STAMP)
-	$(PY) -m smm_analysis.demo
+	$(PY) -m smm_bringup.demo
 
 bench: $(STAMP)
 	$(PY) bench/run.py

@@ -89,8 +89,9 @@ def pong(seconds: float) -> int:
     import rclpy
     from rclpy.context import Context
     from sensor_msgs.msg import JointState
-    from smm_msgs_py.node_support import make_executor
     from smm_msgs_py.qos import control_qos
+
+    from smm_node_runtime import make_executor
 
     context = Context()
     rclpy.init(context=context)
@@ -120,8 +121,9 @@ def ping_pong(seconds: float) -> dict[str, float]:
     from rclpy.clock import Clock, ClockType
     from rclpy.context import Context
     from sensor_msgs.msg import JointState
-    from smm_msgs_py.node_support import make_executor
     from smm_msgs_py.qos import control_qos
+
+    from smm_node_runtime import make_executor
 
     partner = subprocess.Popen(
         [
@@ -292,7 +294,7 @@ def run_graph(
         + extra_yaml
     )
     log = workdir / f"{label}.log"
-    command = [sys.executable, "-m", "smm_controller.launcher", *arguments, "--params-file", str(params)]
+    command = [sys.executable, "-m", "smm_bringup.launcher", *arguments, "--params-file", str(params)]
     start = time.monotonic()
     with log.open("wb") as out:
         try:

@@ -14,7 +14,6 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
     ],
     install_requires=["setuptools", "numpy"],
@@ -25,7 +24,6 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "smm-launch = smm_controller.launcher:main",
             "reference_node = smm_controller.reference_node:main",
             "td_node = smm_controller.td_node:main",
             "fleso_node = smm_controller.fleso_node:main",

@@ -18,6 +18,7 @@ from smm_analysis.metrics import (
     mean_abs_error,
     rms_error,
     step_metrics,
+    torque_increment_rms,
 )
 
 from smm_dynamics import SMMParameters, end_effector_position
@@ -220,3 +221,38 @@ def test_rejects_zero_step_and_bad_band() -> None:
 def test_metrics_errors_are_value_errors() -> None:
     with pytest.raises(ValueError):
         rms_error(np.array([0, 1], dtype=np.int64), np.zeros((2, 2)))
+
+
+def test_torque_increment_rms_of_a_ramp_an_alternation_and_a_constant() -> None:
+    assert torque_increment_rms(np.arange(11) * 0.25) == pytest.approx(0.25, rel=1e-12)
+    assert torque_increment_rms([1.0, -1.0, 1.0, -1.0, 1.0]) == pytest.approx(2.0, rel=1e-12)  # chatter
+    assert torque_increment_rms(np.full(7, 3.0)) == 0.0
+
+
+def test_torque_increment_rms_of_white_noise_is_sqrt2_times_its_std() -> None:
+    noise = np.random.default_rng(3).normal(0.0, 0.5, 200_000)
+    assert torque_increment_rms(noise) == pytest.approx(math.sqrt(2.0) * 0.5, rel=0.01)
+
+
+@pytest.mark.parametrize("torque", [[1.0], [0.0, math.nan], np.zeros((3, 2))])
+def test_torque_increment_rms_rejects_bad_input(torque: object) -> None:
+    with pytest.raises(MetricsInputError):
+        torque_increment_rms(torque)  # type: ignore[arg-type]
+
+
+def test_joint_indices_carry_the_torque_increment() -> None:
+    t_ns = _time(0.01)
+    torque = np.stack([np.arange(t_ns.size) * 0.1, np.zeros(t_ns.size)], axis=1)
+    indices = joint_indices(t_ns, np.zeros((t_ns.size, 2)), np.zeros((t_ns.size, 2)), torque)
+    assert indices["alpha"].du_rms == pytest.approx(0.1, rel=1e-12)
+    assert indices["beta"].du_rms == 0.0
+
+
+def test_energy_above_a_cutoff_splits_a_two_tone_torque_by_parseval() -> None:
+    from smm_analysis.energy_study import energy_above
+
+    t_ns = np.arange(1000, dtype=np.int64) * 1_000_000  # 1 s at 1 kHz, whole periods of both tones
+    t = t_ns / 1e9
+    torque = 2.0 * np.sin(2 * np.pi * 5 * t) + 0.5 * np.sin(2 * np.pi * 100 * t)
+    assert energy_above(t_ns, torque, 20.0) == pytest.approx(0.5**2 / 2, rel=1e-9)
+    assert energy_above(t_ns, torque, 1.0) == pytest.approx(2.0**2 / 2 + 0.5**2 / 2, rel=1e-9)

@@ -82,7 +82,7 @@ def test_every_scenario_and_controller_is_run(short_result: ReproductionResult) 
 
 def test_acceptance_checks_follow_the_metrics(short_result: ReproductionResult) -> None:
     checks = short_result.checks
-    assert len(checks) == 10
+    assert len(checks) == 12
     by_claim: dict[tuple[str, str], float] = {(check.claim, check.joint): check.value for check in checks}
     step = short_result.run("step", "fpdeso")
     assert step is not None and step.step is not None
@@ -92,10 +92,14 @@ def test_acceptance_checks_follow_the_metrics(short_result: ReproductionResult) 
     fpdeso, fpd = short_result.run("case2", "fpdeso"), short_result.run("case2", "fpd")
     assert fpdeso is not None and fpd is not None
     for check in checks:
-        if check.scenario == "case2":
+        if check.quantity == "rms_reduction":
             expected = 1.0 - fpdeso.joints[check.joint].RMS / fpd.joints[check.joint].RMS
             assert check.value == pytest.approx(expected)
             assert check.passed == (expected >= 0.38)
+        if check.quantity == "eps_u":
+            energy, fpd_energy = fpdeso.joints[check.joint].eps_u, fpd.joints[check.joint].eps_u
+            assert check.scenario == "case2" and check.value == energy
+            assert check.passed == (energy < fpd_energy)
         if check.claim.startswith("case1: FPDESO has the lowest RMS"):
             others = [
                 run.joints[check.joint].RMS
@@ -133,7 +137,7 @@ def test_metrics_document_schema(short_result: ReproductionResult) -> None:
         for entry in per_scenario.values():
             for joint in JOINTS:
                 values = entry[joint]
-                assert {"Ma", "Ave", "RMS", "eps_u"} <= set(values)
+                assert {"Ma", "Ave", "RMS", "eps_u", "du_rms"} <= set(values)
                 step_keys = {"rise_time", "overshoot", "overshoot_fraction", "settling_time"}
                 assert (step_keys <= set(values)) == (scenario == "step")
             assert set(entry["end_effector"]) == {"x", "y", "z"}
@@ -142,8 +146,9 @@ def test_metrics_document_schema(short_result: ReproductionResult) -> None:
     case1 = document["case1"]
     assert isinstance(case1, dict)
     assert case1["fpdeso"]["beta"]["RMS"] == run.joints["beta"].RMS
+    assert case1["fpdeso"]["beta"]["du_rms"] == run.joints["beta"].du_rms
     acceptance = document["acceptance"]
-    assert isinstance(acceptance, list) and len(acceptance) == 10
+    assert isinstance(acceptance, list) and len(acceptance) == 12
     assert all(isinstance(item["passed"], bool) for item in acceptance)
 
 

@@ -18,9 +18,11 @@ DT = 0.001
 PARAMS = SMMParameters()
 
 
-def test_chain_equals_manual_composition_in_design_order() -> None:
-    chain = make_chain("fpdeso", PARAMS)
-    td, fleso, controller = TrackingDifferentiator(), FLESO(None, PARAMS), FPDESOController(None, PARAMS)
+@pytest.mark.parametrize("velocity_source", ["td", "observer"])
+def test_chain_equals_manual_composition_in_design_order(velocity_source: str) -> None:
+    config = FPDESOConfig(velocity_source=velocity_source)
+    chain = ControlChain(TrackingDifferentiator(), FLESO(None, PARAMS), FPDESOController(config, PARAMS))
+    td, fleso, controller = TrackingDifferentiator(), FLESO(None, PARAMS), FPDESOController(config, PARAMS)
     references = SineReference().sample(np.arange(100) * DT)
     rng = np.random.default_rng(7)
     tau_applied = np.zeros(2)
@@ -28,6 +30,8 @@ def test_chain_equals_manual_composition_in_design_order() -> None:
         y = references[k, 0] * 0.98 + rng.normal(0.0, 1e-3, 2)
         q, q_dot = td.step(y, DT)
         xi = fleso.step(q, tau_applied, DT)
+        if velocity_source == "observer":
+            q_dot = fleso.internals["x2_hat"]
         expected = controller.step(references[k], q, q_dot, xi, DT)
         got = chain.step(y, tau_applied, references[k], DT)
         assert_allclose(got, expected, rtol=0, atol=0)
@@ -40,12 +44,37 @@ def test_chain_equals_manual_composition_in_design_order() -> None:
 
 
 def test_without_observer_the_disturbance_estimate_is_zero() -> None:
-    controller = FPDESOController(FPDESOConfig(robust_gain=(0.0, 0.0)), PARAMS)
+    controller = FPDESOController(FPDESOConfig(robust_gain=(0.0, 0.0), velocity_source="td"), PARAMS)
     chain = ControlChain(TrackingDifferentiator(), None, controller)
     reference = SineReference().evaluate(0.1)
     chain.step([0.01, 0.02], [0.5, 0.5], reference, DT)
     assert_allclose(chain.internals["controller.disturbance"], [0.0, 0.0], atol=0)
     assert not any(key.startswith("fleso.") for key in chain.internals)
+
+
+def test_the_observer_velocity_needs_an_observer() -> None:
+    with pytest.raises(ValueError, match="velocity_source is 'observer' but the chain has no FLESO"):
+        ControlChain(TrackingDifferentiator(), None, FPDESOController(None, PARAMS))
+    controller = FPDESOController(FPDESOConfig(velocity_source="td"), PARAMS)
+    chain = ControlChain(TrackingDifferentiator(), None, controller)
+    controller.reconfigure(FPDESOConfig(velocity_source="observer"))
+    with pytest.raises(ValueError, match="no FLESO"):
+        chain.step([0.0, 0.0], [0.0, 0.0], SineReference().evaluate(0.0), DT)
+
+
+def test_the_default_chain_gives_fpdeso_the_observer_velocity() -> None:
+    chain = make_chain("fpdeso", PARAMS)
+    assert chain.controller.velocity_source == "observer"
+    assert chain.fleso is not None
+    reference = SineReference().evaluate(0.0)
+    for k in range(5):
+        chain.step([0.001 * k, 0.0], [0.1, 0.1], reference, DT)
+    # feedback = M u with u = kp e + kd (q_d' - x2^): recompute it from the observer's velocity.
+    internals = chain.internals
+    e_dot = reference[1] - internals["fleso.x2_hat"]
+    e = reference[0] - internals["td.x1"]
+    u = internals["controller.kp"] * e + internals["controller.kd"] * e_dot
+    assert_allclose(internals["controller.u"], u, rtol=1e-12)
 
 
 @pytest.mark.parametrize(

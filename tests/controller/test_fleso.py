@@ -131,3 +131,15 @@ def test_estimates_a_model_error() -> None:
     largest = np.max(np.abs(totals), axis=0)
     assert np.all(largest > 1e-3)
     assert np.all(np.max(np.abs(errors), axis=0) < 0.35 * largest)
+
+
+@pytest.mark.parametrize("slope", [0.3, -1.2])
+def test_velocity_of_a_noise_free_ramp_is_its_slope(slope: float) -> None:
+    """y = (c t, 0) with tau = 0: on beta = 0 the model's M is constant and C = G = 0, so the total
+    disturbance is 0 and the LESO's fixed point is x2^ = (c, 0), x3^ = 0 (analytic reference)."""
+    fleso = FLESO(None, PARAMS)
+    for k in range(3000):
+        fleso.step([slope * k * DT, 0.0], [0.0, 0.0], DT)
+    assert fleso.velocity_floats() == tuple(fleso.internals["x2_hat"])
+    assert_allclose(fleso.velocity_floats(), (slope, 0.0), rtol=0, atol=1e-9)
+    assert_allclose(fleso.internals["x3_hat"], (0.0, 0.0), atol=1e-7)

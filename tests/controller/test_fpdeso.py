@@ -177,3 +177,10 @@ class TestNominalModel:
     def test_rejects_other_parameter_objects(self) -> None:
         with pytest.raises(ValueError, match="SMMParameters"):
             NominalModel(math.pi)  # type: ignore[arg-type]
+
+
+def test_velocity_source_is_validated_and_defaults_to_the_observer() -> None:
+    assert FPDESOConfig().velocity_source == "observer"
+    assert FPDESOController(FPDESOConfig(velocity_source="td"), PARAMS).velocity_source == "td"
+    with pytest.raises(ValueError, match="velocity_source must be one of"):
+        FPDESOConfig(velocity_source="encoder")

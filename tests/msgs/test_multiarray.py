@@ -132,7 +132,7 @@ def test_parsed_values_are_read_only_copies() -> None:
 
 
 def test_row_lookup_of_unknown_label_raises_key_error() -> None:
-    parsed = msg_to_labelled(labelled_to_msg(np.zeros((1, 2)), DISTURBANCE_ESTIMATE_ROWS, 0))
+    parsed = msg_to_labelled(labelled_to_msg(np.zeros((2, 2)), DISTURBANCE_ESTIMATE_ROWS, 0))
     with pytest.raises(KeyError, match="nope"):
         parsed.row("nope")
 

@@ -65,10 +65,14 @@ def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_every_package_is_built(colcon_install: Path) -> None:
-    assert (
-        sorted(["smm_analysis", "smm_controller", "smm_dynamics", "smm_hw_bridge", "smm_msgs_py", "smm_sim"])
-        == PACKAGES
-    )
+    assert {
+        "smm_bringup",
+        "smm_controller",
+        "smm_hw_bridge",
+        "smm_msgs_py",
+        "smm_node_runtime",
+        "smm_sim",
+    } <= set(PACKAGES)
     for package in PACKAGES:
         share = colcon_install / package / "share"
         assert (share / package / "package.xml").is_file()
@@ -91,6 +95,12 @@ def test_setup_cfg_installs_scripts_into_lib_pkg(package: str) -> None:
     assert config["develop"]["script_dir"] == f"$base/lib/{package}"
     assert config["install"]["install_scripts"] == f"$base/lib/{package}"
     assert (SRC / package / "resource" / package).is_file()
+
+
+def test_smm_launch_is_installed_by_smm_bringup_alone(colcon_install: Path) -> None:
+    owners = sorted(p.relative_to(colcon_install).parts[0] for p in colcon_install.glob("*/lib/*/smm-launch"))
+    assert owners == ["smm_bringup"]
+    assert (colcon_install / "smm_bringup" / "share" / "smm_bringup" / "launch" / "smm.launch.py").is_file()
 
 
 def test_an_installed_executable_starts_from_the_install_tree(colcon_install: Path) -> None:

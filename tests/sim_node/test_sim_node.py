@@ -25,12 +25,12 @@ class Harness:
         import rclpy
         from rclpy.parameter import Parameter
         from sensor_msgs.msg import JointState
-        from smm_msgs_py.node_support import make_executor
         from smm_msgs_py.qos import qos_for_topic
         from smm_sim.sim_node import SimNode
         from std_msgs.msg import Float64MultiArray
 
         from smm_msgs_py import topics
+        from smm_node_runtime import make_executor
 
         overrides = [Parameter(name, value=value) for name, value in parameters.items()]
         self.sim = SimNode(context=context, parameter_overrides=overrides)
@@ -316,8 +316,8 @@ def test_live_parameter_changes_are_validated(make_harness: Any) -> None:
 
 
 def test_console_script_exits_2_on_an_invalid_parameter(ros_domain_id: int) -> None:
-    from smm_controller.graph import NodeSpec
-    from smm_controller.launcher import resolve_executable
+    from smm_bringup.graph import NodeSpec
+    from smm_bringup.launcher import resolve_executable
 
     spec = NodeSpec(
         "smm_sim", "smm_sim_node", "smm_sim_node", "smm_sim.sim_node:SimNode", parameters=(("substeps", 0),)

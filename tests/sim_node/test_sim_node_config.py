@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from smm_msgs_py.parameters import config_fields, config_to_parameters
+from smm_node_runtime.parameters import config_fields, config_to_parameters
 from smm_sim.plant import PlantConfig
 from smm_sim.sim_node import LatencyStats, PlantParameters, SimNodeConfig
 

@@ -30,6 +30,7 @@ from smm_analysis.metrics import (
     mean_abs_error,
     rms_error,
     step_metrics,
+    torque_increment_rms,
     validated_time,
 )
 from smm_analysis.scenarios import SCENARIOS, Scenario, get_scenario
@@ -59,5 +60,6 @@ __all__ = [
     "run_closed_loop",
     "scenario_plant_config",
     "step_metrics",
+    "torque_increment_rms",
     "validated_time",
 ]

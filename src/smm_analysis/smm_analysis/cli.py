@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import TextIO
 
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD
+from smm_analysis.energy_study import EnergyStudy, run_energy_study, write_energy_plot
 from smm_analysis.errors import AnalysisError
 from smm_analysis.plots import write_plots
 from smm_analysis.report import render_report
@@ -76,6 +77,7 @@ class ReproduceOptions:
         report: Path of the Markdown report (default: ``out/REPORT.md``).
         td_sweep: Also run the TD sweep and put its table in the report.
         step_study: Also run the FPDESO step discretisation study.
+        energy_study: Also run the torque-noise study of issue #15 (terms and settings sweep).
         check: Exit with 1 if an acceptance check fails.
         quiet: Print nothing but errors.
         command: The command line, quoted in the report.
@@ -93,6 +95,7 @@ class ReproduceOptions:
     report: Path | None
     td_sweep: bool
     step_study: bool
+    energy_study: bool
     check: bool
     quiet: bool
     command: str
@@ -162,6 +165,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--step-study", action="store_true", help="also run the FPDESO step discretisation study"
     )
     parser.add_argument(
+        "--energy-study",
+        action="store_true",
+        help="also run the case2 torque-noise study: torque terms and a sweep of the settings (~30 s)",
+    )
+    parser.add_argument(
         "--check",
         action="store_true",
         help=(
@@ -186,6 +194,7 @@ def format_tables(result: ReproductionResult) -> str:
     for scenario in result.scenarios:
         lines.append(f"{scenario.name}: {scenario.description}")
         header = f"  {'controller':<15} {'Ma (rad)':>19} {'Ave (rad)':>19} {'RMS (rad)':>19} {'eps_u':>19}"
+        header += f" {'du_rms (N m)':>19}"
         if scenario.is_step:
             header += f" {'rise (s)':>15} {'overshoot (%)':>15} {'settling (s)':>15}"
         lines.append(header)
@@ -195,7 +204,7 @@ def format_tables(result: ReproductionResult) -> str:
                 continue
             joints = run.joints
             row = f"  {controller:<15}"
-            for metric in ("Ma", "Ave", "RMS", "eps_u"):
+            for metric in ("Ma", "Ave", "RMS", "eps_u", "du_rms"):
                 pair = f"{getattr(joints['alpha'], metric):.4g} / {getattr(joints['beta'], metric):.4g}"
                 row += f" {pair:>19}"
             if run.step is not None:
@@ -282,10 +291,17 @@ def reproduce(options: ReproduceOptions, stdout: TextIO | None = None, stderr: T
                     f"{1e3 * point.rms_alpha:.3f} / {1e3 * point.rms_beta:.3f} mrad"
                 ),
             )
+        study: EnergyStudy | None = None
+        if options.energy_study:
+            say("torque-noise study on case2:")
+            study = run_energy_study(
+                seed=options.seed,
+                progress=lambda index, total, setting: say(f"  [{index + 1}/{total}] {setting.label}"),
+            )
         say("")
         say(format_tables(result))
         if options.out is not None:
-            _write_outputs(options, result, sweep)
+            _write_outputs(options, result, sweep, study)
             say(f"\nwrote {options.out / 'metrics.json'} and the report")
     except AnalysisError as error:
         print(f"smm-reproduce: error: {error}", file=err_stream)
@@ -296,7 +312,10 @@ def reproduce(options: ReproduceOptions, stdout: TextIO | None = None, stderr: T
 
 
 def _write_outputs(
-    options: ReproduceOptions, result: ReproductionResult, sweep: Sequence[TDSweepPoint] | None
+    options: ReproduceOptions,
+    result: ReproductionResult,
+    sweep: Sequence[TDSweepPoint] | None,
+    study: EnergyStudy | None = None,
 ) -> None:
     assert options.out is not None
     out = options.out
@@ -311,9 +330,12 @@ def _write_outputs(
     plots: dict[str, str] = {}
     if options.plots:
         folder = options.plots_dir if options.plots_dir is not None else out
-        for path in write_plots(result, folder):
+        paths = write_plots(result, folder)
+        if study is not None:
+            paths.append(write_energy_plot(study, folder / "case2_rms_vs_energy.png"))
+        for path in paths:
             plots[path.stem] = Path(os.path.relpath(path.resolve(), report_path.resolve().parent)).as_posix()
-    report = render_report(result, plots=plots, td_sweep=sweep, command=options.command)
+    report = render_report(result, plots=plots, td_sweep=sweep, energy_study=study, command=options.command)
     try:
         report_path.parent.mkdir(parents=True, exist_ok=True)
         report_path.write_text(report, encoding="utf-8")
@@ -338,6 +360,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         report=parsed.report,
         td_sweep=parsed.td_sweep,
         step_study=parsed.step_study,
+        energy_study=parsed.energy_study,
         check=parsed.check,
         quiet=parsed.quiet,
         command=shlex.join(["smm-reproduce", *arguments]),

@@ -6,6 +6,12 @@ those stamps. Integrals (RMS, eq. 44, and control energy, eq. 45) use the trapez
 actual sample intervals, from the first to the last stamp, so ``t_f = t[-1] - t[0]``. For a uniformly
 sampled periodic signal over whole periods this is exact (e = A sin -> RMS = A / sqrt(2)).
 
+Torque smoothness (SPEC section 5 leaves the index to the project): ``du_rms``, the RMS of the torque
+increment between consecutive samples, sqrt(mean((tau_{k+1} - tau_k)^2)) in N m per control step. eps_u
+cannot tell a smooth torque from a chattering one of the same size; the increment can: white noise of
+std s on tau gives du_rms = sqrt(2) s, while a smooth torque of bandwidth w gives about w dt its size.
+It is per step, so compare runs at the same control period (docs/REPRODUCTION.md, "Torque noise").
+
 Step metrics are measured on the response normalised by the step size ``A = target - initial``:
 
 * rise time: time between the first crossings of 10 % and 90 % of ``A`` (linear interpolation between
@@ -40,6 +46,7 @@ __all__ = [
     "mean_abs_error",
     "rms_error",
     "step_metrics",
+    "torque_increment_rms",
     "validated_time",
 ]
 
@@ -60,12 +67,14 @@ class JointIndices:
         Ave: Mean absolute tracking error over the samples (rad), eq. 43.
         RMS: Root mean square tracking error sqrt((1/t_f) integral e^2 dt) (rad), eq. 44.
         eps_u: Control energy integral tau^2 dt (N^2 m^2 s), eq. 45.
+        du_rms: Torque smoothness, RMS torque increment per step (N m); see :func:`torque_increment_rms`.
     """
 
     Ma: float
     Ave: float
     RMS: float
     eps_u: float
+    du_rms: float
 
 
 @dataclass(frozen=True)
@@ -204,6 +213,14 @@ def control_energy(t_ns: ArrayLike, torque: ArrayLike) -> float:
     return _integral(_seconds(stamps), series**2)
 
 
+def torque_increment_rms(torque: ArrayLike) -> float:
+    """Torque smoothness: sqrt(mean((tau[k+1] - tau[k])^2)) (N m per step), ``torque`` shape (N,), N >= 2."""
+    series = _validated_series("torque", torque)
+    if series.size < 2:
+        raise MetricsInputError(f"torque needs at least 2 samples for an increment, got {series.size}")
+    return math.sqrt(float(np.mean(np.diff(series) ** 2)))
+
+
 def joint_indices(
     t_ns: ArrayLike, reference: ArrayLike, position: ArrayLike, torque: ArrayLike
 ) -> dict[str, JointIndices]:
@@ -231,6 +248,7 @@ def joint_indices(
             Ave=mean_abs_error(error[:, joint]),
             RMS=rms_error(stamps, error[:, joint]),
             eps_u=control_energy(stamps, effort[:, joint]),
+            du_rms=torque_increment_rms(effort[:, joint]),
         )
     return result
 

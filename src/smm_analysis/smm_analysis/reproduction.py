@@ -116,8 +116,8 @@ class AcceptanceCheck:
         passed: Whether the claim holds.
         controller: The controller (gain set) the claim is checked on: ``"fpdeso"`` for the paper's
             gains, or a retuned set's name.
-        quantity: What ``value`` is: ``overshoot_fraction``, ``rise_time``, ``RMS``, ``Ma`` or
-            ``rms_reduction``; matches a retuned set's check with the paper set's.
+        quantity: What ``value`` is: ``overshoot_fraction``, ``rise_time``, ``RMS``, ``Ma``,
+            ``rms_reduction`` or ``eps_u``; matches a retuned set's check with the paper set's.
     """
 
     claim: str
@@ -541,6 +541,19 @@ def acceptance_checks(result: ReproductionResult) -> list[AcceptanceCheck]:
                     quantity="rms_reduction",
                 )
             )
+        for joint in JOINTS:
+            energy, fpd_energy = fpdeso2.joints[joint].eps_u, fpd2.joints[joint].eps_u
+            checks.append(
+                AcceptanceCheck(
+                    claim="case2: FPDESO control energy eps_u below FPD's (N^2 m^2 s)",
+                    scenario="case2",
+                    joint=joint,
+                    value=energy,
+                    requirement=f"< FPD {fpd_energy:.4g}",
+                    passed=energy < fpd_energy,
+                    quantity="eps_u",
+                )
+            )
     return checks
 
 
@@ -623,8 +636,9 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
     on), ``"acceptance_verdict"`` (``{"met": bool, "message": str}``, see :func:`acceptance_verdict`) and
     ``"meta"`` (run settings, units and the retuned sets run, with their labels and changes).
     Controllers include the retuned sets' pseudo-names (``fpdeso_retuned``).
-    Per joint: Ma, Ave, RMS (rad), eps_u (N^2 m^2 s); for step scenarios also rise_time (s), overshoot
-    (rad), overshoot_fraction (of the step) and settling_time (s; null = not settled by the end).
+    Per joint: Ma, Ave, RMS (rad), eps_u (N^2 m^2 s), du_rms (N m per step); for step scenarios also
+    rise_time (s), overshoot (rad), overshoot_fraction (of the step) and settling_time (s; null = not
+    settled by the end).
     ``end_effector``: x, y, z each {max_mm, rms_mm}.
     """
     document: dict[str, object] = {}
@@ -639,6 +653,7 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
                 "Ave": indices.Ave,
                 "RMS": indices.RMS,
                 "eps_u": indices.eps_u,
+                "du_rms": indices.du_rms,
             }
             if run.step is not None:
                 metrics = run.step[joint]
@@ -697,6 +712,7 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
             "Ave": "rad",
             "RMS": "rad",
             "eps_u": "N^2 m^2 s (integral of the commanded torque squared)",
+            "du_rms": "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
             "rise_time": "s (10-90 %)",
             "overshoot": "rad",
             "overshoot_fraction": "fraction of the step (x100 = %)",

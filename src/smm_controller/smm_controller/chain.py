@@ -5,7 +5,8 @@ previous interval tau_applied_{k-1}:
 
 1. TD: (q^, q^') = td(y_k)
 2. FLESO (if any): xi~_k = fleso(q^, tau_applied_{k-1})  (else xi~ = 0)
-3. controller: tau_k = controller(r_k, q^, q^', xi~_k)
+3. controller: tau_k = controller(r_k, q^, v_k, xi~_k), v_k = q^' or, for a law whose
+   ``velocity_source`` is ``"observer"``, the FLESO's velocity estimate x2^_k
 
 All stages run on plain floats internally (``step_floats``), so one step converts arrays only once
 on the way in and once on the way out.
@@ -62,6 +63,8 @@ class ControlChain:
     """
 
     def __init__(self, td: TrackingDifferentiator, fleso: FLESO | None, controller: JointController) -> None:
+        if fleso is None and controller.velocity_source == "observer":
+            raise ValueError("the law's velocity_source is 'observer' but the chain has no FLESO")
         self.td = td
         self.fleso = fleso
         self.controller = controller
@@ -111,8 +114,12 @@ class ControlChain:
         q0, q1, qd0, qd1 = self.td.step_floats(y[0], y[1], dt)
         if self.fleso is not None:
             disturbance = self.fleso.step_floats(q0, q1, tau_applied[0], tau_applied[1], dt)
+            if self.controller.velocity_source == "observer":
+                qd0, qd1 = self.fleso.velocity_floats()
         else:
             disturbance = (0.0, 0.0)
+            if self.controller.velocity_source == "observer":
+                raise ValueError("the law's velocity_source is 'observer' but the chain has no FLESO")
         self._disturbance = disturbance
         return self.controller.step_floats(reference, (q0, q1), (qd0, qd1), disturbance, dt)
 

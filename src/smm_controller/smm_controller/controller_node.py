@@ -4,7 +4,9 @@ Matches, by exact stamp, ``joint_states_filtered`` (TD position rad and velocity
 (3x2) and, for ``fpdeso`` only, ``disturbance_estimate`` (row ``xi_tilde``, N m); steps the law once per
 stamp with dt = ``control_period`` and publishes ``torque_command`` ([tau_alpha, tau_beta] N m), then
 ``controller_internals`` (the law's internals + the node counters), both stamped with the measurement's
-stamp. The baselines get xi~ = 0 and ``disturbance_estimate`` is then not read.
+stamp. The baselines get xi~ = 0 and ``disturbance_estimate`` is then not read. With FPDESO's
+``velocity_source: observer`` the law's velocity is the row ``x2_hat`` of ``disturbance_estimate`` (the
+FLESO's x2^) instead of the TD's.
 
 Parameters: ``algorithm`` (fpdeso | fpd | pid | npd) and ``switch_idle_time``; the gains of every law,
 ``fpdeso.<field>`` (nested ``fpdeso.fuzzy.<field>``), ``fpd.fuzzy.<field>``, ``pid.<field>``,
@@ -41,11 +43,10 @@ import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Final, Generic, TypeVar
+from typing import Any, Final, Generic, TypeVar, Unpack
 
 import numpy as np
 import numpy.typing as npt
-from rclpy.context import Context
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import (
     internals_to_msg,
@@ -57,15 +58,8 @@ from smm_msgs_py.conversions import (
 )
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS
-from smm_msgs_py.node_support import (
-    ControlPeriodConfig,
-    MeasurementDrivenNode,
-    Output,
-    ParameterOverrides,
-    node_main,
-)
-from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import qos_for_topic
+from smm_node_runtime.parameters import ConfigParameters
 from std_msgs.msg import Float64MultiArray
 
 from smm_controller.baselines import (
@@ -80,13 +74,19 @@ from smm_controller.chain import CONTROLLER_NAMES, ControlChain, JointController
 from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
-from smm_controller.graph import REFERENCE_PREFIX
 from smm_controller.reference_node import ReferenceClock, ReferenceParameters
 from smm_controller.sync import ExactTimeSynchronizer, Matched
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_controller.td_node import TD_PREFIX, check_filter_factor
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
+from smm_node_runtime import (
+    ControlPeriodConfig,
+    MeasurementDrivenNode,
+    NodeOptions,
+    Output,
+    node_main,
+)
 
 __all__ = [
     "CHAIN_MODES",
@@ -105,6 +105,9 @@ __all__ = [
 ]
 
 NODE_NAME: Final[str] = "controller_node"
+REFERENCE_PREFIX: Final[str] = "reference"
+"""Prefix of the reference generator parameters (``reference.kind``, ``reference.sine.*``) when the node
+samples the reference itself."""
 DEFAULT_SWITCH_IDLE_TIME: Final[float] = 0.5
 """Default quiet time before ``algorithm`` may change (s)."""
 CHAIN_MODES: Final[tuple[str, ...]] = ("external", "internal")
@@ -206,32 +209,16 @@ class ControllerNode(MeasurementDrivenNode):
     """Controller node.
 
     Args:
-        context: rclpy context (None: the default one).
-        parameter_overrides: Parameter values overriding defaults and parameter files.
-        namespace: Node namespace (None: from the command line).
-        cli_args: Node-specific command-line arguments.
-        node_name: Node name.
+        **options: The node options every SMM node takes (:class:`~smm_node_runtime.NodeOptions`).
 
     Raises:
         ValueError: invalid initial parameters (message names the parameter).
     """
 
-    def __init__(
-        self,
-        *,
-        context: Context | None = None,
-        parameter_overrides: ParameterOverrides | None = None,
-        namespace: str | None = None,
-        cli_args: Sequence[str] | None = None,
-        node_name: str = NODE_NAME,
-    ) -> None:
-        super().__init__(
-            node_name,
-            context=context,
-            parameter_overrides=parameter_overrides,
-            namespace=namespace,
-            cli_args=cli_args,
-        )
+    NODE_NAME = NODE_NAME
+
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        super().__init__(**options)
         self._last_input_time: float | None = None
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.placement = ConfigParameters(self, "", ChainPlacement(), read_only=True)
@@ -450,9 +437,9 @@ class ControllerNode(MeasurementDrivenNode):
         filtered = matched.items[topics.JOINT_STATES_FILTERED]
         estimate = matched.items.get(topics.DISTURBANCE_ESTIMATE)
         xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
-        tau = self.controller.step(
-            np.array(reference), filtered.position, filtered.velocity, xi, self.control_period
-        )
+        observer = estimate is not None and self.controller.velocity_source == "observer"
+        velocity = estimate.values[1] if estimate is not None and observer else filtered.velocity
+        tau = self.controller.step(np.array(reference), filtered.position, velocity, xi, self.control_period)
         return [(self._torque_publisher, torque_to_msg(tau, matched.stamp_ns))]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:

@@ -223,6 +223,10 @@ class FLESO:
         self._last = (e0, e1, rate0, rate1, s0, s1, w0, w1, xi0, xi1)
         return xi0, xi1
 
+    def velocity_floats(self) -> tuple[float, float]:
+        """The velocity estimate x2^ after the last step (rad/s), (alpha, beta)."""
+        return self._x2[0], self._x2[1]
+
     @property
     def internals(self) -> Mapping[str, FloatArray]:
         """Read-only copies, shape (2,).

@@ -2,9 +2,9 @@
 
 Matches, by exact stamp, ``joint_states_filtered`` (TD position, rad) and ``joint_states`` (effort = torque
 applied over the previous interval, N m); steps the FLESO once per stamp with dt = ``control_period`` and
-publishes ``disturbance_estimate`` (row ``xi_tilde``, N m), then the diagnostics ``observer_state`` (x1_hat,
-x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node counters), all stamped with
-the measurement's stamp.
+publishes ``disturbance_estimate`` (rows ``xi_tilde``, N m, and ``x2_hat``, rad/s), then the diagnostics
+``observer_state`` (x1_hat, x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node
+counters), all stamped with the measurement's stamp.
 
 Applied torque (SPEC section 4): the measurement's effort; where the plant reports none (empty ``effort``,
 e.g. a bridge without torque sensing), the ``torque_command`` stamped with the previous measurement's stamp,
@@ -21,11 +21,10 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Mapping, Sequence
-from typing import Any, Final
+from typing import Any, Final, Unpack
 
 import numpy as np
 import numpy.typing as npt
-from rclpy.context import Context
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import (
     JointSample,
@@ -36,21 +35,21 @@ from smm_msgs_py.conversions import (
 )
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
-from smm_msgs_py.node_support import (
-    ControlPeriodConfig,
-    MeasurementDrivenNode,
-    Output,
-    ParameterOverrides,
-    node_main,
-)
-from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
+from smm_node_runtime.parameters import ConfigParameters
 from std_msgs.msg import Float64MultiArray
 
 from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.sync import DEFAULT_MAX_PENDING, ExactTimeSynchronizer, Matched
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
+from smm_node_runtime import (
+    ControlPeriodConfig,
+    MeasurementDrivenNode,
+    NodeOptions,
+    Output,
+    node_main,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -82,32 +81,16 @@ class FlesoNode(MeasurementDrivenNode):
     """Disturbance observer node.
 
     Args:
-        context: rclpy context (None: the default one).
-        parameter_overrides: Parameter values overriding defaults and parameter files.
-        namespace: Node namespace (None: from the command line).
-        cli_args: Node-specific command-line arguments.
-        node_name: Node name.
+        **options: The node options every SMM node takes (:class:`~smm_node_runtime.NodeOptions`).
 
     Raises:
         ValueError: invalid initial parameters (message names the parameter).
     """
 
-    def __init__(
-        self,
-        *,
-        context: Context | None = None,
-        parameter_overrides: ParameterOverrides | None = None,
-        namespace: str | None = None,
-        cli_args: Sequence[str] | None = None,
-        node_name: str = NODE_NAME,
-    ) -> None:
-        super().__init__(
-            node_name,
-            context=context,
-            parameter_overrides=parameter_overrides,
-            namespace=namespace,
-            cli_args=cli_args,
-        )
+    NODE_NAME = NODE_NAME
+
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        super().__init__(**options)
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.fleso_parameters = ConfigParameters(
             self, FLESO_PREFIX, FLESOConfig(), on_change=self._reconfigure
@@ -207,7 +190,8 @@ class FlesoNode(MeasurementDrivenNode):
         effort = matched.items[topics.JOINT_STATES].effort
         applied_torque = effort if effort is not None else self._commanded_torque(previous_stamp_ns)
         estimate = self.fleso.step(position, applied_torque, self.control_period)
-        message = labelled_to_msg(estimate[np.newaxis, :], DISTURBANCE_ESTIMATE_ROWS, matched.stamp_ns)
+        rows = np.stack([estimate, self.fleso.velocity_floats()])
+        message = labelled_to_msg(rows, DISTURBANCE_ESTIMATE_ROWS, matched.stamp_ns)
         return [(self._estimate_publisher, message)]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:

@@ -9,6 +9,9 @@ Split as in the paper: feedforward tau_c1 = M q_d'' + C q' + G (eq. 28), feedbac
 (eq. 29), compensation tau_c3 = xi~ - v (eq. 30). With a boundary layer phi > 0 the sign is replaced by
 sat(x / phi) (phi in the units of M^-1 e', rad/(kg m^2 s)); phi = 0 is the paper's pure sign, with
 sign(0) = 0. On the exact model with xi~ = 0 and b_d = 0 the closed loop is q'' = q_d'' + u (eq. 10).
+
+``velocity_source`` says which q' the chain feeds the law: ``"td"`` (the paper: the TD's x2) or
+``"observer"`` (the FLESO's x2^, the usual ADRC choice; default, see docs/REPRODUCTION.md, "Torque noise").
 """
 
 from __future__ import annotations
@@ -28,7 +31,10 @@ from smm_controller.model import NominalModel
 from smm_controller.torque_law import TorqueLaw
 from smm_dynamics import SMMParameters
 
-__all__ = ["FPDESOConfig", "FPDESOController", "robust_switch"]
+__all__ = ["VELOCITY_SOURCES", "FPDESOConfig", "FPDESOController", "robust_switch"]
+
+#: Values of :attr:`FPDESOConfig.velocity_source`.
+VELOCITY_SOURCES: tuple[str, str] = ("td", "observer")
 
 
 @dataclass(frozen=True)
@@ -39,17 +45,23 @@ class FPDESOConfig:
         fuzzy: Fuzzy PD gain schedule (gains in 1/s^2 and 1/s).
         robust_gain: b_d, bound of the disturbance estimation error (N m), >= 0.
         boundary_layer: phi, width of the boundary layer of the robust term, >= 0 (0 = pure sign).
+        velocity_source: q' of the law: "td" (paper, eq. 26: the TD's x2) or "observer" (the FLESO's x2^).
     """
 
     fuzzy: FuzzyPDConfig = PAPER_FPDESO_FUZZY
     robust_gain: tuple[float, float] = (0.03 * math.pi, 0.02 * math.pi)
     boundary_layer: tuple[float, float] = (0.0, 0.0)
+    velocity_source: str = "observer"
 
     def __post_init__(self) -> None:
         if not isinstance(self.fuzzy, FuzzyPDConfig):
             raise ValueError(f"fuzzy must be a FuzzyPDConfig, got {self.fuzzy!r}")
         check_pair("robust_gain", self.robust_gain, non_negative=True)
         check_pair("boundary_layer", self.boundary_layer, non_negative=True)
+        if self.velocity_source not in VELOCITY_SOURCES:
+            raise ValueError(
+                f"velocity_source must be one of {VELOCITY_SOURCES}, got {self.velocity_source!r}"
+            )
 
 
 def robust_switch(x: float, phi: float) -> float:
@@ -73,6 +85,11 @@ class FPDESOController(TorqueLaw):
         self.model = NominalModel.shared(params)
         self.schedule = FuzzyPDGainSchedule(self.config.fuzzy)
         self.reset()
+
+    @property
+    def velocity_source(self) -> str:
+        """Which velocity estimate the chain gives this law: "td" or "observer"."""
+        return self.config.velocity_source
 
     def reset(self) -> None:
         """The law is memoryless; this clears the recorded internals."""

@@ -18,9 +18,9 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Unpack
 
 import numpy as np
-from rclpy.context import Context
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import (
@@ -30,19 +30,19 @@ from smm_msgs_py.conversions import (
     reference_to_msg,
 )
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.node_support import (
-    ControlPeriodConfig,
-    MeasurementDrivenNode,
-    Output,
-    ParameterOverrides,
-    node_main,
-)
-from smm_msgs_py.parameters import ConfigParameters, parameter_name
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
+from smm_node_runtime.parameters import ConfigParameters, parameter_name
 from std_msgs.msg import Float64MultiArray
 
 from smm_controller.reference import REFERENCE_KINDS, ReferenceGenerator
 from smm_msgs_py import topics
+from smm_node_runtime import (
+    ControlPeriodConfig,
+    MeasurementDrivenNode,
+    NodeOptions,
+    Output,
+    node_main,
+)
 
 __all__ = [
     "DEFAULT_LOOKAHEAD",
@@ -148,32 +148,16 @@ class ReferenceNode(MeasurementDrivenNode):
     """Reference generator node.
 
     Args:
-        context: rclpy context (None: the default one).
-        parameter_overrides: Parameter values overriding defaults and parameter files.
-        namespace: Node namespace (None: from the command line).
-        cli_args: Node-specific command-line arguments.
-        node_name: Node name.
+        **options: The node options every SMM node takes (:class:`~smm_node_runtime.NodeOptions`).
 
     Raises:
         ValueError: invalid initial parameters (message names the parameter).
     """
 
-    def __init__(
-        self,
-        *,
-        context: Context | None = None,
-        parameter_overrides: ParameterOverrides | None = None,
-        namespace: str | None = None,
-        cli_args: Sequence[str] | None = None,
-        node_name: str = NODE_NAME,
-    ) -> None:
-        super().__init__(
-            node_name,
-            context=context,
-            parameter_overrides=parameter_overrides,
-            namespace=namespace,
-            cli_args=cli_args,
-        )
+    NODE_NAME = NODE_NAME
+
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        super().__init__(**options)
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.lookahead = ConfigParameters(self, "", ReferenceLookahead(), read_only=True)
         self.reference = ReferenceParameters(self)

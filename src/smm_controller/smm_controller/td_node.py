@@ -3,15 +3,15 @@
 Subscribes ``joint_states`` (raw measurement, position in rad); for each new stamp steps the TD once with
 dt = ``control_period`` and publishes ``joint_states_filtered`` (position x1 in rad, velocity x2 in rad/s,
 ``header.stamp`` = the measurement's) and ``~/internals`` (TD internals + the node counters). Stamp policy,
-bad input and parameters: see ``docs/NODES.md`` and :mod:`smm_msgs_py.node_support`.
+bad input and parameters: see ``docs/NODES.md`` and :mod:`smm_node_runtime`.
 """
 
 from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
+from typing import Unpack
 
-from rclpy.context import Context
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import (
     JointSample,
@@ -20,19 +20,19 @@ from smm_msgs_py.conversions import (
     sample_to_joint_state,
 )
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.node_support import (
-    ControlPeriodConfig,
-    MeasurementDrivenNode,
-    Output,
-    ParameterOverrides,
-    node_main,
-)
-from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
+from smm_node_runtime.parameters import ConfigParameters
 from std_msgs.msg import Float64MultiArray
 
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_msgs_py import topics
+from smm_node_runtime import (
+    ControlPeriodConfig,
+    MeasurementDrivenNode,
+    NodeOptions,
+    Output,
+    node_main,
+)
 
 __all__ = ["INTERNALS_TOPIC", "NODE_NAME", "TD_PREFIX", "TdNode", "check_filter_factor", "main"]
 
@@ -64,32 +64,16 @@ class TdNode(MeasurementDrivenNode):
     """Tracking differentiator node.
 
     Args:
-        context: rclpy context (None: the default one).
-        parameter_overrides: Parameter values overriding defaults and parameter files.
-        namespace: Node namespace (None: from the command line).
-        cli_args: Node-specific command-line arguments.
-        node_name: Node name.
+        **options: The node options every SMM node takes (:class:`~smm_node_runtime.NodeOptions`).
 
     Raises:
         ValueError: invalid initial parameters (message names the parameter).
     """
 
-    def __init__(
-        self,
-        *,
-        context: Context | None = None,
-        parameter_overrides: ParameterOverrides | None = None,
-        namespace: str | None = None,
-        cli_args: Sequence[str] | None = None,
-        node_name: str = NODE_NAME,
-    ) -> None:
-        super().__init__(
-            node_name,
-            context=context,
-            parameter_overrides=parameter_overrides,
-            namespace=namespace,
-            cli_args=cli_args,
-        )
+    NODE_NAME = NODE_NAME
+
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        super().__init__(**options)
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.td_parameters = ConfigParameters(
             self,

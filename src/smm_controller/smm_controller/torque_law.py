@@ -18,6 +18,11 @@ from smm_controller._validation import FloatArray, as_joint_vector, as_reference
 class TorqueLaw:
     """Array interface of a joint torque law: validation and conversion around ``step_floats``."""
 
+    @property
+    def velocity_source(self) -> str:
+        """Which velocity estimate the chain gives this law: "td" (the baselines) or "observer"."""
+        return "td"
+
     def step(
         self,
         reference: npt.ArrayLike,

@@ -24,8 +24,9 @@ ITEM_SEPARATOR: Final[str] = ","
 REFERENCE_ROWS: Final[tuple[str, str, str]] = ("position", "velocity", "acceleration")
 """Rows of a reference: position (rad), velocity (rad/s), acceleration (rad/s^2)."""
 
-DISTURBANCE_ESTIMATE_ROWS: Final[tuple[str]] = ("xi_tilde",)
-"""Rows of the disturbance estimate: lumped disturbance estimate xi~ (N m)."""
+DISTURBANCE_ESTIMATE_ROWS: Final[tuple[str, str]] = ("xi_tilde", "x2_hat")
+"""Rows of the disturbance estimate: lumped disturbance estimate xi~ (N m) and the observer's velocity
+estimate x2^ (rad/s), which FPDESO's law uses with ``velocity_source: observer``."""
 
 OBSERVER_STATE_ROWS: Final[tuple[str, str, str, str]] = ("x1_hat", "x2_hat", "x3_hat", "bandwidth")
 """Rows of the observer state: x1_hat (rad), x2_hat (rad/s), x3_hat (rad/s^2), bandwidth (rad/s)."""

@@ -42,6 +42,9 @@ CONTROLLER_INTERNALS: Final[str] = "controller_internals"
 CLOCK: Final[str] = "/clock"
 """Simulation clock, ``rosgraph_msgs/Clock``; absolute, published by the simulator in lockstep."""
 
+DIAGNOSTICS: Final[str] = "/diagnostics"
+"""Node health, ``diagnostic_msgs/DiagnosticArray``; absolute, the name every ROS monitoring tool reads."""
+
 CONTROL_TOPICS: Final[tuple[str, ...]] = (
     JOINT_STATES,
     JOINT_STATES_FILTERED,

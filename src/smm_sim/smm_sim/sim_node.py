@@ -45,14 +45,13 @@ from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Final, Literal
+from typing import Any, Final, Literal, Unpack
 
 import numpy as np
 import numpy.typing as npt
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.context import Context
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from rclpy.timer import Timer
@@ -60,13 +59,13 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import JointSample, clock_msg, msg_to_torque, sample_to_joint_state
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.node_support import WARN_THROTTLE_S, ParameterOverrides, as_parameter_list, run_node
-from smm_msgs_py.parameters import ConfigParameters
 from smm_msgs_py.qos import qos_for_topic
+from smm_node_runtime.parameters import ConfigParameters
 from std_msgs.msg import Float64MultiArray
 
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
+from smm_node_runtime import WARN_THROTTLE_S, NodeOptions, SmmNode, run_node
 from smm_sim.plant import GroundTruth, Measurement, PlantConfig, SimulatedPlant
 
 __all__ = [
@@ -325,38 +324,23 @@ class _Recorder:
         )
 
 
-class SimNode(Node):
+class SimNode(SmmNode):
     """The simulated SMM plant node (see the module docstring).
 
     Args:
-        context: rclpy context (None: the default one).
-        parameter_overrides: Parameter values overriding the defaults: ``Parameter`` objects or
-            ``{name: value}``.
-        node_name: Node name.
-        namespace: Node namespace (None: from the command line, else the root).
         shutdown_when_done: Shut the context down when the run is complete, which ends the spin of
-            :func:`smm_msgs_py.node_support.run_node` (the console script); a launcher that composes
-            nodes waits for :attr:`done` instead.
+            :func:`smm_node_runtime.run_node` (the console script); a launcher that composes nodes waits
+            for :attr:`done` instead.
+        **options: The node options every SMM node takes (:class:`~smm_node_runtime.NodeOptions`).
 
     Raises:
         SimParameterError: A parameter value is invalid (the message names the parameter and the value).
     """
 
-    def __init__(
-        self,
-        *,
-        context: Context | None = None,
-        parameter_overrides: ParameterOverrides | None = None,
-        node_name: str = NODE_NAME,
-        namespace: str | None = None,
-        shutdown_when_done: bool = False,
-    ) -> None:
-        super().__init__(
-            node_name,
-            context=context,
-            parameter_overrides=as_parameter_list(parameter_overrides),
-            namespace=namespace,
-        )
+    NODE_NAME = NODE_NAME
+
+    def __init__(self, *, shutdown_when_done: bool = False, **options: Unpack[NodeOptions]) -> None:
+        super().__init__(**options)
         try:
             self._plant_parameters = ConfigParameters(self, "", PlantParameters(), read_only=True)
             self._node_parameters = ConfigParameters(

@@ -1,0 +1,104 @@
+"""Start the SMM control graph on a ROS 2 Jazzy install: ``ros2 launch smm_bringup smm.launch.py``.
+
+The node list comes from :func:`smm_bringup.graph.build_graph`, the same description ``smm-launch`` uses,
+so the two cannot drift apart. Arguments:
+
+* ``plant:=sim|hw`` (hw: smm_hw_bridge, refused until that node exists),
+* ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``, ``scenario:=step|case1|case2|none``,
+* ``chain:=fused|split`` (fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too),
+* ``reference:=controller|node`` (controller: controller_node samples the reference, no reference_node;
+  node: reference_node publishes it),
+* ``duration:=<s>`` (empty: the scenario's in lockstep, endless in realtime),
+* ``seed:=<int>`` (empty: as configured),
+* ``params_file:=<path>`` (empty: none), applied after the scenario's file,
+* ``control_period:=<s>`` (empty: as configured, 1 ms), for every node.
+
+Every node's exit ends the launch: the plant exits 0 when its run is complete, any other exit is a failure.
+"""
+
+from __future__ import annotations
+
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction
+from launch.events import Shutdown
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+from smm_bringup.graph import (
+    ALGORITHMS,
+    CHAIN_LAYOUTS,
+    CLOCK_MODES,
+    PLANTS,
+    REFERENCE_PLACEMENTS,
+    SCENARIO_NAMES,
+    GraphOptions,
+    NodeSpec,
+    build_graph,
+)
+
+ARGUMENTS = (
+    ("plant", "sim", f"plant node: {' | '.join(PLANTS)}"),
+    ("clock_mode", "lockstep", f"simulator clock: {' | '.join(CLOCK_MODES)}"),
+    ("chain", "fused", f"chain layout: {' | '.join(CHAIN_LAYOUTS)}"),
+    ("reference", "controller", f"who samples the reference: {' | '.join(REFERENCE_PLACEMENTS)}"),
+    ("algorithm", "fpdeso", f"controller: {' | '.join(ALGORITHMS)}"),
+    ("scenario", "case2", f"scenario: {' | '.join(SCENARIO_NAMES)} | none"),
+    ("duration", "", "simulated seconds until the simulator stops (empty: scenario / endless; 0: endless)"),
+    ("seed", "", "noise seed of the simulator (empty: as configured)"),
+    ("params_file", "", "extra ROS 2 parameter file for every node (empty: none)"),
+    ("control_period", "", "control period of every node, s (empty: as configured, 0.001)"),
+)
+
+
+def options_from_launch_arguments(values: dict[str, str]) -> GraphOptions:
+    """Turn the launch arguments (strings) into the graph options smm-launch uses too."""
+    scenario = values["scenario"]
+    return GraphOptions(
+        plant=values["plant"],  # type: ignore[arg-type]
+        clock_mode=values["clock_mode"],  # type: ignore[arg-type]
+        chain=values["chain"],  # type: ignore[arg-type]
+        reference=values["reference"],  # type: ignore[arg-type]
+        algorithm=values["algorithm"],
+        scenario=None if scenario == "none" else scenario,
+        duration=float(values["duration"]) if values["duration"] else None,
+        seed=int(values["seed"]) if values["seed"] else None,
+        params_files=(values["params_file"],) if values["params_file"] else (),
+        control_period=float(values["control_period"]) if values["control_period"] else None,
+    )
+
+
+def node_action(spec: NodeSpec) -> Node:
+    """One launch_ros Node for one spec of the graph (files first, then the explicit overrides)."""
+    overrides = {name: list(value) if isinstance(value, tuple) else value for name, value in spec.parameters}
+    return Node(
+        package=spec.package,
+        executable=spec.executable,
+        name=spec.name,
+        namespace=spec.namespace,
+        parameters=[*spec.parameter_files, overrides],
+        remappings=list(spec.remappings),
+        output="screen",
+        on_exit=[
+            LogInfo(msg=f"{spec.name} exited; stopping the graph"),
+            EmitEvent(event=Shutdown(reason=f"{spec.name} exited")),
+        ],
+    )
+
+
+def _nodes(context, *_args, **_kwargs):  # type: ignore[no-untyped-def]
+    values = {name: context.perform_substitution(_configuration(name)) for name, _, _ in ARGUMENTS}
+    return [node_action(spec) for spec in build_graph(options_from_launch_arguments(values))]
+
+
+def _configuration(name: str) -> LaunchConfiguration:
+    return LaunchConfiguration(name)
+
+
+def generate_launch_description() -> LaunchDescription:
+    """The launch description: the arguments, then the graph built from them."""
+    return LaunchDescription(
+        [
+            DeclareLaunchArgument(name, default_value=default, description=text)
+            for name, default, text in ARGUMENTS
+        ]
+        + [OpaqueFunction(function=_nodes)]
+    )

@@ -1,0 +1,500 @@
+"""The one description of the SMM node graph, used by ``smm-launch`` and by the ROS launch files.
+
+:func:`build_graph` turns :class:`GraphOptions` (plant, clock mode, chain layout, algorithm, scenario,
+duration, seed, extra parameter files) into an ordered tuple of :class:`NodeSpec`: package, executable,
+node name, namespace, parameter files, parameter overrides and remappings of each node. ``smm-launch``
+starts each spec as its own OS process (:meth:`NodeSpec.command_line`) or, with ``--composed``,
+instantiates the node classes in one process (:attr:`NodeSpec.node_class`, :func:`parameter_overrides`);
+the launch files map the same specs onto ``launch_ros.actions.Node``. So the two ways to start the graph
+cannot drift apart.
+
+Parameter precedence, lowest first (later layers win, as in ``ros2 launch``): the node's own defaults,
+the scenario file ``smm_bringup/config/scenario_<name>.yaml``, the user's extra ``--params-file`` files in
+the order given, then the overrides that the launcher's own options imply (clock mode, duration, seed,
+algorithm).
+
+A scenario file holds what the scenario of :mod:`smm_analysis.scenarios` defines (plant noise,
+disturbance, model error, duration; reference kind, amplitude, frequency), one section per node. The
+files are data, so a user can write a new scenario without code; a test checks that the shipped files
+agree with :mod:`smm_analysis.scenarios`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fnmatch
+import importlib
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final, Literal
+
+import yaml
+from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+from smm_controller.controller_node import REFERENCE_PREFIX
+from smm_controller.reference import REFERENCE_KINDS
+
+__all__ = [
+    "ALGORITHMS",
+    "CHAIN_LAYOUTS",
+    "CLOCK_MODES",
+    "CONTROLLER_NODE",
+    "FLESO_NODE",
+    "NAMESPACE",
+    "PLANTS",
+    "PLANT_NODE_NAMES",
+    "REFERENCE_NODE",
+    "REFERENCE_PLACEMENTS",
+    "SCENARIO_NAMES",
+    "SIM_NODE",
+    "TD_NODE",
+    "GraphError",
+    "GraphOptions",
+    "NodeSpec",
+    "ParameterFileError",
+    "ParameterValue",
+    "PlantNotAvailableError",
+    "build_graph",
+    "format_parameter_value",
+    "load_parameter_file",
+    "package_file",
+    "parameter_overrides",
+    "scenario_file",
+]
+
+ParameterValue = (
+    bool | int | float | str | tuple[bool, ...] | tuple[int, ...] | tuple[float, ...] | tuple[str, ...]
+)
+"""A ROS parameter value as the graph description holds it (lists as tuples so specs stay hashable)."""
+
+NAMESPACE: Final[str] = "smm"
+"""Namespace of every node of the graph (topics resolve to ``/smm/<topic>``)."""
+
+PLANTS: Final[tuple[str, ...]] = ("sim", "hw")
+CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
+CHAIN_LAYOUTS: Final[tuple[str, ...]] = ("fused", "split")
+"""``fused``: TD, FLESO and law in ``controller_node`` (``chain: internal``), two hops per step; ``split``:
+``td_node`` and ``fleso_node`` as their own nodes (``chain: external``), four hops per step."""
+REFERENCE_PLACEMENTS: Final[tuple[str, ...]] = ("node", "controller")
+"""``node``: ``reference_node`` publishes the reference, ``controller_node`` matches it by stamp;
+``controller``: ``controller_node`` samples it itself (``reference_source: internal``), from the parameters
+that the parameter files give ``reference_node``, and no ``reference_node`` runs."""
+ALGORITHMS: Final[tuple[str, ...]] = ("fpdeso", "fpd", "pid", "npd")
+SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2")
+
+
+SIM_NODE: Final[str] = "smm_sim_node"
+HW_NODE: Final[str] = "smm_hw_bridge"
+TD_NODE: Final[str] = "td_node"
+FLESO_NODE: Final[str] = "fleso_node"
+REFERENCE_NODE: Final[str] = "reference_node"
+CONTROLLER_NODE: Final[str] = "controller_node"
+
+PLANT_NODE_NAMES: Final[frozenset[str]] = frozenset((SIM_NODE, HW_NODE))
+"""Names of the plant nodes: when one of them exits 0 the run is complete (see ``docs/LAUNCH.md``)."""
+
+_CONTROLLER_NODES: Final[tuple[tuple[str, str], ...]] = (
+    # (node name = console script, class inside smm_controller.<name>)
+    (TD_NODE, "TdNode"),
+    (FLESO_NODE, "FlesoNode"),
+    (REFERENCE_NODE, "ReferenceNode"),
+    (CONTROLLER_NODE, "ControllerNode"),
+)
+
+
+class GraphError(Exception):
+    """Base class: the graph cannot be described or started as asked."""
+
+
+class PlantNotAvailableError(GraphError):
+    """The chosen plant has no node yet (``hw`` until ``smm_hw_bridge`` provides one)."""
+
+
+class ParameterFileError(GraphError):
+    """A parameter file is missing or is not a valid ROS 2 parameter file."""
+
+
+@dataclass(frozen=True)
+class GraphOptions:
+    """What the user chooses when starting the graph.
+
+    Attributes:
+        plant: ``"sim"`` (smm_sim_node) or ``"hw"`` (smm_hw_bridge, not available yet).
+        clock_mode: ``"lockstep"`` (deterministic, as fast as the graph allows, /clock published by the
+            simulator) or ``"realtime"`` (wall-clock timer at the control period).
+        chain: ``"fused"`` (default): ``controller_node`` runs TD -> FLESO -> law itself, so a step crosses
+            two process boundaries (plant -> controller -> plant), the layout that keeps up with 1 kHz;
+            ``"split"``: ``td_node`` and ``fleso_node`` run as their own nodes (four crossings per step), to
+            inspect or replace a stage on the wire. Both give the same torques.
+        reference: ``"controller"`` (default): ``controller_node`` samples the reference itself, one input
+            and one process less per step, so the default graph is plant + controller; ``"node"``:
+            ``reference_node`` publishes it one period ahead. The same values either way (see
+            :data:`REFERENCE_PLACEMENTS`).
+        algorithm: Controller algorithm, one of :data:`ALGORITHMS`.
+        scenario: Scenario name (:data:`SCENARIO_NAMES`), or ``None`` for the nodes' own defaults.
+        duration: Simulated time after which the simulator stops (s), > 0; ``None`` keeps the scenario's
+            length in lockstep and runs without end in real time; 0 runs without end.
+        seed: Seed of the simulator's noise generator, >= 0; ``None`` keeps the configured one.
+        params_files: Extra ROS 2 parameter files, applied after the scenario file, in order.
+        control_period: Control period of every node (s), > 0; ``None`` keeps the configured one (1 ms).
+            The plant and the controller nodes must agree on it: each node steps once per measurement.
+    """
+
+    plant: Literal["sim", "hw"] = "sim"
+    clock_mode: Literal["lockstep", "realtime"] = "lockstep"
+    chain: Literal["fused", "split"] = "fused"
+    reference: Literal["node", "controller"] = "controller"
+    algorithm: str = "fpdeso"
+    scenario: str | None = "case2"
+    duration: float | None = None
+    seed: int | None = None
+    params_files: tuple[str, ...] = ()
+    control_period: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.plant not in PLANTS:
+            raise ValueError(f"plant must be one of {PLANTS}, got {self.plant!r}")
+        if self.clock_mode not in CLOCK_MODES:
+            raise ValueError(f"clock_mode must be one of {CLOCK_MODES}, got {self.clock_mode!r}")
+        if self.chain not in CHAIN_LAYOUTS:
+            raise ValueError(f"chain must be one of {CHAIN_LAYOUTS}, got {self.chain!r}")
+        if self.reference not in REFERENCE_PLACEMENTS:
+            raise ValueError(f"reference must be one of {REFERENCE_PLACEMENTS}, got {self.reference!r}")
+        if self.algorithm not in ALGORITHMS:
+            raise ValueError(f"algorithm must be one of {ALGORITHMS}, got {self.algorithm!r}")
+        if self.scenario is not None and self.scenario not in SCENARIO_NAMES:
+            raise ValueError(f"scenario must be one of {SCENARIO_NAMES} or None, got {self.scenario!r}")
+        if self.duration is not None and (
+            isinstance(self.duration, bool)
+            or not isinstance(self.duration, (int, float))
+            or not math.isfinite(self.duration)
+            or self.duration < 0.0
+        ):
+            raise ValueError(f"duration must be a finite number >= 0 s or None, got {self.duration!r}")
+        period = self.control_period
+        if period is not None and (
+            isinstance(period, bool)
+            or not isinstance(period, (int, float))
+            or not math.isfinite(period)
+            or round(period * 1e9) < 1
+        ):
+            raise ValueError(f"control_period must be a finite number >= 1 ns or None, got {period!r}")
+        seed = self.seed
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+            raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node of the graph.
+
+    Attributes:
+        package: ROS package that provides the executable.
+        executable: Console script (``ros2 run <package> <executable>``).
+        name: Node name (``-r __node:=<name>``).
+        namespace: Node namespace without slashes (``-r __ns:=/<namespace>``).
+        node_class: ``"module:Class"`` of the rclpy node, for composed mode.
+        parameter_files: ROS 2 parameter files, lowest precedence first.
+        parameters: Parameter overrides ``(name, value)``, applied after the files.
+        remappings: Topic remappings ``(from, to)``.
+    """
+
+    package: str
+    executable: str
+    name: str
+    node_class: str
+    namespace: str = NAMESPACE
+    parameter_files: tuple[str, ...] = ()
+    parameters: tuple[tuple[str, ParameterValue], ...] = ()
+    remappings: tuple[tuple[str, str], ...] = ()
+
+    @property
+    def fully_qualified_name(self) -> str:
+        """Absolute node name, e.g. ``/smm/smm_sim_node``."""
+        return f"/{self.namespace}/{self.name}" if self.namespace else f"/{self.name}"
+
+    def ros_arguments(self) -> list[str]:
+        """The ``--ros-args`` part of the command line (the same as ``ros2 launch`` would pass).
+
+        Returns:
+            ``["--ros-args", "-r", "__ns:=/smm", "-r", "__node:=<name>", "--params-file", F, ...,
+            "-p", "key:=value", ..., "-r", "from:=to", ...]``.
+        """
+        namespace = f"/{self.namespace}" if self.namespace else "/"
+        arguments = ["--ros-args", "-r", f"__ns:={namespace}", "-r", f"__node:={self.name}"]
+        for path in self.parameter_files:
+            arguments += ["--params-file", path]
+        for name, value in self.parameters:
+            arguments += ["-p", f"{name}:={format_parameter_value(value)}"]
+        for source, target in self.remappings:
+            arguments += ["-r", f"{source}:={target}"]
+        return arguments
+
+    def command_line(self, executable_path: str) -> list[str]:
+        """Full argv to start this node as its own process.
+
+        Args:
+            executable_path: Resolved path of :attr:`executable`.
+        """
+        return [executable_path, *self.ros_arguments()]
+
+    def load_class(self) -> type[Any]:
+        """Import and return the node class (composed mode)."""
+        module_name, _, class_name = self.node_class.partition(":")
+        node_type: type[Any] = getattr(importlib.import_module(module_name), class_name)
+        return node_type
+
+
+def format_parameter_value(value: ParameterValue) -> str:
+    """Format a value for ``-p name:=value`` so that ROS parses it back with the same type.
+
+    ROS reads the value as YAML: JSON is valid YAML flow syntax, a float keeps its decimal point
+    (``1.0`` stays a double, not an integer) and a string is quoted (``"1"`` stays a string).
+
+    Raises:
+        ValueError: A non-finite float (YAML has no portable spelling that rcl accepts) or an
+            unsupported type.
+    """
+    if isinstance(value, tuple):
+        return "[" + ", ".join(format_parameter_value(item) for item in value) + "]"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ValueError(f"cannot pass a non-finite parameter value {value!r} on the command line")
+        text = repr(value)
+        # YAML 1.1 reads "5e-09" as a string; "5.0e-09" is a float to every YAML parser.
+        mantissa, exponent_mark, exponent = text.partition("e")
+        if exponent_mark and "." not in mantissa:
+            text = f"{mantissa}.0e{exponent}"
+        return text
+    if isinstance(value, str):
+        return json.dumps(value)
+    raise ValueError(f"unsupported parameter value {value!r} of type {type(value).__name__}")
+
+
+def package_file(package: str, relative: str) -> Path:
+    """Locate a data file of a package: installed share directory first, then the source tree.
+
+    A colcon install puts ``config/`` and ``launch/`` under ``share/<package>/`` (found through the
+    ament index); an editable pip install leaves them beside the package's source directory.
+
+    Args:
+        package: Package name, e.g. ``"smm_sim"``.
+        relative: Path inside the package's share directory, e.g. ``"config/scenario_case2.yaml"``.
+
+    Raises:
+        ParameterFileError: The file exists in neither place.
+    """
+    candidates: list[Path] = []
+    # OSError: no AMENT_PREFIX_PATH at all (plain virtual environment).
+    with contextlib.suppress(PackageNotFoundError, OSError):
+        candidates.append(Path(get_package_share_directory(package)) / relative)
+    try:
+        module = importlib.import_module(package)
+    except ImportError:
+        pass
+    else:
+        if module.__file__ is not None:
+            candidates.append(Path(module.__file__).resolve().parent.parent / relative)
+    for candidate in candidates:
+        if candidate.is_file():
+            return candidate
+    tried = ", ".join(str(path) for path in candidates) or "nowhere (package not importable)"
+    raise ParameterFileError(f"{package}/{relative} not found; looked in {tried}")
+
+
+def scenario_file(name: str) -> Path:
+    """Path of the parameter file of scenario ``name`` (``smm_bringup/config/scenario_<name>.yaml``).
+
+    Raises:
+        ValueError: Unknown scenario.
+        ParameterFileError: The file is missing.
+    """
+    if name not in SCENARIO_NAMES:
+        raise ValueError(f"scenario must be one of {SCENARIO_NAMES}, got {name!r}")
+    return package_file("smm_bringup", f"config/scenario_{name}.yaml")
+
+
+def _sim_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], ...]:
+    parameters: list[tuple[str, ParameterValue]] = [("clock_mode", options.clock_mode)]
+    if options.duration is not None:
+        parameters.append(("duration", float(options.duration)))
+    elif options.clock_mode == "realtime" and options.scenario is not None:
+        # A scenario file sets its length for lockstep runs; in real time the default is no end.
+        parameters.append(("duration", 0.0))
+    if options.seed is not None:
+        parameters.append(("seed", options.seed))
+    return tuple(parameters) + _period_parameters(options)
+
+
+def _period_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], ...]:
+    return () if options.control_period is None else (("control_period", float(options.control_period)),)
+
+
+def _reference_parameters(files: Sequence[str]) -> tuple[tuple[str, ParameterValue], ...]:
+    """The generator parameters the files set for ``reference_node``, renamed ``reference.<name>``.
+
+    So the reference is configured in one place (the ``reference_node`` sections) wherever it is sampled.
+    Only ``kind`` and ``<kind>.<field>`` are handed over, not the node's own settings (``lookahead``).
+    """
+    values: dict[str, Any] = {}
+    for path in files:
+        values.update(load_parameter_file(path, f"/{NAMESPACE}/{REFERENCE_NODE}"))
+    return tuple(
+        (f"{REFERENCE_PREFIX}.{name}", tuple(value) if isinstance(value, list) else value)
+        for name, value in values.items()
+        if name == "kind" or name.partition(".")[0] in REFERENCE_KINDS
+    )
+
+
+def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
+    """Describe the graph for ``options``: the plant node first, then the controller-side nodes.
+
+    Args:
+        options: The user's choices.
+
+    Returns:
+        The node specs, in start order.
+
+    Raises:
+        PlantNotAvailableError: ``plant="hw"``: ``smm_hw_bridge`` has no node yet.
+        ParameterFileError: A scenario or extra parameter file is missing.
+    """
+    if options.plant == "hw":
+        # When the bridge exists: refuse clock_mode "lockstep" here (the bench runs in real time).
+        raise PlantNotAvailableError(
+            "plant 'hw' needs the smm_hw_bridge node, which is not written yet; use --plant sim"
+        )
+    files: list[str] = []
+    if options.scenario is not None:
+        files.append(str(scenario_file(options.scenario)))
+    for extra in options.params_files:
+        path = Path(extra)
+        if not path.is_file():
+            raise ParameterFileError(f"parameter file {extra} does not exist")
+        files.append(str(path.resolve()))
+    shared_files = tuple(files)
+    sim = NodeSpec(
+        package="smm_sim",
+        executable=SIM_NODE,
+        name=SIM_NODE,
+        node_class="smm_sim.sim_node:SimNode",
+        parameter_files=shared_files,
+        parameters=_sim_parameters(options),
+    )
+    controller_side = []
+    fused = options.chain == "fused"
+    reference_in_controller = options.reference == "controller"
+    for name, class_name in _CONTROLLER_NODES:
+        if fused and name in (TD_NODE, FLESO_NODE):
+            continue  # their algorithms run inside controller_node
+        if reference_in_controller and name == REFERENCE_NODE:
+            continue  # sampled inside controller_node
+        parameters = _period_parameters(options)
+        if name == CONTROLLER_NODE:
+            chain = "internal" if fused else "external"
+            parameters = (("algorithm", options.algorithm), ("chain", chain), *parameters)
+            if reference_in_controller:
+                parameters = (
+                    ("reference_source", "internal"),
+                    *_reference_parameters(shared_files),
+                    *parameters,
+                )
+        controller_side.append(
+            NodeSpec(
+                package="smm_controller",
+                executable=name,
+                name=name,
+                node_class=f"smm_controller.{name}:{class_name}",
+                parameter_files=shared_files,
+                parameters=parameters,
+            )
+        )
+    return (sim, *controller_side)
+
+
+# ------------------------------------------------------------------------------- composed mode support
+
+
+def _node_key_matches(key: str, fully_qualified_name: str) -> bool:
+    """Rcl's matching of a parameter-file node key: ``/**`` spans any namespaces, ``*`` one token."""
+    if key == "/**":
+        return True
+    pattern = key if key.startswith("/") else "/" + key
+    if pattern == fully_qualified_name:
+        return True
+    key_tokens = pattern.strip("/").split("/")
+    name_tokens = fully_qualified_name.strip("/").split("/")
+    return _tokens_match(key_tokens, name_tokens)
+
+
+def _tokens_match(pattern: Sequence[str], tokens: Sequence[str]) -> bool:
+    if not pattern:
+        return not tokens
+    head, rest = pattern[0], pattern[1:]
+    if head == "**":
+        return any(_tokens_match(rest, tokens[skip:]) for skip in range(len(tokens) + 1))
+    return bool(tokens) and fnmatch.fnmatchcase(tokens[0], head) and _tokens_match(rest, tokens[1:])
+
+
+def _flatten(prefix: str, values: Mapping[str, Any], out: dict[str, Any]) -> None:
+    for key, value in values.items():
+        name = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, Mapping):
+            _flatten(name, value, out)
+        else:
+            out[name] = value
+
+
+def load_parameter_file(path: str | Path, fully_qualified_name: str) -> dict[str, Any]:
+    """Parameters a ROS 2 parameter file sets for one node, with rcl's precedence.
+
+    Sections are applied in file order; a wildcard section (``/**``) is applied before the sections
+    that name the node, so that a node-specific value wins, as rcl does.
+
+    Args:
+        path: The YAML file.
+        fully_qualified_name: Node name, e.g. ``/smm/smm_sim_node``.
+
+    Returns:
+        ``{parameter name (dotted): value}`` (lists stay lists).
+
+    Raises:
+        ParameterFileError: The file is missing, is not YAML, or is not a ROS 2 parameter file.
+    """
+    try:
+        content = yaml.safe_load(Path(path).read_text())
+    except OSError as error:
+        raise ParameterFileError(f"cannot read parameter file {path}: {error}") from error
+    except yaml.YAMLError as error:
+        raise ParameterFileError(f"parameter file {path} is not valid YAML: {error}") from error
+    if not isinstance(content, Mapping):
+        raise ParameterFileError(f"parameter file {path} must map node names to sections")
+    wildcard: dict[str, Any] = {}
+    specific: dict[str, Any] = {}
+    for key, section in content.items():
+        if not isinstance(section, Mapping) or not isinstance(section.get("ros__parameters"), Mapping):
+            raise ParameterFileError(f"parameter file {path}: section {key!r} has no 'ros__parameters' map")
+        if not _node_key_matches(str(key), fully_qualified_name):
+            continue
+        _flatten("", section["ros__parameters"], wildcard if "*" in str(key) else specific)
+    return {**wildcard, **specific}
+
+
+def parameter_overrides(spec: NodeSpec) -> dict[str, Any]:
+    """All parameter values the spec sets for its node, files first, then the explicit overrides.
+
+    This is what the separate-process command line makes rcl compute; composed mode passes it to the
+    node class as ``parameter_overrides``.
+    """
+    values: dict[str, Any] = {}
+    for path in spec.parameter_files:
+        values.update(load_parameter_file(path, spec.fully_qualified_name))
+    for name, value in spec.parameters:
+        values[name] = list(value) if isinstance(value, tuple) else value
+    return values

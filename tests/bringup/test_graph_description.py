@@ -1,0 +1,517 @@
+"""The graph description (smm_bringup.graph), smm-launch's command line, and the launch file."""
+
+from __future__ import annotations
+
+import py_compile
+import runpy
+import sys
+import types
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from hypothesis import assume, given
+from hypothesis import strategies as st
+from smm_bringup.graph import GraphOptions, NodeSpec, build_graph
+from smm_bringup.launcher import (
+    EXIT_CONFIGURATION_ERROR,
+    EXIT_OK,
+    arguments_from_options,
+    options_from_arguments,
+    run,
+)
+from smm_bringup.launcher import build_parser as launcher_parser
+
+from smm_bringup import graph
+
+REPO = Path(__file__).resolve().parents[2]
+LAUNCH_DIR = REPO / "src" / "smm_bringup" / "launch"
+FUSED_NODES = ["smm_sim_node", "controller_node"]
+"""The default graph: the fused chain with the reference sampled inside controller_node."""
+SPLIT_NODES = ["smm_sim_node", "td_node", "fleso_node", "reference_node", "controller_node"]
+
+
+def test_default_graph_is_fused_in_namespace_smm() -> None:
+    specs = build_graph(GraphOptions())
+    assert [spec.name for spec in specs] == FUSED_NODES
+    assert {spec.namespace for spec in specs} == {"smm"}
+    assert [spec.package for spec in specs] == ["smm_sim", "smm_controller"]
+    assert specs[0].fully_qualified_name == "/smm/smm_sim_node"
+    assert dict(specs[-1].parameters)["chain"] == "internal"
+    assert dict(specs[-1].parameters)["reference_source"] == "internal"
+
+
+def test_split_graph_has_the_five_nodes_and_an_external_chain() -> None:
+    specs = build_graph(GraphOptions(chain="split", reference="node"))
+    assert [spec.name for spec in specs] == SPLIT_NODES
+    assert [spec.package for spec in specs] == ["smm_sim"] + ["smm_controller"] * 4
+    assert dict(specs[-1].parameters)["chain"] == "external"
+
+
+@pytest.mark.parametrize("chain", ["fused", "split"])
+def test_reference_in_the_controller_drops_reference_node_and_hands_over_its_parameters(
+    tmp_path: Path, chain: str
+) -> None:
+    user = tmp_path / "user.yaml"
+    user.write_text(
+        "/**/reference_node:\n  ros__parameters:\n    lookahead: 2\n    sine:\n      amplitude: [0.5, 0.25]\n"
+        "/**/controller_node:\n  ros__parameters:\n    pid:\n      kp: [1.0, 2.0]\n"
+    )
+    options = GraphOptions(chain=chain, reference="controller", scenario="case2", params_files=(str(user),))
+    specs = build_graph(options)
+    with_node = build_graph(
+        GraphOptions(chain=chain, reference="node", scenario="case2", params_files=(str(user),))
+    )
+    assert [spec.name for spec in specs] == [spec.name for spec in with_node if spec.name != "reference_node"]
+    controller = dict(specs[-1].parameters)
+    assert controller["reference_source"] == "internal"
+    # What reference_node would have been given (scenario file, then the user's file), renamed reference.*:
+    given = graph.parameter_overrides(next(spec for spec in with_node if spec.name == "reference_node"))
+    handed = {name.removeprefix("reference."): value for name, value in controller.items()}
+    assert given.pop("lookahead") == 2  # a setting of reference_node itself: not handed over
+    for name, value in given.items():
+        assert handed[name] == (tuple(value) if isinstance(value, list) else value), name
+    assert handed["kind"] == "sine" and handed["sine.amplitude"] == (0.5, 0.25)
+    assert "lookahead" not in handed
+    assert "reference_source" not in dict(with_node[-1].parameters)
+
+
+def test_options_reach_the_right_nodes() -> None:
+    specs = build_graph(
+        GraphOptions(
+            clock_mode="realtime", chain="split", reference="node", algorithm="npd", duration=2.5, seed=11
+        )
+    )
+    by_name = {spec.name: dict(spec.parameters) for spec in specs}
+    assert by_name["smm_sim_node"] == {"clock_mode": "realtime", "duration": 2.5, "seed": 11}
+    assert by_name["controller_node"] == {"algorithm": "npd", "chain": "external"}
+    assert by_name["td_node"] == {}
+
+
+def test_control_period_goes_to_every_node() -> None:
+    for spec in build_graph(GraphOptions(control_period=0.005)):
+        assert dict(spec.parameters)["control_period"] == 0.005, spec.name
+
+
+def test_realtime_with_a_scenario_runs_without_end_unless_asked() -> None:
+    sim = build_graph(GraphOptions(clock_mode="realtime", scenario="case1"))[0]
+    assert dict(sim.parameters)["duration"] == 0.0
+    lockstep = build_graph(GraphOptions(clock_mode="lockstep", scenario="case1"))[0]
+    assert "duration" not in dict(lockstep.parameters)
+
+
+def test_scenario_and_extra_files_are_passed_in_order(tmp_path: Path) -> None:
+    extra = tmp_path / "extra.yaml"
+    extra.write_text("/**:\n  ros__parameters:\n    x: 1\n")
+    specs = build_graph(GraphOptions(scenario="case2", params_files=(str(extra),)))
+    for spec in specs:
+        assert spec.parameter_files == (str(graph.scenario_file("case2")), str(extra.resolve()))
+
+
+def test_missing_extra_file_is_a_graph_error(tmp_path: Path) -> None:
+    with pytest.raises(graph.ParameterFileError, match=r"nope\.yaml"):
+        build_graph(GraphOptions(params_files=(str(tmp_path / "nope.yaml"),)))
+
+
+def test_hw_plant_is_refused_clearly() -> None:
+    with pytest.raises(graph.PlantNotAvailableError, match="smm_hw_bridge"):
+        build_graph(GraphOptions(plant="hw", clock_mode="realtime"))
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"plant": "mars"}, "plant"),
+        ({"clock_mode": "slow"}, "clock_mode"),
+        ({"chain": "tangled"}, "chain"),
+        ({"reference": "oracle"}, "reference"),
+        ({"algorithm": "lqr"}, "algorithm"),
+        ({"scenario": "case9"}, "scenario"),
+        ({"duration": -1.0}, "duration"),
+        ({"seed": -2}, "seed"),
+        ({"control_period": 0.0}, "control_period"),
+    ],
+)
+def test_invalid_options_name_the_field(changes: dict[str, Any], message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        GraphOptions(**changes)
+
+
+def test_ros_arguments_are_those_of_ros2_launch() -> None:
+    spec = NodeSpec(
+        "smm_sim",
+        "smm_sim_node",
+        "sim",
+        "smm_sim.sim_node:SimNode",
+        parameter_files=("/a.yaml",),
+        parameters=(("duration", 5.0), ("clock_mode", "lockstep"), ("noise_std", (0.001, 0.002))),
+        remappings=(("joint_states", "raw"),),
+    )
+    assert spec.ros_arguments() == [
+        "--ros-args",
+        "-r",
+        "__ns:=/smm",
+        "-r",
+        "__node:=sim",
+        "--params-file",
+        "/a.yaml",
+        "-p",
+        "duration:=5.0",
+        "-p",
+        'clock_mode:="lockstep"',
+        "-p",
+        "noise_std:=[0.001, 0.002]",
+        "-r",
+        "joint_states:=raw",
+    ]
+
+
+@pytest.mark.parametrize(
+    "value",
+    [True, False, 0, 7, -3, 1.0, 0.001, 5e-9, "lockstep", "1", "true", "", (1.0, 2.5), (1, 2), ("a", "b")],
+)
+def test_parameter_values_survive_the_yaml_round_trip_with_their_type(value: Any) -> None:
+    parsed = yaml.safe_load(graph.format_parameter_value(value))
+    expected = list(value) if isinstance(value, tuple) else value
+    assert parsed == expected
+    assert type(parsed) is type(expected)
+    if isinstance(value, tuple):
+        assert [type(item) for item in parsed] == [type(item) for item in value]
+
+
+@pytest.mark.parametrize("value", [float("inf"), float("nan"), None, 1j])
+def test_unrepresentable_parameter_values_are_refused(value: Any) -> None:
+    with pytest.raises(ValueError):
+        graph.format_parameter_value(value)
+
+
+@pytest.mark.parametrize(
+    ("key", "matches"),
+    [
+        ("/smm/smm_sim_node", True),
+        ("smm/smm_sim_node", True),
+        ("/**", True),
+        ("/**/smm_sim_node", True),
+        ("/*/smm_sim_node", True),
+        ("/smm/*", True),
+        ("/smm_sim_node", False),
+        ("/other/smm_sim_node", False),
+        ("/**/td_node", False),
+        ("/*", False),
+    ],
+)
+def test_node_keys_match_like_rcl(key: str, matches: bool) -> None:
+    assert graph._node_key_matches(key, "/smm/smm_sim_node") is matches
+
+
+def test_parameter_file_sections_apply_with_wildcards_first(tmp_path: Path) -> None:
+    path = tmp_path / "p.yaml"
+    path.write_text(
+        "/smm/smm_sim_node:\n  ros__parameters:\n    seed: 3\n"
+        "/**:\n  ros__parameters:\n    seed: 1\n    duration: 2.0\n    nested:\n      a: [1.0, 2.0]\n"
+        "/**/td_node:\n  ros__parameters:\n    seed: 9\n"
+    )
+    assert graph.load_parameter_file(path, "/smm/smm_sim_node") == {
+        "seed": 3,
+        "duration": 2.0,
+        "nested.a": [1.0, 2.0],
+    }
+    assert graph.load_parameter_file(path, "/smm/td_node")["seed"] == 9
+
+
+@pytest.mark.parametrize("content", ["- 1\n- 2\n", "/**:\n  params:\n    a: 1\n", "a: [1,\n"])
+def test_invalid_parameter_files_are_refused(tmp_path: Path, content: str) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(content)
+    with pytest.raises(graph.ParameterFileError):
+        graph.load_parameter_file(path, "/smm/smm_sim_node")
+
+
+def test_parameter_overrides_put_explicit_values_after_files(tmp_path: Path) -> None:
+    path = tmp_path / "p.yaml"
+    path.write_text("/**:\n  ros__parameters:\n    seed: 1\n    duration: 2.0\n")
+    spec = NodeSpec("p", "e", "smm_sim_node", "m:C", parameter_files=(str(path),), parameters=(("seed", 5),))
+    assert graph.parameter_overrides(spec) == {"seed": 5, "duration": 2.0}
+
+
+def test_launcher_arguments_map_onto_graph_options() -> None:
+    arguments = launcher_parser().parse_args(
+        [
+            "--clock-mode",
+            "realtime",
+            "--chain",
+            "split",
+            "--reference",
+            "controller",
+            "--algorithm",
+            "pid",
+            "--scenario",
+            "none",
+            "--duration",
+            "3",
+            "--seed",
+            "4",
+            "--control-period",
+            "0.002",
+        ]
+    )
+    assert options_from_arguments(arguments) == GraphOptions(
+        clock_mode="realtime",
+        chain="split",
+        reference="controller",
+        algorithm="pid",
+        scenario=None,
+        duration=3.0,
+        seed=4,
+        control_period=0.002,
+    )
+
+
+@st.composite
+def graph_options(draw: st.DrawFn) -> GraphOptions:
+    """Any valid GraphOptions."""
+    positive = st.floats(min_value=1e-4, max_value=1e4, allow_nan=False, allow_infinity=False)
+    try:
+        return GraphOptions(
+            plant=draw(st.sampled_from(graph.PLANTS)),
+            clock_mode=draw(st.sampled_from(graph.CLOCK_MODES)),
+            chain=draw(st.sampled_from(graph.CHAIN_LAYOUTS)),
+            reference=draw(st.sampled_from(graph.REFERENCE_PLACEMENTS)),
+            algorithm=draw(st.sampled_from(graph.ALGORITHMS)),
+            scenario=draw(st.none() | st.sampled_from(graph.SCENARIO_NAMES)),
+            duration=draw(st.none() | st.just(0.0) | positive),
+            seed=draw(st.none() | st.integers(min_value=0, max_value=2**32 - 1)),
+            params_files=tuple(draw(st.lists(st.sampled_from(["a.yaml", "dir/b c.yaml"]), max_size=3))),
+            control_period=draw(st.none() | positive),
+        )
+    except ValueError:
+        assume(False)
+        raise
+
+
+@given(graph_options())
+def test_launcher_arguments_from_options_give_the_same_options_back(options: GraphOptions) -> None:
+    arguments = launcher_parser().parse_args(arguments_from_options(options))
+    assert options_from_arguments(arguments) == options
+
+
+def test_launcher_reports_hw_plant_and_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    assert run(["--plant", "hw", "--clock-mode", "realtime"]) == EXIT_CONFIGURATION_ERROR
+    assert "smm_hw_bridge" in capsys.readouterr().err
+
+
+def test_launcher_reports_bad_values_and_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    assert run(["--duration", "-1"]) == EXIT_CONFIGURATION_ERROR
+    assert "duration" in capsys.readouterr().err
+
+
+def test_dry_run_prints_the_command_lines(capsys: pytest.CaptureFixture[str]) -> None:
+    assert run(["--dry-run", "--seed", "3"]) == EXIT_OK
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in lines] == FUSED_NODES
+    assert "seed:=3" in lines[0]
+
+
+# ------------------------------------------------------------------------------------------- launch file
+
+
+def test_launch_files_compile() -> None:
+    files = sorted(LAUNCH_DIR.glob("*.launch.py"))
+    assert files
+    for path in files:
+        py_compile.compile(str(path), doraise=True)
+
+
+class _Recorded:
+    """Stand-in for a launch / launch_ros class: remembers its constructor arguments."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self.args = args
+        self.kwargs = kwargs
+
+
+def _fake_launch_modules() -> dict[str, types.ModuleType]:
+    modules = {
+        name: types.ModuleType(name)
+        for name in (
+            "launch",
+            "launch.actions",
+            "launch.events",
+            "launch.substitutions",
+            "launch_ros",
+            "launch_ros.actions",
+        )
+    }
+    classes = {
+        "launch": ["LaunchDescription"],
+        "launch.actions": ["DeclareLaunchArgument", "EmitEvent", "LogInfo", "OpaqueFunction"],
+        "launch.events": ["Shutdown"],
+        "launch.substitutions": ["LaunchConfiguration"],
+        "launch_ros.actions": ["Node"],
+    }
+    for module, names in classes.items():
+        for name in names:
+            setattr(modules[module], name, type(name, (_Recorded,), {}))
+    return modules
+
+
+class _FakeContext:
+    def __init__(self, values: dict[str, str]) -> None:
+        self.values = values
+
+    def perform_substitution(self, substitution: Any) -> str:
+        return self.values[substitution.args[0]]
+
+
+def _launched_nodes(monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str]) -> list[Any]:
+    for name, module in _fake_launch_modules().items():
+        monkeypatch.setitem(sys.modules, name, module)
+    namespace = runpy.run_path(str(LAUNCH_DIR / "smm.launch.py"))
+    description = namespace["generate_launch_description"]()
+    entities = description.args[0]
+    defaults = {
+        e.kwargs.get("name", e.args[0] if e.args else None): e.kwargs["default_value"]
+        for e in entities
+        if type(e).__name__ == "DeclareLaunchArgument"
+    }
+    opaque = [e for e in entities if type(e).__name__ == "OpaqueFunction"]
+    assert len(opaque) == 1
+    values = {**defaults, **arguments}
+    return list(opaque[0].kwargs["function"](_FakeContext(values)))
+
+
+@pytest.mark.parametrize(
+    ("arguments", "options"),
+    [
+        ({}, GraphOptions()),
+        (
+            {
+                "clock_mode": "realtime",
+                "chain": "split",
+                "reference": "controller",
+                "algorithm": "fpd",
+                "scenario": "case1",
+                "duration": "2",
+                "seed": "5",
+                "control_period": "0.002",
+            },
+            GraphOptions(
+                clock_mode="realtime",
+                chain="split",
+                reference="controller",
+                algorithm="fpd",
+                scenario="case1",
+                duration=2.0,
+                seed=5,
+                control_period=0.002,
+            ),
+        ),
+        ({"scenario": "none"}, GraphOptions(scenario=None)),
+    ],
+)
+def test_launch_file_starts_the_graph_the_launcher_starts(
+    monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str], options: GraphOptions
+) -> None:
+    nodes = _launched_nodes(monkeypatch, arguments)
+    specs = build_graph(options)
+    assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in specs]
+    for node, spec in zip(nodes, specs, strict=True):
+        assert node.kwargs["package"] == spec.package
+        assert node.kwargs["executable"] == spec.executable
+        assert node.kwargs["namespace"] == spec.namespace
+        *files, overrides = node.kwargs["parameters"]
+        assert tuple(files) == spec.parameter_files
+        assert overrides == {k: list(v) if isinstance(v, tuple) else v for k, v in spec.parameters}
+        assert [type(action).__name__ for action in node.kwargs["on_exit"]] == ["LogInfo", "EmitEvent"]
+
+
+def test_launch_file_refuses_the_hw_plant(monkeypatch: pytest.MonkeyPatch) -> None:
+    with pytest.raises(graph.PlantNotAvailableError):
+        _launched_nodes(monkeypatch, {"plant": "hw", "clock_mode": "realtime"})
+
+
+# ------------------------------------------------------------------------------------ console scripts
+
+
+def test_every_node_executable_is_installed() -> None:
+    from smm_bringup.launcher import resolve_executable
+
+    for spec in build_graph(GraphOptions(scenario=None)):
+        assert Path(resolve_executable(spec)).is_file(), spec.executable
+
+
+@pytest.mark.ros
+def test_rcl_parses_the_command_line_parameters_with_their_types(ros_context: Any) -> None:
+    import rclpy
+
+    spec = NodeSpec(
+        "p",
+        "e",
+        "probe",
+        "m:C",
+        parameters=(
+            ("duration", 5.0),
+            ("seed", 3),
+            ("clock_mode", "lockstep"),
+            ("noise_std", (0.001, 0.0)),
+            ("flag", True),
+            ("label", "1"),
+        ),
+    )
+    node = rclpy.create_node(
+        "placeholder",
+        context=ros_context,
+        cli_args=spec.ros_arguments(),
+        use_global_arguments=False,
+        automatically_declare_parameters_from_overrides=True,
+    )
+    try:
+        assert node.get_fully_qualified_name() == "/smm/probe"
+        values = {
+            name: node.get_parameter(name).value
+            for name in ("duration", "seed", "clock_mode", "flag", "label")
+        }
+        assert values == {"duration": 5.0, "seed": 3, "clock_mode": "lockstep", "flag": True, "label": "1"}
+        assert type(values["duration"]) is float and type(values["seed"]) is int
+        assert list(node.get_parameter("noise_std").value) == [0.001, 0.0]
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize("name", graph.SCENARIO_NAMES)
+def test_scenario_files_agree_with_smm_analysis(name: str) -> None:
+    import numpy as np
+    from smm_analysis.scenarios import get_scenario
+    from smm_controller.reference import make_reference
+
+    scenario = get_scenario(name)
+    path = graph.scenario_file(name)
+    sim = graph.load_parameter_file(path, "/smm/smm_sim_node")
+    assert sim == {
+        "noise_std": list(scenario.noise_std),
+        "disturbance": scenario.disturbance,
+        "inertia_scale": scenario.inertia_scale,
+        "duration": scenario.duration,
+    }
+    assert all(type(value) is float for value in (sim["inertia_scale"], sim["duration"], *sim["noise_std"]))
+    reference = graph.load_parameter_file(path, "/smm/reference_node")
+    kind = reference.pop("kind")
+    assert kind == scenario.reference_kind
+    fields = {key.split(".", 1)[1]: value for key, value in reference.items() if key.startswith(f"{kind}.")}
+    assert len(fields) == len(reference), "parameters of another reference kind in the file"
+    times = np.linspace(0.0, scenario.duration, 501)
+    expected = scenario.reference().sample(times)
+    np.testing.assert_array_equal(make_reference(kind, **fields).sample(times), expected)
+    assert graph.load_parameter_file(path, "/smm/td_node") == {}
+
+
+def test_a_missing_executable_is_reported_before_anything_starts() -> None:
+    from smm_bringup.launcher import ExecutableNotFoundError, launch_processes, resolve_executable
+
+    missing = NodeSpec("smm_sim", "no_such_node", "ghost", "m:C")
+    with pytest.raises(ExecutableNotFoundError, match="no_such_node"):
+        resolve_executable(missing)
+    real = build_graph(GraphOptions(scenario=None))[0]
+    with pytest.raises(ExecutableNotFoundError):
+        launch_processes([real, missing])
