@@ -287,14 +287,19 @@ def save_result(result: ModuleResult) -> None:
     target.write_text(json.dumps(data, indent=2))
 
 
-def load_result(module: Module) -> ModuleResult:
-    """The latest result of a module: missing source, earlier measurement, or not run."""
+def load_result(module: Module, equivalent: Iterable[str] = ()) -> ModuleResult:
+    """The latest result of a module (missing source, earlier measurement or not run), triaged anew."""
     if not module.source.exists():
         return ModuleResult(module.path, "missing", note=f"src/{module.package}/{module.path} does not exist")
     target = result_file(module.path)
     if not target.exists():
         return ModuleResult(module.path, "not run")
-    return ModuleResult(**json.loads(target.read_text()))
+    result = ModuleResult(**json.loads(target.read_text()))
+    known = set(equivalent)
+    survivors = sorted(result.survivors + result.equivalent)
+    result.equivalent = [name for name in survivors if name in known]
+    result.survivors = [name for name in survivors if name not in known]
+    return result
 
 
 def score_text(result: ModuleResult) -> str:
@@ -372,7 +377,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             ):
                 save_result(result)
                 print(f"  {result.path}: {score_text(result)} ({result.killed}/{result.scored})", flush=True)
-    results = [load_result(m) for m in MODULES]
+    results = [load_result(m, equivalent) for m in MODULES]
     text = report(results, args.threshold)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "report.md").write_text(text)

@@ -71,6 +71,8 @@ CASES: list[tuple[type[Any], str, object]] = [
     # FPD
     (FPDConfig, "fuzzy", None),
     # Sign rules of every remaining field (a dropped positive/non_negative flag is caught).
+    (FuzzyPDConfig, "k_de", (-5.0, 2.0)),
+    (FuzzyPDConfig, "k2", (0.5, -0.9)),
     (FLESOConfig, "k_s1", (-3.0, 5.0)),
     (FLESOConfig, "k_s2", (1.15, -0.98)),
     (FLESOConfig, "w_min", (1.0, -1.0)),

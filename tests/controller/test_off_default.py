@@ -100,14 +100,30 @@ def test_pid_conditional_integration_with_a_small_error_and_a_derivative() -> No
 
 def test_model_memo_is_keyed_on_both_angles() -> None:
     model = NominalModel(PARAMS)
-    for a, b in [(0.1, 0.2), (0.1, 0.5), (0.4, 0.5), (0.4, 0.2)]:
-        assert model.mass(a, b) == NominalModel(PARAMS).mass(a, b)
+    m11 = model.mass(0.1, 0.2)[0]
+    for a, b in [(0.1, 0.5), (0.4, 0.5), (0.4, 0.2), (0.2, 0.2), (0.1, 0.2), (0.1, m11)]:
+        assert model.mass(a, b) == NominalModel(PARAMS).mass(a, b), (a, b)
         assert model.bias(a, b, 0.3, -0.2)[:3] == model.mass(a, b)
 
 
 def test_model_rejects_other_parameters_naming_their_type() -> None:
-    with pytest.raises(ValueError, match="must be SMMParameters, got float"):
-        NominalModel(math.pi)  # type: ignore[arg-type]
+    for make in (NominalModel, NominalModel.shared):
+        with pytest.raises(ValueError, match="must be SMMParameters, got float"):
+            make(math.pi)  # type: ignore[arg-type]
+
+
+def test_pid_integrates_when_the_output_is_exactly_at_its_limit() -> None:
+    """Conditional integration starts beyond the limit: at P + I = 0.25 + 0.25 = limit I still grows.
+
+    kp 0.5, ki 1, e 0.5 rad, dt 0.5 s (all exact in binary): I = 1 * 0.5 * 0.5 = 0.25, output 0.5 = limit.
+    """
+    controller = PIDController(
+        PIDConfig(kp=(0.5, 0.5), ki=(1.0, 1.0), kd=(0.0, 0.0), output_limit=(0.5, 0.5))
+    )
+    zero = np.zeros(2)
+    tau = controller.step(np.array([[0.5, -0.5], [0.0, 0.0], [0.0, 0.0]]), zero, zero, zero, 0.5)
+    assert list(tau) == [0.5, -0.5]
+    assert list(controller.internals["i"]) == [0.25, -0.25]
 
 
 def reference_fleso(config: FLESOConfig, ys: np.ndarray, taus: np.ndarray) -> list[dict[str, np.ndarray]]:

@@ -98,3 +98,8 @@ def test_results_round_trip_and_threshold(
     text = driver.report([loaded], 90.0)
     assert "50.0 %" in text and "Below threshold: smm_controller/td.py." in text
     assert "`p.x_g__mutmut_2`" in text
+    triaged = driver.load_result(
+        driver.Module("smm_controller/td.py", ("tests/controller",)), {"p.x_g__mutmut_2"}
+    )
+    assert triaged.equivalent == ["p.x_g__mutmut_2"] and triaged.survivors == []
+    assert triaged.score == pytest.approx(100.0)
