@@ -356,3 +356,17 @@ def test_time_steps_of_one_nanosecond_and_two_samples_are_accepted() -> None:
     assert list(validated_time([0, 1, 2])) == [0, 1, 2]
     assert list(validated_time([7, 9])) == [7, 9]
     assert torque_increment_rms([1.0, 3.0]) == pytest.approx(2.0, rel=1e-15)
+
+
+def test_integrals_keep_their_precision_with_wall_clock_stamps() -> None:
+    """Epoch stamps (1.7e18 ns) give the same RMS and energy as stamps from 0: times are relative."""
+    k = np.arange(2001, dtype=np.int64)
+    error = np.linspace(-0.2, 0.3, k.size)
+    torque = np.cos(np.linspace(0.0, 6.0, k.size))
+    epoch = 1_700_000_000 * S
+    assert rms_error(epoch + k * 1_000_000, error) == pytest.approx(
+        rms_error(k * 1_000_000, error), rel=1e-12
+    )
+    assert control_energy(epoch + k * 1_000_000, torque) == pytest.approx(
+        control_energy(k * 1_000_000, torque), rel=1e-12
+    )
