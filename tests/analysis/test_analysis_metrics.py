@@ -370,3 +370,12 @@ def test_integrals_keep_their_precision_with_wall_clock_stamps() -> None:
     assert control_energy(epoch + k * 1_000_000, torque) == pytest.approx(
         control_energy(k * 1_000_000, torque), rel=1e-12
     )
+
+
+def test_step_metrics_edge_cases() -> None:
+    t_ns = np.array([0, 1, 2], dtype=np.int64) * S
+    never = step_metrics(t_ns, [0.0, 0.05, 0.02], 1.0)  # reaches neither 10 % nor 90 %
+    assert never.rise_time == math.inf and never.settling_time == math.inf
+    # The last sample exactly on the band edge (distance 0.25 = band) is inside: settled when it arrives.
+    edge = step_metrics(t_ns, [0.0, 0.5, 1.25], 1.0, settling_band=0.25)
+    assert edge.settling_time == pytest.approx(1.0 + (0.5 - 0.25) / (0.5 - 0.25), rel=1e-12)
