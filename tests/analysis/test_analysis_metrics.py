@@ -312,6 +312,7 @@ def test_step_metrics_already_settled_and_with_two_samples() -> None:
         (lambda: validated_time([0]), r"^t_ns needs at least 2 samples, got 1"),
         (lambda: validated_time([0, 5, 5, 7]), r"^t_ns must be strictly increasing, got 5 then 5 at index 1"),
         (lambda: validated_time([0, 5, 4]), r"^t_ns must be strictly increasing, got 5 then 4 at index 1"),
+        (lambda: validated_time([0, 1, 2, 2]), r"^t_ns must be strictly increasing, got 2 then 2 at index 2"),
         (lambda: step_metrics([0, 1], [0.0], 1.0), r"^response has 1 samples"),
         (
             lambda: step_metrics([0, 1], [0.0, 1.0], 1.0, initial=math.nan),
@@ -377,5 +378,7 @@ def test_step_metrics_edge_cases() -> None:
     never = step_metrics(t_ns, [0.0, 0.05, 0.02], 1.0)  # reaches neither 10 % nor 90 %
     assert never.rise_time == math.inf and never.settling_time == math.inf
     # The last sample exactly on the band edge (distance 0.25 = band) is inside: settled when it arrives.
+    last = step_metrics(t_ns, [0.0, 0.5, 0.9], 1.0)  # 90 % reached exactly, at the last sample
+    assert last.rise_time == pytest.approx(2.0 - 0.1 / 0.5, rel=1e-12)
     edge = step_metrics(t_ns, [0.0, 0.5, 1.25], 1.0, settling_band=0.25)
     assert edge.settling_time == pytest.approx(1.0 + (0.5 - 0.25) / (0.5 - 0.25), rel=1e-12)
