@@ -341,3 +341,23 @@ def test_reset_rejects_position_outside_stops() -> None:
         plant.reset([1.2, 0.0])
     with pytest.raises(ValueError, match="position"):
         plant.reset([math.nan, 0.0])
+
+
+@pytest.mark.parametrize("joint", [0, 1])
+def test_noise_and_torque_limit_on_one_joint_only(joint: int) -> None:
+    """A per-joint setting that is off on the other joint acts on its own joint only (issue #16)."""
+    std = [0.0, 0.0]
+    std[joint] = 0.01
+    noisy = SimulatedPlant(PlantConfig(noise_std=(std[0], std[1]), seed=5))
+    limit = [math.inf, math.inf]
+    limit[joint] = 1.0
+    limited = SimulatedPlant(PlantConfig(torque_limit=(limit[0], limit[1])))
+    for _ in range(5):
+        noisy.step((0.1, -0.1), DT)
+        limited.step((50.0, -50.0), DT)
+    measured, truth = noisy.measure().position, noisy.ground_truth.position
+    assert measured[joint] != truth[joint]
+    assert abs(measured[1 - joint] - truth[1 - joint]) < 1e-6  # encoder quantisation only
+    applied = limited.measure().applied_torque
+    assert abs(applied[joint]) == 1.0
+    assert abs(applied[1 - joint]) == 50.0
