@@ -274,6 +274,21 @@ def save_diffs(work: Path, result: ModuleResult) -> None:
     target.write_text("\n".join(chunks))
 
 
+def collect(module: Module, equivalent: Mapping[str, str]) -> ModuleResult | None:
+    """What mutmut has saved so far for a module in its work directory; status 'partial' if unfinished."""
+    meta = OUT / "work" / module.package / "mutants" / "src" / (module.path + ".meta")
+    if not meta.exists():
+        return None
+    result = classify(json.loads(meta.read_text())["exit_code_by_key"], equivalent)
+    not_checked = result.counts.get("not checked", 0)
+    result.path, result.commit = module.path, git_commit()
+    result.measured_at = dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    if not_checked:
+        result.status = "partial"
+        result.note = f"partial: {result.total - not_checked} of {result.total} mutants run when collected"
+    return result
+
+
 def result_file(path: str) -> Path:
     """Where one module's latest result is kept."""
     return OUT / "results" / (path.replace("/", ".") + ".json")
@@ -303,10 +318,11 @@ def load_result(module: Module, equivalent: Iterable[str] = ()) -> ModuleResult:
 
 
 def score_text(result: ModuleResult) -> str:
-    """The score column: percent, or the status when there is no figure."""
-    if result.status != "measured":
+    """The score column: percent (of the mutants run, if partial), or the status when there is no figure."""
+    if result.status not in ("measured", "partial"):
         return result.status
-    return "-" if result.score is None else f"{result.score:.1f} %"
+    figure = "-" if result.score is None else f"{result.score:.1f} %"
+    return figure if result.status == "measured" else f"{figure} (partial)"
 
 
 def report(results: Sequence[ModuleResult], threshold: float) -> str:
@@ -341,6 +357,9 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--modules", nargs="*", default=None, help="substrings of MODULES paths to run")
     parser.add_argument("--report-only", action="store_true", help="rewrite the report from kept results")
+    parser.add_argument(
+        "--collect", action="store_true", help="keep the results mutmut has saved so far (a run in progress)"
+    )
     parser.add_argument("--max-children", type=int, default=2, help="parallel mutant workers (default 2)")
     parser.add_argument("--profile", default="thorough", help="Hypothesis profile (tests/conftest.py)")
     parser.add_argument("--threshold", type=float, default=90.0, help="score per module to reach, percent")
@@ -366,7 +385,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{m.path:32} {' '.join(m.tests)}{'' if m.source.exists() else '  (missing)'}")
         return 0
     equivalent = read_equivalent()
-    if not args.report_only:
+    if args.collect:
+        for m in select(MODULES, args.modules):
+            partial = collect(m, equivalent)
+            if partial is not None:
+                save_result(partial)
+    elif not args.report_only:
         chosen = [m for m in select(MODULES, args.modules) if m.source.exists()]
         by_package: dict[str, list[Module]] = {}
         for m in chosen:

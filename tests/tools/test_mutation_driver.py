@@ -103,3 +103,18 @@ def test_results_round_trip_and_threshold(
     )
     assert triaged.equivalent == ["p.x_g__mutmut_2"] and triaged.survivors == []
     assert triaged.score == pytest.approx(100.0)
+
+
+def test_collect_reads_a_run_in_progress(
+    driver: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(driver, "OUT", tmp_path)
+    module = driver.Module("smm_controller/td.py", ("tests/controller",))
+    assert driver.collect(module, {}) is None
+    meta = tmp_path / "work" / "smm_controller" / "mutants" / "src" / "smm_controller" / "td.py.meta"
+    meta.parent.mkdir(parents=True)
+    meta.write_text('{"exit_code_by_key": {"a__mutmut_1": 1, "a__mutmut_2": null, "a__mutmut_3": 0}}')
+    partial = driver.collect(module, {})
+    assert partial.status == "partial" and "2 of 3 mutants run" in partial.note
+    assert partial.score == pytest.approx(50.0)
+    assert driver.score_text(partial) == "50.0 % (partial)"
