@@ -74,7 +74,7 @@ MODULES: tuple[Module, ...] = (
     Module("smm_sim/plant.py", ("tests/sim",)),
     Module("smm_analysis/metrics.py", ("tests/analysis/test_analysis_metrics.py",)),
     Module("smm_msgs_py/conversions.py", ("tests/msgs",)),
-    Module("smm_hw_bridge/protocol.py", ("tests/hw_bridge",)),
+    Module("smm_hw_bridge/protocol.py", ("tests/hw_bridge/test_protocol.py",)),
 )
 
 #: mutmut exit codes (mutmut.stats.status_by_exit_code), grouped for the score.
