@@ -228,6 +228,7 @@ def run_package(
     log = OUT / "logs" / f"{package}.log"
     log.parent.mkdir(parents=True, exist_ok=True)
     print(f"[{package}] mutmut run over {', '.join(m.path for m in modules)} (log: {log})", flush=True)
+    commit = git_commit()  # of the sources and tests staged above
     start = time.monotonic()
     with log.open("w") as stream:
         proc = subprocess.run(
@@ -240,7 +241,6 @@ def run_package(
         )
     seconds = time.monotonic() - start
     stamp = dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
-    commit = git_commit()
     results = []
     for module in modules:
         meta = work / "mutants" / "src" / (module.path + ".meta")
