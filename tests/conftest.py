@@ -18,12 +18,38 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 _NETNS_MARKER = "SMM_TEST_PRIVATE_NETNS"
 _NETNS_FAILURE = "SMM_TEST_NETNS_FAILURE"
 _HERE = Path(__file__).resolve().parent
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+# Hypothesis profiles (docs/TESTING.md). No deadline anywhere: tests never assert wall-clock times, and a
+# shared machine's load must not fail a property. A test's own @settings (max_examples) wins over these.
+#   ci        derandomized, no example database: the same examples on every run (selected when CI is set)
+#   dev       random, with the local example database (the default on a workstation)
+#   thorough  derandomized, many examples: `make mutation` and before a release
+settings.register_profile(
+    "ci",
+    derandomize=True,
+    database=None,
+    deadline=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.register_profile("dev", deadline=None)
+settings.register_profile(
+    "thorough",
+    derandomize=True,
+    database=None,
+    deadline=None,
+    max_examples=1000,
+    # mutmut runs pytest several times in one process, so a test is seen from several executors.
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.differing_executors],
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.environ.get("CI") else "dev"))
 
 
 def _unshare_command() -> list[str]:

@@ -19,6 +19,7 @@ from smm_analysis.metrics import (
     rms_error,
     step_metrics,
     torque_increment_rms,
+    validated_time,
 )
 
 from smm_dynamics import SMMParameters, end_effector_position
@@ -31,9 +32,9 @@ def _time(duration: float, period_ns: int = PERIOD_NS) -> np.ndarray:
 
 
 @given(
-    amplitude=st.floats(0.01, 5.0),
+    amplitude=st.floats(0.01, 5.0, allow_subnormal=False),
     periods=st.integers(1, 5),
-    frequency=st.floats(0.5, 5.0),
+    frequency=st.floats(0.5, 5.0, allow_subnormal=False),
 )
 @settings(max_examples=25, deadline=None)
 def test_rms_of_sine_over_whole_periods_is_amplitude_over_sqrt2(
@@ -256,3 +257,128 @@ def test_energy_above_a_cutoff_splits_a_two_tone_torque_by_parseval() -> None:
     torque = 2.0 * np.sin(2 * np.pi * 5 * t) + 0.5 * np.sin(2 * np.pi * 100 * t)
     assert energy_above(t_ns, torque, 20.0) == pytest.approx(0.5**2 / 2, rel=1e-9)
     assert energy_above(t_ns, torque, 1.0) == pytest.approx(2.0**2 / 2 + 0.5**2 / 2, rel=1e-9)
+
+
+S = 1_000_000_000  # ns per s
+
+
+def test_step_metrics_at_hand_computed_interpolations() -> None:
+    """Piecewise-linear samples at 1 s: every crossing is interpolated between two samples.
+
+    10 %: between 0.05 (1 s) and 0.5 (2 s) at 1 + 0.05/0.45 = 1 + 1/9 s; 90 %: between 0.5 and 1.2 at
+    2 + 0.4/0.7 = 2 + 4/7 s; rise time 1 + 4/7 - 1/9 = 92/63 s. Overshoot 0.2. Last sample outside the 2 %
+    band: 0.97 at 4 s (distance 0.03), next 1.0 (distance 0): settling at 4 + (0.03 - 0.02)/0.03 = 4 + 1/3 s.
+    """
+    t_ns = np.arange(6, dtype=np.int64) * S
+    metrics = step_metrics(t_ns, [0.0, 0.05, 0.5, 1.2, 0.97, 1.0], 1.0)
+    assert metrics.rise_time == pytest.approx(92.0 / 63.0, rel=1e-12)
+    assert metrics.overshoot_fraction == pytest.approx(0.2, rel=1e-12)
+    assert metrics.overshoot == pytest.approx(0.2, rel=1e-12)
+    assert metrics.settling_time == pytest.approx(4.0 + 1.0 / 3.0, rel=1e-12)
+
+
+def test_step_metrics_of_a_step_down_reached_at_once() -> None:
+    """Step 0 -> -1 after 10 s: normalised [0.5, 0.95, 1, 1] from the step on.
+
+    10 % is reached at the first kept sample (0 s); 90 % between 0.5 and 0.95 at 0.4/0.45 = 8/9 s;
+    settling: distance 0.05 at 1 s then 0: at 1 + (0.05 - 0.02)/0.05 = 1.6 s. A sample before the step is
+    ignored; the sample at the step time is kept.
+    """
+    t_ns = np.array([0, 10, 11, 12, 13], dtype=np.int64) * S
+    metrics = step_metrics(t_ns, [5.0, -0.5, -0.95, -1.0, -1.0], -1.0, step_time_ns=10 * S)
+    assert metrics.rise_time == pytest.approx(8.0 / 9.0, rel=1e-12)
+    assert metrics.overshoot_fraction == 0.0
+    assert metrics.settling_time == pytest.approx(1.6, rel=1e-12)
+
+
+def test_step_metrics_already_settled_and_with_two_samples() -> None:
+    t_ns = np.array([0, 1, 2], dtype=np.int64) * S
+    settled = step_metrics(t_ns, [1.0, 1.01, 0.995], 1.0, initial=0.0)
+    assert (settled.rise_time, settled.settling_time) == (0.0, 0.0)
+    two = step_metrics(t_ns, [0.0, 0.0, 1.0], 1.0, step_time_ns=1 * S)  # exactly 2 samples kept
+    assert two.settling_time == pytest.approx(0.98, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: max_abs_error([]), r"^error must not be empty"),
+        (lambda: mean_abs_error([[0.0]]), r"^error must be 1-D"),
+        (lambda: rms_error([0, 1, 2], [0.0, math.nan, 0.0]), r"^error holds NaN or Inf at index 1"),
+        (lambda: control_energy([0, 1, 2], [0.0, 1.0]), r"^torque has 2 samples but the time base has 3"),
+        (lambda: torque_increment_rms([1.0]), r"^torque needs at least 2 samples for an increment, got 1"),
+        (lambda: torque_increment_rms([[1.0, 2.0]]), r"^torque must be 1-D"),
+        (lambda: validated_time([[0, 1]]), r"^t_ns must be 1-D"),
+        (lambda: validated_time([0]), r"^t_ns needs at least 2 samples, got 1"),
+        (lambda: validated_time([0, 5, 5, 7]), r"^t_ns must be strictly increasing, got 5 then 5 at index 1"),
+        (lambda: validated_time([0, 5, 4]), r"^t_ns must be strictly increasing, got 5 then 4 at index 1"),
+        (lambda: validated_time([0, 1, 2, 2]), r"^t_ns must be strictly increasing, got 2 then 2 at index 2"),
+        (lambda: step_metrics([0, 1], [0.0], 1.0), r"^response has 1 samples"),
+        (
+            lambda: step_metrics([0, 1], [0.0, 1.0], 1.0, initial=math.nan),
+            r"^target and initial must be finite",
+        ),
+        (
+            lambda: step_metrics([0, 1], [0.0, 1.0], 1.0, settling_band=1.0),
+            r"^settling_band must be in \(0, 1\)",
+        ),
+        (
+            lambda: step_metrics([0, 1], [0.0, 1.0], 1.0, step_time_ns=1),
+            r"^step_time_ns 1 leaves fewer than 2",
+        ),
+        (
+            lambda: joint_indices([0, 1], np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2))),
+            r"^reference must have shape \(N, 2\)",
+        ),
+        (
+            lambda: joint_indices([0, 1], np.zeros((2, 2)), np.zeros((3, 2)), np.zeros((2, 2))),
+            r"^position has 3 samples but the time base has 2",
+        ),
+        (
+            lambda: joint_indices([0, 1], np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 3))),
+            r"^torque must have shape",
+        ),
+        (
+            lambda: end_effector_errors([0, 1], np.zeros((2, 2, 1)), np.zeros((2, 2)), SMMParameters()),
+            r"^reference must have shape",
+        ),
+        (
+            lambda: end_effector_errors([0, 1], np.zeros((2, 2)), np.full((2, 2), math.inf), SMMParameters()),
+            r"^position holds NaN or Inf",
+        ),
+    ],
+)
+def test_errors_name_the_argument(call: object, message: str) -> None:
+    with pytest.raises(MetricsInputError, match=message):
+        call()  # type: ignore[operator]
+
+
+def test_time_steps_of_one_nanosecond_and_two_samples_are_accepted() -> None:
+    assert list(validated_time([0, 1, 2])) == [0, 1, 2]
+    assert list(validated_time([7, 9])) == [7, 9]
+    assert torque_increment_rms([1.0, 3.0]) == pytest.approx(2.0, rel=1e-15)
+
+
+def test_integrals_keep_their_precision_with_wall_clock_stamps() -> None:
+    """Epoch stamps (1.7e18 ns) give the same RMS and energy as stamps from 0: times are relative."""
+    k = np.arange(2001, dtype=np.int64)
+    error = np.linspace(-0.2, 0.3, k.size)
+    torque = np.cos(np.linspace(0.0, 6.0, k.size))
+    epoch = 1_700_000_000 * S
+    assert rms_error(epoch + k * 1_000_000, error) == pytest.approx(
+        rms_error(k * 1_000_000, error), rel=1e-12
+    )
+    assert control_energy(epoch + k * 1_000_000, torque) == pytest.approx(
+        control_energy(k * 1_000_000, torque), rel=1e-12
+    )
+
+
+def test_step_metrics_edge_cases() -> None:
+    t_ns = np.array([0, 1, 2], dtype=np.int64) * S
+    never = step_metrics(t_ns, [0.0, 0.05, 0.02], 1.0)  # reaches neither 10 % nor 90 %
+    assert never.rise_time == math.inf and never.settling_time == math.inf
+    # The last sample exactly on the band edge (distance 0.25 = band) is inside: settled when it arrives.
+    last = step_metrics(t_ns, [0.0, 0.5, 0.9], 1.0)  # 90 % reached exactly, at the last sample
+    assert last.rise_time == pytest.approx(2.0 - 0.1 / 0.5, rel=1e-12)
+    edge = step_metrics(t_ns, [0.0, 0.5, 1.25], 1.0, settling_band=0.25)
+    assert edge.settling_time == pytest.approx(1.0 + (0.5 - 0.25) / (0.5 - 0.25), rel=1e-12)

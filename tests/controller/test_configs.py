@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 import pytest
@@ -10,6 +11,8 @@ from smm_controller.baselines import FPDConfig, NPDConfig, PIDConfig
 from smm_controller.fleso import FLESOConfig
 from smm_controller.fpdeso import FPDESOConfig
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, PAPER_FPDESO_FUZZY, FuzzyPDConfig
+from smm_controller.reference import RampHoldReference, SineReference, StepReference
+from smm_controller.td import TrackingDifferentiatorConfig
 
 NAN = math.nan
 INF = math.inf
@@ -67,6 +70,32 @@ CASES: list[tuple[type[Any], str, object]] = [
     (NPDConfig, "rho_d", (1.1, INF)),
     # FPD
     (FPDConfig, "fuzzy", None),
+    # Sign rules of every remaining field (a dropped positive/non_negative flag is caught).
+    (FuzzyPDConfig, "k_de", (-5.0, 2.0)),
+    (FuzzyPDConfig, "k2", (0.5, -0.9)),
+    (FLESOConfig, "k_s1", (-3.0, 5.0)),
+    (FLESOConfig, "k_s2", (1.15, -0.98)),
+    (FLESOConfig, "w_min", (1.0, -1.0)),
+    (PIDConfig, "kp", (-10.0, 50.0)),
+    (PIDConfig, "ki", (-0.9, 3.0)),
+    (PIDConfig, "kd", (1.5, -0.5)),
+    (PIDConfig, "derivative_filter", (0.0, 1456.0)),
+    (PIDConfig, "output_limit", (0.0, 1.0)),
+    (PIDConfig, "output_limit", (-1.0, 1.0)),
+    (FPDESOConfig, "robust_gain", (-0.1, 0.0)),
+    (TrackingDifferentiatorConfig, "speed", (0.0, 1e5)),
+    (TrackingDifferentiatorConfig, "filter_factor", (0.001, -0.001)),
+    # Reference generators
+    (StepReference, "amplitude", (NAN, 0.0)),
+    (StepReference, "start_time", -1.0),
+    (SineReference, "amplitude", (INF, 0.0)),
+    (SineReference, "angular_frequency", 0.0),
+    (SineReference, "phase", (0.0, NAN)),
+    (RampHoldReference, "target", (NAN, 0.0)),
+    (RampHoldReference, "ramp_time", 0.0),
+    (RampHoldReference, "start_time", -0.5),
+    (RampHoldReference, "initial", (0.0, INF)),
+    (RampHoldReference, "profile", "cubic"),
 ]
 
 
@@ -74,7 +103,7 @@ CASES: list[tuple[type[Any], str, object]] = [
     ("config", "field", "value"), CASES, ids=[f"{c.__name__}-{f}-{v!r}" for c, f, v in CASES]
 )
 def test_rejection(config: type[Any], field: str, value: object) -> None:
-    with pytest.raises(ValueError, match=field):
+    with pytest.raises(ValueError, match=rf"^{re.escape(field)} must"):
         config(**{field: value})
 
 

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController, robust_switch
@@ -23,9 +23,10 @@ from smm_dynamics import (
 
 DT = 0.001
 PARAMS = SMMParameters()
-angles = st.floats(-1.2, 1.2)
-rates = st.floats(-3.0, 3.0)
-small = st.floats(-0.3, 0.3)
+TINY = float(np.finfo(np.float64).tiny)  # smallest normal float64; below it only subnormal rounding remains
+angles = st.floats(-1.2, 1.2, allow_subnormal=True)
+rates = st.floats(-3.0, 3.0, allow_subnormal=True)
+small = st.floats(-0.3, 0.3, allow_subnormal=True)
 
 
 def reference(
@@ -38,7 +39,7 @@ def reference(
 @given(
     state=st.tuples(angles, angles, rates, rates),
     errors=st.tuples(small, small, small, small),
-    acc=st.floats(-10, 10),
+    acc=st.floats(-10, 10, allow_subnormal=True),
 )
 def test_decoupling_on_the_exact_model(
     state: tuple[float, float, float, float], errors: tuple[float, float, float, float], acc: float
@@ -144,14 +145,22 @@ def test_boundary_layer_scales_the_robust_term() -> None:
 class TestNominalModel:
     @settings(deadline=None, max_examples=60)
     @given(a=angles, b=angles, ad=rates, bd=rates)
+    @example(a=2.2250738585e-313, b=0.8433, ad=0.0, bd=0.0)  # subnormal alpha: M12 ~ 3e-314, 1 ulp apart
     def test_matches_smm_dynamics(self, a: float, b: float, ad: float, bd: float) -> None:
+        """Agrees with smm_dynamics to rounding, relative to each term's scale (entries may be subnormal)."""
         params = SMMParameters(gravity_sign=-1.0, mass_lever=0.05)
         model = NominalModel(params)
         q, qd = np.array([a, b]), np.array([ad, bd])
         m11, m12, m22, c0, c1, g0, g1 = model.bias(a, b, ad, bd)
-        assert_allclose([[m11, m12], [m12, m22]], mass_matrix(q, params), rtol=1e-13)
-        assert_allclose([c0, c1], coriolis_vector(q, qd, params), rtol=1e-12, atol=1e-14)
-        assert_allclose([g0, g1], gravity_vector(q, params), rtol=1e-13, atol=1e-15)
+        mass = mass_matrix(q, params)
+        coriolis, gravity = coriolis_vector(q, qd, params), gravity_vector(q, params)
+        # Absolute tolerance: rounding relative to each term's scale; TINY covers products that underflow.
+        mass_scale = np.abs(mass).max()
+        assert_allclose([[m11, m12], [m12, m22]], mass, rtol=1e-13, atol=1e-15 * mass_scale)
+        coriolis_scale = mass_scale * (ad * ad + bd * bd)  # |C q'| <= ~|dM/dq| |q'|^2, |dM/dq| ~ |M|
+        assert_allclose([c0, c1], coriolis, rtol=1e-12, atol=1e-14 * coriolis_scale + TINY)
+        gravity_scale = params.mass_lever * params.gravity
+        assert_allclose([g0, g1], gravity, rtol=1e-13, atol=1e-15 * gravity_scale + TINY)
         assert_allclose(model.mass(a, b), (m11, m12, m22), rtol=0)
 
     def test_memo_is_keyed_on_the_position(self) -> None:

@@ -34,7 +34,7 @@ from smm_controller.rules import (
     pd_output_variable,
 )
 
-unit = st.floats(min_value=-1.0, max_value=1.0, allow_nan=False)
+unit = st.floats(min_value=-1.0, max_value=1.0, allow_nan=False, allow_subnormal=True)
 
 
 Rules = Mapping[tuple[str, ...], tuple[str, ...]]
@@ -84,7 +84,7 @@ class TestMembershipFunctions:
         assert_allclose(gaussian_mf([0.0, 2.0], 0.0, 2.0), [1.0, math.exp(-0.5)])
 
     @settings(deadline=None)
-    @given(x=st.floats(-3, 3))
+    @given(x=st.floats(-3, 3, allow_subnormal=True))
     def test_scalar_and_array_forms_agree(self, x: float) -> None:
         tri = TriangularMF(-0.5, 0.25, 1.0)
         gauss = GaussianMF(0.3, 0.4)
@@ -134,7 +134,7 @@ class TestSpecMembershipShapes:
 
 class TestActiveLabels:
     @settings(deadline=None)
-    @given(x=st.floats(-1.5, 1.5))
+    @given(x=st.floats(-1.5, 1.5, allow_subnormal=True))
     def test_lattice_shortcut_equals_all_labels(self, x: float) -> None:
         variable = pd_input_variable()
         dense = np.zeros(7)
@@ -144,7 +144,7 @@ class TestActiveLabels:
         assert len(variable.active(x)) <= 2
 
     @settings(deadline=None)
-    @given(x=st.floats(-1.5, 1.5))
+    @given(x=st.floats(-1.5, 1.5, allow_subnormal=True))
     def test_gaussian_shortcut_is_bit_identical(self, x: float) -> None:
         variable = fleso_input_variable()
         assert variable.active(x) == list(enumerate(variable.memberships(x)))
@@ -175,7 +175,7 @@ class TestCentroid:
         assert moment == pytest.approx(np.trapezoid(fine * fine_membership, fine), rel=1e-8)
 
     @settings(max_examples=50, deadline=None)
-    @given(st.lists(st.floats(0.0, 1.0), min_size=5, max_size=40))
+    @given(st.lists(st.floats(0.0, 1.0, allow_subnormal=True), min_size=5, max_size=40))
     def test_matches_scikit_fuzzy_defuzz(self, samples: list[float]) -> None:
         skfuzzy = pytest.importorskip("skfuzzy")
         membership = np.array(samples)

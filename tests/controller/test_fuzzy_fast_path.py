@@ -47,7 +47,7 @@ PEAKS = [-1.0 + 2.0 * i / 6 for i in range(7)]
 SPECIAL = sorted(
     {x for peak in PEAKS for x in (peak, math.nextafter(peak, -2.0), math.nextafter(peak, 2.0))} | {0.0, -0.0}
 )
-values = st.one_of(st.floats(-1.2, 1.2, allow_nan=False), st.sampled_from(SPECIAL))
+values = st.one_of(st.floats(-1.2, 1.2, allow_nan=False, allow_subnormal=True), st.sampled_from(SPECIAL))
 
 
 def _dense_reference(systems: Sequence[MamdaniSystem], inputs: Sequence[Sequence[float]]) -> list[float]:
@@ -80,7 +80,12 @@ def test_pd_batch_equals_the_dense_evaluation(
 @settings(max_examples=200, deadline=None)
 @given(
     x=st.tuples(
-        *[st.floats(-0.99, 0.99, allow_nan=False).filter(lambda v: min(abs(v - p) for p in PEAKS) > 1e-6)] * 4
+        *[
+            st.floats(-0.99, 0.99, allow_nan=False, allow_subnormal=True).filter(
+                lambda v: min(abs(v - p) for p in PEAKS) > 1e-6
+            )
+        ]
+        * 4
     )
 )
 def test_four_rules_per_joint_are_bit_for_bit_the_dense_evaluation(
@@ -134,7 +139,12 @@ def fleso_systems(request: pytest.FixtureRequest) -> tuple[MamdaniSystem, Mamdan
 
 
 @settings(max_examples=300, deadline=None)
-@given(s=st.tuples(st.floats(-1.5, 1.5, allow_nan=False), st.floats(-1.5, 1.5, allow_nan=False)))
+@given(
+    s=st.tuples(
+        st.floats(-1.5, 1.5, allow_nan=False, allow_subnormal=True),
+        st.floats(-1.5, 1.5, allow_nan=False, allow_subnormal=True),
+    )
+)
 def test_single_input_batch_equals_the_dense_evaluation(
     fleso_systems: tuple[MamdaniSystem, MamdaniSystem], s: tuple[float, float]
 ) -> None:
@@ -218,7 +228,7 @@ def test_incomplete_rule_base_uses_the_general_path() -> None:
 
 
 @settings(max_examples=200, deadline=None)
-@given(x=st.floats(-1.0, 1.0, allow_nan=False))
+@given(x=st.floats(-1.0, 1.0, allow_nan=False, allow_subnormal=True))
 def test_lattice_pair_gives_the_two_triangle_memberships(x: float) -> None:
     variable = pd_input_variable()
     pair = variable.lattice_pair(x)

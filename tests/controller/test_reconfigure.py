@@ -279,3 +279,10 @@ def test_schedule_output_matches_a_fresh_schedule_after_a_grid_change(grid_point
     fresh = FuzzyPDGainSchedule(new)
     e, e_dot = np.array([0.11, -0.07]), np.array([0.05, 0.3])
     assert_array_equal(np.concatenate(schedule.step(e, e_dot)), np.concatenate(fresh.step(e, e_dot)))
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+def test_the_algorithm_reports_its_new_config(case: Case) -> None:
+    algorithm = case.make_old()
+    case.reconfigure(algorithm)
+    assert algorithm.config == case.make_new().config

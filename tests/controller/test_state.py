@@ -97,3 +97,36 @@ def test_internals_are_read_only_copies(
         run(algorithm, k)
     for key, value in internals.items():
         assert_allclose(value, snapshot[key], rtol=0, atol=0)
+
+
+@pytest.mark.parametrize(("name", "factory", "run"), CASES, ids=[c[0] for c in CASES])
+def test_internals_are_zero_before_the_first_step_and_after_reset(
+    name: str, factory: Callable[[], Any], run: Callable[[Any, int], np.ndarray]
+) -> None:
+    algorithm = factory()
+    for _ in range(2):
+        for key, value in algorithm.internals.items():
+            assert value.shape == (2,), key
+            assert list(value) == [0.0, 0.0], key
+        for k in range(3):
+            run(algorithm, k)
+        algorithm.reset()
+
+
+# (algorithm, call with one argument of the wrong shape, the argument's name)
+SHAPE_CASES: list[tuple[str, Callable[[], Any]]] = [
+    ("v", lambda: TrackingDifferentiator().step([0.0], DT)),
+    ("y", lambda: FLESO(None, PARAMS).step([0.0], [0.0, 0.0], DT)),
+    ("tau_applied", lambda: FLESO(None, PARAMS).step([0.0, 0.0], [0.0, 0.0, 0.0], DT)),
+    ("e", lambda: FuzzyPDGainSchedule().step([0.0], [0.0, 0.0])),
+    ("e_dot", lambda: FuzzyPDGainSchedule().step([0.0, 0.0], [0.0])),
+    ("q", lambda: PIDController().step(REFERENCES[0], [0.0], [0.0, 0.0], [0.0, 0.0], DT)),
+    ("q_dot", lambda: NPDController().step(REFERENCES[0], [0.0, 0.0], [0.0], [0.0, 0.0], DT)),
+    ("disturbance_estimate", lambda: FPDController().step(REFERENCES[0], [0.0, 0.0], [0.0, 0.0], [0.0], DT)),
+]
+
+
+@pytest.mark.parametrize(("name", "call"), SHAPE_CASES, ids=[c[0] for c in SHAPE_CASES])
+def test_shape_errors_name_the_argument(name: str, call: Callable[[], Any]) -> None:
+    with pytest.raises(ValueError, match=rf"^{name} must have shape \(2,\)"):
+        call()

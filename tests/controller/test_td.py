@@ -11,10 +11,10 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig, fhan, fst
 
-errors = st.floats(-2.0, 2.0)
-rates = st.floats(-50.0, 50.0)
-speeds = st.floats(1.0, 1e6)
-steps = st.floats(1e-4, 1e-2)
+errors = st.floats(-2.0, 2.0, allow_subnormal=True)
+rates = st.floats(-50.0, 50.0, allow_subnormal=True)
+speeds = st.floats(1.0, 1e6, allow_subnormal=False)
+steps = st.floats(1e-4, 1e-2, allow_subnormal=False)
 
 
 @settings(deadline=None, max_examples=300)
@@ -63,6 +63,50 @@ def test_step_is_eq_24_with_fhan_when_h_equals_dt() -> None:
         got_x1, got_x2 = td.step(v, dt)
         assert_allclose(got_x1, x1, rtol=1e-12, atol=1e-12)
         assert_allclose(got_x2, x2, rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        # Linear zone: delta = h sigma = 400, delta1 = 1.6, y = e + t x2 = 0.0015, g = x2 + y/h = 0.875.
+        ((0.001, 0.5, 1e5, 0.004, 0.001), -1e5 * 0.875 / 400.0),
+        # Nonlinear, unsaturated: delta = 5, delta1 = 0.25, y = 0.83 - 0.08 = 0.75,
+        # g = -8 + (sqrt(8 * 100 * 0.75 + 25) - 5) / 2 = -8 + 10 = 2, fst = -100 * 2 / 5.
+        ((0.83, -8.0, 100.0, 0.05, 0.01), -40.0),
+        # Nonlinear, saturated: y = -0.77 + 0.02 = -0.75, g = 2 - 10 = -8 <= -delta, fst = +sigma.
+        ((-0.77, 2.0, 100.0, 0.05, 0.01), 100.0),
+    ],
+)
+def test_fst_at_hand_computed_points_with_h_different_from_t(
+    args: tuple[float, float, float, float, float], expected: float
+) -> None:
+    """Eq. 25 off the default h = t: y uses the step t; delta, delta1 and y/h use the filter factor h.
+
+    args: (e, x2, sigma, h, t).
+    """
+    assert fst(*args) == pytest.approx(expected, rel=1e-12)
+
+
+def test_step_with_filter_factor_above_dt_at_hand_computed_states() -> None:
+    """Eq. 24-25 with h != t (0.05 and 0.02 s at dt = 0.01 s), sigma = 100, three steps by hand.
+
+    alpha (nonlinear zone): step 2: e = 0.83 - 0.08 = 0.75 = y, g = (sqrt(625) - 5)/2 = 10 >= delta = 5, so
+    fst = -100: x2 = -1. Step 3: y = 0.75 - 0.01 = 0.74, g = -1 + (sqrt(617) - 5)/2 = 8.92 >= 5: x1 = 0.82,
+    x2 = -2. beta (linear zone, delta = 2, delta1 = 0.04): step 2: y = e = 0.03, g = 0.03/0.02 = 1.5,
+    fst = -100 * 1.5/2 = -75: x2 = -0.75. Step 3: y = 0.03 + 0.01 (-0.75) = 0.0225, g = -0.75 + 1.125 = 0.375,
+    fst = -18.75: x1 = -0.0075, x2 = -0.9375.
+    """
+    td = TrackingDifferentiator(
+        TrackingDifferentiatorConfig(speed=(100.0, 100.0), filter_factor=(0.05, 0.02))
+    )
+    x1, x2 = td.step([0.83, 0.0], 0.01)
+    assert list(x1) == [0.83, 0.0] and list(x2) == [0.0, 0.0]
+    x1, x2 = td.step([0.08, -0.03], 0.01)
+    assert_allclose(x1, [0.83, 0.0], rtol=1e-12, atol=1e-15)
+    assert_allclose(x2, [-1.0, -0.75], rtol=1e-12)
+    x1, x2 = td.step([0.08, -0.03], 0.01)
+    assert_allclose(x1, [0.82, -0.0075], rtol=1e-12)
+    assert_allclose(x2, [-2.0, -0.9375], rtol=1e-12)
 
 
 def test_first_step_starts_at_the_sample_at_rest() -> None:

@@ -36,9 +36,9 @@ DISTINCT = SMMParameters(I11=0.05, I22=0.08, I44=0.11, I55=0.07, viscous_frictio
 HANGING = SMMParameters(gravity_sign=-1.0, mass_lever=0.05)
 PARAMETER_SETS = (SMMParameters(), DISTINCT, HANGING, SMMParameters().with_inertia_scale(1.1))
 
-angles = st.floats(-1.3, 1.3, allow_nan=False)
-rates = st.floats(-8.0, 8.0, allow_nan=False)
-torques = st.floats(-5.0, 5.0, allow_nan=False)
+angles = st.floats(-1.3, 1.3, allow_nan=False, allow_subnormal=True)
+rates = st.floats(-8.0, 8.0, allow_nan=False, allow_subnormal=True)
+torques = st.floats(-5.0, 5.0, allow_nan=False, allow_subnormal=True)
 parameter_sets = st.sampled_from(PARAMETER_SETS)
 
 

@@ -36,9 +36,9 @@ PARAMS = SMMParameters()
 # Distinct inertias so that a swapped I11/I22/I44 in the code cannot go unnoticed.
 DISTINCT = SMMParameters(I11=0.05, I22=0.08, I44=0.11, I55=0.07, viscous_friction=(0.3, 0.2))
 BOX = 1.2
-angles = st.floats(-BOX, BOX, allow_nan=False)
-rates = st.floats(-5.0, 5.0, allow_nan=False)
-torques = st.floats(-10.0, 10.0, allow_nan=False)
+angles = st.floats(-BOX, BOX, allow_nan=False, allow_subnormal=True)
+rates = st.floats(-5.0, 5.0, allow_nan=False, allow_subnormal=True)
+torques = st.floats(-10.0, 10.0, allow_nan=False, allow_subnormal=True)
 joint = st.tuples(angles, angles).map(np.array)
 velocity = st.tuples(rates, rates).map(np.array)
 torque = st.tuples(torques, torques).map(np.array)

@@ -27,7 +27,9 @@ from smm_msgs_py import (
     stamp_to_ns,
 )
 
-finite_pairs = hnp.arrays(np.float64, (2,), elements=st.floats(allow_nan=False, allow_infinity=False))
+finite_pairs = hnp.arrays(
+    np.float64, (2,), elements=st.floats(allow_nan=False, allow_infinity=False, allow_subnormal=True)
+)
 stamps = st.integers(min_value=0, max_value=MAX_STAMP_NS)
 
 

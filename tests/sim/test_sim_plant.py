@@ -344,12 +344,24 @@ def test_internals_are_copies_of_shape_two() -> None:
         ("valve_time_constants", (0.01,)),
         ("substeps", 0),
         ("control_period", 0.0),
+        ("control_period", 1e-10),
         ("params", "not parameters"),
+        # bools are not numbers here; a limit of exactly pi/2 is a singular pose
+        ("inertia_scale", True),
+        ("seed", True),
+        ("substeps", True),
+        ("control_period", True),
+        ("control_period", "1 ms"),
+        ("joint_limits", (math.pi / 2, 1.0)),
     ],
 )
 def test_config_validation_names_the_field(field: str, value: Any) -> None:
-    with pytest.raises(ValueError, match=field):
+    with pytest.raises(ValueError, match=rf"^{field}\b"):
         PlantConfig(**{field: value})
+
+
+def test_a_control_period_of_one_nanosecond_is_accepted() -> None:
+    assert PlantConfig(control_period=1e-9).period_ns == 1
 
 
 def test_reset_rejects_position_outside_stops() -> None:
@@ -358,3 +370,39 @@ def test_reset_rejects_position_outside_stops() -> None:
         plant.reset([1.2, 0.0])
     with pytest.raises(ValueError, match="position"):
         plant.reset([math.nan, 0.0])
+
+
+@pytest.mark.parametrize("joint", [0, 1])
+def test_noise_and_torque_limit_on_one_joint_only(joint: int) -> None:
+    """A per-joint setting that is off on the other joint acts on its own joint only (issue #16)."""
+    std = [0.0, 0.0]
+    std[joint] = 0.01
+    noisy = SimulatedPlant(PlantConfig(noise_std=(std[0], std[1]), seed=5))
+    limit = [math.inf, math.inf]
+    limit[joint] = 1.0
+    limited = SimulatedPlant(PlantConfig(torque_limit=(limit[0], limit[1])))
+    for _ in range(5):
+        noisy.step((0.1, -0.1), DT)
+        limited.step((50.0, -50.0), DT)
+    measured, truth = noisy.measure().position, noisy.ground_truth.position
+    assert measured[joint] != truth[joint]
+    assert abs(measured[1 - joint] - truth[1 - joint]) < 1e-6  # encoder quantisation only
+    applied = limited.measure().applied_torque
+    assert abs(applied[joint]) == 1.0
+    assert abs(applied[1 - joint]) == 50.0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        ((0.0, 0.02), r"^rise_time must be a finite number > 0 s, got 0.0"),
+        ((math.nan, 0.02), r"^rise_time must be a finite number > 0 s, got nan"),
+        ((0.05, -1.0), r"^fall_time must be a finite number > 0 s, got -1.0"),
+        ((0.05, 0.02, 0.0), r"^reached_fraction must be in \(0, 1\), got 0.0"),
+        ((0.05, 0.02, 1.0), r"^reached_fraction must be in \(0, 1\), got 1.0"),
+        ((0.05, 0.02, 1.5), r"^reached_fraction must be in \(0, 1\), got 1.5"),
+    ],
+)
+def test_valve_response_times_are_checked(args: tuple[float, ...], message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        valve_time_constants_from_response_times(*args)
