@@ -1,4 +1,4 @@
-"""smm-bag play --lockstep into a fresh fleso_node reproduces a recorded split-chain run's estimates exactly."""
+"""smm-bag play --lockstep into a fresh fleso_node reproduces a recorded split-chain run's estimates."""
 
 from __future__ import annotations
 
@@ -53,8 +53,16 @@ def test_lockstep_replay_into_fleso_node_reproduces_the_recorded_estimates(
     params_file.write_text(yaml.safe_dump({"/smm/fleso_node": {"ros__parameters": parameters}}))
     fleso = ros_processes.start(
         "fleso_node",
-        [sys.executable, "-m", "smm_controller.fleso_node", "--ros-args", "-r", "__ns:=/smm"]
-        + ["--params-file", str(params_file)],
+        [
+            sys.executable,
+            "-m",
+            "smm_controller.fleso_node",
+            "--ros-args",
+            "-r",
+            "__ns:=/smm",
+            "--params-file",
+            str(params_file),
+        ],
     )
     node = rclpy.create_node("lockstep_player", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)

@@ -106,7 +106,7 @@ def test_clean_finish_loses_nothing(
     assert [len(v) for v in mcap_messages(bag).values()] == [COUNT] * 3
     qos = metadata.topic("/smm/joint_states")
     assert qos is not None and qos.offered_qos_profiles[0].reliability == "reliable"
-    assert qos.offered_qos_profiles[0].depth == 100  # the stack's publisher depth
+    assert qos.offered_qos_profiles[0].depth == 1000  # the stack's publisher depth
     with BagReader(bag) as reader:
         times = [m.log_time_ns for m in reader.messages(["/smm/joint_states"])]
     assert times == sorted(times) and times[0] > 1_600_000_000 * 10**9

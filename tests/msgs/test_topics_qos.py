@@ -13,7 +13,7 @@ from smm_msgs_py import qos_for_topic, subscription_qos_for_topic, topics
 
 RELATIVE_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 
-EXPECTED = {  # type, subscription depth of the loop's nodes; every publisher keeps 100
+EXPECTED = {  # type, subscription depth of the loop's nodes; every publisher keeps 1000
     "joint_states": (JointState, 10),
     "joint_states_filtered": (JointState, 10),
     "ground_truth": (JointState, 100),
@@ -46,7 +46,11 @@ def test_clock_is_global() -> None:
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_qos_is_reliable_volatile_keep_last_with_the_documented_depth(name: str) -> None:
-    for profile, depth in ((qos_for_topic(name), 100), (subscription_qos_for_topic(name), EXPECTED[name][1])):
+    subscription_depth = EXPECTED[name][1]
+    for profile, depth in (
+        (qos_for_topic(name), 1000),
+        (subscription_qos_for_topic(name), subscription_depth),
+    ):
         assert profile.reliability == ReliabilityPolicy.RELIABLE
         assert profile.durability == DurabilityPolicy.VOLATILE
         assert profile.history == HistoryPolicy.KEEP_LAST
@@ -56,7 +60,7 @@ def test_qos_is_reliable_volatile_keep_last_with_the_documented_depth(name: str)
 def test_qos_profiles_are_not_shared() -> None:
     first = qos_for_topic(topics.TORQUE_COMMAND)
     first.depth = 1
-    assert qos_for_topic(topics.TORQUE_COMMAND).depth == 100
+    assert qos_for_topic(topics.TORQUE_COMMAND).depth == 1000
 
 
 def test_unknown_topic_has_no_qos() -> None:

@@ -1,25 +1,21 @@
-"""QoS profile of each topic, and why.
+"""QoS profile of each topic, and why (docs/INTERFACES.md, QoS).
 
-All topics are RELIABLE + VOLATILE + KEEP_LAST; only the depth differs.
+All topics are RELIABLE + VOLATILE + KEEP_LAST; only the depth differs, and it differs between publishers
+and subscriptions.
 
-* Control chain (``joint_states``, ``joint_states_filtered``, ``reference``, ``torque_command``,
-  ``disturbance_estimate``): RELIABLE because in lockstep every node waits for the sample stamped with the
-  current step, so a lost sample would stall the step, and on the bench a node must never act on a stream
-  with holes. VOLATILE because a late joiner must not act on old measurements or commands. Depth 10 absorbs
-  a burst (scheduling jitter of a few periods) without keeping stale commands queued for long: at 1 kHz the
-  queue holds at most 10 ms.
-* Diagnostics (``ground_truth``, ``observer_state``, ``controller_internals``): RELIABLE + depth 100 so that
-  a recorder (rosbag2, plotjuggler) loses nothing at 1 kHz even when it stalls up to 100 ms on disk I/O;
-  nothing in the loop reads them, so a deep queue costs the loop nothing.
-* ``/clock``: RELIABLE depth 10 on the simulator's publisher. rclpy's own time source subscribes with
-  BEST_EFFORT depth 1, which is compatible with a RELIABLE publisher; lockstep correctness never depends
-  on /clock delivery because every message carries the stamp of the measurement it answers.
-
-Publishers and subscriptions differ in depth on the control topics and /clock (docs/INTERFACES.md, QoS):
-publishers keep 100 samples (100 ms at 1 kHz) so that a reader that stalls (a recorder writing to disk)
-gets every sample re-sent instead of losing the ones the writer overwrote; the control nodes' own
-subscriptions keep 10, so that a stalled node works through at most 10 ms of backlog, not 100 ms of stale
-measurements or commands.
+* RELIABLE because in lockstep every node waits for the sample stamped with the current step, so a lost
+  sample would stall the step, and on the bench a node must never act on a stream with holes. VOLATILE
+  because a late joiner must not act on old measurements or commands.
+* Publishers keep 1000 samples (1 s at 1 kHz): a reader that stalls (a recorder writing to disk, or
+  descheduled on a loaded host) gets every sample re-sent instead of losing those the writer overwrote.
+  A deep writer history never makes a reader act on old data: what a reader holds is its own depth.
+* The loop's subscriptions to the control chain (``joint_states``, ``joint_states_filtered``,
+  ``reference``, ``torque_command``, ``disturbance_estimate``) and ``/clock`` keep 10 (10 ms at 1 kHz):
+  a burst of jitter is absorbed, but a stalled node works through at most 10 ms of backlog, never a
+  second of stale measurements or commands. Subscriptions to the diagnostics (``ground_truth``,
+  ``observer_state``, ``controller_internals``) keep 100: nothing in the loop reads them.
+* rclpy's own time source subscribes ``/clock`` BEST_EFFORT depth 1, which a RELIABLE publisher serves;
+  lockstep correctness never depends on /clock delivery because every message carries its own stamp.
 """
 
 from typing import Final
@@ -31,11 +27,11 @@ from smm_msgs_py import topics
 CONTROL_QOS_DEPTH: Final[int] = 10
 """Queue depth of the control nodes' subscriptions to control-chain topics (samples; 10 ms at 1 kHz)."""
 
-PUBLISHER_QOS_DEPTH: Final[int] = 100
-"""History depth of every publisher of the stack (samples; 100 ms at 1 kHz): what a slow reader can lag."""
+PUBLISHER_QOS_DEPTH: Final[int] = 1000
+"""History depth of every publisher of the stack (samples; 1 s at 1 kHz): how far a slow reader may lag."""
 
-DIAGNOSTIC_QOS_DEPTH: Final[int] = PUBLISHER_QOS_DEPTH
-"""Queue depth of the diagnostic topics, publishers and subscriptions (samples; 100 ms at 1 kHz)."""
+DIAGNOSTIC_QOS_DEPTH: Final[int] = 100
+"""Queue depth of the subscriptions to the diagnostic topics (samples; 100 ms at 1 kHz)."""
 
 CLOCK_QOS_DEPTH: Final[int] = PUBLISHER_QOS_DEPTH
 """History depth of the /clock publisher (samples)."""
@@ -67,16 +63,16 @@ def control_qos() -> QoSProfile:
 
 
 def diagnostic_qos() -> QoSProfile:
-    """Return the profile of the diagnostic topics: RELIABLE, VOLATILE, KEEP_LAST depth 100.
+    """Return the profile of a diagnostic publisher (``~/internals``, ``/diagnostics``): KEEP_LAST 1000.
 
     Returns:
         A new profile (profiles are mutable, so each caller gets its own).
     """
-    return _reliable_volatile(DIAGNOSTIC_QOS_DEPTH)
+    return _reliable_volatile(PUBLISHER_QOS_DEPTH)
 
 
 def clock_qos() -> QoSProfile:
-    """Return the profile of the /clock publisher: RELIABLE, VOLATILE, KEEP_LAST depth 100.
+    """Return the profile of the /clock publisher: RELIABLE, VOLATILE, KEEP_LAST depth 1000.
 
     Returns:
         A new profile (profiles are mutable, so each caller gets its own).
@@ -85,7 +81,7 @@ def clock_qos() -> QoSProfile:
 
 
 def qos_for_topic(topic: str) -> QoSProfile:
-    """Return the publisher profile of a stack topic (:mod:`smm_msgs_py.topics`): RELIABLE, KEEP_LAST 100.
+    """Return the publisher profile of a stack topic (:mod:`smm_msgs_py.topics`): RELIABLE, KEEP_LAST 1000.
 
     Args:
         topic: The relative topic name (e.g. ``topics.TORQUE_COMMAND``) or ``topics.CLOCK``, as passed to
