@@ -10,7 +10,8 @@ evaluation (target < 30 s), with messages per second. Part 3 records the lockste
 (``smm-launch --record``, separate processes) ``--graph-runs`` (3) times per chain layout for
 ``--graph-seconds`` (5) and prints, per run, whether every simulator step is on every stepped topic
 (distinct stamps against the simulator's step count, as ``make demo`` checks). ROS runs in a private network
-namespace (the script re-executes itself under ``unshare --net`` with ``lo`` up). Figures only; nothing asserts on time.
+namespace (the script re-executes itself under ``unshare --net`` with ``lo`` up). Figures only; nothing
+asserts on time.
 """
 
 from __future__ import annotations
