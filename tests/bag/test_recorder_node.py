@@ -52,7 +52,7 @@ def _publish(context: Any, count: int) -> None:
         )
         joint_states.publish(sample_to_joint_state(sample))
         commands.publish(torque_to_msg(np.array([float(k), 0.5]), stamp))
-        # 500 Hz: a depth-10 publisher then tolerates a 20 ms stall of the recorder on this shared machine;
+        # 500 Hz, the stack's publisher depth (1000): the recorder may stall up to 2 s on this shared machine;
         # recording at the graph's 1 kHz is measured by bench/bench_bag.py.
         pause = start + (k + 1) * PERIOD_S - time.monotonic()
         if pause > 0:
