@@ -114,9 +114,47 @@ def test_missing_extra_file_is_a_graph_error(tmp_path: Path) -> None:
         build_graph(GraphOptions(params_files=(str(tmp_path / "nope.yaml"),)))
 
 
-def test_hw_plant_is_refused_clearly() -> None:
-    with pytest.raises(graph.PlantNotAvailableError, match="smm_hw_bridge"):
-        build_graph(GraphOptions(plant="hw", clock_mode="realtime"))
+def test_hardware_plant_in_lockstep_is_refused_clearly() -> None:
+    with pytest.raises(graph.PlantNotAvailableError, match="realtime"):
+        build_graph(GraphOptions(plant="hardware", clock_mode="lockstep"))
+
+
+def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_controller_side() -> None:
+    sim = build_graph(GraphOptions(clock_mode="realtime", scenario="case1", duration=3.0, seed=4))
+    hardware = build_graph(
+        GraphOptions(plant="hw", clock_mode="realtime", scenario="case1", duration=3.0, seed=4)
+    )
+    assert [spec.name for spec in hardware] == [
+        graph.EMULATOR_NODE,
+        graph.HW_NODE,
+        *[s.name for s in sim[1:]],
+    ]
+    assert hardware[2:] == sim[1:]  # nothing changes on the controller side
+    emulator, bridge = dict(hardware[0].parameters), dict(hardware[1].parameters)
+    assert emulator == {"bind": graph.EMULATOR_BOARD, "host": graph.EMULATOR_HOST, "duration": 3.0, "seed": 4}
+    assert (
+        bridge["autostart"] is True
+        and bridge["link.board_port"] == 50101
+        and bridge["link.bind_port"] == 50100
+    )
+    assert hardware[0].name in graph.PLANT_NODE_NAMES  # the emulator's end is the end of the run
+    slow = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", control_period=0.01))
+    emulator, bridge = dict(slow[0].parameters), dict(slow[1].parameters)
+    assert emulator["control-period"] == 0.01 and bridge["bridge.admission.period_ns"] == 10_000_000
+    assert bridge["bridge.host_watchdog_ns"] == 100_000_000  # 10 ticks, as the 10 ms default at 1 kHz
+
+
+def test_hardware_plant_with_a_board_address_starts_no_emulator() -> None:
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", board="10.0.0.7:6000"))
+    assert specs[0].name == graph.HW_NODE
+    parameters = dict(specs[0].parameters)
+    assert (parameters["link.board_address"], parameters["link.board_port"]) == ("10.0.0.7", 6000)
+    assert "link.bind_address" not in parameters  # the bridge keeps its configured (loopback) bind address
+    for bad in ("10.0.0.7", "bench:6000", "10.0.0.7:0"):
+        with pytest.raises(ValueError, match="board"):
+            GraphOptions(plant="hardware", clock_mode="realtime", board=bad)
+    with pytest.raises(ValueError, match="board"):
+        GraphOptions(board="10.0.0.7:6000")
 
 
 @pytest.mark.parametrize(
@@ -284,6 +322,7 @@ def graph_options(draw: st.DrawFn) -> GraphOptions:
             seed=draw(st.none() | st.integers(min_value=0, max_value=2**32 - 1)),
             params_files=tuple(draw(st.lists(st.sampled_from(["a.yaml", "dir/b c.yaml"]), max_size=3))),
             control_period=draw(st.none() | positive),
+            board=draw(st.none() | st.just("192.168.0.9:50101")),
         )
     except ValueError:
         assume(False)
@@ -296,9 +335,13 @@ def test_launcher_arguments_from_options_give_the_same_options_back(options: Gra
     assert options_from_arguments(arguments) == options
 
 
-def test_launcher_reports_hw_plant_and_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
-    assert run(["--plant", "hw", "--clock-mode", "realtime"]) == EXIT_CONFIGURATION_ERROR
-    assert "smm_hw_bridge" in capsys.readouterr().err
+def test_launcher_reports_hardware_in_lockstep_and_composed_and_exits_2(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert run(["--plant", "hardware"]) == EXIT_CONFIGURATION_ERROR
+    assert "realtime" in capsys.readouterr().err
+    assert run(["--plant", "hardware", "--clock-mode", "realtime", "--composed"]) == EXIT_CONFIGURATION_ERROR
+    assert "smm_bench_emulator" in capsys.readouterr().err
 
 
 def test_launcher_reports_bad_values_and_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
@@ -426,9 +469,26 @@ def test_launch_file_starts_the_graph_the_launcher_starts(
         assert [type(action).__name__ for action in node.kwargs["on_exit"]] == ["LogInfo", "EmitEvent"]
 
 
-def test_launch_file_refuses_the_hw_plant(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(graph.PlantNotAvailableError):
-        _launched_nodes(monkeypatch, {"plant": "hw", "clock_mode": "realtime"})
+        _launched_nodes(monkeypatch, {"plant": "hardware"})
+    nodes = _launched_nodes(monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "duration": "2"})
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", duration=2.0))
+    assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in specs]
+    emulator = nodes[0].kwargs
+    assert "parameters" not in emulator  # a plain process: options on its command line
+    assert emulator["arguments"] == [
+        "--bind",
+        graph.EMULATOR_BOARD,
+        "--host",
+        graph.EMULATOR_HOST,
+        "--duration",
+        "2.0",
+    ]
+    nodes = _launched_nodes(
+        monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "board": "192.168.1.20:50101"}
+    )
+    assert nodes[0].kwargs["name"] == graph.HW_NODE
 
 
 # ------------------------------------------------------------------------------------ console scripts

@@ -20,6 +20,7 @@ ROSDEP_TO_MODULE = {
     "python3-pytest": "pytest",
     "python3-yaml": "yaml",
     "python3-scipy": "scipy",
+    "python3-serial": "serial",
 }
 
 

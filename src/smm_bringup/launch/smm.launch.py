@@ -3,7 +3,8 @@
 The node list comes from :func:`smm_bringup.graph.build_graph`, the same description ``smm-launch`` uses,
 so the two cannot drift apart. Arguments:
 
-* ``plant:=sim|hw`` (hw: smm_hw_bridge, refused until that node exists),
+* ``plant:=sim|hardware`` (hardware: hw_bridge_node, configured and activated, after smm_bench_emulator
+  unless ``board:=ADDRESS:PORT`` names the I/O board; real time only),
 * ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``, ``scenario:=step|case1|case2|none``,
 * ``chain:=fused|split`` (fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too),
 * ``reference:=controller|node`` (controller: controller_node samples the reference, no reference_node;
@@ -46,6 +47,7 @@ ARGUMENTS = (
     ("seed", "", "noise seed of the simulator (empty: as configured)"),
     ("params_file", "", "extra ROS 2 parameter file for every node (empty: none)"),
     ("control_period", "", "control period of every node, s (empty: as configured, 0.001)"),
+    ("board", "", "plant hardware: ADDRESS:PORT of the I/O board (empty: start the bench emulator)"),
 )
 
 
@@ -63,12 +65,26 @@ def options_from_launch_arguments(values: dict[str, str]) -> GraphOptions:
         seed=int(values["seed"]) if values["seed"] else None,
         params_files=(values["params_file"],) if values["params_file"] else (),
         control_period=float(values["control_period"]) if values["control_period"] else None,
+        board=values["board"] or None,
     )
 
 
 def node_action(spec: NodeSpec) -> Node:
     """One launch_ros Node for one spec of the graph (files first, then the explicit overrides)."""
     overrides = {name: list(value) if isinstance(value, tuple) else value for name, value in spec.parameters}
+    if not spec.node_class:  # a plain process (the bench emulator): its settings are command-line options
+        return Node(
+            package=spec.package,
+            executable=spec.executable,
+            name=spec.name,
+            namespace=spec.namespace,
+            arguments=[text for name, value in spec.parameters for text in (f"--{name}", str(value))],
+            output="screen",
+            on_exit=[
+                LogInfo(msg=f"{spec.name} exited; stopping the graph"),
+                EmitEvent(event=Shutdown(reason=f"{spec.name} exited")),
+            ],
+        )
     return Node(
         package=spec.package,
         executable=spec.executable,

@@ -25,11 +25,13 @@ import contextlib
 import dataclasses
 import fnmatch
 import importlib
+import ipaddress
 import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any, Final, Literal
 
 import yaml
@@ -44,9 +46,12 @@ __all__ = [
     "CHAIN_LAYOUTS",
     "CLOCK_MODES",
     "CONTROLLER_NODE",
+    "EMULATOR_NODE",
     "FLESO_NODE",
+    "HW_NODE",
     "NAMESPACE",
     "PLANTS",
+    "PLANT_ALIASES",
     "PLANT_NODE_NAMES",
     "RECORDER_NODE",
     "REFERENCE_NODE",
@@ -66,6 +71,7 @@ __all__ = [
     "package_file",
     "parameter_overrides",
     "scenario_file",
+    "split_endpoint",
 ]
 
 ParameterValue = (
@@ -76,7 +82,12 @@ ParameterValue = (
 NAMESPACE: Final[str] = "smm"
 """Namespace of every node of the graph (topics resolve to ``/smm/<topic>``)."""
 
-PLANTS: Final[tuple[str, ...]] = ("sim", "hw")
+PLANTS: Final[tuple[str, ...]] = ("sim", "hardware")
+PLANT_ALIASES: Final[Mapping[str, str]] = MappingProxyType({"hw": "hardware"})
+"""Other names accepted for a plant (``hw`` = ``hardware``)."""
+EMULATOR_BOARD: Final[str] = "127.0.0.1:50101"
+EMULATOR_HOST: Final[str] = "127.0.0.1:50100"
+"""Loopback addresses of the emulated board and of the bridge when no board address is given."""
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
 CHAIN_LAYOUTS: Final[tuple[str, ...]] = ("fused", "split")
 """``fused``: TD, FLESO and law in ``controller_node`` (``chain: internal``), two hops per step; ``split``:
@@ -90,15 +101,17 @@ SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2")
 
 
 SIM_NODE: Final[str] = "smm_sim_node"
-HW_NODE: Final[str] = "smm_hw_bridge"
+HW_NODE: Final[str] = "hw_bridge_node"
+EMULATOR_NODE: Final[str] = "smm_bench_emulator"
 TD_NODE: Final[str] = "td_node"
 FLESO_NODE: Final[str] = "fleso_node"
 REFERENCE_NODE: Final[str] = "reference_node"
 CONTROLLER_NODE: Final[str] = "controller_node"
 RECORDER_NODE: Final[str] = "recorder_node"
 
-PLANT_NODE_NAMES: Final[frozenset[str]] = frozenset((SIM_NODE, HW_NODE))
-"""Names of the plant nodes: when one of them exits 0 the run is complete (see ``docs/LAUNCH.md``)."""
+PLANT_NODE_NAMES: Final[frozenset[str]] = frozenset((SIM_NODE, HW_NODE, EMULATOR_NODE))
+"""Names of the plant processes: when one of them exits 0 the run is complete (see ``docs/LAUNCH.md``);
+with the emulator that is the end of its ``duration``."""
 
 _CONTROLLER_NODES: Final[tuple[tuple[str, str], ...]] = (
     # (node name = console script, class inside smm_controller.<name>)
@@ -123,7 +136,7 @@ class GraphError(Exception):
 
 
 class PlantNotAvailableError(GraphError):
-    """The chosen plant has no node yet (``hw`` until ``smm_hw_bridge`` provides one)."""
+    """The chosen plant cannot run as asked (``hardware`` runs on the board's clock: real time only)."""
 
 
 class ParameterFileError(GraphError):
@@ -135,7 +148,8 @@ class GraphOptions:
     """What the user chooses when starting the graph.
 
     Attributes:
-        plant: ``"sim"`` (smm_sim_node) or ``"hw"`` (smm_hw_bridge, not available yet).
+        plant: ``"sim"`` (smm_sim_node) or ``"hardware"`` (``hw_bridge_node``, configured and activated,
+            and the bench emulator unless ``board`` is given; ``"hw"`` is accepted for it).
         clock_mode: ``"lockstep"`` (deterministic, as fast as the graph allows, /clock published by the
             simulator) or ``"realtime"`` (wall-clock timer at the control period).
         chain: ``"fused"`` (default): ``controller_node`` runs TD -> FLESO -> law itself, so a step crosses
@@ -154,11 +168,13 @@ class GraphOptions:
         params_files: Extra ROS 2 parameter files, applied after the scenario file, in order.
         control_period: Control period of every node (s), > 0; ``None`` keeps the configured one (1 ms).
             The plant and the controller nodes must agree on it: each node steps once per measurement.
+        board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board; ``None`` starts
+            ``smm_bench_emulator`` on loopback instead.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
     """
 
-    plant: Literal["sim", "hw"] = "sim"
+    plant: Literal["sim", "hardware", "hw"] = "sim"
     clock_mode: Literal["lockstep", "realtime"] = "lockstep"
     chain: Literal["fused", "split"] = "fused"
     reference: Literal["node", "controller"] = "controller"
@@ -168,9 +184,11 @@ class GraphOptions:
     seed: int | None = None
     params_files: tuple[str, ...] = ()
     control_period: float | None = None
+    board: str | None = None
     record: str | None = None
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "plant", PLANT_ALIASES.get(self.plant, self.plant))
         if self.plant not in PLANTS:
             raise ValueError(f"plant must be one of {PLANTS}, got {self.plant!r}")
         if self.clock_mode not in CLOCK_MODES:
@@ -203,6 +221,26 @@ class GraphOptions:
             raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
         if self.record is not None and (not isinstance(self.record, str) or not self.record.strip()):
             raise ValueError(f"record must be a bag folder path or None, got {self.record!r}")
+        if self.board is not None:
+            if self.plant != "hardware":
+                raise ValueError("board is an option of plant 'hardware' only")
+            split_endpoint("board", self.board)
+
+
+def split_endpoint(name: str, text: str) -> tuple[str, int]:
+    """``"ADDRESS:PORT"`` -> (IPv4 address, port).
+
+    Raises:
+        ValueError: not an IPv4 address and a port in [1, 65535] (message names ``name``).
+    """
+    host, _, port = str(text).rpartition(":")
+    try:
+        address = str(ipaddress.IPv4Address(host))
+    except ValueError as error:
+        raise ValueError(f"{name} must be IPV4ADDRESS:PORT, got {text!r}") from error
+    if not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ValueError(f"{name} must be IPV4ADDRESS:PORT with a port in [1, 65535], got {text!r}")
+    return address, int(port)
 
 
 @dataclass(frozen=True)
@@ -381,13 +419,12 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
         The node specs, in start order.
 
     Raises:
-        PlantNotAvailableError: ``plant="hw"``: ``smm_hw_bridge`` has no node yet.
+        PlantNotAvailableError: ``plant="hardware"`` with ``clock_mode="lockstep"``.
         ParameterFileError: A scenario or extra parameter file is missing.
     """
-    if options.plant == "hw":
-        # When the bridge exists: refuse clock_mode "lockstep" here (the bench runs in real time).
+    if options.plant == "hardware" and options.clock_mode != "realtime":
         raise PlantNotAvailableError(
-            "plant 'hw' needs the smm_hw_bridge node, which is not written yet; use --plant sim"
+            "plant 'hardware' runs on the I/O board's own 1 kHz clock: use --clock-mode realtime"
         )
     files: list[str] = []
     if options.scenario is not None:
@@ -398,13 +435,19 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
             raise ParameterFileError(f"parameter file {extra} does not exist")
         files.append(str(path.resolve()))
     shared_files = tuple(files)
-    sim = NodeSpec(
-        package="smm_sim",
-        executable=SIM_NODE,
-        name=SIM_NODE,
-        node_class="smm_sim.sim_node:SimNode",
-        parameter_files=shared_files,
-        parameters=_sim_parameters(options),
+    plant_side: tuple[NodeSpec, ...] = (
+        _hardware_specs(options)
+        if options.plant == "hardware"
+        else (
+            NodeSpec(
+                package="smm_sim",
+                executable=SIM_NODE,
+                name=SIM_NODE,
+                node_class="smm_sim.sim_node:SimNode",
+                parameter_files=shared_files,
+                parameters=_sim_parameters(options),
+            ),
+        )
     )
     controller_side = []
     fused = options.chain == "fused"
@@ -437,14 +480,66 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
     recorder: tuple[NodeSpec, ...] = ()
     if options.record is not None:
         recorder = (_recorder_spec(options),)
-        if options.clock_mode == "lockstep":
+        if options.clock_mode == "lockstep" and options.plant == "sim":
             # Step 0 waits for the recorder (and every node reading joint_states) to be matched.
             readers = sum(spec.name in _JOINT_STATES_READERS for spec in controller_side) + (
                 1 if fused else 0
             )
             gate = (("start.min_subscribers", readers + 1),)
-            sim = dataclasses.replace(sim, parameters=sim.parameters + gate)
-    return (*recorder, sim, *controller_side)
+            plant_side = tuple(
+                dataclasses.replace(spec, parameters=spec.parameters + gate)
+                if spec.name == SIM_NODE
+                else spec
+                for spec in plant_side
+            )
+    return (*recorder, *plant_side, *controller_side)
+
+
+def _hardware_specs(options: GraphOptions) -> tuple[NodeSpec, ...]:
+    """``hw_bridge_node`` (autostart), after ``smm_bench_emulator`` unless a board address is given."""
+    board = options.board or EMULATOR_BOARD
+    address, port = split_endpoint("board", board)
+    bind_address, bind_port = split_endpoint("host", EMULATOR_HOST)
+    bridge_parameters: list[tuple[str, ParameterValue]] = [
+        ("autostart", True),
+        ("link.board_address", address),
+        ("link.board_port", port),
+    ]
+    if options.board is None:
+        bridge_parameters += [("link.bind_address", bind_address), ("link.bind_port", bind_port)]
+    if options.control_period is not None:
+        # The bridge's time limits are counted in board ticks at the default 1 kHz: scale them with the tick.
+        period_ns = round(options.control_period * 1e9)
+        bridge_parameters += [
+            ("bridge.admission.period_ns", period_ns),
+            ("bridge.admission.stale_ns", 20 * period_ns),
+            ("bridge.host_watchdog_ns", 10 * period_ns),
+            ("bridge.link_timeout_ns", 100 * period_ns),
+        ]
+    bridge = NodeSpec(
+        package="smm_hw_bridge",
+        executable=HW_NODE,
+        name=HW_NODE,
+        node_class="smm_hw_bridge.bridge_node:HwBridgeNode",
+        parameters=tuple(bridge_parameters),
+    )
+    if options.board is not None:
+        return (bridge,)
+    emulator_parameters: list[tuple[str, ParameterValue]] = [("bind", board), ("host", EMULATOR_HOST)]
+    if options.duration:
+        emulator_parameters.append(("duration", float(options.duration)))
+    if options.seed is not None:
+        emulator_parameters.append(("seed", options.seed))
+    if options.control_period is not None:
+        emulator_parameters.append(("control-period", float(options.control_period)))
+    emulator = NodeSpec(
+        package="smm_bench_emulator",
+        executable=EMULATOR_NODE,
+        name=EMULATOR_NODE,
+        node_class="",  # a plain process (the board side), not a ROS node: no composed mode
+        parameters=tuple(emulator_parameters),
+    )
+    return (emulator, bridge)
 
 
 def expected_publishers(specs: Sequence[NodeSpec]) -> dict[str, int]:
@@ -471,7 +566,7 @@ def _recorder_spec(options: GraphOptions) -> NodeSpec:
         ("output", str(Path(options.record).resolve())),
         ("scenario", options.scenario or ""),
         ("seed", -1 if options.seed is None else options.seed),
-        ("plant", "hardware" if options.plant == "hw" else "sim"),
+        ("plant", options.plant),
         ("controller", options.algorithm),
         ("clock_mode", options.clock_mode),
         *_period_parameters(options),

@@ -17,7 +17,7 @@ Shutdown and exit codes (see ``docs/LAUNCH.md``):
   is stopped and ``smm-launch`` exits 1;
 * Ctrl-C (SIGINT) or SIGTERM: every child's process group gets SIGINT, then SIGTERM, then SIGKILL, each
   after a grace period; all children are reaped; the exit code is 128 + the signal number;
-* a configuration error (unknown option value, ``--plant hw`` before the bridge exists, a missing
+* a configuration error (unknown option value, ``--plant hardware`` in lockstep or composed, a missing
   executable or parameter file) exits 2 before anything starts.
 """
 
@@ -49,6 +49,7 @@ from smm_bringup.graph import (
     CHAIN_LAYOUTS,
     CLOCK_MODES,
     NAMESPACE,
+    PLANT_ALIASES,
     PLANT_NODE_NAMES,
     PLANTS,
     RECORDER_NODE,
@@ -378,6 +379,11 @@ def launch_composed(specs: Sequence[NodeSpec]) -> int:
         0 when the plant completed its run, 128 + signal number after Ctrl-C / SIGTERM, 1 when a node
         failed (its exception is reported).
     """
+    if any(not spec.node_class for spec in specs):
+        names = [spec.name for spec in specs if not spec.node_class]
+        raise GraphError(
+            f"composed mode runs ROS nodes only; {names} must run as processes (drop --composed)"
+        )
     ensure_localhost_discovery()
     context = Context()
     namespaces = {spec.namespace for spec in specs}
@@ -447,7 +453,15 @@ def build_parser() -> argparse.ArgumentParser:
         description="Start the SMM control graph (simulator, TD, FLESO, reference, controller), one process "
         "per node like ros2 launch, or all in one process with --composed.",
     )
-    parser.add_argument("--plant", choices=PLANTS, default="sim", help="plant node (hw: smm_hw_bridge)")
+    parser.add_argument(
+        "--plant",
+        choices=(*PLANTS, *PLANT_ALIASES),
+        default="sim",
+        help="plant: sim (smm_sim_node) or hardware (hw_bridge_node + the bench emulator unless --board)",
+    )
+    parser.add_argument(
+        "--board", default=None, help="hardware: ADDRESS:PORT of the I/O board (default: start the emulator)"
+    )
     parser.add_argument("--clock-mode", choices=CLOCK_MODES, default="lockstep", help="simulator clock mode")
     parser.add_argument(
         "--chain",
@@ -527,6 +541,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         seed=arguments.seed,
         params_files=tuple(arguments.params_file),
         control_period=arguments.control_period,
+        board=arguments.board,
         record=arguments.record,
     )
 
@@ -544,6 +559,8 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--control-period", repr(options.control_period)]
     for params_file in options.params_files:
         arguments += ["--params-file", params_file]
+    if options.board is not None:
+        arguments += ["--board", options.board]
     if options.record is not None:
         arguments += ["--record", options.record]
     return arguments

@@ -1,0 +1,388 @@
+"""The I/O board's firmware logic and the bench it drives, without sockets or clocks (pure, seeded).
+
+``receive(bytes)`` takes command frames as they arrive; the tick functions advance the board one 1 kHz
+tick and return the feedback frame to send. What the board does at each tick (docs/HW_PROTOCOL.md,
+"Board behaviour") is in :meth:`BoardCore._latch`; the bench (plant, valves, encoders, A/D) in
+:meth:`BoardCore._advance` and :meth:`BoardCore._feedback`.
+"""
+
+from __future__ import annotations
+
+import math
+import secrets
+from dataclasses import dataclass, field
+
+import numpy as np
+from smm_dynamics.validation import check_pair, check_scalar
+from smm_hw_bridge.protocol import (
+    ADC_MAX,
+    CODE_MAX,
+    NO_COMMAND_AGE,
+    CommandFlag,
+    CommandFrame,
+    FaultBit,
+    FeedbackFrame,
+    ProtocolError,
+    Reason,
+    StatusBit,
+    decode_command,
+    encode,
+    seq_newer,
+    u32_diff,
+)
+from smm_sim.plant import PlantConfig, SimulatedPlant
+
+__all__ = ["BoardConfig", "BoardCore"]
+
+_U32 = 1 << 32
+_APPLIED_KEPT = 200_000
+
+
+@dataclass(frozen=True)
+class BoardConfig:
+    """The emulated bench: plant, valves, encoders, A/D, and the board's own safety settings.
+
+    Attributes:
+        plant: The SMM plant (smm_sim); its ``control_period`` is the board tick, its
+            ``encoder_counts_per_rev`` (> 0) the encoders' resolution, its ``valve_time_constants`` the
+            servo valves' first-order lag.
+        zero_offset: Raw counter value at q = 0 (alpha, beta), in [0, 2**counter_bits).
+        direction: +1 if a counter counts up as q grows, -1 if down (alpha, beta).
+        counter_bits: Width of the encoder counters, in [8, 32].
+        full_scale_torque: Joint torque at D/A code 32767 and nominal supply (N m) (alpha, beta), > 0.
+        valve_deadband: Valve overlap as a D/A code (alpha, beta), >= 0.
+        supply_pressure: Supply pressure (bar), >= 0; the valve's torque scales with sqrt(p / nominal).
+        nominal_pressure: Pressure at which ``full_scale_torque`` holds (bar), > 0.
+        supply_low: Below this pressure the board sets SUPPLY_LOW and nulls the valves (bar), >= 0.
+        bar_per_code: Supply pressure per A/D code of channel 0 (bar), > 0.
+        adc_noise: Standard deviation of the A/D noise (codes), >= 0.
+        ramp_ticks: Ticks the watchdog ramp takes from full scale to null, >= 1. The default 1 puts the
+            D/A at null on the first tick past validity; the valve's own lag then closes the spool smoothly.
+        seed: Seed of the A/D noise and of the session ids, >= 0.
+    """
+
+    plant: PlantConfig = field(
+        default_factory=lambda: PlantConfig(
+            encoder_counts_per_rev=1 << 20, valve_time_constants=(0.0217, 0.0109)
+        )
+    )
+    zero_offset: tuple[int, int] = (0, 0)
+    direction: tuple[int, int] = (1, 1)
+    counter_bits: int = 32
+    full_scale_torque: tuple[float, float] = (10.0, 10.0)
+    valve_deadband: tuple[float, float] = (0.0, 0.0)
+    supply_pressure: float = 10.0
+    nominal_pressure: float = 10.0
+    supply_low: float = 5.0
+    bar_per_code: float = 25.0 / 4095.0
+    adc_noise: float = 2.0
+    ramp_ticks: int = 1
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.plant, PlantConfig) or self.plant.encoder_counts_per_rev <= 0:
+            raise ValueError("plant must be a PlantConfig with encoder_counts_per_rev > 0")
+        bits = self.counter_bits
+        if isinstance(bits, bool) or not isinstance(bits, int) or not 8 <= bits <= 32:
+            raise ValueError(f"counter_bits must be an int in [8, 32], got {bits!r}")
+        for name, values, low, high in (
+            ("zero_offset", self.zero_offset, 0, (1 << bits) - 1),
+            ("direction", self.direction, -1, 1),
+        ):
+            if (
+                not isinstance(values, tuple)
+                or len(values) != 2
+                or any(isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high for v in values)
+            ):
+                raise ValueError(f"{name} must be 2 ints in [{low}, {high}], got {values!r}")
+        if 0 in self.direction:
+            raise ValueError(f"direction must be +1 or -1, got {self.direction!r}")
+        check_pair("full_scale_torque", self.full_scale_torque, positive=True)
+        check_pair("valve_deadband", self.valve_deadband, non_negative=True)
+        check_scalar("supply_pressure", self.supply_pressure, non_negative=True)
+        check_scalar("nominal_pressure", self.nominal_pressure, positive=True)
+        check_scalar("supply_low", self.supply_low, non_negative=True)
+        check_scalar("bar_per_code", self.bar_per_code, positive=True)
+        check_scalar("adc_noise", self.adc_noise, non_negative=True)
+        for name in ("ramp_ticks", "seed"):
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int)
+                or value < (1 if name == "ramp_ticks" else 0)
+            ):
+                raise ValueError(
+                    f"{name} must be an int >= {1 if name == 'ramp_ticks' else 0}, got {value!r}"
+                )
+
+    @property
+    def period_ns(self) -> int:
+        """Board tick (ns)."""
+        return self.plant.period_ns
+
+
+class BoardCore:
+    """The board: session, host lock, command validity, hold, watchdog ramp, e-stop latch, fault bits.
+
+    Args:
+        config: The bench.
+    """
+
+    def __init__(self, config: BoardConfig) -> None:
+        self._config = config
+        self._rng = np.random.default_rng(config.seed)
+        self.plant = SimulatedPlant(config.plant)
+        self._quantum = 2.0 * math.pi / config.plant.encoder_counts_per_rev
+        self.injected_faults = 0
+        self.supply_pressure = config.supply_pressure
+        """Supply pressure now (bar); tests and fault injection change it."""
+        self.boots = 0
+        self.applied_log: list[tuple[int, int, tuple[int, int]]] = []
+        """(tick, command seq, codes) of every enabled command the board put on the valves, across boots."""
+        self.boot()
+
+    @property
+    def config(self) -> BoardConfig:
+        """The configuration."""
+        return self._config
+
+    def boot(self) -> None:
+        """Power-on or reboot: new session, tick 0, counters 0, no host, valves null; the plant moves on."""
+        self.boots += 1
+        self.session = secrets.randbelow(_U32 - 1) + 1  # not from the seed: a restart must look new
+        self.tick = 0
+        self._fb_seq = 0
+        self.host_session = 0
+        self.late_commands = 0
+        self.crc_errors = 0
+        self.dropped_frames = 0
+        self._last_cmd_seq: int | None = None
+        self._inbox: CommandFrame | None = None
+        self._active: CommandFrame | None = None
+        self.output = [0.0, 0.0]
+        self._ramping = False
+        self._watchdog = False
+        self._holding = False
+        self.estop_latched = False
+        self.last_feedback: FeedbackFrame | None = None
+
+    # ---- receive ------------------------------------------------------------------------------------
+
+    def receive(self, data: bytes) -> CommandFrame | None:
+        """Takes one received datagram; returns the command if it was accepted for the next latch."""
+        try:
+            frame = decode_command(data)
+        except ProtocolError as error:
+            if error.reason is Reason.CRC:
+                self.crc_errors = (self.crc_errors + 1) % _U32
+            else:
+                self.dropped_frames = (self.dropped_frames + 1) % _U32
+            return None
+        if frame.flags & CommandFlag.ESTOP:
+            self._estop()  # honoured from any sender: stopping is always allowed
+            return None
+        if frame.board_session != self.session:
+            self._drop()
+            return None
+        if frame.session != self.host_session:
+            if frame.flags & CommandFlag.ENABLE:
+                self._drop()  # a new host must first send a disabled frame
+                return None
+            self.host_session = frame.session  # a new host takes over: output to null
+            self._last_cmd_seq = None
+            self._inbox = None
+            self._disable()
+        last = self.last_feedback
+        if (
+            last is None
+            or u32_diff(frame.answers_tick, last.tick) > 0
+            or seq_newer(frame.answers_seq, last.seq)
+        ):
+            self._drop()  # answers a measurement never sent
+            return None
+        if u32_diff(self.tick, frame.answers_tick) > frame.validity:
+            self._drop()  # expired: never applied
+            return None
+        if self._last_cmd_seq is not None and not seq_newer(frame.seq, self._last_cmd_seq):
+            self._drop()  # duplicate or out of order
+            return None
+        self._last_cmd_seq = frame.seq
+        if frame.flags & CommandFlag.REARM and self.estop_latched:
+            self.estop_latched = False
+        self._inbox = frame
+        return frame
+
+    def _drop(self) -> None:
+        self.dropped_frames = (self.dropped_frames + 1) % _U32
+
+    def _estop(self) -> None:
+        self.estop_latched = True
+        self._inbox = None
+        self._disable()
+
+    def _disable(self) -> None:
+        self._active = None
+        self._ramping = False
+        self._holding = False
+        self.output = [0.0, 0.0]
+
+    def set_faults(self, bits: int) -> None:
+        """Injects (or clears with 0) fault bits; any set bit nulls the valves."""
+        self.injected_faults = int(bits) & 0xFFFF
+
+    @property
+    def faults(self) -> int:
+        """Fault bits now: injected ones and SUPPLY_LOW."""
+        low = FaultBit.SUPPLY_LOW if self.supply_pressure < self._config.supply_low else 0
+        return self.injected_faults | int(low)
+
+    # ---- tick ---------------------------------------------------------------------------------------
+
+    def start(self) -> bytes:
+        """The feedback of tick 0 (sent at boot)."""
+        return self._feedback()
+
+    def tick_realtime(self) -> bytes:
+        """One real-time tick: move, sample, latch the latest valid command for the next period, send.
+
+        The plant moves over the elapsed period with the valves as they were, so a command answering
+        feedback k acts from tick k + 1 on.
+        """
+        expected = self._fb_seq
+        self._advance()
+        self.tick = (self.tick + 1) % _U32
+        self._latch(expected)
+        return self._feedback()
+
+    def tick_lockstep(self) -> bytes:
+        """One lockstep tick, taken when the answer to the last feedback has arrived: latch, move, sample."""
+        self._latch(self._fb_seq)
+        self._advance()
+        self.tick = (self.tick + 1) % _U32
+        return self._feedback()
+
+    @property
+    def answered_enabled(self) -> bool:
+        """:attr:`answered` by an enabled command (a lockstep waiting for the controller, not safe frames)."""
+        return self.answered and self._inbox is not None and self._inbox.enabled
+
+    @property
+    def answered(self) -> bool:
+        """True if a command answering the last feedback frame waits in the inbox (lockstep's trigger)."""
+        return self._inbox is not None and self._inbox.answers_seq == self._fb_seq
+
+    def _latch(self, expected_seq: int) -> None:
+        command, self._inbox = self._inbox, None
+        self._holding = False
+        if self.estop_latched or self.faults:
+            self._disable()
+            return
+        if command is not None and u32_diff(self.tick, command.answers_tick) > command.validity:
+            self.dropped_frames = (self.dropped_frames + 1) % _U32  # expired while waiting for the tick
+            command = None
+        if command is not None:
+            if command.flags & CommandFlag.ENABLE:
+                self._active = command
+                self._ramping = self._watchdog = False
+                self.output = [float(command.codes[0]), float(command.codes[1])]
+                self.applied_log.append((self.tick, command.seq, command.codes))
+                if len(self.applied_log) > _APPLIED_KEPT:
+                    del self.applied_log[: _APPLIED_KEPT // 2]
+            else:
+                self._disable()
+                self._watchdog = False
+        if self._active is not None and (command is None or command.answers_seq != expected_seq):
+            self.late_commands = (self.late_commands + 1) % _U32
+        if command is None and self._active is not None:
+            if u32_diff(self.tick, self._active.answers_tick) <= self._active.validity:
+                self._holding = True
+            else:
+                self._active = None
+                self._ramping = self._watchdog = True
+        if self._ramping:
+            step = CODE_MAX / self._config.ramp_ticks
+            self.output = [math.copysign(max(abs(code) - step, 0.0), code) for code in self.output]
+            if self.output == [0.0, 0.0]:
+                self._ramping = False
+
+    @property
+    def status_enabled(self) -> bool:
+        """True while an enabled command drives the valves."""
+        return self._active is not None
+
+    def output_codes(self) -> tuple[int, int]:
+        """D/A codes on the valves now."""
+        return round(self.output[0]), round(self.output[1])
+
+    def valve_torque(self) -> tuple[float, float]:
+        """Torque command the valves produce from the D/A codes (before their lag) (N m)."""
+        config = self._config
+        scale = math.sqrt(max(self.supply_pressure, 0.0) / config.nominal_pressure)
+        torque = []
+        for joint, code in enumerate(self.output_codes()):
+            opening = math.copysign(max(abs(code) - config.valve_deadband[joint], 0.0), code)
+            torque.append(opening / CODE_MAX * config.full_scale_torque[joint] * scale)
+        return torque[0], torque[1]
+
+    def _advance(self) -> None:
+        self.plant.step(self.valve_torque(), self._config.plant.control_period)
+
+    def counts(self) -> tuple[int, int]:
+        """Raw encoder counters now."""
+        alpha, beta, _, _ = self.plant.measure_floats()
+        config = self._config
+        raw = []
+        for joint, angle in enumerate((alpha, beta)):
+            count = round(angle / self._quantum)
+            raw.append(
+                (config.zero_offset[joint] + config.direction[joint] * count) % (1 << config.counter_bits)
+            )
+        return raw[0], raw[1]
+
+    def _adc(self) -> tuple[int, int, int, int]:
+        noise = (
+            self._rng.normal(0.0, self._config.adc_noise, 4) if self._config.adc_noise > 0 else np.zeros(4)
+        )
+        values = [self.supply_pressure / self._config.bar_per_code, 2048.0, 2048.0, 2048.0]
+        return tuple(int(min(max(round(v + n), 0), ADC_MAX)) for v, n in zip(values, noise, strict=True))  # type: ignore[return-value]
+
+    def _status(self) -> int:
+        status = 0
+        if self._active is not None:
+            status |= StatusBit.ENABLED
+        if self.estop_latched:
+            status |= StatusBit.ESTOP_LATCHED
+        if self._holding:
+            status |= StatusBit.HOLDING
+        if self._watchdog:
+            status |= StatusBit.WATCHDOG
+        if self.host_session:
+            status |= StatusBit.HOST_LOCKED
+        return int(status)
+
+    def _feedback(self) -> bytes:
+        self._fb_seq = (self._fb_seq + 1) % _U32
+        active = self._active
+        age = (
+            NO_COMMAND_AGE
+            if active is None
+            else min(u32_diff(self.tick, active.answers_tick), NO_COMMAND_AGE)
+        )
+        frame = FeedbackFrame(
+            session=self.session,
+            seq=self._fb_seq,
+            tick=self.tick,
+            host_session=self.host_session,
+            counts=self.counts(),
+            adc=self._adc(),
+            status=self._status(),
+            faults=self.faults,
+            applied_seq=0 if active is None else active.seq,
+            applied_age=age,
+            output_codes=self.output_codes(),
+            late_commands=self.late_commands,
+            crc_errors=self.crc_errors,
+            dropped_frames=self.dropped_frames,
+        )
+        self.last_feedback = frame
+        return encode(frame)

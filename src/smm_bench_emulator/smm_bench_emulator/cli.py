@@ -1,0 +1,150 @@
+"""``smm_bench_emulator``: the bench in a box on loopback UDP (docs/HW_PROTOCOL.md, docs/NODES.md)."""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import signal
+import sys
+from collections.abc import Sequence
+from types import FrameType
+
+import numpy as np
+from smm_sim.plant import PAPER_VALVE_RESPONSE_TIMES, PlantConfig, valve_time_constants_from_response_times
+
+from smm_bench_emulator.board import BoardConfig
+from smm_bench_emulator.emulator import Emulator, EmulatorConfig
+
+__all__ = ["build_parser", "main", "run"]
+
+
+def _endpoint(text: str) -> tuple[str, int]:
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit():
+        raise argparse.ArgumentTypeError(f"expected ADDRESS:PORT, got {text!r}")
+    return host, int(port)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line."""
+    parser = argparse.ArgumentParser(prog="smm_bench_emulator", description=__doc__)
+    parser.add_argument("--bind", type=_endpoint, default=("127.0.0.1", 50101), help="board UDP address")
+    parser.add_argument("--host", type=_endpoint, default=("127.0.0.1", 50100), help="bridge UDP address")
+    parser.add_argument("--control", type=_endpoint, default=("127.0.0.1", 50102), help="JSON control port")
+    parser.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")
+    parser.add_argument(
+        "--lockstep-trigger",
+        choices=("any", "enabled"),
+        default="any",
+        help="lockstep: tick on any answer, or only on an enabled one (runs line up with the simulator's)",
+    )
+    parser.add_argument(
+        "--duration", type=float, default=0.0, help="stop after this many seconds of board time"
+    )
+    parser.add_argument("--counts-per-rev", type=int, default=1 << 20)
+    parser.add_argument("--noise-std", type=float, default=0.0, help="position noise (rad)")
+    parser.add_argument("--inertia-scale", type=float, default=1.0)
+    parser.add_argument("--disturbance", choices=("none", "eq46"), default="none")
+    parser.add_argument("--no-valve-lag", action="store_true", help="valves follow the D/A without lag")
+    parser.add_argument("--full-scale-torque", type=float, default=10.0, help="N m at D/A code 32767")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--control-period", type=float, default=1e-3, help="board tick (s)")
+    parser.add_argument("--record", default="", help="write the per-tick record (.npz) here at the end")
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    """Builds and runs the emulator; returns the exit code."""
+    lag = None if args.no_valve_lag else valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES)
+    try:
+        plant = PlantConfig(
+            encoder_counts_per_rev=args.counts_per_rev,
+            noise_std=(args.noise_std, args.noise_std),
+            inertia_scale=args.inertia_scale,
+            disturbance=args.disturbance,
+            valve_time_constants=lag,
+            seed=args.seed,
+            control_period=args.control_period,
+        )
+        board = BoardConfig(plant=plant, full_scale_torque=(args.full_scale_torque,) * 2, seed=args.seed)
+        config = EmulatorConfig(
+            board=board,
+            bind=args.bind,
+            host=args.host,
+            control=args.control,
+            mode=args.mode,
+            lockstep_trigger=args.lockstep_trigger,
+            duration_ticks=round(args.duration * 1e9 / plant.period_ns),
+            seed=args.seed,
+        )
+        emulator = Emulator(config, record=bool(args.record))
+    except (ValueError, OSError) as error:
+        print(f"smm_bench_emulator: {error}", file=sys.stderr)
+        return 2
+
+    def stop(signum: int, frame: FrameType | None) -> None:
+        emulator.running = False
+
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
+    print(
+        f"smm_bench_emulator: session {emulator.board.session:#010x}, {args.mode}, board {args.bind}",
+        flush=True,
+    )
+    try:
+        emulator.run()
+    finally:
+        emulator.close()
+    if args.record and emulator.record is not None:
+        rows = np.asarray(emulator.record, dtype=np.float64).reshape(-1, 5)
+        np.savez(args.record, tick=rows[:, 0].astype(np.int64), position=rows[:, 1:3], codes=rows[:, 3:5])
+    print(json.dumps(emulator.status()), flush=True)
+    return 0
+
+
+_ROS_PARAMETERS = {
+    "bind": "--bind",
+    "host": "--host",
+    "control": "--control",
+    "duration": "--duration",
+    "seed": "--seed",
+    "mode": "--mode",
+    "control-period": "--control-period",
+}
+
+
+def from_ros_arguments(argv: Sequence[str]) -> list[str]:
+    """Options from ``--ros-args -p name:=value ...`` (how smm-launch starts every process of the graph).
+
+    ``-p`` names of :data:`_ROS_PARAMETERS` become the options of the same name; remappings and parameter
+    files are ignored (the emulator is not a ROS node).
+
+    Raises:
+        ValueError: an unknown ``-p`` name.
+    """
+    if "--ros-args" not in argv:
+        return list(argv)
+    index = list(argv).index("--ros-args")
+    options, ros = list(argv[:index]), list(argv[index + 1 :])
+    for flag, value in itertools.pairwise(ros):
+        if flag == "-p":
+            name, _, text = value.partition(":=")
+            if name not in _ROS_PARAMETERS:
+                raise ValueError(f"unknown parameter {name!r} (known: {sorted(_ROS_PARAMETERS)})")
+            options += [_ROS_PARAMETERS[name], text.strip('"')]
+    return options
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point."""
+    try:
+        options = from_ros_arguments(sys.argv[1:] if argv is None else argv)
+    except ValueError as error:
+        print(f"smm_bench_emulator: {error}", file=sys.stderr)
+        return 2
+    return run(build_parser().parse_args(options))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,263 @@
+"""The emulator process's loop: the board core on UDP, clocked by its own 1 kHz timer or in lockstep.
+
+Fault requests arrive as JSON datagrams on a control port (loopback) and are answered with JSON:
+``{"fault": "drop", "count": 5}``, ``{"fault": "delay", "count": 50, "ticks": 30}``, ``{"reboot": true}``,
+``{"faults": 2}``, ``{"supply": 3.0}``, ``{"clear": true}``, ``{"status": true}``, ``{"stop": true}``.
+"""
+
+from __future__ import annotations
+
+import json
+import select
+import socket
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from smm_hw_bridge.protocol import encode
+from smm_hw_bridge.transport import Transport, UdpTransport
+
+from smm_bench_emulator.board import BoardConfig, BoardCore
+from smm_bench_emulator.faults import LinkFault, LinkFaults
+
+__all__ = ["Emulator", "EmulatorConfig"]
+
+Mode = Literal["realtime", "lockstep"]
+
+
+@dataclass(frozen=True)
+class EmulatorConfig:
+    """Where the emulator listens and how it is clocked.
+
+    Attributes:
+        board: The emulated bench.
+        bind: (address, port) the board's UDP socket binds.
+        host: (address, port) of the bridge: feedback goes there, commands are accepted from there only.
+        control: (address, port) of the JSON control socket, or None for none.
+        mode: ``realtime`` (own 1 kHz timer) or ``lockstep`` (a tick when the last feedback is answered).
+        lockstep_trigger: ``any``: any valid command answering the last feedback ticks the board;
+            ``enabled``: only an enabled one (the plant waits at tick 0 until the controller drives it, so a
+            run lines up with the simulator's from its first step).
+        resend_ns: Lockstep: re-send the unanswered feedback after this long (ns), > 0.
+        duration_ticks: Stop after this many ticks (0 = run until stopped).
+        seed: Seed of the injected corruption.
+    """
+
+    board: BoardConfig = field(default_factory=BoardConfig)
+    bind: tuple[str, int] = ("127.0.0.1", 50101)
+    host: tuple[str, int] = ("127.0.0.1", 50100)
+    control: tuple[str, int] | None = ("127.0.0.1", 50102)
+    mode: Mode = "realtime"
+    lockstep_trigger: Literal["any", "enabled"] = "any"
+    resend_ns: int = 50_000_000
+    duration_ticks: int = 0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.lockstep_trigger not in ("any", "enabled"):
+            raise ValueError(f"lockstep_trigger must be 'any' or 'enabled', got {self.lockstep_trigger!r}")
+        if self.mode not in ("realtime", "lockstep"):
+            raise ValueError(f"mode must be 'realtime' or 'lockstep', got {self.mode!r}")
+        if isinstance(self.resend_ns, bool) or not isinstance(self.resend_ns, int) or self.resend_ns <= 0:
+            raise ValueError(f"resend_ns must be an int > 0, got {self.resend_ns!r}")
+        if (
+            isinstance(self.duration_ticks, bool)
+            or not isinstance(self.duration_ticks, int)
+            or self.duration_ticks < 0
+        ):
+            raise ValueError(f"duration_ticks must be an int >= 0, got {self.duration_ticks!r}")
+
+
+def _percentile_us(values: list[int], q: float) -> float | None:
+    return float(np.percentile(np.asarray(values), q)) / 1e3 if values else None
+
+
+class Emulator:
+    """Runs a :class:`BoardCore` against a UDP transport until stopped.
+
+    Args:
+        config: Addresses, clock mode and the bench.
+        transport: Link to the bridge (default: UDP on ``config.bind`` to ``config.host``).
+        clock_ns: Monotonic clock (ns).
+        record: Keep the per-tick record (:attr:`record`).
+    """
+
+    def __init__(
+        self,
+        config: EmulatorConfig,
+        transport: Transport | None = None,
+        clock_ns: Callable[[], int] = time.monotonic_ns,
+        record: bool = False,
+    ) -> None:
+        self.config = config
+        self.board = BoardCore(config.board)
+        self.faults = LinkFaults(config.seed)
+        self.transport = transport if transport is not None else UdpTransport(config.bind, config.host)
+        self._control: socket.socket | None = None
+        if config.control is not None:
+            self._control = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self._control.bind(config.control)
+            self._control.setblocking(False)
+        self._clock = clock_ns
+        self.running = False
+        self.overruns = 0
+        self.ticks = 0
+        self.null_since_ns: int | None = None
+        self._sent_ns: dict[int, int] = {}
+        self.latencies_ns: list[int] = []
+        """Feedback sent -> enabled command answering it received (ns), one per answered feedback."""
+        self.record: list[tuple[int, float, float, int, int]] | None = [] if record else None
+        """Per tick: (tick, true alpha, true beta (rad), D/A codes), when ``record`` is set."""
+        self.null_since_tick: int | None = None
+        self.last_command_ns: int | None = None
+        self.last_enabled_ns: int | None = None
+
+    @property
+    def control_address(self) -> tuple[str, int] | None:
+        """Bound (address, port) of the control socket."""
+        return None if self._control is None else self._control.getsockname()[:2]
+
+    def close(self) -> None:
+        """Closes the sockets."""
+        self.transport.close()
+        if self._control is not None:
+            self._control.close()
+
+    def _send(self, frame: bytes) -> None:
+        for data in self.faults.outgoing(frame, self.board.tick):
+            self.transport.send(data)
+        now = self._clock()
+        feedback = self.board.last_feedback
+        if feedback is not None:
+            self._sent_ns[feedback.seq] = now
+            if len(self._sent_ns) > 2000:
+                del self._sent_ns[next(iter(self._sent_ns))]
+            if self.record is not None:
+                alpha, beta, _, _ = self.board.plant.state_floats
+                self.record.append((feedback.tick, alpha, beta, *self.board.output_codes()))
+        if self.board.output_codes() == (0, 0):
+            if self.null_since_ns is None:
+                self.null_since_ns, self.null_since_tick = now, self.board.tick
+        else:
+            self.null_since_ns = self.null_since_tick = None
+        self.ticks += 1
+        if self.config.duration_ticks and self.ticks >= self.config.duration_ticks:
+            self.running = False
+
+    def _drain(self) -> None:
+        while (data := self.transport.receive(0.0)) is not None:
+            passed = self.faults.incoming(data)
+            if passed is not None:
+                command = self.board.receive(passed)
+                if command is not None:
+                    self.last_command_ns = self._clock()
+                    sent = self._sent_ns.pop(command.answers_seq, None)
+                    if sent is not None and command.enabled:
+                        self.latencies_ns.append(self.last_command_ns - sent)
+                    if command.enabled:
+                        self.last_enabled_ns = self.last_command_ns
+        if self._control is not None:
+            while True:
+                try:
+                    request, source = self._control.recvfrom(4096)
+                except BlockingIOError:
+                    break
+                reply = self.handle(request)
+                self._control.sendto(json.dumps(reply).encode(), source)
+
+    def handle(self, request: bytes) -> dict[str, Any]:
+        """Carries out one JSON control request and returns the reply."""
+        try:
+            message = json.loads(request)
+            if not isinstance(message, dict):
+                raise ValueError("a request is a JSON object")
+            if "fault" in message:
+                self.faults.request(
+                    LinkFault(message["fault"]), int(message.get("count", 1)), int(message.get("ticks", 0))
+                )
+            elif message.get("reboot"):
+                self.board.boot()
+                self.transport.send(self.board.start())
+            elif "faults" in message:
+                self.board.set_faults(int(message["faults"]))
+            elif "supply" in message:
+                self.board.supply_pressure = float(message["supply"])
+            elif message.get("clear"):
+                self.faults.clear()
+            elif message.get("stop"):
+                self.running = False
+            elif not message.get("status"):
+                raise ValueError(f"unknown request {message!r}")
+        except (ValueError, TypeError, KeyError) as error:
+            return {"ok": False, "error": str(error)}
+        return {"ok": True, **self.status()}
+
+    def status(self) -> dict[str, Any]:
+        """Board state for the control socket and the end-of-run summary."""
+        board = self.board
+        return {
+            "session": board.session,
+            "tick": board.tick,
+            "output_codes": list(board.output_codes()),
+            "estop": board.estop_latched,
+            "faults": board.faults,
+            "host_session": board.host_session,
+            "late_commands": board.late_commands,
+            "crc_errors": board.crc_errors,
+            "dropped_frames": board.dropped_frames,
+            "overruns": self.overruns,
+            "ticks": self.ticks,
+            "null_since_ns": self.null_since_ns,
+            "null_since_tick": self.null_since_tick,
+            "last_command_ns": self.last_command_ns,
+            "last_enabled_ns": self.last_enabled_ns,
+            "applied": len(board.applied_log),
+            "latency_p50_us": _percentile_us(self.latencies_ns, 50),
+            "latency_p99_us": _percentile_us(self.latencies_ns, 99),
+            "last_applied_tick": board.applied_log[-1][0] if board.applied_log else None,
+            "status_bits": 0 if board.last_feedback is None else board.last_feedback.status,
+        }
+
+    def _wait(self, timeout_ns: int) -> None:
+        sources = [self.transport.fileno()] + ([self._control.fileno()] if self._control is not None else [])
+        select.select(sources, [], [], max(timeout_ns, 0) / 1e9)
+
+    def run(self) -> None:
+        """Runs until ``stop`` is requested or ``duration_ticks`` have passed."""
+        self.running = True
+        self._send(self.board.start())
+        if self.config.mode == "realtime":
+            self._run_realtime()
+        else:
+            self._run_lockstep()
+
+    def _run_realtime(self) -> None:
+        period = self.config.board.period_ns
+        deadline = self._clock() + period
+        while self.running:
+            now = self._clock()
+            if now < deadline:
+                self._wait(deadline - now)
+                self._drain()
+                continue
+            self._drain()
+            self._send(self.board.tick_realtime())
+            deadline += period
+            if self._clock() > deadline:
+                self.overruns += 1  # the ticks still run, back to back: the board's clock is the plant's
+
+    def _run_lockstep(self) -> None:
+        resend = self.config.resend_ns
+        sent = self._clock()
+        while self.running:
+            self._wait(resend - (self._clock() - sent))
+            self._drain()
+            enabled_only = self.config.lockstep_trigger == "enabled"
+            if self.board.answered_enabled if enabled_only else self.board.answered:
+                self._send(self.board.tick_lockstep())
+                sent = self._clock()
+            elif self._clock() - sent >= resend and self.board.last_feedback is not None:
+                self.transport.send(encode(self.board.last_feedback))
+                sent = self._clock()

@@ -1,0 +1,517 @@
+"""``hw_bridge_node``: the bench's I/O board as the plant of the graph, a ROS 2 lifecycle node.
+
+Same interface as ``smm_sim_node``: publishes ``joint_states`` (position rad from the encoders; effort =
+torque of the D/A codes on the valves, after clamping) and subscribes ``torque_command``. Also publishes
+``hw_bridge_internals`` (what was sent: codes, torque, clamped, limit_cut, enabled) and ``/diagnostics``,
+and serves ``~/estop`` and ``~/rearm`` (``std_srvs/Trigger``). The logic is :class:`BridgeCore`; the
+protocol and the transitions are in docs/HW_PROTOCOL.md; parameters in docs/NODES.md.
+
+Lifecycle: ``configure`` opens the transport, waits for valid feedback (version and session checked) and
+locks the board with safe frames; ``activate`` arms (output live after newer feedback and a command
+answering it); ``deactivate``, ``cleanup``, ``shutdown`` and errors send a safe frame at once. Board fault
+bits, seen in any state, drive the node through the error transition to ``unconfigured``.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import math
+import secrets
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Final, Literal, Unpack
+
+from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from sensor_msgs.msg import JointState
+from smm_msgs_py.conversions import JointSample, internals_to_msg, msg_to_torque, sample_to_joint_state
+from smm_msgs_py.errors import InterfaceError
+from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError, BridgeState
+from smm_hw_bridge.protocol import CommandFrame, Reason, encode
+from smm_hw_bridge.transport import SerialTransport, Transport, TransportError, UdpTransport
+from smm_msgs_py import topics
+from smm_node_runtime import (
+    ConfigParameters,
+    DiagnosticsPublisher,
+    Health,
+    Level,
+    NodeOptions,
+    node_arguments,
+    node_main,
+)
+
+__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "HwBridgeNode", "LinkConfig", "main"]
+
+NODE_NAME: Final[str] = "hw_bridge_node"
+INTERNALS_TOPIC: Final[str] = "hw_bridge_internals"
+_FAULT_CHECK_S: Final[float] = 0.005
+_LINK_RANGES: Final[dict[str, tuple[float, float]]] = {
+    "bind_port": (0, 65535),
+    "board_port": (1, 65535),
+    "baudrate": (1, 100_000_000),
+    "configure_timeout": (0.001, 600.0),
+}
+_BRIDGE_RANGES: Final[dict[str, tuple[float, float]]] = {
+    "encoder.counter_bits": (8, 32),
+    "valve.deadband_blend": (1e-3, 32767.0),
+    "admission.period_ns": (1, 1_000_000_000),
+    "admission.stale_ns": (1, 60_000_000_000),
+    "admission.drift_ppm": (0.0, 1e5),
+    "host_watchdog_ns": (1, 10_000_000_000),
+    "stale_periods": (1, 65535),
+    "validity_ticks": (1, 65535),
+    "link_timeout_ns": (1, 60_000_000_000),
+    "reboot_frames": (1, 1000),
+    "supply_bar_per_code": (1e-9, 1e3),
+}
+"""ROS ranges of the scalar parameters (the config dataclasses check the rest, and these again)."""
+
+
+@dataclass(frozen=True)
+class LinkConfig:
+    """How the bridge reaches the board (read at ``configure``).
+
+    Attributes:
+        transport: "udp" or "serial".
+        bind_address: UDP: IPv4 address the bridge binds (default loopback).
+        bind_port: UDP: port the bridge binds, in [0, 65535] (0 = any free one).
+        board_address: UDP: the board's IPv4 address; frames from anywhere else are dropped.
+        board_port: UDP: the board's port, in [1, 65535].
+        serial_port: Serial: device name.
+        baudrate: Serial: line speed (bit/s), > 0.
+        configure_timeout: Time ``configure`` waits for a valid feedback frame (s), > 0.
+    """
+
+    transport: Literal["udp", "serial"] = "udp"
+    bind_address: str = "127.0.0.1"
+    bind_port: int = 50100
+    board_address: str = "127.0.0.1"
+    board_port: int = 50101
+    serial_port: str = ""
+    baudrate: int = 921_600
+    configure_timeout: float = 2.0
+
+    def __post_init__(self) -> None:
+        if self.transport not in ("udp", "serial"):
+            raise ValueError(f"transport must be 'udp' or 'serial', got {self.transport!r}")
+        for name in ("bind_address", "board_address"):
+            try:
+                ipaddress.IPv4Address(getattr(self, name))
+            except ValueError as error:
+                raise ValueError(f"{name} must be an IPv4 address, got {getattr(self, name)!r}") from error
+        for name, low in (("bind_port", 0), ("board_port", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 65535:
+                raise ValueError(f"{name} must be an int in [{low}, 65535], got {value!r}")
+        if self.transport == "serial" and not self.serial_port:
+            raise ValueError("serial_port must name a device when transport is 'serial'")
+        if isinstance(self.baudrate, bool) or not isinstance(self.baudrate, int) or self.baudrate <= 0:
+            raise ValueError(f"baudrate must be an int > 0, got {self.baudrate!r}")
+        timeout = self.configure_timeout
+        if not (isinstance(timeout, float) and math.isfinite(timeout) and timeout > 0.0):
+            raise ValueError(f"configure_timeout must be a finite number > 0 s, got {timeout!r}")
+
+
+@dataclass
+class _Counters:
+    commands: int = 0
+    bad_commands: int = 0
+    frames_sent: int = 0
+    safe_frames_sent: int = 0
+    last_error: str = ""
+    refused: dict[str, int] = field(default_factory=dict)
+
+
+class HwBridgeNode(LifecycleNode):
+    """The hardware bridge (see the module docstring).
+
+    Args:
+        **options: The node options every SMM node takes (:class:`~smm_node_runtime.NodeOptions`).
+
+    Raises:
+        ValueError: A parameter value is invalid (the message names it).
+    """
+
+    NODE_NAME = NODE_NAME
+
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        name, arguments = node_arguments(NODE_NAME, options)
+        super().__init__(name, **arguments)
+        try:
+            self._link = ConfigParameters(self, "link", LinkConfig(), ranges=_LINK_RANGES)
+            self._bridge = ConfigParameters(self, "bridge", BridgeConfig(), ranges=_BRIDGE_RANGES)
+        except ValueError:
+            self.destroy_node()
+            raise
+        self._log = self.get_logger()  # type: ignore[no-untyped-call]
+        self._lock = threading.RLock()
+        self._core: BridgeCore | None = None
+        self._transport: Transport | None = None
+        self._reader: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._fault_transition = False
+        self.counters = _Counters()
+        self._joint_states = self.create_publisher(
+            JointState, topics.JOINT_STATES, qos_for_topic(topics.JOINT_STATES)
+        )
+        self._internals = self.create_publisher(
+            Float64MultiArray, INTERNALS_TOPIC, qos_for_topic(topics.CONTROLLER_INTERNALS)
+        )
+        self.create_subscription(
+            Float64MultiArray,
+            topics.TORQUE_COMMAND,
+            self._on_command,
+            subscription_qos_for_topic(topics.TORQUE_COMMAND),
+        )
+        self.create_service(Trigger, "~/estop", self._on_estop)
+        self.create_service(Trigger, "~/rearm", self._on_rearm)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(_FAULT_CHECK_S, self._check, clock=steady)
+        self.diagnostics = DiagnosticsPublisher(self, self.health)
+        self._started = False
+        self.declare_parameter("autostart", False)
+        if self.get_parameter("autostart").value is True:
+            self._autostart = self.create_timer(0.0, self._start, clock=steady)
+
+    def _start(self) -> None:
+        """``autostart``: configure, then activate, once (a failure is logged by the transition)."""
+        self._autostart.cancel()  # type: ignore[no-untyped-call]
+        if self._started:
+            return
+        self._started = True
+        if self.trigger_configure() == TransitionCallbackReturn.SUCCESS:  # type: ignore[no-untyped-call]
+            self.trigger_activate()  # type: ignore[no-untyped-call]
+
+    def destroy_node(self) -> None:
+        """Sends safe output, stops the reader thread and closes the transport, then destroys the node."""
+        if getattr(self, "_transport", None) is not None:
+            self._close()
+        super().destroy_node()  # type: ignore[no-untyped-call]
+
+    # ---- public views -----------------------------------------------------------------------------
+
+    @property
+    def core(self) -> BridgeCore | None:
+        """The bridge logic while configured."""
+        return self._core
+
+    @property
+    def transport(self) -> Transport | None:
+        """The open transport while configured."""
+        return self._transport
+
+    @property
+    def lifecycle_state(self) -> str:
+        """Label of the current lifecycle state (``unconfigured``, ``inactive``, ``active``...)."""
+        return str(self._state_machine.current_state[1])
+
+    # ---- lifecycle --------------------------------------------------------------------------------
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Opens the transport, waits for valid feedback, locks the board with a safe frame."""
+        link = self._link.config
+        self._fault_transition = False
+        try:
+            if link.transport == "udp":
+                transport: Transport = UdpTransport(
+                    (link.bind_address, link.bind_port), (link.board_address, link.board_port)
+                )
+            else:
+                transport = SerialTransport(link.serial_port, link.baudrate)
+        except TransportError as error:
+            self._log.error(f"configure: {error}")
+            return TransitionCallbackReturn.FAILURE
+        core = BridgeCore(self._bridge.config, host_session=secrets.randbelow(0xFFFFFFFF) + 1)
+        deadline = time.monotonic() + link.configure_timeout
+        while core.last_feedback is None and time.monotonic() < deadline:
+            data = transport.receive(min(0.05, max(deadline - time.monotonic(), 0.0)))
+            if data is not None:
+                core.on_datagram(data, time.monotonic_ns())
+        if core.last_feedback is None:
+            transport.close()
+            rejected = {reason.value: count for reason, count in core.rejected.items()}
+            why = (
+                "the board speaks another protocol version"
+                if Reason.VERSION in core.rejected
+                else "no valid feedback"
+            )
+            self._log.error(
+                f"configure: {why} from {link.board_address}:{link.board_port} within "
+                f"{link.configure_timeout} s (rejected: {rejected}, transport dropped: {transport.dropped})"
+            )
+            return TransitionCallbackReturn.FAILURE
+        with self._lock:
+            self._core, self._transport = core, transport
+            self._send_safe()
+        self._stop.clear()
+        self._reader = threading.Thread(target=self._read_loop, name="hw_bridge_reader", daemon=True)
+        self._reader.start()
+        self._log.info(
+            f"configured: board session {core.board_session:#010x}, host session {core.host_session:#010x}"
+        )
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Arms: the output goes live after newer feedback and a command answering it."""
+        with self._lock:
+            if self._core is None:
+                return TransitionCallbackReturn.FAILURE
+            try:
+                self._core.arm()
+            except BridgeError as error:
+                self._log.error(f"activate: {error}")
+                return TransitionCallbackReturn.FAILURE
+        self.diagnostics.check()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Disarms and sends a safe frame at once."""
+        with self._lock:
+            if self._core is not None:
+                self._core.disarm()
+                self._send_safe()
+        return TransitionCallbackReturn.ERROR if self._fault_transition else TransitionCallbackReturn.SUCCESS
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Sends a safe frame and closes the transport."""
+        self._close()
+        return TransitionCallbackReturn.ERROR if self._fault_transition else TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Sends a safe frame and closes the transport."""
+        self._close()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Sends a safe frame, closes the transport; the node goes to ``unconfigured``."""
+        self._log.error("error transition: safe output sent, transport closed")
+        self._close()
+        self._fault_transition = False
+        return TransitionCallbackReturn.SUCCESS
+
+    def _close(self) -> None:
+        self._stop.set()
+        reader, self._reader = self._reader, None
+        if reader is not None and reader is not threading.current_thread():
+            reader.join(2.0)
+        with self._lock:
+            if self._core is not None:
+                self._core.disarm()
+                self._send_safe()
+            if self._transport is not None:
+                self._transport.close()
+            self._transport = None
+
+    # ---- I/O --------------------------------------------------------------------------------------
+
+    def _send_safe(self) -> None:
+        """Sends the frame the core wants now; after disarm that is a safe frame (lock held)."""
+        core, transport = self._core, self._transport
+        if core is None or transport is None:
+            return
+        frame = core.next_frame(time.monotonic_ns())
+        if frame is not None:
+            self._transmit(frame)
+
+    def _transmit(self, frame: CommandFrame) -> None:
+        assert self._transport is not None
+        try:
+            self._transport.send(encode(frame))
+        except TransportError as error:
+            self.counters.last_error = str(error)
+            return
+        self.counters.frames_sent += 1
+        if not frame.enabled:
+            self.counters.safe_frames_sent += 1
+
+    def _read_loop(self) -> None:
+        while not self._stop.is_set():
+            transport = self._transport
+            if transport is None:
+                return
+            try:
+                data = transport.receive(0.05)
+            except (TransportError, OSError) as error:
+                self.counters.last_error = str(error)
+                if self._stop.wait(0.05):
+                    return
+                continue
+            if data is None:
+                with self._lock:
+                    if self._core is not None:
+                        self._core.check_link(time.monotonic_ns())
+                continue
+            self._on_datagram(data)
+
+    def _on_datagram(self, data: bytes) -> None:
+        now = time.monotonic_ns()
+        with self._lock:
+            core = self._core
+            if core is None or self._transport is None:
+                return
+            frame = core.on_datagram(data, now)
+            # lockstep: the board re-sends its unanswered feedback; so do we (a DDS sample may be lost)
+            resent = core.config.lockstep and core.last_rejection is Reason.DUPLICATE
+            if frame is None and not resent:
+                return
+            if core.needs_frame(now):
+                out = core.next_frame(now)
+                if out is not None:
+                    self._transmit(out)
+            publish = core.state in (BridgeState.ARMING, BridgeState.ARMED)
+            sample = JointSample(core.stamp_ns, core.position, effort=core.applied_torque)
+        if publish:
+            self._joint_states.publish(sample_to_joint_state(sample))
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        now = time.monotonic_ns()
+        try:
+            command = msg_to_torque(msg)
+        except InterfaceError as error:
+            self.counters.bad_commands += 1
+            self.counters.last_error = str(error)
+            return
+        with self._lock:
+            core = self._core
+            if core is None or self._transport is None:
+                return
+            refusal = core.on_command(command.values, command.stamp_ns, now)
+            if refusal is not None:
+                self.counters.refused[refusal.value] = self.counters.refused.get(refusal.value, 0) + 1
+                return
+            self.counters.commands += 1
+            frame = core.next_frame(now)
+            if frame is not None:
+                self._transmit(frame)
+            internals = internals_to_msg(core.internals, command.stamp_ns)
+        self._internals.publish(internals)
+
+    # ---- services and checks ----------------------------------------------------------------------
+
+    def _on_estop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        with self._lock:
+            if self._core is None or self._transport is None:
+                response.success, response.message = False, "not configured: no board to stop"
+                return response
+            self._core.estop()
+            self._send_safe()
+        self._log.warning("e-stop latched: valves at null until ~/rearm")
+        self.diagnostics.check()
+        response.success, response.message = True, "e-stop latched on the board"
+        return response
+
+    def _on_rearm(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        with self._lock:
+            if self._core is None or self._transport is None:
+                response.success, response.message = False, "not configured"
+                return response
+            try:
+                self._core.rearm()
+            except BridgeError as error:
+                response.success, response.message = False, str(error)
+                return response
+            self._send_safe()
+        response.success = True
+        response.message = "re-arm sent: output needs a fresh measurement and command again"
+        return response
+
+    def _check(self) -> None:
+        """Steady timer: host watchdog / link check, fault bits -> error transition."""
+        now = time.monotonic_ns()
+        with self._lock:
+            core = self._core
+            if core is None or self._transport is None:
+                return
+            core.check_link(now)
+            if core.state == BridgeState.ARMED and core.needs_frame(now) and core.output_live:
+                out = core.next_frame(now)  # host watchdog: safe output although feedback stopped
+                if out is not None:
+                    self._transmit(out)
+            fault = core.state == BridgeState.FAULT
+        if fault and not self._fault_transition:
+            self._fault_transition = True
+            last = core.last_feedback
+            bits = 0 if last is None else last.faults
+            self._log.error(f"board fault bits {bits:#06x}: safe output, error transition")
+            self.diagnostics.publish()
+            if self.lifecycle_state == "active":
+                self.trigger_deactivate()  # type: ignore[no-untyped-call]
+            elif self.lifecycle_state == "inactive":
+                self.trigger_cleanup()  # type: ignore[no-untyped-call]
+
+    def health(self) -> Health:
+        """Link, loss, round trip, board counters, faults, supply pressure."""
+        now = time.monotonic_ns()
+        with self._lock:
+            core = self._core
+            counters = self.counters
+            values: dict[str, object] = {"lifecycle": self.lifecycle_state}
+            if core is None:
+                return Health(Level.OK, "unconfigured: no board link", values)
+            last = core.last_feedback
+            rtt = core.stats.rtt_percentiles_ns()
+            link_up = core.link_up(now)
+            values.update(
+                {
+                    "state": core.state.value,
+                    "link_up": link_up,
+                    "board_session": f"{core.board_session or 0:#010x}",
+                    "host_session": f"{core.host_session:#010x}",
+                    "feedback_received": core.stats.received,
+                    "packet_loss": f"{core.stats.loss_fraction:.6f}",
+                    "lost_frames": core.stats.lost,
+                    "longest_loss_streak": core.stats.longest_streak,
+                    "rtt_p50_ms": f"{rtt['p50'] / 1e6:.3f}",
+                    "rtt_p99_ms": f"{rtt['p99'] / 1e6:.3f}",
+                    "late_commands": 0 if last is None else last.late_commands,
+                    "board_crc_errors": 0 if last is None else last.crc_errors,
+                    "board_dropped_frames": 0 if last is None else last.dropped_frames,
+                    "fault_bits": f"{0 if last is None else last.faults:#06x}",
+                    "supply_pressure_bar": f"{core.supply_pressure_bar:.2f}",
+                    "watchdog_trips": core.watchdog_trips,
+                    "reboots": core.reboots,
+                    "commands": counters.commands,
+                    "bad_commands": counters.bad_commands,
+                    "frames_sent": counters.frames_sent,
+                    "safe_frames_sent": counters.safe_frames_sent,
+                }
+            )
+            for reason in Reason:
+                values[f"rejected_{reason.value}"] = core.rejected.get(reason, 0)
+            dropped = {} if self._transport is None else self._transport.dropped
+            for reason in (Reason.SOURCE, Reason.FRAMING):
+                values[f"rejected_{reason.value}"] = core.rejected.get(reason, 0) + dropped.get(
+                    reason.value, 0
+                )
+            for why, count in counters.refused.items():
+                values[f"refused_{why}"] = count
+            if counters.last_error:
+                values["last_error"] = counters.last_error
+            state = core.state
+        if state == BridgeState.FAULT:
+            return Health(Level.ERROR, f"board fault bits {values['fault_bits']}: valves at null", values)
+        if state == BridgeState.SESSION_LOST:
+            return Health(
+                Level.ERROR, "board rebooted or link lost: output disabled until re-activation", values
+            )
+        if not link_up:
+            return Health(Level.ERROR, "link down: no valid feedback", values)
+        if state == BridgeState.ESTOP:
+            return Health(Level.WARN, "e-stop latched: re-arm to continue", values)
+        return Health(Level.OK, f"{state.value}, link up", values)
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``hw_bridge_node``: builds the node (unconfigured) and spins it."""
+    return node_main(lambda context: HwBridgeNode(context=context), args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,474 @@
+"""The bridge's logic without ROS or sockets: sessions, arming, watchdog, stale refusal, soft limits, e-stop.
+
+Bytes in (:meth:`BridgeCore.on_datagram`), torque commands in (:meth:`BridgeCore.on_command`), command
+frames out (:meth:`BridgeCore.next_frame`); times are integer ns passed in. The states and their
+transitions are drawn in docs/HW_PROTOCOL.md ("Host state machine").
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+from smm_dynamics.validation import check_pair, check_scalar
+
+from smm_hw_bridge.encoder import EncoderConfig, EncoderDecoder
+from smm_hw_bridge.link import AdmissionConfig, FeedbackAdmission, LinkStats
+from smm_hw_bridge.protocol import (
+    CommandFlag,
+    CommandFrame,
+    FeedbackFrame,
+    ProtocolError,
+    Reason,
+    StatusBit,
+    decode_feedback,
+)
+from smm_hw_bridge.valve_output import ValveOutput, ValveOutputConfig
+
+__all__ = ["BridgeConfig", "BridgeCore", "BridgeError", "BridgeState", "Refusal"]
+
+FloatArray = npt.NDArray[np.float64]
+_RECENT_KEPT = 64
+
+
+class BridgeState(enum.Enum):
+    """Where the bridge is; only ARMED ever sends an enabled command."""
+
+    DISCONNECTED = "disconnected"
+    DISARMED = "disarmed"
+    ARMING = "arming"
+    ARMED = "armed"
+    ESTOP = "estop"
+    FAULT = "fault"
+    SESSION_LOST = "session_lost"
+
+
+class Refusal(enum.Enum):
+    """Why a torque command was not used."""
+
+    INVALID = "invalid"
+    INACTIVE = "inactive"
+    UNKNOWN_STAMP = "unknown_stamp"
+    STALE = "stale"
+    BEFORE_ARM = "before_arm"
+
+
+class BridgeError(RuntimeError):
+    """An operation the bridge's state does not allow (e.g. arming with a board fault)."""
+
+
+def _positive_int(name: str, value: object) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+        raise ValueError(f"{name} must be an int > 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class BridgeConfig:
+    """Everything the bridge logic needs.
+
+    Attributes:
+        encoder: Counts -> rad.
+        valve: Torque -> D/A code.
+        admission: Feedback admission (tick period, staleness).
+        host_watchdog_ns: No fresh command for this long -> safe output (ns), > 0.
+        stale_periods: A command answering a measurement more than this many ticks older than the newest
+            is refused (K), >= 1.
+        validity_ticks: Ticks after the answered measurement during which the board may apply a command,
+            in [1, 65535].
+        soft_limits: Joint soft limits +-limit (alpha, beta) (rad), > 0: beyond one, a torque that drives
+            further out is cut to 0; one that drives back is passed.
+        link_timeout_ns: No admitted feedback for this long -> link down (ns), > 0.
+        reboot_frames: Consecutive frames of one new board session that mean the board restarted, >= 1.
+        supply_bar_per_code: Supply pressure per A/D code of channel 0 (bar), > 0.
+        lockstep: The board ticks only when an enabled command answers its last feedback (the emulator's
+            lockstep): activation then accepts a command answering the current measurement, which stays
+            current until the output is live.
+    """
+
+    encoder: EncoderConfig = field(default_factory=EncoderConfig)
+    valve: ValveOutputConfig = field(default_factory=ValveOutputConfig)
+    admission: AdmissionConfig = field(default_factory=AdmissionConfig)
+    host_watchdog_ns: int = 10_000_000
+    stale_periods: int = 5
+    validity_ticks: int = 10
+    soft_limits: tuple[float, float] = (1.2, 1.2)
+    link_timeout_ns: int = 100_000_000
+    reboot_frames: int = 3
+    supply_bar_per_code: float = 25.0 / 4095.0
+    lockstep: bool = False
+
+    def __post_init__(self) -> None:
+        for name, kind in (
+            ("encoder", EncoderConfig),
+            ("valve", ValveOutputConfig),
+            ("admission", AdmissionConfig),
+        ):
+            if not isinstance(getattr(self, name), kind):
+                raise ValueError(f"{name} must be a {kind.__name__}, got {getattr(self, name)!r}")
+        for name in (
+            "host_watchdog_ns",
+            "stale_periods",
+            "validity_ticks",
+            "link_timeout_ns",
+            "reboot_frames",
+        ):
+            _positive_int(name, getattr(self, name))
+        if self.validity_ticks > 0xFFFF:
+            raise ValueError(f"validity_ticks must be <= 65535, got {self.validity_ticks!r}")
+        check_pair("soft_limits", self.soft_limits, positive=True)
+        check_scalar("supply_bar_per_code", self.supply_bar_per_code, positive=True)
+        if not isinstance(self.lockstep, bool):
+            raise ValueError(f"lockstep must be a bool, got {self.lockstep!r}")
+
+    @property
+    def period_ns(self) -> int:
+        """Board tick period (ns)."""
+        return self.admission.period_ns
+
+
+@dataclass
+class _Pending:
+    codes: tuple[int, int]
+    answers_seq: int
+    answers_tick: int
+    answers_tick_unwrapped: int
+    rx_ns: int
+
+
+class BridgeCore:
+    """Host side of the link. One instance per configured session.
+
+    Args:
+        config: The bridge configuration.
+        host_session: This bridge's session id (new at every configure), in [1, 2**32).
+    """
+
+    def __init__(self, config: BridgeConfig, host_session: int) -> None:
+        if (
+            isinstance(host_session, bool)
+            or not isinstance(host_session, int)
+            or not 0 < host_session < 1 << 32
+        ):
+            raise ValueError(f"host_session must be an int in [1, 2**32), got {host_session!r}")
+        self._config = config
+        self._host_session = host_session
+        self._encoder = EncoderDecoder(config.encoder)
+        self._valve = ValveOutput(config.valve)
+        self._admission = FeedbackAdmission(config.admission)
+        self.stats = LinkStats()
+        self.refused: dict[Refusal, int] = {}
+        self.watchdog_trips = 0
+        self.reboots = 0
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to DISCONNECTED with no board session; counters are kept."""
+        self.state = BridgeState.DISCONNECTED
+        self.board_session: int | None = None
+        self._candidate: tuple[int, int] | None = None
+        self._encoder.reset()
+        self._valve.reset()
+        self._admission.reset()
+        self.stats.reset_sequence()
+        self._recent: OrderedDict[int, tuple[int, int]] = OrderedDict()
+        self._last: FeedbackFrame | None = None
+        self._last_rx_ns: int | None = None
+        self._pending: _Pending | None = None
+        self._active = False
+        self._arm_tick = -1
+        self._estop_requested = False
+        self._rearm_pending = False
+        self._seq = 0
+        self._live = False
+        self._cut = np.zeros(2, dtype=np.bool_)
+        self.last_rejection: Reason | None = None
+        """Why the last received frame was dropped (None if it was admitted)."""
+
+    @property
+    def config(self) -> BridgeConfig:
+        """The configuration."""
+        return self._config
+
+    @property
+    def host_session(self) -> int:
+        """This bridge's session id."""
+        return self._host_session
+
+    @property
+    def rejected(self) -> Mapping[Reason, int]:
+        """Dropped received frames by reason (parser, session, admission)."""
+        return self._admission.rejected
+
+    @property
+    def last_feedback(self) -> FeedbackFrame | None:
+        """The last admitted feedback frame."""
+        return self._last
+
+    @property
+    def output_live(self) -> bool:
+        """True if the last frame sent carried ENABLE."""
+        return self._live
+
+    # ---- feedback ---------------------------------------------------------------------------------
+
+    def on_datagram(self, data: bytes, rx_ns: int) -> FeedbackFrame | None:
+        """Parses, checks and uses one received frame; returns it if admitted, None if dropped (counted)."""
+        self.last_rejection = None
+        try:
+            frame = decode_feedback(data)
+        except ProtocolError as error:
+            self._admission.count(error.reason)
+            self.last_rejection = error.reason
+            return None
+        if self.board_session is None:
+            self._adopt(frame.session)
+        elif frame.session != self.board_session:
+            self._admission.count(Reason.SESSION)
+            self._foreign(frame.session)
+            if frame.session != self.board_session:
+                return None
+        self._candidate = None
+        self.last_rejection = self._admission.admit(frame, rx_ns)
+        if self.last_rejection is not None:
+            return None
+        self._use(frame, rx_ns)
+        return frame
+
+    def _adopt(self, session: int) -> None:
+        self.board_session = session
+        self._candidate = None
+        self._admission.reset()
+        self.stats.reset_sequence()
+        self._recent.clear()
+        self._pending = None
+        self._last = None
+        if self.state == BridgeState.DISCONNECTED:
+            self.state = BridgeState.DISARMED
+
+    def _foreign(self, session: int) -> None:
+        count = self._candidate[1] + 1 if self._candidate and self._candidate[0] == session else 1
+        self._candidate = (session, count)
+        if count < self._config.reboot_frames:
+            return
+        self.reboots += 1
+        if self.state in (BridgeState.ARMING, BridgeState.ARMED):
+            self._lose_session()
+        self._adopt(session)  # safe frames to the new board from now on; output only after arm()
+
+    def _lose_session(self) -> None:
+        self.state = BridgeState.SESSION_LOST
+        self._pending = None
+        self._valve.reset()
+
+    def _use(self, frame: FeedbackFrame, rx_ns: int) -> None:
+        self._encoder.update(frame.counts)
+        tick = self._admission.tick
+        self._recent[tick] = (frame.seq, frame.tick)
+        while len(self._recent) > _RECENT_KEPT:
+            self._recent.popitem(last=False)
+        self.stats.on_feedback(frame.seq, frame.applied_seq, rx_ns)
+        self._last, self._last_rx_ns = frame, rx_ns
+        if frame.faults:
+            self.state = BridgeState.FAULT
+            self._pending = None
+            self._valve.reset()
+            return
+        latched = bool(frame.status & StatusBit.ESTOP_LATCHED)
+        if self._rearm_pending and not latched and not self._estop_requested:
+            self._rearm_pending = False
+            self.state = BridgeState.ARMING if self._active else BridgeState.DISARMED
+            self._arm_tick = tick
+        elif latched and self.state != BridgeState.ESTOP and not self._rearm_pending:
+            self.state = BridgeState.ESTOP
+            self._pending = None
+        elif self.state == BridgeState.FAULT:
+            pass  # stays until reset: the lifecycle error path reconfigures
+
+    @property
+    def stamp_ns(self) -> int:
+        """Stamp of the last admitted measurement: unwrapped board tick * period (ns)."""
+        return self._admission.tick * self._config.period_ns
+
+    @property
+    def position(self) -> FloatArray:
+        """Last measured joint angle (alpha, beta) (rad)."""
+        return self._encoder.position
+
+    @property
+    def applied_torque(self) -> FloatArray:
+        """Torque equivalent of the D/A codes the board reports on the valves now (N m), shape (2,)."""
+        codes = (0, 0) if self._last is None else self._last.output_codes
+        return self._valve.torque_of(codes)
+
+    @property
+    def supply_pressure_bar(self) -> float:
+        """Supply pressure of A/D channel 0 (bar), NaN before any feedback."""
+        return math.nan if self._last is None else self._last.adc[0] * self._config.supply_bar_per_code
+
+    # ---- commands ---------------------------------------------------------------------------------
+
+    def _refuse(self, why: Refusal) -> Refusal:
+        self.refused[why] = self.refused.get(why, 0) + 1
+        return why
+
+    def on_command(self, torque: npt.ArrayLike, stamp_ns: int, rx_ns: int) -> Refusal | None:
+        """Takes a torque command answering the measurement stamped ``stamp_ns``; None if accepted.
+
+        A refused command (reason returned and counted) changes nothing.
+        """
+        demand = np.asarray(torque, dtype=np.float64) if not isinstance(torque, str) else np.zeros(0)
+        if demand.shape != (2,) or not np.all(np.isfinite(demand)) or isinstance(stamp_ns, bool):
+            return self._refuse(Refusal.INVALID)
+        if self.state not in (BridgeState.ARMING, BridgeState.ARMED):
+            return self._refuse(Refusal.INACTIVE)
+        period = self._config.period_ns
+        tick, remainder = divmod(int(stamp_ns), period)
+        entry = self._recent.get(tick) if remainder == 0 else None
+        if entry is None:
+            return self._refuse(Refusal.UNKNOWN_STAMP)
+        if self._admission.tick - tick > self._config.stale_periods:
+            return self._refuse(Refusal.STALE)
+        if tick <= self._arm_tick:
+            return self._refuse(Refusal.BEFORE_ARM)
+        position = self._encoder.position
+        limits = np.asarray(self._config.soft_limits)
+        self._cut = ((position >= limits) & (demand > 0.0)) | ((position <= -limits) & (demand < 0.0))
+        sample = self._valve.step(np.where(self._cut, 0.0, demand), period * 1e-9)
+        self._pending = _Pending(sample.codes, entry[0], entry[1], tick, rx_ns)
+        last = self._last
+        # lockstep: the board re-sends the feedback it built before it locked to us (the board itself drops
+        # enabled frames from a host it is not locked to)
+        locked = last is not None and (last.host_session == self._host_session or self._config.lockstep)
+        if self.state == BridgeState.ARMING and locked and self._admission.tick > self._arm_tick:
+            self.state = BridgeState.ARMED
+        return None
+
+    def next_frame(self, now_ns: int) -> CommandFrame | None:
+        """The frame to send now: safe output unless ARMED with a fresh command; None without feedback."""
+        self.check_link(now_ns)
+        if self.board_session is None or self._last is None:
+            return None
+        pending = self._pending
+        flags = 0
+        codes = (0, 0)
+        answers_seq, answers_tick = self._last.seq, self._last.tick
+        if self._estop_requested:
+            flags = int(CommandFlag.ESTOP)
+        elif self._rearm_pending:
+            flags = int(CommandFlag.REARM)
+        elif self.state == BridgeState.ARMED and pending is not None:
+            fresh = now_ns - pending.rx_ns <= self._config.host_watchdog_ns
+            valid = self._admission.tick - pending.answers_tick_unwrapped <= self._config.validity_ticks
+            if fresh and valid:
+                flags = int(CommandFlag.ENABLE)
+                codes = pending.codes
+                answers_seq, answers_tick = pending.answers_seq, pending.answers_tick
+            else:
+                self.watchdog_trips += 1
+                self._pending = None
+                self._valve.reset()
+        self._live = bool(flags & CommandFlag.ENABLE)
+        if not self._live:
+            self._valve.reset()
+        self._seq = (self._seq + 1) & 0xFFFFFFFF
+        frame = CommandFrame(
+            session=self._host_session,
+            seq=self._seq,
+            board_session=self.board_session,
+            answers_seq=answers_seq,
+            answers_tick=answers_tick,
+            flags=flags,
+            validity=self._config.validity_ticks,
+            codes=codes,
+        )
+        self.stats.on_command_sent(frame.seq, now_ns)
+        return frame
+
+    def needs_frame(self, now_ns: int) -> bool:
+        """True when a frame should go out without a new command (output not live, or its command aged)."""
+        pending = self._pending
+        if self.state != BridgeState.ARMED or pending is None:
+            return True
+        if now_ns - pending.rx_ns > self._config.host_watchdog_ns:
+            return True
+        return self._admission.tick - pending.answers_tick_unwrapped > self._config.validity_ticks
+
+    def link_up(self, now_ns: int) -> bool:
+        """True if feedback was admitted within ``link_timeout_ns`` (no state change)."""
+        return self._last_rx_ns is not None and now_ns - self._last_rx_ns <= self._config.link_timeout_ns
+
+    def check_link(self, now_ns: int) -> bool:
+        """True if feedback was admitted within ``link_timeout_ns``.
+
+        A link loss while active loses the session: output disabled until :meth:`arm`.
+        """
+        up = self.link_up(now_ns)
+        if not up and self._active and self.state in (BridgeState.ARMING, BridgeState.ARMED):
+            self._lose_session()
+        return up
+
+    # ---- operator actions ---------------------------------------------------------------------------
+
+    def arm(self) -> None:
+        """Activation: output goes live after a newer valid feedback and a command answering it.
+
+        Raises:
+            BridgeError: no board session yet, a board fault, or an e-stop latched.
+        """
+        if self.state == BridgeState.FAULT:
+            raise BridgeError("the board reports fault bits: reset (reconfigure) before arming")
+        if self.state == BridgeState.ESTOP or self._estop_requested:
+            raise BridgeError("e-stop latched: re-arm it first")
+        if self.board_session is None or self._last is None:
+            raise BridgeError("no valid feedback from the board yet")
+        self._active = True
+        self._pending = None
+        self._valve.reset()
+        self._arm_tick = self._admission.tick - (1 if self._config.lockstep else 0)
+        self.state = BridgeState.ARMING
+
+    def disarm(self) -> None:
+        """Deactivation: safe output from the next frame on; ESTOP and FAULT stay."""
+        self._active = False
+        self._pending = None
+        self._valve.reset()
+        if self.state in (BridgeState.ARMING, BridgeState.ARMED, BridgeState.SESSION_LOST):
+            self.state = BridgeState.DISARMED if self.board_session is not None else BridgeState.DISCONNECTED
+
+    def estop(self) -> None:
+        """Latches an e-stop: every frame carries ESTOP until :meth:`rearm`."""
+        self._estop_requested = True
+        self._rearm_pending = False
+        self._pending = None
+        self._valve.reset()
+        self.state = BridgeState.ESTOP
+
+    def rearm(self) -> None:
+        """Clears the e-stop: frames carry REARM until the board reports its latch cleared.
+
+        After that the output needs a fresh measurement and command again.
+
+        Raises:
+            BridgeError: no e-stop is latched.
+        """
+        if self.state != BridgeState.ESTOP:
+            raise BridgeError(f"nothing to re-arm: state is {self.state.value}")
+        self._estop_requested = False
+        self._rearm_pending = True
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """What was last sent, shape (2,) each.
+
+        Keys: ``codes``, ``torque`` (N m), ``clamped`` (saturation or rate limit, 0/1), ``limit_cut``
+        (soft limit, 0/1), ``enabled`` (0/1).
+        """
+        values = dict(self._valve.internals)
+        values["limit_cut"] = self._cut.astype(np.float64)
+        values["enabled"] = np.full(2, 1.0 if self._live else 0.0)
+        return values

@@ -1,0 +1,113 @@
+"""Encoder counts -> joint angle: counts per revolution, zero offset, direction, counter wrap. Pure numpy."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["EncoderConfig", "EncoderDecoder"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def _int_pair(name: str, value: object, low: int, high: int) -> None:
+    if not isinstance(value, tuple) or len(value) != 2:
+        raise ValueError(f"{name} must be a tuple (alpha, beta) of 2 ints, got {value!r}")
+    for element in value:
+        if isinstance(element, bool) or not isinstance(element, int) or not low <= element <= high:
+            raise ValueError(f"{name} must hold ints in [{low}, {high}], got {value!r}")
+
+
+@dataclass(frozen=True)
+class EncoderConfig:
+    """How the board's encoder counters map to joint angles.
+
+    Attributes:
+        counts_per_rev: Counts per joint revolution (alpha, beta), >= 1.
+        zero_offset: Raw counter value at q = 0 (alpha, beta), in [0, 2**counter_bits).
+        direction: +1 if the counter counts up as q grows, -1 if down (alpha, beta).
+        counter_bits: Width of the board's counters, in [8, 32]; they wrap modulo 2**counter_bits.
+    """
+
+    counts_per_rev: tuple[int, int] = (1 << 20, 1 << 20)
+    zero_offset: tuple[int, int] = (0, 0)
+    direction: tuple[int, int] = (1, 1)
+    counter_bits: int = 32
+
+    def __post_init__(self) -> None:
+        bits = self.counter_bits
+        if isinstance(bits, bool) or not isinstance(bits, int) or not 8 <= bits <= 32:
+            raise ValueError(f"counter_bits must be an int in [8, 32], got {bits!r}")
+        _int_pair("counts_per_rev", self.counts_per_rev, 1, 1 << 31)
+        _int_pair("zero_offset", self.zero_offset, 0, (1 << bits) - 1)
+        _int_pair("direction", self.direction, -1, 1)
+        if 0 in self.direction:
+            raise ValueError(f"direction must be +1 or -1 per joint, got {self.direction!r}")
+
+    @property
+    def quantum(self) -> FloatArray:
+        """Angle of one count (rad), shape (2,)."""
+        return 2.0 * math.pi / np.asarray(self.counts_per_rev, dtype=np.float64)
+
+
+class EncoderDecoder:
+    """Unwraps raw counter values and converts them to joint angles (rad).
+
+    Between two samples a counter is assumed to move by less than half its range (2**(bits-1) counts).
+    """
+
+    def __init__(self, config: EncoderConfig) -> None:
+        self._config = config
+        self._modulus = 1 << config.counter_bits
+        self._half = self._modulus >> 1
+        self._raw: tuple[int, int] | None = None
+        self._counts = [0, 0]
+
+    @property
+    def config(self) -> EncoderConfig:
+        """The configuration."""
+        return self._config
+
+    def reset(self) -> None:
+        """Forgets the counter history: the next sample is read relative to ``zero_offset`` again."""
+        self._raw = None
+        self._counts = [0, 0]
+
+    def _signed(self, delta: int) -> int:
+        return ((delta + self._half) % self._modulus) - self._half
+
+    def update(self, raw: tuple[int, int]) -> FloatArray:
+        """Takes one pair of raw counter values and returns the joint angle (alpha, beta) (rad).
+
+        Raises:
+            ValueError: A counter value outside [0, 2**counter_bits).
+        """
+        for value in raw:
+            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < self._modulus:
+                raise ValueError(f"raw counts must be ints in [0, {self._modulus}), got {raw!r}")
+        if self._raw is None:
+            offset = self._config.zero_offset
+            self._counts = [self._signed(raw[0] - offset[0]), self._signed(raw[1] - offset[1])]
+        else:
+            self._counts = [
+                self._counts[joint] + self._signed(raw[joint] - self._raw[joint]) for joint in range(2)
+            ]
+        self._raw = (raw[0], raw[1])
+        return self.position
+
+    @property
+    def position(self) -> FloatArray:
+        """Last joint angle (alpha, beta) (rad); zeros before the first sample."""
+        direction = np.asarray(self._config.direction, dtype=np.float64)
+        return direction * np.asarray(self._counts, dtype=np.float64) * self._config.quantum
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """``counts``: unwrapped counts from the zero offset (direction applied), shape (2,)."""
+        return {
+            "counts": np.asarray(self._config.direction, dtype=np.float64) * np.asarray(self._counts, float)
+        }

@@ -1,0 +1,158 @@
+"""Torque -> D/A code: torque-to-valve gain, deadband compensation, saturation, rate limit. Pure numpy."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from smm_dynamics.validation import check_pair, check_scalar
+
+from smm_hw_bridge.protocol import CODE_MAX
+
+__all__ = ["OutputSample", "ValveOutput", "ValveOutputConfig"]
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class ValveOutputConfig:
+    """Mapping of a joint torque command to the valve's D/A code.
+
+    Attributes:
+        gain: D/A codes per N m of joint torque (alpha, beta), > 0.
+        polarity: +1 if a positive code drives q positive, -1 if negative (alpha, beta).
+        deadband: Valve overlap as a D/A code (alpha, beta), >= 0: a code of magnitude below it moves
+            nothing, so a non-zero demand is offset by it.
+        deadband_blend: Demand (codes) below which the offset is blended in linearly, > 0, so the map is
+            continuous through zero.
+        code_limit: Saturation of |code| (alpha, beta), in [1, 32767].
+        rate_limit: Largest code change per second (alpha, beta), > 0; ``inf`` = off.
+    """
+
+    gain: tuple[float, float] = (CODE_MAX / 10.0, CODE_MAX / 10.0)
+    polarity: tuple[int, int] = (1, 1)
+    deadband: tuple[float, float] = (0.0, 0.0)
+    deadband_blend: float = 50.0
+    code_limit: tuple[int, int] = (CODE_MAX, CODE_MAX)
+    rate_limit: tuple[float, float] = (CODE_MAX / 0.02, CODE_MAX / 0.02)
+
+    def __post_init__(self) -> None:
+        check_pair("gain", self.gain, positive=True)
+        if (
+            not isinstance(self.polarity, tuple)
+            or len(self.polarity) != 2
+            or any(isinstance(p, bool) or p not in (1, -1) for p in self.polarity)
+        ):
+            raise ValueError(f"polarity must be +1 or -1 per joint, got {self.polarity!r}")
+        check_pair("deadband", self.deadband, non_negative=True)
+        check_scalar("deadband_blend", self.deadband_blend, positive=True)
+        if (
+            not isinstance(self.code_limit, tuple)
+            or len(self.code_limit) != 2
+            or any(
+                isinstance(c, bool) or not isinstance(c, int) or not 1 <= c <= CODE_MAX
+                for c in self.code_limit
+            )
+        ):
+            raise ValueError(f"code_limit must hold ints in [1, {CODE_MAX}], got {self.code_limit!r}")
+        if any(self.deadband[j] >= self.code_limit[j] for j in range(2)):
+            raise ValueError(f"deadband {self.deadband!r} must be below code_limit {self.code_limit!r}")
+        check_pair("rate_limit", self.rate_limit, positive=True, allow_inf=True)
+
+
+@dataclass(frozen=True)
+class OutputSample:
+    """One mapped command.
+
+    Attributes:
+        codes: D/A codes sent (alpha, beta).
+        torque: Torque those codes command (N m), shape (2,): the demand after clamping and rounding.
+        clamped: Per joint, True if saturation or the rate limit changed the demand, shape (2,).
+    """
+
+    codes: tuple[int, int]
+    torque: FloatArray
+    clamped: BoolArray
+
+
+class ValveOutput:
+    """Maps torque demands to D/A codes, one call per sent command (the rate limit is per call's ``dt``)."""
+
+    def __init__(self, config: ValveOutputConfig) -> None:
+        self._config = config
+        self._gain = np.asarray(config.gain, dtype=np.float64) * np.asarray(config.polarity, dtype=np.float64)
+        self._deadband = np.asarray(config.deadband, dtype=np.float64)
+        self._limit = np.asarray(config.code_limit, dtype=np.float64)
+        self._rate = np.asarray(config.rate_limit, dtype=np.float64)
+        self._last = np.zeros(2)
+        self._sample = OutputSample((0, 0), np.zeros(2), np.zeros(2, dtype=np.bool_))
+
+    @property
+    def config(self) -> ValveOutputConfig:
+        """The configuration."""
+        return self._config
+
+    def reset(self) -> None:
+        """Valves at null: the rate limit starts again from code 0."""
+        self._last = np.zeros(2)
+        self._sample = OutputSample((0, 0), np.zeros(2), np.zeros(2, dtype=np.bool_))
+
+    def _compensate(self, demand: FloatArray) -> FloatArray:
+        blend = self._config.deadband_blend
+        magnitude = np.abs(demand)
+        outside = np.sign(demand) * (magnitude + self._deadband)
+        inside = demand * (blend + self._deadband) / blend
+        return np.where(magnitude >= blend, outside, inside)
+
+    def _uncompensate(self, code: FloatArray) -> FloatArray:
+        blend = self._config.deadband_blend
+        magnitude = np.abs(code)
+        edge = blend + self._deadband
+        outside = np.sign(code) * (magnitude - self._deadband)
+        inside = code * blend / edge
+        return np.where(magnitude >= edge, outside, inside)
+
+    def step(self, torque: npt.ArrayLike, dt: float) -> OutputSample:
+        """Maps a torque demand (alpha, beta) (N m) held for ``dt`` seconds to D/A codes.
+
+        Raises:
+            ValueError: torque not finite shape (2,), or dt not a finite number > 0.
+        """
+        demand_torque = np.asarray(torque, dtype=np.float64)
+        if demand_torque.shape != (2,) or not np.all(np.isfinite(demand_torque)):
+            raise ValueError(f"torque must be finite, shape (2,), got {torque!r}")
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be a finite number > 0 s, got {dt!r}")
+        wanted = self._compensate(demand_torque * self._gain)
+        saturated = np.clip(wanted, -self._limit, self._limit)
+        step = self._rate * dt
+        limited = np.clip(saturated, self._last - step, self._last + step)
+        codes = np.rint(limited)
+        codes = np.clip(codes, -self._limit, self._limit)
+        clamped = (saturated != wanted) | (limited != saturated)
+        self._last = codes
+        applied = self.torque_of((int(codes[0]), int(codes[1])))
+        self._sample = OutputSample((int(codes[0]), int(codes[1])), applied, clamped)
+        return self._sample
+
+    def torque_of(self, codes: tuple[int, int]) -> FloatArray:
+        """Torque (N m) that D/A ``codes`` command, the inverse of the map (without clamping), shape (2,)."""
+        return self._uncompensate(np.asarray(codes, dtype=np.float64)) / self._gain
+
+    @property
+    def last(self) -> OutputSample:
+        """The last mapped command (codes 0 after reset)."""
+        return self._sample
+
+    @property
+    def internals(self) -> Mapping[str, FloatArray]:
+        """``codes``, ``torque`` (N m) and ``clamped`` (0/1) of the last mapped command, shape (2,)."""
+        return {
+            "codes": np.asarray(self._sample.codes, dtype=np.float64),
+            "torque": self._sample.torque.copy(),
+            "clamped": self._sample.clamped.astype(np.float64),
+        }

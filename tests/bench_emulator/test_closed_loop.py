@@ -1,0 +1,164 @@
+"""Bridge core + board core in lockstep, in one process: equals the simulator; reboot and e-stop mid-run."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from smm_bench_emulator.board import BoardConfig, BoardCore
+from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
+from smm_hw_bridge.encoder import EncoderConfig
+from smm_hw_bridge.protocol import CODE_MAX, decode_feedback, encode
+from smm_hw_bridge.valve_output import ValveOutputConfig
+from smm_sim.plant import PlantConfig, SimulatedPlant
+
+CPR = 1 << 14
+FULL_SCALE = 10.0
+PLANT = PlantConfig(
+    encoder_counts_per_rev=CPR, noise_std=(0.001, 0.001), seed=3, inertia_scale=1.1, disturbance="eq46"
+)
+BRIDGE = BridgeConfig(
+    encoder=EncoderConfig(counts_per_rev=(CPR, CPR)),
+    valve=ValveOutputConfig(gain=(CODE_MAX / FULL_SCALE,) * 2, rate_limit=(math.inf, math.inf)),
+)
+MS = 1_000_000
+
+
+def controller(t: float, q: np.ndarray, q_prev: np.ndarray) -> np.ndarray:
+    """A PD tracking case1's reference (enough to move the plant through its range)."""
+    reference = np.array([math.sin(math.pi * t), 0.785 * math.sin(math.pi * t)])
+    return 40.0 * (reference - q) - 0.8 * (q - q_prev) / 1e-3
+
+
+class Loop:
+    def __init__(self, board_config: BoardConfig) -> None:
+        self.board = BoardCore(board_config)
+        self.bridge = BridgeCore(BRIDGE, host_session=0x1111)
+        self.now = 0
+        self.deliver(self.board.start())
+
+    def deliver(self, data: bytes) -> None:
+        self.now += MS
+        self.bridge.on_datagram(data, self.now)
+
+    def send(self) -> None:
+        frame = self.bridge.next_frame(self.now)
+        assert frame is not None
+        self.board.receive(encode(frame))
+
+    def tick(self) -> None:
+        assert self.board.answered
+        self.deliver(self.board.tick_lockstep())
+
+
+def start(loop: Loop) -> None:
+    loop.send()  # safe frame: the board locks to this host
+    loop.tick()
+    loop.bridge.arm()
+    loop.send()
+    loop.tick()
+
+
+def test_lockstep_hil_equals_the_simulator_within_encoder_quantisation() -> None:
+    loop = Loop(BoardConfig(plant=PLANT, full_scale_torque=(FULL_SCALE, FULL_SCALE), adc_noise=0.0))
+    start(loop)
+    # after the arming ticks (zero torque at rest) the simulator starts from the same state and time
+    assert loop.board.plant.state_floats == (0.0, 0.0, 0.0, 0.0)
+    sim = SimulatedPlant(PLANT)
+    sim.reset()
+    for _ in range(loop.board.plant.time_ns // MS):
+        sim.step((0.0, 0.0), 1e-3)
+    q_prev_hil = loop.bridge.position.copy()
+    q_prev_sim = sim.measure().position
+    worst = peak = 0.0
+    for _ in range(3000):
+        t = loop.bridge.stamp_ns * 1e-9
+        q_hil = loop.bridge.position.copy()
+        q_sim = sim.measure().position
+        worst = max(worst, float(np.max(np.abs(q_hil - q_sim))))
+        peak = max(peak, float(np.max(np.abs(q_hil))))
+        assert (
+            loop.bridge.on_command(controller(t, q_hil, q_prev_hil), loop.bridge.stamp_ns, loop.now) is None
+        )
+        loop.send()
+        loop.tick()
+        sim.step(controller(t, q_sim, q_prev_sim), 1e-3)
+        q_prev_hil, q_prev_sim = q_hil, q_sim
+    assert loop.bridge.state == BridgeState.ARMED
+    quantum = 2 * math.pi / CPR
+    assert peak > 0.5  # it moved
+    assert worst <= quantum * (1 + 1e-9), f"HIL vs simulator {worst:.2e} rad > one count {quantum:.2e} rad"
+    assert loop.board.late_commands == 0
+
+
+def test_reboot_mid_run_no_pre_reboot_command_reaches_a_valve() -> None:
+    loop = Loop(BoardConfig(plant=PlantConfig(encoder_counts_per_rev=CPR), adc_noise=0.0))
+    start(loop)
+    for _ in range(50):
+        assert loop.bridge.on_command([0.5, 0.5], loop.bridge.stamp_ns, loop.now) is None
+        loop.send()
+        loop.tick()
+    last_before = loop.bridge.next_frame(loop.now)
+    assert last_before is not None and last_before.enabled
+    applied_before = len(loop.board.applied_log)
+    loop.board.boot()  # reboot: new session, tick 0
+    loop.deliver(loop.board.start())
+    assert loop.board.receive(encode(last_before)) is None  # a pre-reboot frame in flight is dropped
+    for _ in range(BRIDGE.reboot_frames + 5):
+        loop.bridge.on_command([0.5, 0.5], loop.bridge.stamp_ns, loop.now)  # the controller keeps going
+        loop.send()
+        if loop.board.answered:
+            loop.tick()
+        else:
+            loop.deliver(encode(loop.board.last_feedback))  # type: ignore[arg-type]
+    assert loop.bridge.state == BridgeState.SESSION_LOST
+    assert len(loop.board.applied_log) == applied_before  # nothing applied since the reboot
+    assert loop.board.output_codes() == (0, 0)
+    loop.bridge.arm()  # re-activation
+    loop.send()
+    loop.tick()
+    assert loop.bridge.on_command([0.25, 0.25], loop.bridge.stamp_ns, loop.now) is None
+    loop.send()
+    loop.tick()
+    new = loop.board.applied_log[applied_before:]
+    assert new and all(codes == (819, 819) for _, _, codes in new)
+
+
+def test_estop_mid_run_is_latched_on_the_board_until_rearm() -> None:
+    loop = Loop(BoardConfig(plant=PlantConfig(encoder_counts_per_rev=CPR), adc_noise=0.0))
+    start(loop)
+    assert loop.bridge.on_command([0.5, 0.5], loop.bridge.stamp_ns, loop.now) is None
+    loop.send()
+    loop.tick()
+    loop.bridge.estop()
+    loop.send()
+    assert loop.board.estop_latched and loop.board.output_codes() == (0, 0)
+    for _ in range(5):
+        loop.deliver(loop.board.tick_lockstep())
+        loop.bridge.on_command([0.5, 0.5], loop.bridge.stamp_ns, loop.now)
+        loop.send()
+    assert loop.board.estop_latched and loop.board.output_codes() == (0, 0)
+    loop.bridge.rearm()
+    loop.send()
+    loop.tick()
+    assert not loop.board.estop_latched and loop.bridge.state == BridgeState.ARMING
+    loop.send()
+    loop.tick()
+    assert loop.bridge.on_command([0.5, 0.5], loop.bridge.stamp_ns, loop.now) is None
+    loop.send()
+    loop.tick()
+    assert loop.board.output_codes() == (1638, 1638)
+
+
+def test_fault_bits_mid_run_force_safe_output_on_both_sides() -> None:
+    loop = Loop(BoardConfig(plant=PlantConfig(encoder_counts_per_rev=CPR), adc_noise=0.0))
+    start(loop)
+    assert loop.bridge.on_command([0.5, 0.5], loop.bridge.stamp_ns, loop.now) is None
+    loop.send()
+    loop.board.set_faults(0x0002)
+    loop.tick()
+    assert decode_feedback(encode(loop.board.last_feedback)).faults == 2  # type: ignore[arg-type]
+    assert loop.bridge.state == BridgeState.FAULT
+    assert loop.board.output_codes() == (0, 0)
+    frame = loop.bridge.next_frame(loop.now)
+    assert frame is not None and not frame.enabled

@@ -1,0 +1,183 @@
+"""The emulator process loop over loopback UDP: lockstep and 1 kHz clocking, control port, injected faults."""
+
+from __future__ import annotations
+
+import json
+import math
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import pytest
+from smm_bench_emulator.board import BoardConfig
+from smm_bench_emulator.cli import main as emulator_main
+from smm_bench_emulator.emulator import Emulator, EmulatorConfig
+from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
+from smm_hw_bridge.encoder import EncoderConfig
+from smm_hw_bridge.protocol import Reason, encode
+from smm_hw_bridge.transport import UdpTransport
+from smm_hw_bridge.valve_output import ValveOutputConfig
+from smm_sim.plant import PlantConfig
+
+LOOPBACK = "127.0.0.1"
+CPR = 1 << 16
+BRIDGE = BridgeConfig(
+    encoder=EncoderConfig(counts_per_rev=(CPR, CPR)),
+    valve=ValveOutputConfig(rate_limit=(math.inf, math.inf)),
+    link_timeout_ns=2_000_000_000,
+    admission=BridgeConfig().admission.__class__(stale_ns=2_000_000_000),
+)
+
+
+@contextmanager
+def emulator(mode: str, **board: object) -> Iterator[tuple[Emulator, UdpTransport]]:
+    host = UdpTransport((LOOPBACK, 0), (LOOPBACK, 9))
+    config = EmulatorConfig(
+        board=BoardConfig(plant=PlantConfig(encoder_counts_per_rev=CPR), adc_noise=0.0, **board),  # type: ignore[arg-type]
+        bind=(LOOPBACK, 0),
+        host=host.local_address,
+        control=(LOOPBACK, 0),
+        mode=mode,  # type: ignore[arg-type]
+        resend_ns=20_000_000,
+    )
+    emu = Emulator(config)
+    host.set_peer(emu.transport.local_address)  # type: ignore[attr-defined]
+    thread = threading.Thread(target=emu.run, daemon=True)
+    thread.start()
+    try:
+        yield emu, host
+    finally:
+        emu.running = False
+        thread.join(5.0)
+        emu.close()
+        host.close()
+
+
+def control(emu: Emulator, request: dict[str, object]) -> dict[str, object]:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.settimeout(5.0)
+        sock.sendto(json.dumps(request).encode(), emu.control_address)  # type: ignore[arg-type]
+        reply: dict[str, object] = json.loads(sock.recv(65536))
+        return reply
+
+
+def drive(
+    core: BridgeCore, host: UdpTransport, frames: int, torque: tuple[float, float] = (0.3, -0.2)
+) -> None:
+    """Answers ``frames`` admitted feedback frames: a safe frame until armed, then a torque command."""
+    answered = 0
+    deadline = time.monotonic() + 30.0
+    while answered < frames and time.monotonic() < deadline:
+        data = host.receive(0.1)
+        if data is None:
+            continue
+        now = time.monotonic_ns()
+        if core.on_datagram(data, now) is None:
+            continue
+        if core.state in (BridgeState.ARMING, BridgeState.ARMED):
+            core.on_command(torque, core.stamp_ns, now)
+        frame = core.next_frame(now)
+        if frame is not None:
+            host.send(encode(frame))
+        answered += 1
+    assert answered == frames, f"only {answered} of {frames} feedback frames answered"
+
+
+def test_lockstep_over_udp_applies_every_command_and_counts_no_late_one() -> None:
+    with emulator("lockstep") as (emu, host):
+        core = BridgeCore(BRIDGE, host_session=0x42)
+        drive(core, host, 3)
+        core.arm()
+        drive(core, host, 200)
+        status = control(emu, {"status": True})
+        assert core.state == BridgeState.ARMED
+        assert status["late_commands"] == 0 and status["output_codes"] == [983, -655]
+        assert status["applied"] >= 195  # type: ignore[operator]
+        assert emu.board.tick >= 200
+
+
+def test_injected_faults_are_seen_and_counted_by_the_bridge() -> None:
+    with emulator("lockstep") as (emu, host):
+        core = BridgeCore(BRIDGE, host_session=0x43)
+        drive(core, host, 3)
+        core.arm()
+        drive(core, host, 20)
+        for request in (
+            {"fault": "corrupt", "count": 5},
+            {"fault": "duplicate", "count": 4},
+            {"fault": "reorder", "count": 3},
+        ):
+            assert control(emu, request)["ok"] is True
+            drive(core, host, 30)
+        parse_errors = sum(
+            core.rejected.get(r, 0)
+            for r in (
+                Reason.CRC,
+                Reason.MAGIC,
+                Reason.LENGTH,
+                Reason.VERSION,
+                Reason.TYPE,
+                Reason.FIELD,
+                Reason.SESSION,
+            )
+        )
+        assert parse_errors >= 5  # corrupted frames (and the lockstep re-sends after them)
+        assert core.rejected.get(Reason.DUPLICATE, 0) >= 4
+        assert core.rejected.get(Reason.OUT_OF_ORDER, 0) >= 1
+        assert core.state == BridgeState.ARMED
+        assert control(emu, {"bogus": 1})["ok"] is False
+
+
+def test_reboot_over_udp_disables_output_until_rearmed() -> None:
+    with emulator("lockstep") as (emu, host):
+        core = BridgeCore(BRIDGE, host_session=0x44)
+        drive(core, host, 3)
+        core.arm()
+        drive(core, host, 20)
+        old_session = emu.board.session
+        assert control(emu, {"reboot": True})["session"] != old_session
+        applied = len(emu.board.applied_log)  # read after the reboot: a last answer may land just before it
+        drive(core, host, 10)
+        assert core.state == BridgeState.SESSION_LOST and core.reboots == 1
+        assert len(emu.board.applied_log) == applied and emu.board.output_codes() == (0, 0)
+        core.arm()
+        drive(core, host, 10)
+        assert core.state == BridgeState.ARMED
+        assert len(emu.board.applied_log) > applied
+
+
+def test_realtime_board_clock_holds_then_nulls_when_the_host_goes_quiet() -> None:
+    with emulator("realtime") as (emu, host):
+        core = BridgeCore(BRIDGE, host_session=0x45)
+        drive(core, host, 3)
+        core.arm()
+        drive(core, host, 200)
+        assert core.state == BridgeState.ARMED
+        assert emu.board.output_codes() != (0, 0)
+        deadline = time.monotonic() + 10.0
+        while emu.board.output_codes() != (0, 0) and time.monotonic() < deadline:
+            time.sleep(0.005)
+        # board clock: the valves are at null by the board's own watchdog within the validity of the last
+        # applied command (it answered a tick before the one it was latched at)
+        assert emu.board.output_codes() == (0, 0)
+        last = emu.board.applied_log[-1][0]
+        assert emu.null_since_tick is not None
+        assert 1 <= emu.null_since_tick - last <= BRIDGE.validity_ticks
+        status = control(emu, {"status": True})
+        assert status["ticks"] >= 200  # type: ignore[operator]
+
+
+def test_cli_rejects_a_bad_address_with_exit_code_2(capsys: pytest.CaptureFixture[str]) -> None:
+    assert emulator_main(["--bind", "not-an-ip:1", "--control", "127.0.0.1:0", "--duration", "0.01"]) == 2
+    assert "smm_bench_emulator" in capsys.readouterr().err
+
+
+def test_cli_runs_for_its_duration_and_prints_a_summary(capsys: pytest.CaptureFixture[str]) -> None:
+    code = emulator_main(
+        ["--bind", "127.0.0.1:0", "--host", "127.0.0.1:9", "--control", "127.0.0.1:0", "--duration", "0.05"]
+    )
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["ticks"] == 50 and summary["output_codes"] == [0, 0]

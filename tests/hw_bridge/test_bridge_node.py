@@ -1,0 +1,363 @@
+"""hw_bridge_node against the emulator (in-process thread, loopback UDP): lifecycle safe output, e-stop,
+fault bits -> error transition, reboot, diagnostics, and 10,000 fuzzed frames into the running socket.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+import time
+import zlib
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+pytestmark = pytest.mark.ros
+
+LOOPBACK = "127.0.0.1"
+TORQUE = (0.3, -0.2)
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind((LOOPBACK, 0))
+        return int(sock.getsockname()[1])
+
+
+class Bench:
+    """Emulator thread + bridge node + a peer node answering every measurement with TORQUE."""
+
+    def __init__(self, context: Any, mode: str = "realtime", answer: bool = True, **parameters: Any) -> None:
+        import rclpy
+        from sensor_msgs.msg import JointState
+        from smm_bench_emulator.board import BoardConfig
+        from smm_bench_emulator.emulator import Emulator, EmulatorConfig
+        from smm_hw_bridge.bridge_node import HwBridgeNode
+        from smm_msgs_py.conversions import stamp_to_ns, torque_to_msg
+        from smm_msgs_py.qos import qos_for_topic
+        from smm_sim.plant import PlantConfig
+        from std_msgs.msg import Float64MultiArray
+
+        from smm_msgs_py import topics
+        from smm_node_runtime import make_executor
+
+        host_port, board_port = free_port(), free_port()
+        self.emulator = Emulator(
+            EmulatorConfig(
+                board=BoardConfig(plant=PlantConfig(encoder_counts_per_rev=1 << 20), adc_noise=0.0),
+                bind=(LOOPBACK, board_port),
+                host=(LOOPBACK, host_port),
+                control=(LOOPBACK, free_port()),
+                mode=mode,  # type: ignore[arg-type]
+            )
+        )
+        self.thread = threading.Thread(target=self.emulator.run, daemon=True)
+        self.thread.start()
+        # The emulator thread shares this process's GIL: links and staleness get 1 s of slack here.
+        overrides = {
+            "link.bind_port": host_port,
+            "link.board_port": board_port,
+            "link.configure_timeout": 2.0,
+            "bridge.link_timeout_ns": 1_000_000_000,
+            "bridge.admission.stale_ns": 1_000_000_000,
+            **parameters,
+        }
+        self.node = HwBridgeNode(context=context, parameter_overrides=overrides)
+        self.peer = rclpy.create_node("test_controller", context=context)
+        self.answer = answer
+        self.measurements = 0
+        self.internals: list[Any] = []
+        self.diagnostics: list[Any] = []
+        commands = self.peer.create_publisher(
+            Float64MultiArray, topics.TORQUE_COMMAND, qos_for_topic(topics.TORQUE_COMMAND)
+        )
+
+        def on_measurement(msg: JointState) -> None:
+            self.measurements += 1
+            if self.answer:
+                commands.publish(torque_to_msg(np.asarray(TORQUE), stamp_to_ns(msg.header.stamp)))
+
+        self.peer.create_subscription(
+            JointState, topics.JOINT_STATES, on_measurement, qos_for_topic(topics.JOINT_STATES)
+        )
+        from diagnostic_msgs.msg import DiagnosticArray
+
+        self.peer.create_subscription(Float64MultiArray, "hw_bridge_internals", self.internals.append, 100)
+        self.peer.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, 100)
+        self.executor = make_executor(context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.peer)
+
+    @property
+    def board(self) -> Any:
+        return self.emulator.board
+
+    def spin_until(self, predicate: Any, timeout_s: float = 10.0) -> bool:
+        from ros_harness import spin_until
+
+        return spin_until(self.executor, predicate, timeout_s)
+
+    def live(self) -> bool:
+        return self.board.output_codes() != (0, 0)
+
+    def start(self) -> None:
+        from rclpy.lifecycle import TransitionCallbackReturn
+
+        assert self.node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert self.node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        assert self.spin_until(self.live), "the output never went live"
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.emulator.running = False
+        self.thread.join(5.0)
+        self.emulator.close()
+        if self.node.transport is not None:
+            self.node.trigger_shutdown()
+        self.node.destroy_node()
+        self.peer.destroy_node()
+
+
+@pytest.fixture
+def bench(ros_context: Any) -> Iterator[Bench]:
+    harness = Bench(ros_context)
+    try:
+        yield harness
+    finally:
+        harness.close()
+
+
+def control(bench: Bench, request: dict[str, object]) -> dict[str, object]:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.settimeout(5.0)
+        sock.sendto(json.dumps(request).encode(), bench.emulator.control_address)  # type: ignore[arg-type]
+        reply: dict[str, object] = json.loads(sock.recv(65536))
+        return reply
+
+
+def assert_safe_now(bench: Bench) -> None:
+    """The board got a safe frame: valves at null, not by its own watchdog (validity is 5000 ticks here)."""
+    assert bench.spin_until(lambda: not bench.live(), 2.0)
+    assert not bench.board.status_enabled
+    assert bench.board.last_feedback is not None
+    assert not bench.board.last_feedback.status & 0x0008, "nulled by the board's watchdog, not a safe frame"
+
+
+def test_configure_without_a_board_fails_and_stays_unconfigured(ros_context: Any) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from smm_hw_bridge.bridge_node import HwBridgeNode
+
+    node = HwBridgeNode(
+        context=ros_context,
+        parameter_overrides={
+            "link.bind_port": free_port(),
+            "link.board_port": free_port(),
+            "link.configure_timeout": 0.2,
+        },
+    )
+    try:
+        assert node.trigger_configure() == TransitionCallbackReturn.FAILURE
+        assert node.lifecycle_state == "unconfigured" and node.transport is None
+    finally:
+        node.destroy_node()
+
+
+def test_invalid_parameters_are_rejected_with_their_reason(ros_context: Any) -> None:
+    from rclpy.parameter import Parameter
+    from smm_hw_bridge.bridge_node import HwBridgeNode
+
+    with pytest.raises(ValueError, match="board_address"):
+        HwBridgeNode(context=ros_context, parameter_overrides={"link.board_address": "board.local"})
+    node = HwBridgeNode(context=ros_context)
+    try:
+        for name, value in (
+            ("bridge.stale_periods", 0),
+            ("bridge.valve.gain", [1.0, -1.0]),
+            ("link.board_port", 70000),
+        ):
+            result = node.set_parameters([Parameter(name, value=value)])[0]
+            assert not result.successful and result.reason
+    finally:
+        node.destroy_node()
+
+
+def test_every_lifecycle_transition_sends_safe_output(ros_context: Any) -> None:
+    bench = Bench(ros_context, **{"bridge.validity_ticks": 5000})  # the board's watchdog cannot be the reason
+    try:
+        from rclpy.lifecycle import TransitionCallbackReturn
+
+        assert bench.node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert bench.spin_until(lambda: bench.board.host_session == bench.node.core.host_session)
+        bench.spin_until(lambda: False, 0.1)
+        assert not bench.live() and bench.measurements == 0  # configured: no output, no measurements
+        # active -> deactivate, inactive -> cleanup, active -> shutdown: each sends a safe frame
+        for transition, from_active in (("deactivate", True), ("cleanup", False), ("shutdown", True)):
+            if bench.node.lifecycle_state == "unconfigured":
+                assert bench.node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+            if from_active:
+                assert bench.node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+                assert bench.spin_until(bench.live), f"no live output before {transition}"
+            safe_before = bench.node.counters.safe_frames_sent
+            assert getattr(bench.node, f"trigger_{transition}")() == TransitionCallbackReturn.SUCCESS
+            assert bench.node.counters.safe_frames_sent > safe_before
+            assert_safe_now(bench)
+    finally:
+        bench.close()
+
+
+def test_estop_service_latches_on_the_board_until_rearm(bench: Bench) -> None:
+    from std_srvs.srv import Trigger
+
+    bench.start()
+    estop = bench.peer.create_client(Trigger, "/hw_bridge_node/estop")
+    rearm = bench.peer.create_client(Trigger, "/hw_bridge_node/rearm")
+    assert bench.spin_until(lambda: estop.service_is_ready() and rearm.service_is_ready())
+    future = estop.call_async(Trigger.Request())
+    assert bench.spin_until(future.done)
+    assert future.result().success
+    assert bench.spin_until(lambda: bench.board.estop_latched and not bench.live())
+    bench.spin_until(lambda: False, 0.2)  # the controller keeps commanding: nothing reaches the valves
+    assert bench.board.estop_latched and not bench.live()
+    future = rearm.call_async(Trigger.Request())
+    assert bench.spin_until(future.done)
+    assert future.result().success
+    assert bench.spin_until(bench.live), "output did not resume after re-arm"
+    assert not bench.board.estop_latched
+
+
+def test_board_fault_bits_give_safe_output_an_error_diagnostic_and_the_error_transition(bench: Bench) -> None:
+    bench.start()
+    assert control(bench, {"faults": 2})["ok"] is True
+    assert bench.spin_until(lambda: bench.node.lifecycle_state == "unconfigured")
+    assert not bench.live()
+
+    def errors() -> list[Any]:
+        return [s for array in bench.diagnostics for s in array.status if s.level == b"\x02"]
+
+    assert bench.spin_until(lambda: bool(errors()), 5.0), "no ERROR diagnostic"
+    assert "fault" in errors()[0].message
+    values = {kv.key: kv.value for kv in errors()[0].values}
+    assert values["fault_bits"] == "0x0002"
+
+
+def test_reboot_mid_run_keeps_output_disabled_until_reactivation(bench: Bench) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    bench.start()
+    reply = control(bench, {"reboot": True})  # carried out inside the emulator's loop
+    applied = int(reply["applied"])
+    assert bench.spin_until(lambda: bench.node.core.state.value == "session_lost")
+    bench.spin_until(lambda: False, 0.2)
+    assert len(bench.board.applied_log) == applied and not bench.live()
+    assert bench.node.health().level == 2
+    assert bench.node.trigger_deactivate() == TransitionCallbackReturn.SUCCESS
+    assert bench.node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+    assert bench.spin_until(bench.live)
+
+
+def test_diagnostics_carry_the_link_figures(bench: Bench) -> None:
+    bench.start()
+    assert bench.spin_until(lambda: len(bench.diagnostics) >= 2, 5.0)
+    status = bench.diagnostics[-1].status[0]
+    values = {kv.key: kv.value for kv in status.values}
+    for key in (
+        "link_up",
+        "packet_loss",
+        "longest_loss_streak",
+        "rtt_p50_ms",
+        "rtt_p99_ms",
+        "late_commands",
+        "rejected_crc",
+        "rejected_session",
+        "fault_bits",
+        "supply_pressure_bar",
+    ):
+        assert key in values
+    assert values["link_up"] == "True" and float(values["supply_pressure_bar"]) == pytest.approx(
+        10.0, abs=0.01
+    )
+    assert bench.internals, "no internals published"
+
+
+def test_fuzz_10000_frames_into_the_running_bridge_socket(ros_context: Any) -> None:
+    # the emulator shares this process's GIL with the fuzzer: a generous link timeout keeps a starved
+    # emulator thread from looking like a lost link (which would rightly disarm the bridge)
+    bench = Bench(
+        ros_context, **{"bridge.link_timeout_ns": 5_000_000_000, "bridge.admission.stale_ns": 5_000_000_000}
+    )
+    try:
+        fuzz(bench)
+    finally:
+        bench.close()
+
+
+def fuzz(bench: Bench) -> None:
+    from smm_hw_bridge.protocol import FeedbackFrame, Reason, encode
+
+    bench.start()
+    core = bench.node.core
+    parse_reasons = (
+        Reason.CRC,
+        Reason.MAGIC,
+        Reason.LENGTH,
+        Reason.VERSION,
+        Reason.TYPE,
+        Reason.FIELD,
+        Reason.SESSION,
+    )
+    before = sum(core.rejected.get(r, 0) for r in parse_reasons)
+    genuine = bench.board.last_feedback
+    assert genuine is not None
+    template = encode(genuine)
+    frames: list[bytes] = []
+
+    @settings(
+        max_examples=10_000,
+        deadline=None,
+        database=None,
+        derandomize=True,
+        suppress_health_check=list(HealthCheck),
+    )
+    @given(st.one_of(st.binary(max_size=100), st.tuples(st.integers(0, 71), st.integers(1, 255))))
+    def collect(case: bytes | tuple[int, int]) -> None:
+        if isinstance(case, bytes):
+            frames.append(case if case[:4] != b"SMMB" else b"X" + case)  # random bytes: never a frame
+        else:
+            index, flip = case
+            data = bytearray(template)
+            data[index] ^= flip  # one byte changed, CRC not fixed: always rejected
+            frames.append(bytes(data))
+
+    collect()
+    for index in range(200):  # valid CRC: foreign sessions (all different), another protocol version
+        frames.append(encode(FeedbackFrame(**{**genuine.__dict__, "session": 0x1000 + index})))
+        body = template[:4] + b"\x02" + template[5:-4]
+        frames.append(body + zlib.crc32(body).to_bytes(4, "little"))
+    assert len(frames) >= 10_000
+    sender = bench.emulator.transport  # from the board's own address and port
+    for start in range(0, len(frames), 20):  # small batches: the socket buffer never overflows
+        batch = frames[start : start + 20]
+        for data in batch:
+            while True:  # the socket is non-blocking: a full send buffer is counted, not raised; retry
+                dropped = sender.dropped.get("send", 0)
+                sender.send(data)
+                if sender.dropped.get("send", 0) == dropped:
+                    break
+                time.sleep(0.001)
+        target = before + start + len(batch)
+        assert bench.spin_until(
+            lambda t=target: sum(core.rejected.get(r, 0) for r in parse_reasons) >= t, 10.0
+        )
+    counted = {r.value: core.rejected.get(r, 0) for r in parse_reasons}
+    print(f"fuzz: {len(frames)} frames into the running bridge, rejected by reason: {counted}")
+    assert sum(counted.values()) - before == len(frames)
+    assert bench.node.lifecycle_state == "active" and core.state.value == "armed"
+    values = bench.node.health().values
+    for reason in ("crc", "magic", "length", "version", "session"):
+        assert int(values[f"rejected_{reason}"]) > 0, reason  # type: ignore[call-overload]
+    assert bench.spin_until(bench.live)

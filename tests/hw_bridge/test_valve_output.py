@@ -1,0 +1,84 @@
+"""Torque -> D/A code: gain, deadband compensation, saturation, rate limit, clamped flag, inverse."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from smm_hw_bridge.valve_output import ValveOutput, ValveOutputConfig
+
+INF = (math.inf, math.inf)
+
+
+def test_gain_and_rounding() -> None:
+    output = ValveOutput(ValveOutputConfig(gain=(1000.0, 2000.0), rate_limit=INF))
+    sample = output.step([1.2344, -0.5], 1e-3)
+    assert sample.codes == (1234, -1000)
+    np.testing.assert_allclose(sample.torque, np.array(sample.codes) / [1000.0, 2000.0])
+    assert not sample.clamped.any()
+
+
+def test_deadband_offset_outside_the_blend_band_and_linear_inside() -> None:
+    config = ValveOutputConfig(
+        gain=(1000.0, 1000.0), deadband=(300.0, 300.0), deadband_blend=50.0, rate_limit=INF
+    )
+    output = ValveOutput(config)
+    assert output.step([1.0, -1.0], 1e-3).codes == (1300, -1300)
+    # inside the band: demand 25 codes -> 25 * (50 + 300) / 50 = 175 codes, continuous at +-50 -> 350
+    assert output.step([0.025, 0.05], 1e-3).codes == (175, 350)
+    assert output.step([0.0, 0.0], 1e-3).codes == (0, 0)
+    # the reported torque is the demand the codes stand for (the inverse map)
+    np.testing.assert_allclose(output.step([0.7, -0.02], 1e-3).torque, [0.7, -0.02], atol=1e-3)
+
+
+def test_saturation_sets_clamped_and_reports_the_clamped_torque() -> None:
+    output = ValveOutput(ValveOutputConfig(gain=(1000.0, 1000.0), code_limit=(5000, 32767), rate_limit=INF))
+    sample = output.step([7.0, 7.0], 1e-3)
+    assert sample.codes == (5000, 7000)
+    assert sample.clamped.tolist() == [True, False]
+    np.testing.assert_allclose(sample.torque, [5.0, 7.0])
+
+
+def test_rate_limit_per_second_of_held_command() -> None:
+    output = ValveOutput(ValveOutputConfig(gain=(1000.0, 1000.0), rate_limit=(1e6, 1e6)))  # 1000 codes per ms
+    codes = [output.step([10.0, -10.0], 1e-3).codes for _ in range(12)]
+    assert codes[:3] == [(1000, -1000), (2000, -2000), (3000, -3000)]
+    assert codes[-1] == (10000, -10000)
+    assert output.step([10.0, -10.0], 1e-3).clamped.tolist() == [False, False]
+    output.reset()
+    sample = output.step([10.0, 0.0], 1e-3)
+    assert sample.codes == (1000, 0) and sample.clamped.tolist() == [True, False]
+
+
+def test_polarity_inverts_the_code() -> None:
+    output = ValveOutput(ValveOutputConfig(gain=(1000.0, 1000.0), polarity=(-1, 1), rate_limit=INF))
+    sample = output.step([1.0, 1.0], 1e-3)
+    assert sample.codes == (-1000, 1000)
+    np.testing.assert_allclose(sample.torque, [1.0, 1.0])
+
+
+@pytest.mark.parametrize("torque", [[math.nan, 0.0], [math.inf, 0.0], [1.0], [[1.0, 2.0]]])
+def test_bad_torque_is_rejected(torque: object) -> None:
+    output = ValveOutput(ValveOutputConfig())
+    with pytest.raises(ValueError):
+        output.step(torque, 1e-3)  # type: ignore[arg-type]
+    assert output.last.codes == (0, 0)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"gain": (0.0, 1.0)},
+        {"polarity": (0, 1)},
+        {"deadband": (-1.0, 0.0)},
+        {"deadband_blend": 0.0},
+        {"code_limit": (0, 1)},
+        {"code_limit": (40000, 1)},
+        {"deadband": (40000.0, 0.0)},
+        {"rate_limit": (0.0, 1.0)},
+    ],
+)
+def test_invalid_configs_are_rejected(kwargs: dict[str, object]) -> None:
+    with pytest.raises(ValueError):
+        ValveOutputConfig(**kwargs)  # type: ignore[arg-type]
