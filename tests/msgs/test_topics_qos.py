@@ -45,16 +45,15 @@ def test_clock_is_global() -> None:
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_qos_is_reliable_volatile_keep_last_with_the_documented_depth(name: str) -> None:
-    subscription_depth = EXPECTED[name][1]
-    for profile, depth in (
-        (qos_for_topic(name), 1000),
-        (subscription_qos_for_topic(name), subscription_depth),
-    ):
+def test_qos_is_reliable_keep_last_with_the_documented_depth_and_durability(name: str) -> None:
+    publisher, subscription = qos_for_topic(name), subscription_qos_for_topic(name)
+    for profile, depth in ((publisher, 1000), (subscription, EXPECTED[name][1])):
         assert profile.reliability == ReliabilityPolicy.RELIABLE
-        assert profile.durability == DurabilityPolicy.VOLATILE
         assert profile.history == HistoryPolicy.KEEP_LAST
         assert profile.depth == depth
+    # Publishers keep their history for a late TRANSIENT_LOCAL reader (a recorder); the loop reads VOLATILE.
+    assert publisher.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert subscription.durability == DurabilityPolicy.VOLATILE
 
 
 def test_qos_profiles_are_not_shared() -> None:

@@ -265,11 +265,19 @@ class RecorderNode(SmmNode):
 
     def _subscribe(self, topic: str, type_name: str, offered: Sequence[Any]) -> None:
         reliable = all(profile.reliability == ReliabilityPolicy.RELIABLE for profile in offered)
+        # TRANSIENT_LOCAL where every publisher offers it (the stack's do): matched late, the recorder still
+        # gets what the writer sent before, from its history. Requested from a VOLATILE writer, it would not
+        # match at all, so other topics stay VOLATILE.
+        durable = (
+            all(profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for profile in offered)
+            if offered
+            else self._stack_depth(topic) is not None
+        )
         qos = QoSProfile(  # type: ignore[no-untyped-call,unused-ignore]
             history=HistoryPolicy.KEEP_LAST,
             depth=_SUBSCRIPTION_DEPTH,
             reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-            durability=DurabilityPolicy.VOLATILE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
         )
         message_type = message_class(type_name)
 

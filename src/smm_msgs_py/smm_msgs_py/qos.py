@@ -1,7 +1,7 @@
 """QoS profile of each topic, and why (docs/INTERFACES.md, QoS).
 
-All topics are RELIABLE + VOLATILE + KEEP_LAST; only the depth differs, and it differs between publishers
-and subscriptions.
+All topics are RELIABLE + KEEP_LAST. Publishers offer TRANSIENT_LOCAL with a deep history, the loop's
+subscriptions request VOLATILE with a shallow one.
 
 * RELIABLE because in lockstep every node waits for the sample stamped with the current step, so a lost
   sample would stall the step, and on the bench a node must never act on a stream with holes. VOLATILE
@@ -9,6 +9,9 @@ and subscriptions.
 * Publishers keep 1000 samples (1 s at 1 kHz): a reader that stalls (a recorder writing to disk, or
   descheduled on a loaded host) gets every sample re-sent instead of losing those the writer overwrote.
   A deep writer history never makes a reader act on old data: what a reader holds is its own depth.
+  They offer TRANSIENT_LOCAL so that a TRANSIENT_LOCAL reader (the recorder) that matches a writer late
+  still gets the samples sent before (up to the depth); a VOLATILE reader (every node of the loop, the
+  rclpy time source) gets nothing old from it.
 * The loop's subscriptions to the control chain (``joint_states``, ``joint_states_filtered``,
   ``reference``, ``torque_command``, ``disturbance_estimate``) and ``/clock`` keep 10 (10 ms at 1 kHz):
   a burst of jitter is absorbed, but a stalled node works through at most 10 ms of backlog, never a
@@ -43,14 +46,18 @@ _SUBSCRIPTION_DEPTH_BY_TOPIC: Final[dict[str, int]] = {
 }
 
 
-def _reliable_volatile(depth: int) -> QoSProfile:
+def _reliable_volatile(depth: int, durability: DurabilityPolicy = DurabilityPolicy.VOLATILE) -> QoSProfile:
     # rclpy's QoSProfile.__init__ is untyped (**kwargs) when rclpy is installed, Any when it is not.
     return QoSProfile(  # type: ignore[no-untyped-call,unused-ignore]
         history=HistoryPolicy.KEEP_LAST,
         depth=depth,
         reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.VOLATILE,
+        durability=durability,
     )
+
+
+def _publisher(depth: int = 0) -> QoSProfile:
+    return _reliable_volatile(depth or PUBLISHER_QOS_DEPTH, DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def control_qos() -> QoSProfile:
@@ -68,20 +75,20 @@ def diagnostic_qos() -> QoSProfile:
     Returns:
         A new profile (profiles are mutable, so each caller gets its own).
     """
-    return _reliable_volatile(PUBLISHER_QOS_DEPTH)
+    return _publisher()
 
 
 def clock_qos() -> QoSProfile:
-    """Return the profile of the /clock publisher: RELIABLE, VOLATILE, KEEP_LAST depth 1000.
+    """Return the profile of the /clock publisher: RELIABLE, TRANSIENT_LOCAL, KEEP_LAST depth 1000.
 
     Returns:
         A new profile (profiles are mutable, so each caller gets its own).
     """
-    return _reliable_volatile(CLOCK_QOS_DEPTH)
+    return _publisher(CLOCK_QOS_DEPTH)
 
 
 def qos_for_topic(topic: str) -> QoSProfile:
-    """Return the publisher profile of a stack topic (:mod:`smm_msgs_py.topics`): RELIABLE, KEEP_LAST 1000.
+    """Return the publisher profile of a stack topic: RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1000.
 
     Args:
         topic: The relative topic name (e.g. ``topics.TORQUE_COMMAND``) or ``topics.CLOCK``, as passed to
@@ -94,7 +101,7 @@ def qos_for_topic(topic: str) -> QoSProfile:
         KeyError: ``topic`` is not a topic of the stack.
     """
     _check_topic(topic)
-    return _reliable_volatile(PUBLISHER_QOS_DEPTH)
+    return _publisher()
 
 
 def subscription_qos_for_topic(topic: str) -> QoSProfile:
