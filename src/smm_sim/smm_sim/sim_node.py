@@ -21,8 +21,7 @@ Clock modes (parameter ``clock_mode``, fixed at start-up):
   repeated stamp by re-publishing their last answer without stepping). A run is therefore deterministic for
   a seed and goes as fast as the graph allows. With ``start.min_subscribers`` > 0 the measurement of step
   0 is held until ``joint_states`` has that many matched subscriptions and ``ground_truth`` and ``/clock``
-  one each (a recorder: nothing else reads those), then publishes step 0 and steps on its answer only once
-  every reader has acknowledged it, so that a recorder started with the graph records from step 0.
+  one each (a recorder: nothing else reads those), so that a recorder started with the graph sees step 0.
 * ``realtime``: a steady-clock timer steps the plant every ``control_period`` with the latest valid command;
   a command older than ``command_timeout`` gives zero torque (throttled warning). The node measures the
   measurement-to-command latency (receive time of the first answer minus publish time of the answered
@@ -55,7 +54,6 @@ import numpy.typing as npt
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.context import Context
-from rclpy.duration import Duration
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from rclpy.timer import Timer
@@ -463,7 +461,6 @@ class SimNode(SmmNode):
         self._step_limit = self._node_parameters.config.step_limit(self._period_ns)
 
         self._gate: Timer | None = None
-        self._gate_published = False
         if self._clock_mode == "lockstep":
             self._timer = self.create_timer(
                 self._node_parameters.config.republish_period, self._on_republish_timer, clock=self._steady
@@ -604,8 +601,6 @@ class SimNode(SmmNode):
         )
 
     def _lockstep_command(self, stamp_ns: int, values: tuple[float, float]) -> None:
-        if self._gate is not None:
-            return  # an answer to step 0 before every reader has it; step 0 is re-published once they have
         current = self._plant.time_ns
         if stamp_ns < current:
             # A re-transmitted answer to a measurement that was already answered: expected, not an error.
@@ -723,25 +718,13 @@ class SimNode(SmmNode):
                 throttle_duration_sec=_GATE_LOG_S,
             )
             return
-        if not self._gate_published:
-            # Matched on this side is not matched on the reader's: step 0 goes out, and the run starts
-            # only once every reader has acknowledged it (a reader that has not matched us cannot).
-            self._gate_published = True
-            self._publish_measurement()
-            return
-        publishers = (self._joint_states_pub, self._ground_truth_pub, self._clock_pub)
-        if not all(p.wait_for_all_acked(Duration(nanoseconds=0)) for p in publishers if p is not None):
-            self._log.info(
-                "holding step 0 until every reader acknowledged it", throttle_duration_sec=_GATE_LOG_S
-            )
-            return
         self._gate.cancel()  # type: ignore[no-untyped-call]
         self._gate = None
-        self._log.info("every reader has step 0; stepping on its answer")
+        self._log.info("every publisher has its start subscribers; publishing step 0")
         self._publish_measurement()
 
     def _on_republish_timer(self) -> None:
-        if self._finished or (self._gate is not None and not self._gate_published):
+        if self._finished or self._gate is not None:
             return
         waited_ns = time.monotonic_ns() - self._last_publish_ns
         if waited_ns >= self.config.republish_period * _NS_PER_S * 0.999:
