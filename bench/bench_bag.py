@@ -6,8 +6,12 @@ at 1 kHz for ``--record-seconds`` (60) from this process, with the stack's QoS, 
 publisher's samples are acknowledged, stops the recorder with SIGINT and prints per topic the messages
 published, written and the recorder's stamp gaps. Part 2 writes a ``--analysis-minutes`` (10) case2 run of
 the offline loop as a bag (every chain internal included) and times ``smm-bag analyze``'s load and
-evaluation (target < 30 s), with messages per second. ROS runs in a private network namespace (the script
-re-executes itself under ``unshare --net`` with ``lo`` up). Figures only; nothing asserts on time.
+evaluation (target < 30 s), with messages per second. Part 3 records the lockstep case2 graph
+(``smm-launch --record``, separate processes) ``--graph-runs`` (3) times per chain layout for
+``--graph-seconds`` (5) and prints, per run, whether every simulator step is on every stepped topic
+(distinct stamps against the simulator's step count, as ``make demo`` checks). ROS runs in a private network
+namespace (the script re-executes itself under ``unshare --net`` with ``lo`` up). Figures only; nothing
+asserts on time.
 """
 
 from __future__ import annotations
@@ -152,6 +156,33 @@ def record_at_1khz(seconds: float, workdir: Path) -> None:
         print(log[-2000:])
 
 
+def graph_recordings(runs: int, seconds: float, workdir: Path) -> None:
+    """Record the lockstep case2 graph (processes) ``runs`` times per chain; steps found per topic."""
+    from smm_bringup.demo import recorded_steps, run_graph
+    from smm_bringup.graph import GraphOptions
+
+    for chain, reference in (("fused", "controller"), ("split", "node")):
+        for run in range(runs):
+            options = GraphOptions(
+                clock_mode="lockstep",
+                chain=chain,
+                reference=reference,
+                scenario="case2",
+                duration=seconds,
+                seed=run,
+            )
+            start = time.perf_counter()
+            bag, steps = run_graph(options, workdir / "graph_bags")
+            wall = time.perf_counter() - start
+            found = recorded_steps(bag, steps)
+            lost = {topic: steps - count for topic, count in found.items() if count != steps}
+            print(
+                f"lockstep graph ({chain} chain) run {run + 1}: {steps} simulator steps in {wall:.1f} s, "
+                f"{len(found)} stepped topics in the bag: "
+                + ("every step on every topic" if not lost else f"MISSING {lost}")
+            )
+
+
 def analysis_time(minutes: float, workdir: Path) -> None:
     from smm_analysis.closed_loop import run_closed_loop
     from smm_analysis.scenarios import get_scenario
@@ -188,16 +219,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--record-seconds", type=float, default=60.0)
     parser.add_argument("--analysis-minutes", type=float, default=10.0)
+    parser.add_argument("--graph-runs", type=int, default=3, help="recorded lockstep graph runs per chain")
+    parser.add_argument("--graph-seconds", type=float, default=5.0, help="plant seconds of each graph run")
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if not arguments.inner:
         forwarded = ["--record-seconds", str(arguments.record_seconds)]
         forwarded += ["--analysis-minutes", str(arguments.analysis_minutes)]
+        forwarded += [
+            "--graph-runs",
+            str(arguments.graph_runs),
+            "--graph-seconds",
+            str(arguments.graph_seconds),
+        ]
         return reexec_in_private_netns(forwarded)
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     with tempfile.TemporaryDirectory(prefix="bench_bag_") as directory:
         workdir = Path(directory)
         if arguments.record_seconds > 0:
             record_at_1khz(arguments.record_seconds, workdir)
+        if arguments.graph_runs > 0:
+            graph_recordings(arguments.graph_runs, arguments.graph_seconds, workdir)
         if arguments.analysis_minutes > 0:
             analysis_time(arguments.analysis_minutes, workdir)
     return 0

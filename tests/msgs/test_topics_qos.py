@@ -9,11 +9,11 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 import smm_msgs_py
-from smm_msgs_py import qos_for_topic, topics
+from smm_msgs_py import qos_for_topic, subscription_qos_for_topic, topics
 
 RELATIVE_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 
-EXPECTED = {
+EXPECTED = {  # type, subscription depth of the loop's nodes; every publisher keeps 1000
     "joint_states": (JointState, 10),
     "joint_states_filtered": (JointState, 10),
     "ground_truth": (JointState, 100),
@@ -45,23 +45,28 @@ def test_clock_is_global() -> None:
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_qos_is_reliable_volatile_keep_last_with_the_documented_depth(name: str) -> None:
-    profile = qos_for_topic(name)
-    assert profile.reliability == ReliabilityPolicy.RELIABLE
-    assert profile.durability == DurabilityPolicy.VOLATILE
-    assert profile.history == HistoryPolicy.KEEP_LAST
-    assert profile.depth == EXPECTED[name][1]
+def test_qos_is_reliable_keep_last_with_the_documented_depth_and_durability(name: str) -> None:
+    publisher, subscription = qos_for_topic(name), subscription_qos_for_topic(name)
+    for profile, depth in ((publisher, 1000), (subscription, EXPECTED[name][1])):
+        assert profile.reliability == ReliabilityPolicy.RELIABLE
+        assert profile.history == HistoryPolicy.KEEP_LAST
+        assert profile.depth == depth
+    # Publishers keep their history for a late TRANSIENT_LOCAL reader (a recorder); the loop reads VOLATILE.
+    assert publisher.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert subscription.durability == DurabilityPolicy.VOLATILE
 
 
 def test_qos_profiles_are_not_shared() -> None:
     first = qos_for_topic(topics.TORQUE_COMMAND)
     first.depth = 1
-    assert qos_for_topic(topics.TORQUE_COMMAND).depth == 10
+    assert qos_for_topic(topics.TORQUE_COMMAND).depth == 1000
 
 
 def test_unknown_topic_has_no_qos() -> None:
     with pytest.raises(KeyError, match="joint_state"):
         qos_for_topic("joint_state")
+    with pytest.raises(KeyError, match="joint_state"):
+        subscription_qos_for_topic("joint_state")
 
 
 def test_public_api_is_importable() -> None:

@@ -383,3 +383,38 @@ def test_realtime_status_goes_to_error_when_the_watchdog_applies_zero_torque(mak
     assert "zero torque" in health.message
     assert health.values["command_timeouts"] == h.sim.command_timeouts
     assert h.spin_until(lambda: h.sim.diagnostics.level is Level.ERROR)  # sent at once, not a second later
+
+
+def test_lockstep_start_gate_holds_step_0_until_every_publisher_has_its_subscribers(
+    make_harness: Any,
+) -> None:
+    from rclpy.parameter import Parameter
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+    from smm_msgs_py.qos import subscription_qos_for_topic
+
+    from smm_msgs_py import topics
+
+    h = make_harness(**LOCKSTEP, **{"start.min_subscribers": 2})  # the peer reads joint_states once
+    assert h.spin_until(lambda: h.sim.count_subscribers(f"/{topics.JOINT_STATES}") >= 1)
+    h.spin_for(0.3)
+    assert h.measurements == [] and h.sim.republished == 0, "step 0 must wait for the second reader"
+    recorder = h.peer  # a second joint_states reader and a /clock reader: what a recorder adds
+    second: list[Any] = []
+    recorder.create_subscription(JointState, topics.JOINT_STATES, second.append, 10)
+    h.spin_for(0.3)
+    assert h.measurements == [], "/clock has no subscriber yet"
+    recorder.create_subscription(Clock, "/clock", lambda _m: None, subscription_qos_for_topic(topics.CLOCK))
+    assert h.spin_until(lambda: len(h.measurements) >= 1 and len(second) >= 1)
+    assert h.stamps()[0] == 0
+    h.send([0.0, 0.0], 0)
+    assert h.spin_until(lambda: h.sim.steps == 1)
+    result = h.sim.set_parameters([Parameter("start.min_subscribers", value=0)])[0]
+    assert not result.successful and "start-up" in result.reason
+
+
+def test_start_gate_parameter_has_a_range(make_harness: Any) -> None:
+    from smm_sim.sim_node import SimParameterError
+
+    with pytest.raises(SimParameterError, match="min_subscribers"):
+        make_harness(**LOCKSTEP, **{"start.min_subscribers": -1})

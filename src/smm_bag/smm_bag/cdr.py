@@ -157,8 +157,8 @@ def decode_float64_multi_array(buffer: bytes) -> DecodedArray:
 
 
 def stamp_of(type_name: str, buffer: bytes) -> int | None:
-    """The stamp (ns) of a JointState header or of a stamped Float64MultiArray; None for other types."""
-    if type_name == "sensor_msgs/msg/JointState":
+    """The stamp (ns) of a JointState header, a stamped Float64MultiArray or a Clock; None for other types."""
+    if type_name in ("sensor_msgs/msg/JointState", "rosgraph_msgs/msg/Clock"):
         if len(buffer) < 12:
             return None
         order = _ORDER.get(buffer[1], "<")

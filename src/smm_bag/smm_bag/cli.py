@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from smm_bag import commands
+from smm_bag.lockstep import LockstepOptions
 from smm_bag.player import PlayOptions, parse_remaps
 
 __all__ = ["build_parser", "main"]
@@ -61,6 +62,14 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument(
         "--wait-for-subscribers", type=float, default=0.0, help="wait up to this long for subscribers (s)"
     )
+    play.add_argument(
+        "--lockstep",
+        metavar="ANSWER_TOPIC",
+        default=None,
+        help="flow-controlled replay into a node: publish the --topics messages of one stamp, wait for the "
+        "node's answer with that stamp on ANSWER_TOPIC (or --answer-timeout), then the next stamp",
+    )
+    play.add_argument("--answer-timeout", type=float, default=1.0, help="lockstep: wait per answer (s)")
 
     repair = sub.add_parser("repair", help="rebuild summaries, indexes and metadata.yaml after a crash")
     repair.add_argument("bag", type=Path)
@@ -96,16 +105,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     if options.command == "play":
         try:
-            play_options = PlayOptions(
-                rate=options.rate,
-                loop=options.loop,
-                start_offset_s=options.start_offset,
-                topics=tuple(options.topics),
-                remaps=parse_remaps(options.remap),
-                clock=options.clock,
-                clock_period_s=options.clock_period,
-                wait_for_subscribers_s=options.wait_for_subscribers,
-            )
+            play_options: PlayOptions | LockstepOptions
+            if options.lockstep is not None:
+                play_options = LockstepOptions(
+                    answer_topic=options.lockstep,
+                    topics=tuple(options.topics),
+                    remaps=parse_remaps(options.remap),
+                    timeout_s=options.answer_timeout,
+                    wait_for_subscribers_s=options.wait_for_subscribers or 10.0,
+                )
+            else:
+                play_options = PlayOptions(
+                    rate=options.rate,
+                    loop=options.loop,
+                    start_offset_s=options.start_offset,
+                    topics=tuple(options.topics),
+                    remaps=parse_remaps(options.remap),
+                    clock=options.clock,
+                    clock_period_s=options.clock_period,
+                    wait_for_subscribers_s=options.wait_for_subscribers,
+                )
         except ValueError as error:
             print(f"smm-bag: error: {error}", file=sys.stderr)
             return commands.EXIT_USAGE

@@ -25,7 +25,8 @@ from smm_bag.errors import (
     TruncatedBagError,
 )
 from smm_bag.info import format_info
-from smm_bag.player import PlayOptions, play
+from smm_bag.lockstep import LockstepOptions, LockstepResult, play_lockstep
+from smm_bag.player import PlayOptions, PlayResult, play
 from smm_bag.plots import write_plots
 from smm_bag.progress import Progress
 from smm_bag.recorded import load_run
@@ -247,12 +248,19 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
 
 
 def play_command(
-    bag: Path, options: PlayOptions, ros_args: Sequence[str] = (), stderr: TextIO | None = None
+    bag: Path,
+    options: PlayOptions | LockstepOptions,
+    ros_args: Sequence[str] = (),
+    stderr: TextIO | None = None,
 ) -> int:
-    """``smm-bag play BAG``: publish the bag until its end (or SIGINT/SIGTERM when looping)."""
+    """``smm-bag play BAG [--lockstep]``: publish the bag until its end (or SIGINT/SIGTERM when looping).
+
+    Lockstep: exits 1 when an answer timed out.
+    """
     import signal  # noqa: PLC0415
 
     import rclpy  # noqa: PLC0415
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
     from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
 
     from smm_node_runtime import ensure_localhost_discovery  # noqa: PLC0415
@@ -268,21 +276,34 @@ def play_command(
     context = rclpy.Context()  # type: ignore[attr-defined]
     rclpy.init(args=["smm-bag", *ros_args], context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("smm_bag_player", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    result: PlayResult | LockstepResult
     try:
-        result = play(
-            bag,
-            node,
-            options,
-            should_stop=lambda: stop["requested"],
-            progress=Progress(f"playing {bag.name}", 1, err),
-        )
+        progress = Progress(f"playing {bag.name}", 1, err)
+        if isinstance(options, LockstepOptions):
+            result = play_lockstep(
+                bag, node, executor, options, should_stop=lambda: stop["requested"], progress=progress
+            )
+        else:
+            result = play(bag, node, options, should_stop=lambda: stop["requested"], progress=progress)
     except BagError as error:
         return _fail(error, err)
     finally:
+        executor.shutdown()
         node.destroy_node()  # type: ignore[no-untyped-call]
         context.try_shutdown()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     for topic, count in result.published.items():
         err.write(f"{topic}: {count} messages published\n")
+    if isinstance(result, LockstepResult):
+        answered = sum(stamp in result.answers for stamp in result.stamps)
+        err.write(
+            f"{len(result.stamps)} stamps played, {answered} answered, {len(result.timeouts)} timed out\n"
+        )
+        if result.timeouts:
+            shown = ", ".join(str(stamp) for stamp in result.timeouts[:5])
+            err.write(f"smm-bag: no answer within the timeout for stamps (ns) {shown}\n")
+            return EXIT_CHECK_FAILED
     return EXIT_OK

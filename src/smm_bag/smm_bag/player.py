@@ -76,7 +76,7 @@ def parse_remaps(items: Sequence[str]) -> dict[str, str]:
     return remaps
 
 
-def _rclpy_qos(profiles: Sequence[QosProfile]) -> Any:
+def rclpy_qos(profiles: Sequence[QosProfile]) -> Any:
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415
 
     profile = profiles[0] if profiles else QosProfile()
@@ -120,7 +120,7 @@ def play(
             topic: node.create_publisher(
                 message_class(available[topic].type),
                 options.remaps.get(topic, topic),
-                _rclpy_qos(available[topic].offered_qos_profiles),
+                rclpy_qos(available[topic].offered_qos_profiles),
             )
             for topic in chosen
         }

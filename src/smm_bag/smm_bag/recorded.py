@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from smm_bag.bulk import decode_arrays, decode_joint_states
+from smm_bag.cdr import stamp_of
 from smm_bag.errors import CorruptBagError, MissingTopicsError
 from smm_bag.manifest import RunManifest
 from smm_bag.reader import BagReader
@@ -300,3 +301,36 @@ def load_run(path: Path | str, *, progress: Callable[[int, int], None] | None = 
         latency_ns=latency,
         incomplete_steps=int(every.size - complete.size),
     )
+
+
+STEPPED_TOPICS = (
+    "joint_states",
+    "ground_truth",
+    "reference",
+    "torque_command",
+    "joint_states_filtered",
+    "disturbance_estimate",
+)
+"""The stack topics with one sample per control step (relative names), besides ``/clock``."""
+
+
+def stamps_per_topic(path: Path | str) -> dict[str, frozenset[int]]:
+    """The distinct stamps (ns) on each stepped topic the bag holds (``STEPPED_TOPICS`` and ``/clock``).
+
+    A lockstep simulator re-publishes a measurement until it is answered, so a topic may hold a stamp more
+    than once: distinct stamps, not messages, are what to compare with the simulator's step count.
+
+    Raises:
+        BagError: Not a bag, truncated or corrupt (see :class:`BagReader`).
+    """
+    with BagReader(Path(path)) as reader:
+        manifest = RunManifest.from_custom_data(reader.metadata.custom_data)
+        types = reader.topics
+        wanted = [topic for topic in (*map(manifest.topic, STEPPED_TOPICS), "/clock") if topic in types]
+        stamps: dict[str, set[int]] = {topic: set() for topic in wanted}
+        for topic, _, data in reader.raw_messages(wanted):
+            stamp = stamp_of(types[topic], data)
+            if stamp is None:
+                raise CorruptBagError(f"{path}: a message on {topic} has no stamp")
+            stamps[topic].add(stamp)
+    return {topic: frozenset(values) for topic, values in stamps.items()}

@@ -46,7 +46,8 @@ __all__ = [
 ]
 
 PUBLISHERS_FILE = ".publishers"
-"""File in the bag folder listing the recorded topics that have publishers (read by smm-launch)."""
+"""File in the bag folder: ``topic count`` per line, the publishers each recording subscription has matched
+(read by smm-launch, which starts the plant once every controller-side publisher is matched)."""
 DEFAULT_EXTRA_TOPICS = ("/clock", "/diagnostics", "/parameter_events", "/rosout")
 _SUBSCRIPTION_DEPTH = 10_000
 _STAMPED = ("joint_states", "ground_truth", "reference", "torque_command")
@@ -207,9 +208,7 @@ class RecorderNode(SmmNode):
             del self._waiting[node]
             self._asked.add(node)
             future = client.call_async(ListParameters.Request())
-            future.add_done_callback(
-                lambda done, node=node, client=client: self._on_list(node, client, done)
-            )
+            future.add_done_callback(lambda done, node=node, client=client: self._on_list(node, client, done))
 
     def _on_list(self, node: str, client: Any, done: Any) -> None:
         self.destroy_client(client)
@@ -238,13 +237,17 @@ class RecorderNode(SmmNode):
         self.writer.set_custom_data("smm.parameters", yaml.safe_dump(self._node_parameters, sort_keys=True))
 
     def _write_seen(self) -> None:
-        """``<bag>/.publishers``: the recorded topics that have a publisher (a launcher waits on it)."""
-        seen = sorted(topic for topic in self._recorded if self.count_publishers(topic) > 0)
+        """``<bag>/.publishers``: ``topic count``, matched publishers per recorded topic (for smm-launch)."""
+        seen = sorted(
+            f"{topic} {count}"
+            for topic, (subscription, _) in self._recorded.items()
+            if (count := subscription.get_publisher_count()) > 0
+        )
         if seen != self._seen:
             self._seen = seen
             marker = self.writer.path / PUBLISHERS_FILE
             temporary = marker.with_suffix(".tmp")
-            temporary.write_text("".join(f"{topic}\n" for topic in seen))
+            temporary.write_text("".join(f"{line}\n" for line in seen))
             temporary.replace(marker)
 
     def _known_type(self, topic: str) -> str | None:
@@ -262,11 +265,19 @@ class RecorderNode(SmmNode):
 
     def _subscribe(self, topic: str, type_name: str, offered: Sequence[Any]) -> None:
         reliable = all(profile.reliability == ReliabilityPolicy.RELIABLE for profile in offered)
+        # TRANSIENT_LOCAL where every publisher offers it (the stack's do): matched late, the recorder still
+        # gets what the writer sent before, from its history. Requested from a VOLATILE writer, it would not
+        # match at all, so other topics stay VOLATILE.
+        durable = (
+            all(profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for profile in offered)
+            if offered
+            else self._stack_depth(topic) is not None
+        )
         qos = QoSProfile(  # type: ignore[no-untyped-call,unused-ignore]
             history=HistoryPolicy.KEEP_LAST,
             depth=_SUBSCRIPTION_DEPTH,
             reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-            durability=DurabilityPolicy.VOLATILE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
         )
         message_type = message_class(type_name)
 

@@ -23,6 +23,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
@@ -37,15 +38,15 @@ from smm_analysis.paper_values import PAPER_CASE2
 from smm_analysis.scenarios import get_scenario
 from smm_bag.analysis import evaluate
 from smm_bag.commands import AnalyzeOptions, analyze
-from smm_bag.errors import BagError, MissingTopicsError
-from smm_bag.recorded import load_run
+from smm_bag.errors import BagError
+from smm_bag.manifest import RunManifest
+from smm_bag.metadata import read_metadata
+from smm_bag.recorded import load_run, stamps_per_topic
 
-from smm_bringup.graph import CHAIN_LAYOUTS, REFERENCE_PLACEMENTS, GraphOptions
+from smm_bringup.graph import CHAIN_LAYOUTS, NAMESPACE, REFERENCE_PLACEMENTS, SIM_NODE, GraphOptions
 from smm_bringup.launcher import arguments_from_options
 
 DEMO_CONTROLLERS = ("fpdeso", "fpd")
-RECORD_ATTEMPTS = 3
-"""Graph runs per controller until the bag holds every step (see the discovery race in docs/BAGS.md)."""
 JOINTS = ("alpha", "beta")
 
 
@@ -64,7 +65,16 @@ class DemoRun:
     wall_time: float
     bag: Path | None = None
     missing_steps: int = 0
-    attempts: int = 1
+    simulator_steps: int = 0
+    recorded_stamps: Mapping[str, int] = dataclasses.field(default_factory=dict)
+    """Per stepped topic, the simulator's step stamps found in the bag (== simulator_steps: nothing lost)."""
+
+    @property
+    def lost(self) -> dict[str, int]:
+        """Per stepped topic, the simulator's steps missing from the bag (only topics that miss some)."""
+        return {
+            t: self.simulator_steps - n for t, n in self.recorded_stamps.items() if n != self.simulator_steps
+        }
 
 
 def graph_command(options: GraphOptions) -> list[str]:
@@ -72,11 +82,11 @@ def graph_command(options: GraphOptions) -> list[str]:
     return [sys.executable, "-m", "smm_bringup.launcher", *arguments_from_options(options)]
 
 
-def run_graph(options: GraphOptions, bags_dir: Path) -> Path:
-    """Run the graph once with ``recorder_node`` recording; return the bag folder.
+def run_graph(options: GraphOptions, bags_dir: Path) -> tuple[Path, int]:
+    """Run the graph once with ``recorder_node`` recording; return the bag folder and the simulator's steps.
 
     Raises:
-        DemoError: ``smm-launch`` exited non-zero or wrote no bag.
+        DemoError: ``smm-launch`` exited non-zero or wrote no bag or no simulator statistics.
     """
     bags_dir.mkdir(parents=True, exist_ok=True)
     stamp = time.strftime("%Y%m%d_%H%M%S", time.gmtime())
@@ -87,13 +97,32 @@ def run_graph(options: GraphOptions, bags_dir: Path) -> Path:
         bag = bag.with_name(f"{options.scenario}_{options.algorithm}_{stamp}_{suffix}")
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    recording = dataclasses.replace(options, record=str(bag))
-    code = subprocess.run(graph_command(recording), env=env, check=False)
-    if code.returncode != 0:
-        raise DemoError(f"smm-launch exited with code {code.returncode} for controller {options.algorithm}")
-    if not (bag / "metadata.yaml").is_file():
-        raise DemoError(f"the recorder wrote no bag at {bag}")
-    return bag
+    with tempfile.TemporaryDirectory(prefix="smm_demo_") as scratch:
+        stats = Path(scratch) / "sim_stats.json"
+        params = Path(scratch) / "sim_stats.yaml"
+        key = f"/{NAMESPACE}/{SIM_NODE}"
+        params.write_text(json.dumps({key: {"ros__parameters": {"stats_file": str(stats)}}}))
+        recording = dataclasses.replace(
+            options, record=str(bag), params_files=(*options.params_files, str(params))
+        )
+        code = subprocess.run(graph_command(recording), env=env, check=False)
+        if code.returncode != 0:
+            raise DemoError(
+                f"smm-launch exited with code {code.returncode} for controller {options.algorithm}"
+            )
+        if not (bag / "metadata.yaml").is_file():
+            raise DemoError(f"the recorder wrote no bag at {bag}")
+        if not stats.is_file():
+            raise DemoError(f"the simulator wrote no statistics ({stats})")
+        steps = int(json.loads(stats.read_text())["steps"])
+    return bag, steps
+
+
+def recorded_steps(bag: Path, steps: int) -> dict[str, int]:
+    """Per stepped topic of ``bag``, how many of the simulator's ``steps`` stamps (k * period) it holds."""
+    period_ns = RunManifest.from_custom_data(read_metadata(bag).custom_data).control_period_ns
+    expected = {k * period_ns for k in range(steps)}
+    return {topic: len(stamps & expected) for topic, stamps in stamps_per_topic(bag).items()}
 
 
 def graph_indices(bag: Path, options: GraphOptions) -> DemoRun:
@@ -179,32 +208,28 @@ def demo(
             duration=duration,
             seed=seed,
         )
-        run: DemoRun | None = None
-        for attempt in range(1, RECORD_ATTEMPTS + 1):
-            start = time.perf_counter()
-            try:
-                run = graph_indices(run_graph(options, bags_dir), options)
-                missed = f"{run.missing_steps} steps" if run.missing_steps else ""
-            except MissingTopicsError as error:
-                missed = str(error)
-            except (DemoError, AnalysisError, BagError) as error:
-                print(f"[demo] error: {error}", file=sys.stderr)
-                return 1
-            if not missed:
-                break
-            # A lockstep run is deterministic: running it again records the same samples.
-            print(
-                f"[demo] the recording missed {missed}: the recorder discovered a node late (docs/BAGS.md, "
-                f"known limits); attempt {attempt} of {RECORD_ATTEMPTS}",
-                flush=True,
-            )
-        if run is None:
-            print("[demo] error: no usable recording", file=sys.stderr)
+        start = time.perf_counter()
+        try:
+            bag, steps = run_graph(options, bags_dir)
+            run = graph_indices(bag, options)
+            run = dataclasses.replace(run, simulator_steps=steps, recorded_stamps=recorded_steps(bag, steps))
+        except (DemoError, AnalysisError, BagError) as error:
+            print(f"[demo] error: {error}", file=sys.stderr)
             return 1
         wall = time.perf_counter() - start
-        runs.append(dataclasses.replace(run, wall_time=wall, attempts=attempt))
-        lost = f", {run.missing_steps} steps missing from the bag" if run.missing_steps else ""
-        print(f"[demo] {run.steps} steps in {wall:.1f} s ({run.steps / wall:.0f} steps/s){lost}", flush=True)
+        runs.append(dataclasses.replace(run, wall_time=wall))
+        print(f"[demo] {run.steps} steps in {wall:.1f} s ({run.steps / wall:.0f} steps/s)", flush=True)
+        if run.lost or run.missing_steps:
+            print(
+                f"[demo] error: the bag misses simulator steps: {run.lost or run.missing_steps}",
+                file=sys.stderr,
+            )
+            return 1
+        print(
+            f"[demo] every one of the simulator's {steps} steps is in the bag on "
+            f"{', '.join(sorted(run.recorded_stamps))}",
+            flush=True,
+        )
     print()
     print(format_table(runs))
     document = {
@@ -216,7 +241,8 @@ def demo(
             run.controller: {
                 "steps": run.steps,
                 "missing_steps": run.missing_steps,
-                "recording_attempts": run.attempts,
+                "simulator_steps": run.simulator_steps,
+                "recorded_stamps": dict(run.recorded_stamps),
                 "bag": str(run.bag),
                 "graph": {joint: asdict(run.graph[joint]) for joint in JOINTS},
                 "offline": {joint: asdict(run.offline[joint]) for joint in JOINTS},

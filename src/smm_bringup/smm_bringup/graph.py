@@ -22,6 +22,7 @@ agree with :mod:`smm_analysis.scenarios`.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import fnmatch
 import importlib
 import ipaddress
@@ -37,6 +38,8 @@ import yaml
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 from smm_controller.controller_node import REFERENCE_PREFIX
 from smm_controller.reference import REFERENCE_KINDS
+
+from smm_msgs_py import topics
 
 __all__ = [
     "ALGORITHMS",
@@ -117,6 +120,15 @@ _CONTROLLER_NODES: Final[tuple[tuple[str, str], ...]] = (
     (REFERENCE_NODE, "ReferenceNode"),
     (CONTROLLER_NODE, "ControllerNode"),
 )
+_JOINT_STATES_READERS: Final[tuple[str, ...]] = (TD_NODE, FLESO_NODE, REFERENCE_NODE)
+"""Controller-side nodes subscribing ``joint_states`` (controller_node too, when the chain is fused)."""
+_PUBLISHED: Final[dict[str, tuple[str, ...]]] = {
+    CONTROLLER_NODE: (topics.TORQUE_COMMAND, topics.CONTROLLER_INTERNALS),
+    TD_NODE: (topics.JOINT_STATES_FILTERED,),
+    FLESO_NODE: (topics.DISTURBANCE_ESTIMATE, topics.OBSERVER_STATE),
+    REFERENCE_NODE: (topics.REFERENCE,),
+}
+"""The recorded stack topics each controller-side node publishes (besides ``/diagnostics``)."""
 
 
 class GraphError(Exception):
@@ -465,7 +477,21 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
                 parameters=parameters,
             )
         )
-    recorder = () if options.record is None else (_recorder_spec(options),)
+    recorder: tuple[NodeSpec, ...] = ()
+    if options.record is not None:
+        recorder = (_recorder_spec(options),)
+        if options.clock_mode == "lockstep" and options.plant == "sim":
+            # Step 0 waits for the recorder (and every node reading joint_states) to be matched.
+            readers = sum(spec.name in _JOINT_STATES_READERS for spec in controller_side) + (
+                1 if fused else 0
+            )
+            gate = (("start.min_subscribers", readers + 1),)
+            plant_side = tuple(
+                dataclasses.replace(spec, parameters=spec.parameters + gate)
+                if spec.name == SIM_NODE
+                else spec
+                for spec in plant_side
+            )
     return (*recorder, *plant_side, *controller_side)
 
 
@@ -514,6 +540,23 @@ def _hardware_specs(options: GraphOptions) -> tuple[NodeSpec, ...]:
         parameters=tuple(emulator_parameters),
     )
     return (emulator, bridge)
+
+
+def expected_publishers(specs: Sequence[NodeSpec]) -> dict[str, int]:
+    """Publishers a recorder must have matched per topic before the plant of ``specs`` starts stepping.
+
+    Counts the controller-side nodes' stack topics (absolute names) and one ``/diagnostics`` publisher each.
+    """
+    counts: dict[str, int] = {}
+    for spec in specs:
+        if spec.name not in _PUBLISHED:
+            continue
+        published = _PUBLISHED[spec.name]
+        if ("reference_source", "internal") in spec.parameters:
+            published = (*published, topics.REFERENCE)
+        for topic in (*(topics.fully_qualified(name, spec.namespace) for name in published), "/diagnostics"):
+            counts[topic] = counts.get(topic, 0) + 1
+    return counts
 
 
 def _recorder_spec(options: GraphOptions) -> NodeSpec:

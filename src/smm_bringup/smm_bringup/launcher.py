@@ -59,6 +59,7 @@ from smm_bringup.graph import (
     GraphOptions,
     NodeSpec,
     build_graph,
+    expected_publishers,
     parameter_overrides,
 )
 from smm_node_runtime import as_parameter_list, ensure_localhost_discovery, make_executor
@@ -195,9 +196,9 @@ class GraphProcesses:
         specs = list(self._specs)
         recorder = next((spec for spec in specs if spec.name == RECORDER_NODE), None)
         if recorder is not None:
-            # Recording: the recorder first, the plant last. The plant's first measurement is republished
-            # until answered, so nothing steps before the plant exists; the recorder has then seen every
-            # controller-side publisher and discovers the plant while idle, with the controller.
+            # Recording: the recorder first, the plant last, once the recorder has matched every
+            # controller-side publisher; the plant holds step 0 until its own publishers have matched
+            # their readers, the recorder's included (start.min_subscribers, set by build_graph).
             specs.sort(key=lambda spec: (spec.name != RECORDER_NODE) + 2 * (spec.name in PLANT_NODE_NAMES))
         commands = [spec.command_line(resolve_executable(spec)) for spec in specs]
         for index, (spec, command) in enumerate(zip(specs, commands, strict=True)):
@@ -209,7 +210,7 @@ class GraphProcesses:
             elif (
                 recorder is not None and index + 1 < len(specs) and specs[index + 1].name in PLANT_NODE_NAMES
             ):
-                _wait_for_controller_topics(recorder, spec, popen)
+                _wait_for_recorded_publishers(recorder, expected_publishers(specs), popen)
 
     def first_exit(self) -> tuple[NodeSpec, int] | None:
         """The first child found exited and its exit code (negative: killed by that signal); None if none."""
@@ -258,6 +259,8 @@ class GraphProcesses:
                     child.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
 
 
+PUBLISHERS_FILE: Final[str] = ".publishers"
+"""The recorder's file of matched publishers in its bag folder (``smm_bag.recorder_node.PUBLISHERS_FILE``)."""
 RECORDER_SETTLE_S: Final[float] = 1.0
 """Time the recorder gets, after the other nodes stopped, to write its backlog before it is stopped (s)."""
 
@@ -267,22 +270,39 @@ def _recorder_output(spec: NodeSpec) -> Path | None:
     return Path(output) if isinstance(output, str) else None
 
 
-def _wait_for_controller_topics(
-    recorder: NodeSpec, last: NodeSpec, popen: subprocess.Popen[bytes], timeout_s: float = 20.0
+def read_matched_publishers(marker: Path) -> dict[str, int]:
+    """The recorder's ``.publishers`` file: matched publishers per topic ({} while it does not exist)."""
+    counts: dict[str, int] = {}
+    with contextlib.suppress(FileNotFoundError):
+        for line in marker.read_text().splitlines():
+            topic, _, count = line.rpartition(" ")
+            if topic and count.isdigit():
+                counts[topic] = int(count)
+    return counts
+
+
+def _wait_for_recorded_publishers(
+    recorder: NodeSpec, expected: Mapping[str, int], popen: subprocess.Popen[bytes], timeout_s: float = 30.0
 ) -> None:
-    """Wait until the recorder lists the controller's torque command among topics with publishers."""
+    """Wait until the recorder has matched ``expected`` publishers per topic (the controller side)."""
     output = _recorder_output(recorder)
-    if output is None:
+    if output is None or not expected:
         return
-    wanted = f"/{last.namespace}/torque_command"
-    marker = output / ".publishers"
+    marker = output / PUBLISHERS_FILE
     deadline = time.monotonic() + timeout_s
+    missing: dict[str, str] = {}
     while time.monotonic() < deadline and popen.poll() is None:
-        if marker.is_file() and wanted in marker.read_text().split():
-            time.sleep(0.2)  # the other controller-side publishers come with the same discovery
+        matched = read_matched_publishers(marker)
+        missing = {
+            topic: f"{matched.get(topic, 0)}/{count}"
+            for topic, count in expected.items()
+            if matched.get(topic, 0) < count
+        }
+        if not missing:
             return
         time.sleep(0.02)
-    _say(f"the recorder did not see {wanted} within {timeout_s:g} s; starting the plant anyway")
+    shown = ", ".join(f"{topic} {counts}" for topic, counts in sorted(missing.items()))
+    _say(f"the recorder has not matched every publisher within {timeout_s:g} s ({shown}); starting the plant")
 
 
 def _wait_for_recorder(spec: NodeSpec, popen: subprocess.Popen[bytes], timeout_s: float = 20.0) -> None:

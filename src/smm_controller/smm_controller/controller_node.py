@@ -58,7 +58,7 @@ from smm_msgs_py.conversions import (
 )
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS
-from smm_msgs_py.qos import qos_for_topic
+from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
 from smm_node_runtime.parameters import ConfigParameters
 from std_msgs.msg import Float64MultiArray
 
@@ -301,24 +301,30 @@ class ControllerNode(MeasurementDrivenNode):
             )
         else:
             self.create_subscription(
-                Float64MultiArray, topics.REFERENCE, self._on_reference, qos_for_topic(topics.REFERENCE)
+                Float64MultiArray,
+                topics.REFERENCE,
+                self._on_reference,
+                subscription_qos_for_topic(topics.REFERENCE),
             )
         if self.internal_chain:
             self.create_subscription(
-                JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
+                JointState,
+                topics.JOINT_STATES,
+                self._on_measurement,
+                subscription_qos_for_topic(topics.JOINT_STATES),
             )
             return
         self.create_subscription(
             JointState,
             topics.JOINT_STATES_FILTERED,
             self._on_filtered,
-            qos_for_topic(topics.JOINT_STATES_FILTERED),
+            subscription_qos_for_topic(topics.JOINT_STATES_FILTERED),
         )
         self.create_subscription(
             Float64MultiArray,
             topics.DISTURBANCE_ESTIMATE,
             self._on_disturbance_estimate,
-            qos_for_topic(topics.DISTURBANCE_ESTIMATE),
+            subscription_qos_for_topic(topics.DISTURBANCE_ESTIMATE),
         )
 
     def _on_output_limits(self, config: OutputLimitConfig) -> None:

@@ -35,7 +35,7 @@ from smm_msgs_py.conversions import (
 )
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS, OBSERVER_STATE_ROWS
-from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
+from smm_msgs_py.qos import diagnostic_qos, qos_for_topic, subscription_qos_for_topic
 from smm_node_runtime.parameters import ConfigParameters
 from std_msgs.msg import Float64MultiArray
 
@@ -117,13 +117,19 @@ class FlesoNode(MeasurementDrivenNode):
             JointState,
             topics.JOINT_STATES_FILTERED,
             self._on_filtered,
-            qos_for_topic(topics.JOINT_STATES_FILTERED),
+            subscription_qos_for_topic(topics.JOINT_STATES_FILTERED),
         )
         self.create_subscription(
-            JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
+            JointState,
+            topics.JOINT_STATES,
+            self._on_measurement,
+            subscription_qos_for_topic(topics.JOINT_STATES),
         )
         self.create_subscription(
-            Float64MultiArray, topics.TORQUE_COMMAND, self._on_command, qos_for_topic(topics.TORQUE_COMMAND)
+            Float64MultiArray,
+            topics.TORQUE_COMMAND,
+            self._on_command,
+            subscription_qos_for_topic(topics.TORQUE_COMMAND),
         )
 
     @property

@@ -30,7 +30,7 @@ from smm_msgs_py.conversions import (
     reference_to_msg,
 )
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
+from smm_msgs_py.qos import diagnostic_qos, qos_for_topic, subscription_qos_for_topic
 from smm_node_runtime.parameters import ConfigParameters, parameter_name
 from std_msgs.msg import Float64MultiArray
 
@@ -169,7 +169,10 @@ class ReferenceNode(MeasurementDrivenNode):
             Float64MultiArray, INTERNALS_TOPIC, diagnostic_qos()
         )
         self.create_subscription(
-            JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
+            JointState,
+            topics.JOINT_STATES,
+            self._on_measurement,
+            subscription_qos_for_topic(topics.JOINT_STATES),
         )
 
     @property

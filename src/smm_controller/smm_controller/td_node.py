@@ -20,7 +20,7 @@ from smm_msgs_py.conversions import (
     sample_to_joint_state,
 )
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.qos import diagnostic_qos, qos_for_topic
+from smm_msgs_py.qos import diagnostic_qos, qos_for_topic, subscription_qos_for_topic
 from smm_node_runtime.parameters import ConfigParameters
 from std_msgs.msg import Float64MultiArray
 
@@ -104,7 +104,10 @@ class TdNode(MeasurementDrivenNode):
             Float64MultiArray, INTERNALS_TOPIC, diagnostic_qos()
         )
         self.create_subscription(
-            JointState, topics.JOINT_STATES, self._on_measurement, qos_for_topic(topics.JOINT_STATES)
+            JointState,
+            topics.JOINT_STATES,
+            self._on_measurement,
+            subscription_qos_for_topic(topics.JOINT_STATES),
         )
 
     def _check_td_config(self, config: TrackingDifferentiatorConfig) -> None:

@@ -29,7 +29,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import JointSample, internals_to_msg, msg_to_torque, sample_to_joint_state
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.qos import qos_for_topic
+from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
@@ -165,7 +165,10 @@ class HwBridgeNode(LifecycleNode):
             Float64MultiArray, INTERNALS_TOPIC, qos_for_topic(topics.CONTROLLER_INTERNALS)
         )
         self.create_subscription(
-            Float64MultiArray, topics.TORQUE_COMMAND, self._on_command, qos_for_topic(topics.TORQUE_COMMAND)
+            Float64MultiArray,
+            topics.TORQUE_COMMAND,
+            self._on_command,
+            subscription_qos_for_topic(topics.TORQUE_COMMAND),
         )
         self.create_service(Trigger, "~/estop", self._on_estop)
         self.create_service(Trigger, "~/rearm", self._on_rearm)

@@ -47,10 +47,12 @@ from smm_msgs_py.qos import (
     CLOCK_QOS_DEPTH,
     CONTROL_QOS_DEPTH,
     DIAGNOSTIC_QOS_DEPTH,
+    PUBLISHER_QOS_DEPTH,
     clock_qos,
     control_qos,
     diagnostic_qos,
     qos_for_topic,
+    subscription_qos_for_topic,
 )
 from smm_msgs_py.topics import (
     ALL_TOPICS,
@@ -93,6 +95,7 @@ __all__ = [
     "OBSERVER_STATE",
     "OBSERVER_STATE_ROWS",
     "ORDER_DIM",
+    "PUBLISHER_QOS_DEPTH",
     "QUANTITY_DIM",
     "REFERENCE",
     "REFERENCE_ROWS",
@@ -126,6 +129,7 @@ __all__ = [
     "reference_to_msg",
     "sample_to_joint_state",
     "stamp_to_ns",
+    "subscription_qos_for_topic",
     "topics",
     "torque_to_msg",
 ]

@@ -1,19 +1,24 @@
-"""QoS profile of each topic, and why.
+"""QoS profile of each topic, and why (docs/INTERFACES.md, QoS).
 
-All topics are RELIABLE + VOLATILE + KEEP_LAST; only the depth differs.
+All topics are RELIABLE + KEEP_LAST. Publishers offer TRANSIENT_LOCAL with a deep history, the loop's
+subscriptions request VOLATILE with a shallow one.
 
-* Control chain (``joint_states``, ``joint_states_filtered``, ``reference``, ``torque_command``,
-  ``disturbance_estimate``): RELIABLE because in lockstep every node waits for the sample stamped with the
-  current step, so a lost sample would stall the step, and on the bench a node must never act on a stream
-  with holes. VOLATILE because a late joiner must not act on old measurements or commands. Depth 10 absorbs
-  a burst (scheduling jitter of a few periods) without keeping stale commands queued for long: at 1 kHz the
-  queue holds at most 10 ms.
-* Diagnostics (``ground_truth``, ``observer_state``, ``controller_internals``): RELIABLE + depth 100 so that
-  a recorder (rosbag2, plotjuggler) loses nothing at 1 kHz even when it stalls up to 100 ms on disk I/O;
-  nothing in the loop reads them, so a deep queue costs the loop nothing.
-* ``/clock``: RELIABLE depth 10 on the simulator's publisher. rclpy's own time source subscribes with
-  BEST_EFFORT depth 1, which is compatible with a RELIABLE publisher; lockstep correctness never depends
-  on /clock delivery because every message carries the stamp of the measurement it answers.
+* RELIABLE because in lockstep every node waits for the sample stamped with the current step, so a lost
+  sample would stall the step, and on the bench a node must never act on a stream with holes. VOLATILE
+  because a late joiner must not act on old measurements or commands.
+* Publishers keep 1000 samples (1 s at 1 kHz): a reader that stalls (a recorder writing to disk, or
+  descheduled on a loaded host) gets every sample re-sent instead of losing those the writer overwrote.
+  A deep writer history never makes a reader act on old data: what a reader holds is its own depth.
+  They offer TRANSIENT_LOCAL so that a TRANSIENT_LOCAL reader (the recorder) that matches a writer late
+  still gets the samples sent before (up to the depth); a VOLATILE reader (every node of the loop, the
+  rclpy time source) gets nothing old from it.
+* The loop's subscriptions to the control chain (``joint_states``, ``joint_states_filtered``,
+  ``reference``, ``torque_command``, ``disturbance_estimate``) and ``/clock`` keep 10 (10 ms at 1 kHz):
+  a burst of jitter is absorbed, but a stalled node works through at most 10 ms of backlog, never a
+  second of stale measurements or commands. Subscriptions to the diagnostics (``ground_truth``,
+  ``observer_state``, ``controller_internals``) keep 100: nothing in the loop reads them.
+* rclpy's own time source subscribes ``/clock`` BEST_EFFORT depth 1, which a RELIABLE publisher serves;
+  lockstep correctness never depends on /clock delivery because every message carries its own stamp.
 """
 
 from typing import Final
@@ -23,33 +28,40 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from smm_msgs_py import topics
 
 CONTROL_QOS_DEPTH: Final[int] = 10
-"""Queue depth of the control-chain topics (samples; 10 ms at 1 kHz)."""
+"""Queue depth of the control nodes' subscriptions to control-chain topics (samples; 10 ms at 1 kHz)."""
+
+PUBLISHER_QOS_DEPTH: Final[int] = 1000
+"""History depth of every publisher of the stack (samples; 1 s at 1 kHz): how far a slow reader may lag."""
 
 DIAGNOSTIC_QOS_DEPTH: Final[int] = 100
-"""Queue depth of the diagnostic topics (samples; 100 ms at 1 kHz)."""
+"""Queue depth of the subscriptions to the diagnostic topics (samples; 100 ms at 1 kHz)."""
 
-CLOCK_QOS_DEPTH: Final[int] = 10
-"""Queue depth of the /clock publisher (samples)."""
+CLOCK_QOS_DEPTH: Final[int] = PUBLISHER_QOS_DEPTH
+"""History depth of the /clock publisher (samples)."""
 
-_DEPTH_BY_TOPIC: Final[dict[str, int]] = {
+_SUBSCRIPTION_DEPTH_BY_TOPIC: Final[dict[str, int]] = {
     **{name: CONTROL_QOS_DEPTH for name in topics.CONTROL_TOPICS},
     **{name: DIAGNOSTIC_QOS_DEPTH for name in topics.DIAGNOSTIC_TOPICS},
-    topics.CLOCK: CLOCK_QOS_DEPTH,
+    topics.CLOCK: CONTROL_QOS_DEPTH,
 }
 
 
-def _reliable_volatile(depth: int) -> QoSProfile:
+def _reliable_volatile(depth: int, durability: DurabilityPolicy = DurabilityPolicy.VOLATILE) -> QoSProfile:
     # rclpy's QoSProfile.__init__ is untyped (**kwargs) when rclpy is installed, Any when it is not.
     return QoSProfile(  # type: ignore[no-untyped-call,unused-ignore]
         history=HistoryPolicy.KEEP_LAST,
         depth=depth,
         reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.VOLATILE,
+        durability=durability,
     )
 
 
+def _publisher(depth: int = 0) -> QoSProfile:
+    return _reliable_volatile(depth or PUBLISHER_QOS_DEPTH, DurabilityPolicy.TRANSIENT_LOCAL)
+
+
 def control_qos() -> QoSProfile:
-    """Return the profile of the control-chain topics: RELIABLE, VOLATILE, KEEP_LAST depth 10.
+    """Return the subscription profile of the control-chain topics: RELIABLE, VOLATILE, KEEP_LAST depth 10.
 
     Returns:
         A new profile (profiles are mutable, so each caller gets its own).
@@ -58,29 +70,29 @@ def control_qos() -> QoSProfile:
 
 
 def diagnostic_qos() -> QoSProfile:
-    """Return the profile of the diagnostic topics: RELIABLE, VOLATILE, KEEP_LAST depth 100.
+    """Return the profile of a diagnostic publisher (``~/internals``, ``/diagnostics``): KEEP_LAST 1000.
 
     Returns:
         A new profile (profiles are mutable, so each caller gets its own).
     """
-    return _reliable_volatile(DIAGNOSTIC_QOS_DEPTH)
+    return _publisher()
 
 
 def clock_qos() -> QoSProfile:
-    """Return the profile of the /clock publisher: RELIABLE, VOLATILE, KEEP_LAST depth 10.
+    """Return the profile of the /clock publisher: RELIABLE, TRANSIENT_LOCAL, KEEP_LAST depth 1000.
 
     Returns:
         A new profile (profiles are mutable, so each caller gets its own).
     """
-    return _reliable_volatile(CLOCK_QOS_DEPTH)
+    return _publisher(CLOCK_QOS_DEPTH)
 
 
 def qos_for_topic(topic: str) -> QoSProfile:
-    """Return the QoS profile of a topic of :mod:`smm_msgs_py.topics`.
+    """Return the publisher profile of a stack topic: RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1000.
 
     Args:
         topic: The relative topic name (e.g. ``topics.TORQUE_COMMAND``) or ``topics.CLOCK``, as passed to
-            ``create_publisher`` / ``create_subscription`` (before namespacing and remapping).
+            ``create_publisher`` (before namespacing and remapping).
 
     Returns:
         A new profile (profiles are mutable, so each caller gets its own).
@@ -88,8 +100,26 @@ def qos_for_topic(topic: str) -> QoSProfile:
     Raises:
         KeyError: ``topic`` is not a topic of the stack.
     """
-    try:
-        depth = _DEPTH_BY_TOPIC[topic]
-    except KeyError:
-        raise KeyError(f"unknown topic {topic!r}; known topics: {', '.join(topics.ALL_TOPICS)}") from None
-    return _reliable_volatile(depth)
+    _check_topic(topic)
+    return _publisher()
+
+
+def subscription_qos_for_topic(topic: str) -> QoSProfile:
+    """Return the profile a node of the loop subscribes a topic with (control topics and /clock: depth 10).
+
+    Args:
+        topic: The relative topic name or ``topics.CLOCK``, as passed to ``create_subscription``.
+
+    Returns:
+        A new profile (profiles are mutable, so each caller gets its own).
+
+    Raises:
+        KeyError: ``topic`` is not a topic of the stack.
+    """
+    _check_topic(topic)
+    return _reliable_volatile(_SUBSCRIPTION_DEPTH_BY_TOPIC[topic])
+
+
+def _check_topic(topic: str) -> None:
+    if topic not in _SUBSCRIPTION_DEPTH_BY_TOPIC:
+        raise KeyError(f"unknown topic {topic!r}; known topics: {', '.join(topics.ALL_TOPICS)}")

@@ -19,7 +19,9 @@ Clock modes (parameter ``clock_mode``, fixed at start-up):
   Messages published before the subscribers matched are lost in DDS, so the current measurement is
   re-published every ``republish_period`` wall seconds until it is answered (the controller nodes answer a
   repeated stamp by re-publishing their last answer without stepping). A run is therefore deterministic for
-  a seed and goes as fast as the graph allows.
+  a seed and goes as fast as the graph allows. With ``start.min_subscribers`` > 0 the measurement of step
+  0 is held until ``joint_states`` has that many matched subscriptions and ``ground_truth`` and ``/clock``
+  one each (a recorder: nothing else reads those), so that a recorder started with the graph sees step 0.
 * ``realtime``: a steady-clock timer steps the plant every ``control_period`` with the latest valid command;
   a command older than ``command_timeout`` gives zero torque (throttled warning). The node measures the
   measurement-to-command latency (receive time of the first answer minus publish time of the answered
@@ -59,7 +61,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import JointSample, clock_msg, msg_to_torque, sample_to_joint_state
 from smm_msgs_py.errors import InterfaceError
-from smm_msgs_py.qos import qos_for_topic
+from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
 from smm_node_runtime.parameters import ConfigParameters, bounds, check_bounds
 from std_msgs.msg import Float64MultiArray
 
@@ -87,6 +89,7 @@ __all__ = [
     "SimNode",
     "SimNodeConfig",
     "SimParameterError",
+    "StartGate",
     "main",
     "statistics_summary",
 ]
@@ -94,7 +97,9 @@ __all__ = [
 NODE_NAME: Final[str] = "smm_sim_node"
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
 _NS_PER_S: Final[int] = 1_000_000_000
-_STARTUP_ONLY: Final[frozenset[str]] = frozenset({"clock_mode"})
+_STARTUP_ONLY: Final[frozenset[str]] = frozenset({"clock_mode", "start.min_subscribers"})
+_GATE_POLL_S: Final[float] = 0.01
+_GATE_LOG_S: Final[float] = 2.0
 _PUBLISHED_STAMPS_KEPT: Final[int] = 1000
 MAX_COMMAND_TIMEOUT: Final[float] = 0.5
 """Largest ``command_timeout`` (s): beyond it a stale torque is held while the plant could reach its stop."""
@@ -179,6 +184,24 @@ class PlantParameters:
         object.__setattr__(self, "plant_config", config)
 
 
+MAX_START_SUBSCRIBERS: Final[int] = 64
+
+
+@dataclass(frozen=True)
+class StartGate:
+    """Lockstep: when the first measurement is published (parameters ``start.*``, fixed at start-up).
+
+    Attributes:
+        min_subscribers: Hold step 0 until ``joint_states`` has at least this many matched subscriptions
+            and ``ground_truth`` and ``/clock`` at least one each, in [0, 64]; 0 = publish at once.
+    """
+
+    min_subscribers: int = field(default=0, metadata=bounds(0, MAX_START_SUBSCRIBERS))
+
+    def __post_init__(self) -> None:
+        check_bounds(self)
+
+
 @dataclass(frozen=True)
 class SimNodeConfig:
     """Behaviour of the simulator node (``clock_mode`` is fixed at start-up, the rest may change live).
@@ -199,6 +222,7 @@ class SimNodeConfig:
             here at the end; "" = none.
         stats_period: Realtime: log the latency statistics every this many wall seconds (s), >= 0;
             0 = only at the end.
+        start: Lockstep: the start gate (:class:`StartGate`).
     """
 
     clock_mode: Literal["lockstep", "realtime"] = "realtime"
@@ -209,6 +233,7 @@ class SimNodeConfig:
     record_file: str = ""
     stats_file: str = ""
     stats_period: float = 5.0
+    start: StartGate = field(default_factory=StartGate)
 
     def __post_init__(self) -> None:
         if self.clock_mode not in CLOCK_MODES:
@@ -420,7 +445,10 @@ class SimNode(SmmNode):
             else None
         )
         self.create_subscription(
-            Float64MultiArray, topics.TORQUE_COMMAND, self._on_command, qos_for_topic(topics.TORQUE_COMMAND)
+            Float64MultiArray,
+            topics.TORQUE_COMMAND,
+            self._on_command,
+            subscription_qos_for_topic(topics.TORQUE_COMMAND),
         )
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._stats_timer: Timer | None = None
@@ -435,11 +463,15 @@ class SimNode(SmmNode):
         self._last_publish_ns = 0
         self._step_limit = self._node_parameters.config.step_limit(self._period_ns)
 
+        self._gate: Timer | None = None
         if self._clock_mode == "lockstep":
             self._timer = self.create_timer(
                 self._node_parameters.config.republish_period, self._on_republish_timer, clock=self._steady
             )
-            self._publish_measurement()
+            if self._node_parameters.config.start.min_subscribers > 0:
+                self._gate = self.create_timer(_GATE_POLL_S, self._on_gate_timer, clock=self._steady)
+            else:
+                self._publish_measurement()
         else:
             self._timer = self.create_timer(self._dt, self._on_realtime_tick, clock=self._steady)
             self._next_tick_ns = time.monotonic_ns() + self._period_ns
@@ -513,7 +545,7 @@ class SimNode(SmmNode):
 
     def _refuse_startup_only(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
-            if parameter.name in _STARTUP_ONLY and parameter.value != getattr(self.config, parameter.name):
+            if parameter.name in _STARTUP_ONLY and parameter.value != _value_at(self.config, parameter.name):
                 return SetParametersResult(
                     successful=False,
                     reason=f"{parameter.name} is fixed at start-up; restart the node to change it",
@@ -668,8 +700,34 @@ class SimNode(SmmNode):
             while len(self._published_at) > _PUBLISHED_STAMPS_KEPT:
                 self._published_at.popitem(last=False)
 
+    def _gate_shortfall(self) -> list[str]:
+        """The publishers still short of their start subscribers, as ``topic n/needed``; [] = open."""
+        wanted = self.config.start.min_subscribers
+        needed = [(self._joint_states_pub, wanted), (self._ground_truth_pub, 1)]
+        if self._clock_pub is not None:
+            needed.append((self._clock_pub, 1))
+        return [
+            f"{publisher.topic_name} {publisher.get_subscription_count()}/{count}"
+            for publisher, count in needed
+            if publisher.get_subscription_count() < count
+        ]
+
+    def _on_gate_timer(self) -> None:
+        assert self._gate is not None
+        short = self._gate_shortfall()
+        if short:
+            self._log.info(
+                f"holding step 0 until matched: {', '.join(short)} (start.min_subscribers)",
+                throttle_duration_sec=_GATE_LOG_S,
+            )
+            return
+        self._gate.cancel()  # type: ignore[no-untyped-call]
+        self._gate = None
+        self._log.info("every publisher has its start subscribers; publishing step 0")
+        self._publish_measurement()
+
     def _on_republish_timer(self) -> None:
-        if self._finished:
+        if self._finished or self._gate is not None:
             return
         waited_ns = time.monotonic_ns() - self._last_publish_ns
         if waited_ns >= self.config.republish_period * _NS_PER_S * 0.999:
@@ -788,6 +846,12 @@ class SimNode(SmmNode):
         if hasattr(self, "_finished") and not self._finished:
             self.write_outputs()
         super().destroy_node()  # type: ignore[no-untyped-call]
+
+
+def _value_at(config: object, name: str) -> Any:
+    for part in name.split("."):
+        config = getattr(config, part)
+    return config
 
 
 def main(args: Sequence[str] | None = None) -> int:
