@@ -62,6 +62,7 @@ __all__ = [
     "resolve_controllers",
     "resolve_scenarios",
     "run_controller",
+    "run_entry",
     "run_reproduction",
     "step_discretisation_study",
 ]
@@ -640,6 +641,39 @@ def _finite_or_none(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
+def run_entry(
+    joints: Mapping[str, JointIndices],
+    step: Mapping[str, StepMetrics] | None,
+    end_effector: Mapping[str, AxisError],
+) -> dict[str, object]:
+    """One run of ``metrics.json``: per joint the indices (and step metrics), and ``end_effector``."""
+    entry: dict[str, object] = {}
+    for joint in JOINTS:
+        indices = joints[joint]
+        values: dict[str, float | None] = {
+            "Ma": indices.Ma,
+            "Ave": indices.Ave,
+            "RMS": indices.RMS,
+            "eps_u": indices.eps_u,
+            "du_rms": indices.du_rms,
+        }
+        if step is not None and joint in step:
+            metrics = step[joint]
+            values.update(
+                {
+                    "rise_time": _finite_or_none(metrics.rise_time),
+                    "overshoot": metrics.overshoot,
+                    "overshoot_fraction": metrics.overshoot_fraction,
+                    "settling_time": _finite_or_none(metrics.settling_time),
+                }
+            )
+        entry[joint] = values
+    entry["end_effector"] = {
+        axis: {"max_mm": error.max_mm, "rms_mm": error.rms_mm} for axis, error in end_effector.items()
+    }
+    return entry
+
+
 def metrics_document(result: ReproductionResult) -> dict[str, object]:
     """The JSON document written to metrics.json.
 
@@ -657,30 +691,7 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
     for (scenario, controller), run in result.runs.items():
         per_scenario = document.setdefault(scenario, {})
         assert isinstance(per_scenario, dict)
-        entry: dict[str, object] = {}
-        for joint in JOINTS:
-            indices = run.joints[joint]
-            values: dict[str, float | None] = {
-                "Ma": indices.Ma,
-                "Ave": indices.Ave,
-                "RMS": indices.RMS,
-                "eps_u": indices.eps_u,
-                "du_rms": indices.du_rms,
-            }
-            if run.step is not None:
-                metrics = run.step[joint]
-                values.update(
-                    {
-                        "rise_time": _finite_or_none(metrics.rise_time),
-                        "overshoot": metrics.overshoot,
-                        "overshoot_fraction": metrics.overshoot_fraction,
-                        "settling_time": _finite_or_none(metrics.settling_time),
-                    }
-                )
-            entry[joint] = values
-        entry["end_effector"] = {
-            axis: {"max_mm": error.max_mm, "rms_mm": error.rms_mm} for axis, error in run.end_effector.items()
-        }
+        entry = run_entry(run.joints, run.step, run.end_effector)
         per_scenario[controller] = entry
     document["acceptance"] = [
         {

@@ -21,6 +21,7 @@ from smm_analysis.metrics import (
     joint_indices,
     step_metrics,
 )
+from smm_analysis.reproduction import run_entry
 
 from smm_bag.recorded import JOINTS, RecordedRun
 from smm_dynamics import SMMParameters
@@ -85,10 +86,6 @@ def evaluate(run: RecordedRun, params: SMMParameters | None = None) -> RunMetric
     )
 
 
-def _finite_or_none(value: float) -> float | None:
-    return value if math.isfinite(value) else None
-
-
 def _run_key(metrics: RunMetrics, taken: set[tuple[str, str]]) -> tuple[str, str]:
     scenario = metrics.run.manifest.scenario or "recorded"
     controller = metrics.run.label
@@ -115,31 +112,7 @@ def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
         scenario, controller = _run_key(result, taken)
         per_scenario = document.setdefault(scenario, {})
         assert isinstance(per_scenario, dict)
-        entry: dict[str, object] = {}
-        for joint in JOINTS:
-            indices = result.joints[joint]
-            values: dict[str, float | None] = {
-                "Ma": indices.Ma,
-                "Ave": indices.Ave,
-                "RMS": indices.RMS,
-                "eps_u": indices.eps_u,
-                "du_rms": indices.du_rms,
-            }
-            if result.step is not None and joint in result.step:
-                step = result.step[joint]
-                values.update(
-                    {
-                        "rise_time": _finite_or_none(step.rise_time),
-                        "overshoot": step.overshoot,
-                        "overshoot_fraction": step.overshoot_fraction,
-                        "settling_time": _finite_or_none(step.settling_time),
-                    }
-                )
-            entry[joint] = values
-        entry["end_effector"] = {
-            axis: {"max_mm": error.max_mm, "rms_mm": error.rms_mm}
-            for axis, error in result.end_effector.items()
-        }
+        entry = run_entry(result.joints, result.step, result.end_effector)
         per_scenario[controller] = entry
         run = result.run
         latency = run.latency_ns
