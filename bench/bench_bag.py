@@ -26,30 +26,7 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-NETNS_EXEC = HERE.parent / "tests" / "netns_exec.py"
 ANALYSIS_TARGET_S = 30.0
-
-
-def reexec_in_private_netns(argv: list[str]) -> int:
-    command = ["unshare", "--net"] + ([] if os.geteuid() == 0 else ["--map-root-user"])
-    command += [
-        "--",
-        sys.executable,
-        str(NETNS_EXEC),
-        sys.executable,
-        str(Path(__file__).resolve()),
-        "--inner",
-    ]
-    env = dict(os.environ)
-    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    env.setdefault("ROS_DOMAIN_ID", str(170 + os.getpid() % 30))
-    try:
-        return subprocess.run([*command, *argv], env=env, check=False).returncode
-    except FileNotFoundError:
-        print(
-            "bench_bag: 'unshare' (util-linux) is missing; cannot isolate the ROS processes", file=sys.stderr
-        )
-        return 1
 
 
 def record_at_1khz(seconds: float, workdir: Path) -> None:
@@ -231,7 +208,9 @@ def main(argv: list[str] | None = None) -> int:
             "--graph-seconds",
             str(arguments.graph_seconds),
         ]
-        return reexec_in_private_netns(forwarded)
+        from bench_graph import reexec_in_private_netns
+
+        return reexec_in_private_netns(forwarded, __file__, domain_base=170)
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     with tempfile.TemporaryDirectory(prefix="bench_bag_") as directory:
         workdir = Path(directory)

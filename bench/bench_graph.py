@@ -56,7 +56,10 @@ def verdict(met: bool) -> str:
 # ------------------------------------------------------------------------------------ namespace re-exec
 
 
-def reexec_in_private_netns(argv: list[str]) -> int:
+def reexec_in_private_netns(
+    argv: list[str], script: str = __file__, domain_base: int = 200, domains: int = 30
+) -> int:
+    """Run ``script --inner argv`` in a private network namespace with only loopback (as the tests do)."""
     command = ["unshare", "--net"]
     if os.geteuid() != 0:
         command.append("--map-root-user")
@@ -65,17 +68,17 @@ def reexec_in_private_netns(argv: list[str]) -> int:
         sys.executable,
         str(NETNS_EXEC),
         sys.executable,
-        str(Path(__file__).resolve()),
+        str(Path(script).resolve()),
         "--inner",
     ]
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    env.setdefault("ROS_DOMAIN_ID", str(200 + os.getpid() % 30))
+    env.setdefault("ROS_DOMAIN_ID", str(domain_base + os.getpid() % domains))
     try:
         return subprocess.run([*command, *argv], env=env, check=False).returncode
     except FileNotFoundError:
         print(
-            "bench_graph: 'unshare' (util-linux) is missing; cannot isolate the ROS processes",
+            f"{Path(script).stem}: 'unshare' (util-linux) is missing; cannot isolate the ROS processes",
             file=sys.stderr,
         )
         return 1

@@ -31,33 +31,12 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
-NETNS_EXEC = REPO / "tests" / "netns_exec.py"
 SECONDS = 30.0
 FULL_SCALE = 20.0
 COUNTS = 1 << 20
 RMS_RATIO_TARGET = 1.5
 PERIODS = (1e-3, 1e-2)
 """The acceptance rate (1 kHz), then 100 Hz, where a loaded two-core machine keeps up with three processes."""
-
-
-def reexec_in_private_netns(argv: list[str]) -> int:
-    command = ["unshare", "--net"] + ([] if os.geteuid() == 0 else ["--map-root-user"])
-    command += [
-        "--",
-        sys.executable,
-        str(NETNS_EXEC),
-        sys.executable,
-        str(Path(__file__).resolve()),
-        "--inner",
-    ]
-    env = dict(os.environ)
-    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    env.setdefault("ROS_DOMAIN_ID", str(170 + os.getpid() % 20))
-    try:
-        return subprocess.run([*command, *argv], env=env, check=False).returncode
-    except FileNotFoundError:
-        print("bench_hil: 'unshare' (util-linux) is missing; cannot isolate the processes", file=sys.stderr)
-        return 1
 
 
 def free_port() -> int:
@@ -240,7 +219,9 @@ def compare(workdir: Path, period: float) -> bool:
 
 def main(argv: list[str]) -> int:
     if "--inner" not in argv:
-        return reexec_in_private_netns(argv)
+        from bench_graph import reexec_in_private_netns
+
+        return reexec_in_private_netns(argv, __file__, domain_base=170, domains=20)
     sys.path.insert(0, str(HERE))
     from bench_graph import timer_floor, udp_ping_pong
 
