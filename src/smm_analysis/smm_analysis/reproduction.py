@@ -22,6 +22,8 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Final
 
 import numpy as np
 from smm_controller.limits import OutputLimitConfig
@@ -44,6 +46,7 @@ from smm_dynamics import SMMParameters
 __all__ = [
     "CASE2_RMS_REDUCTION",
     "JOINTS",
+    "METRICS_UNITS",
     "REPRODUCTION_CONTROLLERS",
     "STEP_OVERSHOOT_LIMIT",
     "STEP_RISE_TIME_RANGE",
@@ -641,6 +644,23 @@ def _finite_or_none(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
+METRICS_UNITS: Final[Mapping[str, str]] = MappingProxyType(
+    {
+        "Ma": "rad",
+        "Ave": "rad",
+        "RMS": "rad",
+        "eps_u": "N^2 m^2 s (integral of the commanded torque squared)",
+        "du_rms": "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
+        "rise_time": "s (10-90 %)",
+        "overshoot": "rad",
+        "overshoot_fraction": "fraction of the step (x100 = %)",
+        "settling_time": "s (2 % band; null = not settled)",
+        "end_effector": "mm",
+    }
+)
+"""Units of the quantities of :func:`run_entry` (``meta.units`` of ``metrics.json``)."""
+
+
 def run_entry(
     joints: Mapping[str, JointIndices],
     step: Mapping[str, StepMetrics] | None,
@@ -733,17 +753,6 @@ def metrics_document(result: ReproductionResult) -> dict[str, object]:
             for name in result.controllers
             if name in RETUNED_SETS
         },
-        "units": {
-            "Ma": "rad",
-            "Ave": "rad",
-            "RMS": "rad",
-            "eps_u": "N^2 m^2 s (integral of the commanded torque squared)",
-            "du_rms": "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
-            "rise_time": "s (10-90 %)",
-            "overshoot": "rad",
-            "overshoot_fraction": "fraction of the step (x100 = %)",
-            "settling_time": "s (2 % band; null = not settled)",
-            "end_effector": "mm",
-        },
+        "units": dict(METRICS_UNITS),
     }
     return document

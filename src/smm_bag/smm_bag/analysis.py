@@ -21,7 +21,7 @@ from smm_analysis.metrics import (
     joint_indices,
     step_metrics,
 )
-from smm_analysis.reproduction import run_entry
+from smm_analysis.reproduction import METRICS_UNITS, run_entry
 
 from smm_bag.recorded import JOINTS, RecordedRun
 from smm_dynamics import SMMParameters
@@ -138,16 +138,7 @@ def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
         "source": "smm-bag analyze",
         "bags": bags,
         "units": {
-            "Ma": "rad",
-            "Ave": "rad",
-            "RMS": "rad",
-            "eps_u": "N^2 m^2 s (integral of the commanded torque squared)",
-            "du_rms": "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
-            "rise_time": "s (10-90 %)",
-            "overshoot": "rad",
-            "overshoot_fraction": "fraction of the step (x100 = %)",
-            "settling_time": "s (2 % band; null = not settled)",
-            "end_effector": "mm",
+            **METRICS_UNITS,
             "latency_ms": "ms, receive time of the command minus receive time of its measurement",
         },
     }
