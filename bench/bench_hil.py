@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -178,13 +179,15 @@ def realtime_hil(workdir: Path, period: float) -> dict[str, Any] | None:
     start_t = math.ceil(t[live[0]] + 1.0)
     seconds = min(SECONDS, float(t[-1]) - start_t)
     seconds -= seconds % 2.0  # whole periods of the 2 s reference
-    # The controller's time zero is the first measurement it got, published after activation, a few ticks
-    # before its first command reached the valves: the candidate origin that aligns best is taken.
-    candidates = [t[live[0]] - k * period for k in range(1, 21)]
-    status["rms"] = min(
-        (tracking_rms(t, q, start_t, seconds, origin) for origin in candidates),
-        key=lambda rms: float(np.sum(rms)),
-    )
+    # The controller's time zero: the stamp of its first measurement, which it logs; the bridge stamps
+    # measurements with board tick * period, so it is a time on the board's clock.
+    log = (workdir / f"controller_node_{period}.log").read_text(errors="replace")
+    found = re.search(r"reference t = 0 s at measurement stamp (\d+) ns", log)
+    if found is None:
+        print("  the controller did not log its reference origin")
+        return None
+    status["origin_s"] = int(found.group(1)) * 1e-9
+    status["rms"] = tracking_rms(t, q, start_t, seconds, status["origin_s"])
     status["window_s"] = seconds
     return status
 

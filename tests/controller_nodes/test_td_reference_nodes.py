@@ -224,6 +224,14 @@ def test_reference_clock_counts_from_the_first_stamp_in_exact_integers() -> None
     assert clock.first_stamp_ns == first
 
 
+def test_reference_clock_announces_its_origin_once() -> None:
+    notes: list[str] = []
+    clock = ReferenceClock(notes.append)
+    clock.time_s(5 * MS)
+    clock.time_s(6 * MS)
+    assert notes == [f"reference t = 0 s at measurement stamp {5 * MS} ns"]
+
+
 def test_reference_is_sampled_at_the_time_since_the_first_stamp(make_rig: Any, ros_context: Any) -> None:
     # Gaps of up to 1.45 s: allowed by a wider stamp window (the default refuses more than 100 periods).
     rig = make_rig(reference_node_without_lookahead(ros_context, **{"stamp.max_ahead_periods": 2000}))

@@ -16,7 +16,7 @@ and ``control_period`` (read-only, s; the plant's period, which spaces the stamp
 from __future__ import annotations
 
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Unpack
 
@@ -126,10 +126,15 @@ class ReferenceClock:
     t = 0 at the first stamp it is asked about, as a trajectory controller starts its trajectory at the
     first state it sees. Exact integer difference, then one rounding: the offline loop's ``t_ns / 1e9``
     for the same stamps.
+
+    Args:
+        announce: Called once with a one-line note when t = 0 is set (a node passes its logger's ``info``),
+            so a run's logs say which measurement stamp its reference time starts at.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, announce: Callable[[str], object] | None = None) -> None:
         self._first_stamp_ns: int | None = None
+        self._announce = announce
 
     @property
     def first_stamp_ns(self) -> int | None:
@@ -140,6 +145,8 @@ class ReferenceClock:
         """Reference time (s) at ``stamp_ns`` (ns); the first stamp ever passed becomes t = 0."""
         if self._first_stamp_ns is None:
             self._first_stamp_ns = stamp_ns
+            if self._announce is not None:
+                self._announce(f"reference t = 0 s at measurement stamp {stamp_ns} ns")
         return (stamp_ns - self._first_stamp_ns) / NANOSECONDS_PER_SECOND
 
 
@@ -159,7 +166,7 @@ class ReferenceNode(MeasurementDrivenNode):
         super().__init__(**options)
         self.lookahead = ConfigParameters(self, "", ReferenceLookahead(), read_only=True)
         self.reference = ReferenceParameters(self)
-        self.clock = ReferenceClock()
+        self.clock = ReferenceClock(self.get_logger().info)
         """Reference time from the stamps: t = 0 at the first answered measurement."""
         self._time_s = 0.0
         self._reference_publisher = self.create_publisher(
@@ -192,7 +199,7 @@ class ReferenceNode(MeasurementDrivenNode):
     def on_time_jump(self, *, backward: bool) -> None:
         """A new run (backward jump) starts its reference at t = 0 again."""
         if backward:
-            self.clock = ReferenceClock()
+            self.clock = ReferenceClock(self.get_logger().info)
 
     def _step(self, stamp_ns: int) -> list[Output]:
         ahead_ns = self.lookahead.config.lookahead * self.period_ns
