@@ -13,10 +13,11 @@ Figures, not pass/fail (``make bench``). Every process runs in a private network
    (target <= 1.5). Beside it, what the offline loop gives with the same plant when every command acts
    one period late (the board applies a command at the tick after the feedback it answers): the part of
    the penalty that is the controller's, not the host's.
-   The emulator stands for the board, whose 1 kHz loop is hard real time: it runs under SCHED_FIFO
-   (``chrt``) when the system allows it, so a loaded host slows the stack under test, not the "board".
-   At 1 kHz the HIL runs twice: the host processes at normal priority (the product default), then under
-   SCHED_FIFO as on a real-time host.
+   The emulator stands for the board, whose 1 kHz loop is hard real time: it runs under SCHED_FIFO 70
+   (as ``smm-launch --plant hardware`` starts it) when the system allows it, so that a loaded host slows
+   the stack under test, not the "board". At 1 kHz the HIL runs twice: the bridge and the controller at
+   normal priority (a host that refuses SCHED_FIFO), then under SCHED_FIFO 50 (``smm-launch``'s default
+   for the hardware plant).
 """
 
 from __future__ import annotations
@@ -105,15 +106,6 @@ def lockstep_reference(workdir: Path, period: float) -> np.ndarray | None:
     return tracking_rms(data["stamp_ns"] * 1e-9, data["position"], 2.0, SECONDS - 2.0)
 
 
-def fifo_prefix(priority: int) -> list[str]:
-    """``chrt -f <priority>`` if this system lets us use SCHED_FIFO, else nothing."""
-    try:
-        allowed = subprocess.run(["chrt", "-f", str(priority), "true"], check=False).returncode == 0
-    except FileNotFoundError:
-        allowed = False
-    return ["chrt", "-f", str(priority)] if allowed else []
-
-
 def offline_with_delay(period: float, delay: int) -> np.ndarray:
     """case1 FPDESO tracking RMS (rad, per joint) of the offline loop on the bench plant with every command
     applied ``delay`` periods late (the applied torque fed back, as the bridge reports it)."""
@@ -155,6 +147,12 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
     ``host_fifo``: the bridge and the controller under SCHED_FIFO too (the emulator always is, if allowed).
     """
     from smm_bringup.graph import CONTROLLER_NODE, GraphOptions, build_graph
+    from smm_bringup.realtime import (
+        BOARD_PRIORITY_OFFSET,
+        DEFAULT_HARDWARE_PRIORITY,
+        fifo_allowed,
+        fifo_preexec,
+    )
 
     tag = f"{period}_fifo" if host_fifo else str(period)
 
@@ -165,20 +163,27 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
     processes: list[subprocess.Popen[bytes]] = []
     logs = []
 
-    def start(name: str, argv: list[str]) -> subprocess.Popen[bytes]:
+    def start(name: str, argv: list[str], priority: int = 0) -> subprocess.Popen[bytes]:
         log = (workdir / f"{name}_{tag}.log").open("wb")
         logs.append(log)
-        process = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        process = subprocess.Popen(
+            argv,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            preexec_fn=fifo_preexec(priority) if priority and fifo_allowed(priority) else None,  # noqa: PLW1509
+        )
         processes.append(process)
         return process
 
-    board_rt, host_rt = fifo_prefix(80), fifo_prefix(50) if host_fifo else []
+    board_priority = DEFAULT_HARDWARE_PRIORITY + BOARD_PRIORITY_OFFSET
+    host_priority = DEFAULT_HARDWARE_PRIORITY if host_fifo else 0
     emulator = start("emulator", [
-        *board_rt, sys.executable, "-m", "smm_bench_emulator.cli", "--bind", f"127.0.0.1:{board}", "--host",
+        sys.executable, "-m", "smm_bench_emulator.cli", "--bind", f"127.0.0.1:{board}", "--host",
         f"127.0.0.1:{host}", "--control", f"127.0.0.1:{control}", "--no-valve-lag", "--counts-per-rev",
         str(COUNTS), "--full-scale-torque", str(FULL_SCALE), "--duration", str(board_seconds), "--record",
         str(record), "--control-period", str(period),
-    ])  # fmt: skip
+    ], board_priority)  # fmt: skip
     bridge = {
         "autostart": "true",
         "link.bind_port": str(host),
@@ -195,7 +200,7 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
     }
     arguments = [text for name, value in bridge.items() for text in ("-p", f"{name}:={value}")]
     bridge_argv = [sys.executable, "-m", "smm_hw_bridge.bridge_node", "--ros-args", "-r", "__ns:=/smm"]
-    start("hw_bridge_node", [*host_rt, *bridge_argv, *arguments])
+    start("hw_bridge_node", [*bridge_argv, *arguments], host_priority)
     options = GraphOptions(
         clock_mode="realtime",
         scenario="case1",
@@ -205,7 +210,8 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
     spec = next(s for s in build_graph(options) if s.name == CONTROLLER_NODE)
     start(
         "controller_node",
-        [*host_rt, sys.executable, "-m", "smm_controller.controller_node", *spec.ros_arguments()],
+        [sys.executable, "-m", "smm_controller.controller_node", *spec.ros_arguments()],
+        host_priority,
     )
     try:
         emulator.wait(timeout=board_seconds + 120.0)

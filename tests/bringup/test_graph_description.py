@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
+import os
 import py_compile
 import runpy
+import subprocess
 import sys
 import types
 from pathlib import Path
@@ -22,6 +25,7 @@ from smm_bringup.launcher import (
     run,
 )
 from smm_bringup.launcher import build_parser as launcher_parser
+from smm_bringup.realtime import fifo_allowed, fifo_preexec
 
 from smm_bringup import graph
 
@@ -129,9 +133,20 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
         graph.HW_NODE,
         *[s.name for s in sim[1:]],
     ]
-    assert hardware[2:] == sim[1:]  # nothing changes on the controller side
+    # Nothing changes on the controller side but its scheduling (SCHED_FIFO 50 on the bench by default).
+    assert [dataclasses.replace(spec, rt_priority=0) for spec in hardware[2:]] == list(sim[1:])
+    assert [spec.rt_priority for spec in hardware] == [70, 50, *[50] * len(sim[1:])]
+    assert {spec.rt_priority for spec in sim} == {0}
     emulator, bridge = dict(hardware[0].parameters), dict(hardware[1].parameters)
-    assert emulator == {"bind": graph.EMULATOR_BOARD, "host": graph.EMULATOR_HOST, "duration": 3.0, "seed": 4}
+    assert emulator == {
+        "bind": graph.EMULATOR_BOARD,
+        "host": graph.EMULATOR_HOST,
+        "duration": 3.0,
+        "seed": 4,
+        "noise-std": 0.0,  # case1's plant, as the simulator would run it
+        "inertia-scale": 1.0,
+        "disturbance": "none",
+    }
     assert (
         bridge["autostart"] is True
         and bridge["link.board_port"] == 50101
@@ -142,6 +157,76 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
     emulator, bridge = dict(slow[0].parameters), dict(slow[1].parameters)
     assert emulator["control-period"] == 0.01 and bridge["bridge.admission.period_ns"] == 10_000_000
     assert bridge["bridge.host_watchdog_ns"] == 100_000_000  # 10 ticks, as the 10 ms default at 1 kHz
+
+
+def test_the_emulator_runs_the_scenario_plant_the_simulator_would(tmp_path: Path) -> None:
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", scenario="case2"))
+    emulator = dict(specs[0].parameters)
+    assert (emulator["noise-std"], emulator["inertia-scale"], emulator["disturbance"]) == (0.001, 1.1, "eq46")
+    extra = tmp_path / "noise.yaml"
+    extra.write_text("/**/smm_sim_node:\n  ros__parameters:\n    noise_std: [0.002, 0.002]\n")
+    specs = build_graph(
+        GraphOptions(plant="hardware", clock_mode="realtime", scenario="case2", params_files=(str(extra),))
+    )
+    assert dict(specs[0].parameters)["noise-std"] == 0.002  # a later file wins, as for the simulator
+    extra.write_text("/**/smm_sim_node:\n  ros__parameters:\n    noise_std: [0.002, 0.001]\n")
+    with pytest.raises(graph.ParameterFileError, match=r"noise_std.*one noise std"):
+        build_graph(GraphOptions(plant="hardware", clock_mode="realtime", params_files=(str(extra),)))
+
+
+@pytest.mark.parametrize(
+    ("options", "expected"),
+    [
+        (
+            GraphOptions(clock_mode="realtime", rt_priority=10),
+            {graph.SIM_NODE: 10, graph.CONTROLLER_NODE: 10},
+        ),
+        (
+            GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=0),
+            {graph.EMULATOR_NODE: 0, graph.HW_NODE: 0, graph.CONTROLLER_NODE: 0},
+        ),
+        (
+            GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=90, record="bag"),
+            {graph.RECORDER_NODE: 0, graph.EMULATOR_NODE: 99, graph.HW_NODE: 90, graph.CONTROLLER_NODE: 90},
+        ),
+    ],
+)
+def test_rt_priority_goes_to_the_loop_processes_and_the_board_runs_above(
+    options: GraphOptions, expected: dict[str, int]
+) -> None:
+    assert {spec.name: spec.rt_priority for spec in build_graph(options)} == expected
+
+
+@pytest.mark.parametrize("bad", [-1, 99, 1.5, True, "50"])
+def test_invalid_rt_priority_is_refused_with_its_name(bad: Any) -> None:
+    with pytest.raises(ValueError, match="rt_priority"):
+        GraphOptions(rt_priority=bad)
+
+
+def test_children_run_under_sched_fifo_when_the_system_allows_it(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from smm_bringup import launcher
+
+    probe = "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, end='')"
+    spec = NodeSpec("p", "python", "probe", "", rt_priority=7)
+    allowed = fifo_allowed(7)
+    priorities = launcher._fifo_priorities([spec, NodeSpec("p", "python", "other", "")])
+    policy = subprocess.run(
+        [sys.executable, "-c", probe],
+        preexec_fn=fifo_preexec(7) if priorities.get("probe") else None,  # as GraphProcesses starts it
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    if allowed:
+        assert priorities == {"probe": 7}
+        assert policy == f"{os.SCHED_FIFO} 7"
+    else:  # e.g. a container without CAP_SYS_NICE: said once, then normal scheduling
+        assert priorities == {}
+        assert "cannot use SCHED_FIFO" in capsys.readouterr().err
+        assert policy == f"{os.SCHED_OTHER} 0"
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the probe left the launcher as it was
 
 
 def test_hardware_plant_with_a_board_address_starts_no_emulator() -> None:
@@ -323,6 +408,8 @@ def graph_options(draw: st.DrawFn) -> GraphOptions:
             params_files=tuple(draw(st.lists(st.sampled_from(["a.yaml", "dir/b c.yaml"]), max_size=3))),
             control_period=draw(st.none() | positive),
             board=draw(st.none() | st.just("192.168.0.9:50101")),
+            record=draw(st.none() | st.just("bags/run 1")),
+            rt_priority=draw(st.none() | st.integers(min_value=0, max_value=98)),
         )
     except ValueError:
         assume(False)
@@ -484,11 +571,37 @@ def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) 
         graph.EMULATOR_HOST,
         "--duration",
         "2.0",
+        "--noise-std",  # the default scenario's (case2) plant
+        "0.001",
+        "--inertia-scale",
+        "1.1",
+        "--disturbance",
+        "eq46",
     ]
     nodes = _launched_nodes(
         monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "board": "192.168.1.20:50101"}
     )
     assert nodes[0].kwargs["name"] == graph.HW_NODE
+
+
+def test_launch_file_records_and_sets_real_time_priorities(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    bag = str(tmp_path / "run")
+    arguments = {"plant": "hardware", "clock_mode": "realtime", "record": bag}
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", record=bag))
+    nodes = _launched_nodes(monkeypatch, arguments)
+    assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in specs]
+    assert nodes[0].kwargs["name"] == graph.RECORDER_NODE
+    prefixes = {node.kwargs["name"]: node.kwargs["prefix"] for node in nodes}
+    assert prefixes == {
+        graph.RECORDER_NODE: None,
+        graph.EMULATOR_NODE: "chrt -f 70",
+        graph.HW_NODE: "chrt -f 50",
+        graph.CONTROLLER_NODE: "chrt -f 50",
+    }
+    nodes = _launched_nodes(monkeypatch, {**arguments, "rt_priority": "0"})
+    assert {node.kwargs["prefix"] for node in nodes} == {None}
 
 
 # ------------------------------------------------------------------------------------ console scripts

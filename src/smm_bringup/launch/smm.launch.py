@@ -12,7 +12,10 @@ so the two cannot drift apart. Arguments:
 * ``duration:=<s>`` (empty: the scenario's in lockstep, endless in realtime),
 * ``seed:=<int>`` (empty: as configured),
 * ``params_file:=<path>`` (empty: none), applied after the scenario's file,
-* ``control_period:=<s>`` (empty: as configured, 1 ms), for every node.
+* ``control_period:=<s>`` (empty: as configured, 1 ms), for every node,
+* ``record:=<dir>`` (empty: none): record every topic to a rosbag2 MCAP bag with smm_bag's recorder_node,
+* ``rt_priority:=<n>`` (empty: 50 with plant hardware, else 0): SCHED_FIFO priority of the loop's
+  processes (``chrt -f``; the emulator runs 20 above), 0 for normal scheduling.
 
 Every node's exit ends the launch: the plant exits 0 when its run is complete, any other exit is a failure.
 """
@@ -48,6 +51,8 @@ ARGUMENTS = (
     ("params_file", "", "extra ROS 2 parameter file for every node (empty: none)"),
     ("control_period", "", "control period of every node, s (empty: as configured, 0.001)"),
     ("board", "", "plant hardware: ADDRESS:PORT of the I/O board (empty: start the bench emulator)"),
+    ("record", "", "bag folder to record every topic to (empty: no recording)"),
+    ("rt_priority", "", "SCHED_FIFO priority of the loop's processes (empty: 50 with hardware, else 0)"),
 )
 
 
@@ -66,12 +71,15 @@ def options_from_launch_arguments(values: dict[str, str]) -> GraphOptions:
         params_files=(values["params_file"],) if values["params_file"] else (),
         control_period=float(values["control_period"]) if values["control_period"] else None,
         board=values["board"] or None,
+        record=values["record"] or None,
+        rt_priority=int(values["rt_priority"]) if values["rt_priority"] else None,
     )
 
 
 def node_action(spec: NodeSpec) -> Node:
     """One launch_ros Node for one spec of the graph (files first, then the explicit overrides)."""
     overrides = {name: list(value) if isinstance(value, tuple) else value for name, value in spec.parameters}
+    prefix = f"chrt -f {spec.rt_priority}" if spec.rt_priority else None
     if not spec.node_class:  # a plain process (the bench emulator): its settings are command-line options
         return Node(
             package=spec.package,
@@ -80,6 +88,7 @@ def node_action(spec: NodeSpec) -> Node:
             namespace=spec.namespace,
             arguments=[text for name, value in spec.parameters for text in (f"--{name}", str(value))],
             output="screen",
+            prefix=prefix,
             on_exit=[
                 LogInfo(msg=f"{spec.name} exited; stopping the graph"),
                 EmitEvent(event=Shutdown(reason=f"{spec.name} exited")),
@@ -93,6 +102,7 @@ def node_action(spec: NodeSpec) -> Node:
         parameters=[*spec.parameter_files, overrides],
         remappings=list(spec.remappings),
         output="screen",
+        prefix=prefix,
         on_exit=[
             LogInfo(msg=f"{spec.name} exited; stopping the graph"),
             EmitEvent(event=Shutdown(reason=f"{spec.name} exited")),

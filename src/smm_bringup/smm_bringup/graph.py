@@ -39,6 +39,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_share_
 from smm_controller.controller_node import REFERENCE_PREFIX
 from smm_controller.reference import REFERENCE_KINDS
 
+from smm_bringup.realtime import BOARD_PRIORITY_OFFSET, DEFAULT_HARDWARE_PRIORITY, MAX_PRIORITY
 from smm_msgs_py import topics
 
 __all__ = [
@@ -172,6 +173,11 @@ class GraphOptions:
             ``smm_bench_emulator`` on loopback instead.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
+        rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
+            nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` (as ros2_control's
+            controller manager), 0 with the simulator. The bench emulator, standing for the hard real-time
+            board, runs 20 above (at most 99); the recorder always at normal priority. Where the system
+            refuses SCHED_FIFO, the launcher says so and runs them at normal priority.
     """
 
     plant: Literal["sim", "hardware", "hw"] = "sim"
@@ -186,6 +192,7 @@ class GraphOptions:
     control_period: float | None = None
     board: str | None = None
     record: str | None = None
+    rt_priority: int | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "plant", PLANT_ALIASES.get(self.plant, self.plant))
@@ -221,6 +228,13 @@ class GraphOptions:
             raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
         if self.record is not None and (not isinstance(self.record, str) or not self.record.strip()):
             raise ValueError(f"record must be a bag folder path or None, got {self.record!r}")
+        priority = self.rt_priority
+        if priority is not None and (
+            isinstance(priority, bool) or not isinstance(priority, int) or not 0 <= priority < MAX_PRIORITY
+        ):
+            raise ValueError(
+                f"rt_priority must be an int in [0, {MAX_PRIORITY - 1}] or None, got {priority!r}"
+            )
         if self.board is not None:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
@@ -256,6 +270,7 @@ class NodeSpec:
         parameter_files: ROS 2 parameter files, lowest precedence first.
         parameters: Parameter overrides ``(name, value)``, applied after the files.
         remappings: Topic remappings ``(from, to)``.
+        rt_priority: SCHED_FIFO priority of the process (1-99); 0: normal scheduling.
     """
 
     package: str
@@ -266,6 +281,7 @@ class NodeSpec:
     parameter_files: tuple[str, ...] = ()
     parameters: tuple[tuple[str, ParameterValue], ...] = ()
     remappings: tuple[tuple[str, str], ...] = ()
+    rt_priority: int = 0
 
     @property
     def fully_qualified_name(self) -> str:
@@ -436,7 +452,7 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
         files.append(str(path.resolve()))
     shared_files = tuple(files)
     plant_side: tuple[NodeSpec, ...] = (
-        _hardware_specs(options)
+        _hardware_specs(options, shared_files)
         if options.plant == "hardware"
         else (
             NodeSpec(
@@ -492,11 +508,25 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
                 else spec
                 for spec in plant_side
             )
-    return (*recorder, *plant_side, *controller_side)
+    loop = tuple(_with_priority(spec, options) for spec in (*plant_side, *controller_side))
+    return (*recorder, *loop)
 
 
-def _hardware_specs(options: GraphOptions) -> tuple[NodeSpec, ...]:
-    """``hw_bridge_node`` (autostart), after ``smm_bench_emulator`` unless a board address is given."""
+def _with_priority(spec: NodeSpec, options: GraphOptions) -> NodeSpec:
+    """``spec`` with the SCHED_FIFO priority ``options`` give its process (``GraphOptions.rt_priority``)."""
+    priority = options.rt_priority
+    if priority is None:
+        priority = DEFAULT_HARDWARE_PRIORITY if options.plant == "hardware" else 0
+    if priority and spec.name == EMULATOR_NODE:
+        priority = min(MAX_PRIORITY, priority + BOARD_PRIORITY_OFFSET)
+    return dataclasses.replace(spec, rt_priority=priority)
+
+
+def _hardware_specs(options: GraphOptions, files: Sequence[str]) -> tuple[NodeSpec, ...]:
+    """``hw_bridge_node`` (autostart), after ``smm_bench_emulator`` unless a board address is given.
+
+    The emulator gets the plant the parameter ``files`` give the simulator (noise, disturbance, inertias).
+    """
     board = options.board or EMULATOR_BOARD
     address, port = split_endpoint("board", board)
     bind_address, bind_port = split_endpoint("host", EMULATOR_HOST)
@@ -532,6 +562,7 @@ def _hardware_specs(options: GraphOptions) -> tuple[NodeSpec, ...]:
         emulator_parameters.append(("seed", options.seed))
     if options.control_period is not None:
         emulator_parameters.append(("control-period", float(options.control_period)))
+    emulator_parameters += _emulator_plant(files)
     emulator = NodeSpec(
         package="smm_bench_emulator",
         executable=EMULATOR_NODE,
@@ -540,6 +571,30 @@ def _hardware_specs(options: GraphOptions) -> tuple[NodeSpec, ...]:
         parameters=tuple(emulator_parameters),
     )
     return (emulator, bridge)
+
+
+def _emulator_plant(files: Sequence[str]) -> list[tuple[str, ParameterValue]]:
+    """The emulator's plant options from the simulator's settings in the parameter ``files``.
+
+    Raises:
+        ParameterFileError: A per-joint noise the emulator cannot take (it takes one std for both joints).
+    """
+    sim: dict[str, Any] = {}
+    for path in files:
+        sim.update(load_parameter_file(path, f"/{NAMESPACE}/{SIM_NODE}"))
+    options: list[tuple[str, ParameterValue]] = []
+    if "noise_std" in sim:
+        noise = sim["noise_std"]
+        if not isinstance(noise, list) or len(noise) != 2 or noise[0] != noise[1]:
+            raise ParameterFileError(
+                f"{SIM_NODE}.noise_std {noise!r}: the bench emulator takes one noise std for both joints"
+            )
+        options.append(("noise-std", float(noise[0])))
+    if "inertia_scale" in sim:
+        options.append(("inertia-scale", float(sim["inertia_scale"])))
+    if "disturbance" in sim:
+        options.append(("disturbance", str(sim["disturbance"])))
+    return options
 
 
 def expected_publishers(specs: Sequence[NodeSpec]) -> dict[str, int]:

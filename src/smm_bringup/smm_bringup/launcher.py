@@ -62,6 +62,7 @@ from smm_bringup.graph import (
     expected_publishers,
     parameter_overrides,
 )
+from smm_bringup.realtime import fifo_allowed, fifo_preexec
 from smm_node_runtime import as_parameter_list, ensure_localhost_discovery, make_executor
 
 __all__ = [
@@ -201,10 +202,19 @@ class GraphProcesses:
             # their readers, the recorder's included (start.min_subscribers, set by build_graph).
             specs.sort(key=lambda spec: (spec.name != RECORDER_NODE) + 2 * (spec.name in PLANT_NODE_NAMES))
         commands = [spec.command_line(resolve_executable(spec)) for spec in specs]
+        fifo = _fifo_priorities(specs)
         for index, (spec, command) in enumerate(zip(specs, commands, strict=True)):
-            popen = subprocess.Popen(command, env=self._env, stdin=subprocess.DEVNULL, start_new_session=True)
+            priority = fifo.get(spec.name, 0)
+            popen = subprocess.Popen(
+                command,
+                env=self._env,
+                stdin=subprocess.DEVNULL,
+                start_new_session=True,
+                preexec_fn=fifo_preexec(priority) if priority else None,  # noqa: PLW1509 (no threads yet)
+            )
             self.children.append(_Child(spec, popen))
-            _say(f"started {spec.name} (pid {popen.pid}): {' '.join(command)}")
+            scheduling = f", SCHED_FIFO {priority}" if priority else ""
+            _say(f"started {spec.name} (pid {popen.pid}{scheduling}): {' '.join(command)}")
             if spec is recorder:
                 _wait_for_recorder(spec, popen)
             elif (
@@ -257,6 +267,19 @@ class GraphProcesses:
             for child in running:
                 with contextlib.suppress(subprocess.TimeoutExpired):
                     child.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
+
+
+def _fifo_priorities(specs: Sequence[NodeSpec]) -> dict[str, int]:
+    """``{node: SCHED_FIFO priority}`` of the specs asking for one, if the system allows it (else says so)."""
+    wanted = {spec.name: spec.rt_priority for spec in specs if spec.rt_priority}
+    if wanted and not fifo_allowed(max(wanted.values())):
+        _say(
+            f"cannot use SCHED_FIFO (priority {max(wanted.values())}) here: it needs CAP_SYS_NICE or an "
+            "rtprio limit (docs/NODES.md, 'Real time'); running every node at normal priority",
+            sys.stderr,
+        )
+        return {}
+    return wanted
 
 
 PUBLISHERS_FILE: Final[str] = ".publishers"
@@ -512,6 +535,14 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="record every topic to a rosbag2 MCAP bag in DIR (new folder) with smm_bag's recorder_node",
     )
+    parser.add_argument(
+        "--rt-priority",
+        type=int,
+        default=None,
+        metavar="N",
+        help="SCHED_FIFO priority of the loop's processes, 0 = normal scheduling (default: 50 with --plant "
+        "hardware, 0 with the simulator); the emulator runs 20 above",
+    )
     parser.add_argument("--composed", action="store_true", help="run all nodes in this process")
     parser.add_argument("--dry-run", action="store_true", help="print the node command lines and exit")
     parser.add_argument(
@@ -543,6 +574,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         control_period=arguments.control_period,
         board=arguments.board,
         record=arguments.record,
+        rt_priority=arguments.rt_priority,
     )
 
 
@@ -563,6 +595,8 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--board", options.board]
     if options.record is not None:
         arguments += ["--record", options.record]
+    if options.rt_priority is not None:
+        arguments += ["--rt-priority", str(options.rt_priority)]
     return arguments
 
 

@@ -239,7 +239,7 @@ class ControllerNode(MeasurementDrivenNode):
             ReferenceParameters(self, REFERENCE_PREFIX) if internal else None
         )
         """The reference generator this node samples with ``reference_source = internal`` (else None)."""
-        self.reference_clock = ReferenceClock(self.get_logger().info)
+        self.reference_clock = ReferenceClock(self.get_logger().info)  # type: ignore[no-untyped-call]
         """Time of the sampled reference: t = 0 at the first matched measurement (``internal`` only)."""
         self.selection = ConfigParameters(
             self, "", ControllerSelection(), check=self._check_selection, on_change=self._on_selection
@@ -517,7 +517,7 @@ class ControllerNode(MeasurementDrivenNode):
             self.limiter.reset()
             if self.plausibility is not None:
                 self.plausibility.reset()
-            self.reference_clock = ReferenceClock(self.get_logger().info)
+            self.reference_clock = ReferenceClock(self.get_logger().info)  # type: ignore[no-untyped-call]
             self._last_command = np.zeros(2)
 
     def health_counts(self) -> dict[str, int]:

@@ -166,7 +166,7 @@ class ReferenceNode(MeasurementDrivenNode):
         super().__init__(**options)
         self.lookahead = ConfigParameters(self, "", ReferenceLookahead(), read_only=True)
         self.reference = ReferenceParameters(self)
-        self.clock = ReferenceClock(self.get_logger().info)
+        self.clock = ReferenceClock(self.get_logger().info)  # type: ignore[no-untyped-call]
         """Reference time from the stamps: t = 0 at the first answered measurement."""
         self._time_s = 0.0
         self._reference_publisher = self.create_publisher(
@@ -199,7 +199,7 @@ class ReferenceNode(MeasurementDrivenNode):
     def on_time_jump(self, *, backward: bool) -> None:
         """A new run (backward jump) starts its reference at t = 0 again."""
         if backward:
-            self.clock = ReferenceClock(self.get_logger().info)
+            self.clock = ReferenceClock(self.get_logger().info)  # type: ignore[no-untyped-call]
 
     def _step(self, stamp_ns: int) -> list[Output]:
         ahead_ns = self.lookahead.config.lookahead * self.period_ns

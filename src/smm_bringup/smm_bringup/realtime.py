@@ -1,0 +1,36 @@
+"""SCHED_FIFO for the processes of the control loop (``--rt-priority``; docs/NODES.md, "Real time")."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import Final
+
+DEFAULT_HARDWARE_PRIORITY: Final[int] = 50
+"""Priority of the loop processes with ``plant hardware`` (ros2_control's controller manager uses 50)."""
+BOARD_PRIORITY_OFFSET: Final[int] = 20
+"""The bench emulator stands for the hard real-time board: it runs this much above the loop (at most 99)."""
+MAX_PRIORITY: Final[int] = 99
+
+
+def fifo_allowed(priority: int) -> bool:
+    """Whether this process may use SCHED_FIFO at ``priority`` (CAP_SYS_NICE or RLIMIT_RTPRIO).
+
+    Tried on this process and undone at once.
+    """
+    policy, parameters = os.sched_getscheduler(0), os.sched_getparam(0)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError:
+        return False
+    os.sched_setscheduler(0, policy, parameters)
+    return True
+
+
+def fifo_preexec(priority: int) -> Callable[[], None]:
+    """A ``Popen(preexec_fn=...)`` that puts the child under SCHED_FIFO before it starts any thread."""
+
+    def apply() -> None:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+
+    return apply
