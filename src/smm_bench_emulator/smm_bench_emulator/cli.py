@@ -103,21 +103,21 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-_ROS_PARAMETERS = {
-    "bind": "--bind",
-    "host": "--host",
-    "control": "--control",
-    "duration": "--duration",
-    "seed": "--seed",
-    "mode": "--mode",
-    "control-period": "--control-period",
-}
+def ros_parameters() -> dict[str, str]:
+    """``-p`` names that smm-launch may pass: every option of :func:`build_parser` taking a value."""
+    return {
+        option[2:]: option
+        for action in build_parser()._actions
+        if action.nargs != 0
+        for option in action.option_strings
+        if option.startswith("--")
+    }
 
 
 def from_ros_arguments(argv: Sequence[str]) -> list[str]:
     """Options from ``--ros-args -p name:=value ...`` (how smm-launch starts every process of the graph).
 
-    ``-p`` names of :data:`_ROS_PARAMETERS` become the options of the same name; remappings and parameter
+    ``-p`` names of :func:`ros_parameters` become the options of the same name; remappings and parameter
     files are ignored (the emulator is not a ROS node).
 
     Raises:
@@ -130,9 +130,10 @@ def from_ros_arguments(argv: Sequence[str]) -> list[str]:
     for flag, value in itertools.pairwise(ros):
         if flag == "-p":
             name, _, text = value.partition(":=")
-            if name not in _ROS_PARAMETERS:
-                raise ValueError(f"unknown parameter {name!r} (known: {sorted(_ROS_PARAMETERS)})")
-            options += [_ROS_PARAMETERS[name], text.strip('"')]
+            known = ros_parameters()
+            if name not in known:
+                raise ValueError(f"unknown parameter {name!r} (known: {sorted(known)})")
+            options += [known[name], text.strip('"')]
     return options
 
 
