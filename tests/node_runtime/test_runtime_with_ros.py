@@ -249,3 +249,35 @@ def test_diagnostics_are_built_only_while_someone_listens(ros_context: Any) -> N
         listener.destroy_node()
     finally:
         node.destroy_node()
+
+
+def test_wait_for_delivery_returns_once_every_reader_has_it_and_the_writer_may_go(ros_context: Any) -> None:
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import UInt32
+
+    from smm_node_runtime import wait_for_delivery
+
+    qos = QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=1000,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
+    )
+    writer = rclpy.create_node("delivery_writer", context=ros_context)
+    reader = rclpy.create_node("delivery_reader", context=ros_context)
+    received: list[int] = []
+    reader.create_subscription(UInt32, "delivery", lambda msg: received.append(msg.data), qos)
+    publisher = writer.create_publisher(UInt32, "delivery", qos)
+    executor = make_executor(ros_context)
+    executor.add_node(reader)
+    try:
+        assert spin_until(executor, lambda: publisher.get_subscription_count() == 1, timeout_s=10.0)
+        for k in range(500):
+            publisher.publish(UInt32(data=k))
+        assert wait_for_delivery(writer, 10.0) == []
+        writer.destroy_node()  # what an exiting process does right after
+        assert spin_until(executor, lambda: len(received) == 500, timeout_s=10.0)
+        assert received == list(range(500))
+    finally:
+        executor.shutdown()
+        reader.destroy_node()

@@ -17,7 +17,14 @@ from smm_node_runtime.measurement import (
     StampPolicy,
     values_of,
 )
-from smm_node_runtime.node import NodeOptions, ParameterOverrides, SmmNode, as_parameter_list, node_arguments
+from smm_node_runtime.node import (
+    NodeOptions,
+    ParameterOverrides,
+    SmmNode,
+    as_parameter_list,
+    node_arguments,
+    wait_for_delivery,
+)
 from smm_node_runtime.parameters import (
     ConfigParameters,
     bounds,
@@ -78,5 +85,6 @@ __all__ = [
     "run_nodes",
     "spin_until_shutdown",
     "values_of",
+    "wait_for_delivery",
     "worst",
 ]

@@ -2,15 +2,24 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, TypedDict, Unpack
 
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-__all__ = ["NodeOptions", "ParameterOverrides", "SmmNode", "as_parameter_list", "node_arguments"]
+__all__ = [
+    "NodeOptions",
+    "ParameterOverrides",
+    "SmmNode",
+    "as_parameter_list",
+    "node_arguments",
+    "wait_for_delivery",
+]
 
 ParameterOverrides = Sequence[Parameter] | Mapping[str, Any]
 """Parameter overrides for a node: ``rclpy.parameter.Parameter`` objects or ``{name: value}``."""
@@ -90,3 +99,21 @@ def as_parameter_list(overrides: ParameterOverrides | None) -> list[Parameter] |
 
 def _parameter_value(value: Any) -> Any:
     return list(value) if isinstance(value, tuple) else value
+
+
+def wait_for_delivery(node: Node, timeout_s: float) -> list[str]:
+    """Wait until every matched reliable reader acknowledged what ``node`` published; at most ``timeout_s``.
+
+    A node about to exit calls it: its writers go with the process, so a reader still waiting for a repair
+    (a lost sample is resent at the writer's next heartbeat) would never get the rest.
+
+    Returns:
+        The topics still not acknowledged when the time was up.
+    """
+    deadline = time.monotonic() + timeout_s
+    pending = []
+    for publisher in list(node.publishers):
+        remaining_ns = max(0, int((deadline - time.monotonic()) * 1e9))
+        if not publisher.wait_for_all_acked(Duration(nanoseconds=remaining_ns)):
+            pending.append(publisher.topic_name)
+    return pending

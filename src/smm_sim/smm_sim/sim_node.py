@@ -76,6 +76,7 @@ from smm_node_runtime import (
     NodeOptions,
     SmmNode,
     run_node,
+    wait_for_delivery,
     worst,
 )
 from smm_sim.plant import GroundTruth, Measurement, PlantConfig, SimulatedPlant
@@ -100,6 +101,9 @@ _NS_PER_S: Final[int] = 1_000_000_000
 _STARTUP_ONLY: Final[frozenset[str]] = frozenset({"clock_mode", "start.min_subscribers"})
 _GATE_POLL_S: Final[float] = 0.01
 _GATE_LOG_S: Final[float] = 2.0
+_DELIVERY_TIMEOUT_S: Final[float] = 5.0
+"""Longest wait at the end of a run for the subscribers to acknowledge the last messages (s): more than
+Fast DDS's 3 s heartbeat period, after which a reliable writer resends what a reader lacks."""
 _PUBLISHED_STAMPS_KEPT: Final[int] = 1000
 MAX_COMMAND_TIMEOUT: Final[float] = 0.5
 """Largest ``command_timeout`` (s): beyond it a stale torque is held while the plant could reach its stop."""
@@ -837,6 +841,12 @@ class SimNode(SmmNode):
         self.write_outputs()
         self._log_statistics()
         self._log.info(f"run complete after {self.steps} steps ({self._plant.time_ns / _NS_PER_S:g} s)")
+        unacknowledged = wait_for_delivery(self, _DELIVERY_TIMEOUT_S)
+        if unacknowledged:
+            self._log.warning(
+                f"not every subscriber acknowledged the last messages of {', '.join(unacknowledged)} "
+                f"within {_DELIVERY_TIMEOUT_S:g} s; a recorder may miss them"
+            )
         self.done.set_result(self.steps)  # type: ignore[no-untyped-call]
         if self._shutdown_when_done:
             self.context.try_shutdown()
