@@ -22,6 +22,7 @@ EXPECTED = {  # type, subscription depth of the loop's nodes; every publisher ke
     "disturbance_estimate": (Float64MultiArray, 10),
     "observer_state": (Float64MultiArray, 100),
     "controller_internals": (Float64MultiArray, 100),
+    "hw_bridge_internals": (Float64MultiArray, 100),
     "/clock": (Clock, 10),
 }
 

@@ -50,7 +50,7 @@ from smm_node_runtime import (
 __all__ = ["INTERNALS_TOPIC", "NODE_NAME", "HwBridgeNode", "LinkConfig", "main"]
 
 NODE_NAME: Final[str] = "hw_bridge_node"
-INTERNALS_TOPIC: Final[str] = "hw_bridge_internals"
+INTERNALS_TOPIC: Final[str] = topics.HW_BRIDGE_INTERNALS
 _FAULT_CHECK_S: Final[float] = 0.005
 _LINK_RANGES: Final[dict[str, tuple[float, float]]] = {
     "bind_port": (0, 65535),
@@ -162,7 +162,7 @@ class HwBridgeNode(LifecycleNode):
             JointState, topics.JOINT_STATES, qos_for_topic(topics.JOINT_STATES)
         )
         self._internals = self.create_publisher(
-            Float64MultiArray, INTERNALS_TOPIC, qos_for_topic(topics.CONTROLLER_INTERNALS)
+            Float64MultiArray, INTERNALS_TOPIC, qos_for_topic(topics.HW_BRIDGE_INTERNALS)
         )
         self.create_subscription(
             Float64MultiArray,

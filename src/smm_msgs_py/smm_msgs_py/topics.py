@@ -39,6 +39,10 @@ OBSERVER_STATE: Final[str] = "observer_state"
 CONTROLLER_INTERNALS: Final[str] = "controller_internals"
 """Controller internals, labelled ``std_msgs/Float64MultiArray`` (rows = the controller's internals keys)."""
 
+HW_BRIDGE_INTERNALS: Final[str] = "hw_bridge_internals"
+"""What ``hw_bridge_node`` sent to the valves, labelled ``std_msgs/Float64MultiArray`` (rows ``codes``,
+``torque`` N m, ``clamped``, ``limit_cut``, ``enabled``), stamped with the answered measurement."""
+
 CLOCK: Final[str] = "/clock"
 """Simulation clock, ``rosgraph_msgs/Clock``; absolute, published by the simulator in lockstep."""
 
@@ -54,7 +58,12 @@ CONTROL_TOPICS: Final[tuple[str, ...]] = (
 )
 """Topics of the control chain: a lost sample would stall lockstep or corrupt the loop."""
 
-DIAGNOSTIC_TOPICS: Final[tuple[str, ...]] = (GROUND_TRUTH, OBSERVER_STATE, CONTROLLER_INTERNALS)
+DIAGNOSTIC_TOPICS: Final[tuple[str, ...]] = (
+    GROUND_TRUTH,
+    OBSERVER_STATE,
+    CONTROLLER_INTERNALS,
+    HW_BRIDGE_INTERNALS,
+)
 """Topics read only by recorders and plots."""
 
 ALL_TOPICS: Final[tuple[str, ...]] = (*CONTROL_TOPICS, *DIAGNOSTIC_TOPICS, CLOCK)
@@ -89,6 +98,7 @@ TOPIC_TYPES: Final[Mapping[str, type]] = MappingProxyType(
         DISTURBANCE_ESTIMATE: Float64MultiArray,
         OBSERVER_STATE: Float64MultiArray,
         CONTROLLER_INTERNALS: Float64MultiArray,
+        HW_BRIDGE_INTERNALS: Float64MultiArray,
         CLOCK: Clock,
     }
 )
