@@ -192,6 +192,7 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
         "bridge.encoder.counts_per_rev": f"[{COUNTS}, {COUNTS}]",
         "bridge.valve.gain": f"[{32767 / FULL_SCALE}, {32767 / FULL_SCALE}]",
         "bridge.valve.rate_limit": "[1.0e12, 1.0e12]",
+        "bridge.valve.time_constants": "[0.0, 0.0]",  # the emulator runs without valve lag
         # the bridge's limits are 10/20/100 ticks at 1 kHz by default: the same in ticks at any period
         "bridge.admission.period_ns": str(period_ns),
         "bridge.admission.stale_ns": str(20 * period_ns),

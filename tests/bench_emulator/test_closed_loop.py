@@ -106,7 +106,11 @@ def test_lockstep_hil_with_the_fpdeso_chain_equals_the_simulator_with_the_same_d
     loop.bridge = BridgeCore(
         BridgeConfig(
             encoder=EncoderConfig(counts_per_rev=(cpr, cpr)),
-            valve=ValveOutputConfig(gain=(CODE_MAX / full_scale,) * 2, rate_limit=(math.inf, math.inf)),
+            valve=ValveOutputConfig(
+                gain=(CODE_MAX / full_scale,) * 2,
+                rate_limit=(math.inf, math.inf),
+                time_constants=(0.0, 0.0),  # as the board plant: no valve lag
+            ),
             lockstep=True,
         ),
         host_session=0x2222,

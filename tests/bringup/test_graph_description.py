@@ -204,7 +204,11 @@ def test_the_emulator_accepts_every_option_the_graph_passes_it() -> None:
         ),
         (
             GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=90, record="bag"),
-            {graph.RECORDER_NODE: 0, graph.EMULATOR_NODE: 99, graph.HW_NODE: 90, graph.CONTROLLER_NODE: 90},
+            {graph.RECORDER_NODE: 80, graph.EMULATOR_NODE: 99, graph.HW_NODE: 90, graph.CONTROLLER_NODE: 90},
+        ),
+        (
+            GraphOptions(clock_mode="realtime", rt_priority=5, record="bag"),
+            {graph.RECORDER_NODE: 1, graph.SIM_NODE: 5, graph.CONTROLLER_NODE: 5},
         ),
     ],
 )
@@ -612,7 +616,7 @@ def test_launch_file_records_and_sets_real_time_priorities(
     assert nodes[0].kwargs["name"] == graph.RECORDER_NODE
     prefixes = {node.kwargs["name"]: node.kwargs["prefix"] for node in nodes}
     assert prefixes == {
-        graph.RECORDER_NODE: None,
+        graph.RECORDER_NODE: "chrt -f 40",
         graph.EMULATOR_NODE: "chrt -f 70",
         graph.HW_NODE: "chrt -f 50",
         graph.CONTROLLER_NODE: "chrt -f 50",

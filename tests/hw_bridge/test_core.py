@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -17,7 +18,9 @@ MS = 1_000_000
 CPR = 1 << 16
 CONFIG = BridgeConfig(
     encoder=EncoderConfig(counts_per_rev=(CPR, CPR)),
-    valve=ValveOutputConfig(gain=(1000.0, 1000.0), rate_limit=(math.inf, math.inf)),
+    valve=ValveOutputConfig(
+        gain=(1000.0, 1000.0), rate_limit=(math.inf, math.inf), time_constants=(0.0, 0.0)
+    ),
     host_watchdog_ns=10 * MS,
     stale_periods=5,
     validity_ticks=10,
@@ -72,8 +75,8 @@ class Board:
         return self.core.stamp_ns
 
 
-def armed_core() -> tuple[BridgeCore, Board]:
-    core = BridgeCore(CONFIG, HOST)
+def armed_core(config: BridgeConfig = CONFIG) -> tuple[BridgeCore, Board]:
+    core = BridgeCore(config, HOST)
     board = Board(core)
     board.step()
     core.arm()
@@ -276,6 +279,29 @@ def test_applied_torque_is_the_torque_of_the_codes_the_board_reports() -> None:
     core, board = armed_core()
     board.step(output_codes=(500, -1500))
     np.testing.assert_allclose(core.applied_torque, [0.5, -1.5])
+
+
+def test_applied_torque_goes_through_the_valve_lag_model() -> None:
+    rise, fall = 0.02, 0.01
+    valve = ValveOutputConfig(
+        gain=(1000.0, 1000.0), rate_limit=(math.inf, math.inf), time_constants=(rise, fall)
+    )
+    core, board = armed_core(dataclasses.replace(CONFIG, valve=valve))
+    h = 1e-3
+    # Opening from null: the torque over tick k is the mean of target (1 - e^{-t/T_rise}) over that tick.
+    target = np.array([0.5, -1.5])
+    for k in range(1, 4):
+        board.step(output_codes=(500, -1500))
+        integral = h - rise * (np.exp(-(k - 1) * h / rise) - np.exp(-k * h / rise))
+        np.testing.assert_allclose(core.applied_torque, target * integral / h, rtol=1e-12)
+    # Back to null: it closes with T_fall from where it was.
+    reached = target * (1.0 - np.exp(-3 * h / rise))
+    board.step(output_codes=(0, 0))
+    np.testing.assert_allclose(
+        core.applied_torque, reached * fall / h * (1.0 - np.exp(-h / fall)), rtol=1e-12
+    )
+    with pytest.raises(ValueError, match="time_constants"):
+        ValveOutputConfig(time_constants=(0.02, 0.0))
 
 
 def test_invalid_bridge_configs_are_rejected() -> None:

@@ -82,6 +82,7 @@ def hil_run(ros_processes: Any, tmp_path: Path) -> tuple[Any, str]:
         "bridge.encoder.counts_per_rev": f"[{COUNTS}, {COUNTS}]",
         "bridge.valve.gain": f"[{32767 / FULL_SCALE}, {32767 / FULL_SCALE}]",
         "bridge.valve.rate_limit": "[1.0e12, 1.0e12]",
+        "bridge.valve.time_constants": "[0.0, 0.0]",  # the emulator runs without valve lag
         # lockstep runs at the graph's pace: no wall-clock limit may fire in between
         "bridge.host_watchdog_ns": "10000000000",
         "bridge.link_timeout_ns": "50000000000",

@@ -39,7 +39,12 @@ from ament_index_python.packages import PackageNotFoundError, get_package_share_
 from smm_controller.controller_node import REFERENCE_PREFIX
 from smm_controller.reference import REFERENCE_KINDS
 
-from smm_bringup.realtime import BOARD_PRIORITY_OFFSET, DEFAULT_HARDWARE_PRIORITY, MAX_PRIORITY
+from smm_bringup.realtime import (
+    BOARD_PRIORITY_OFFSET,
+    DEFAULT_HARDWARE_PRIORITY,
+    MAX_PRIORITY,
+    RECORDER_PRIORITY_OFFSET,
+)
 from smm_msgs_py import topics
 
 __all__ = [
@@ -176,8 +181,9 @@ class GraphOptions:
         rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
             nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` (as ros2_control's
             controller manager), 0 with the simulator. The bench emulator, standing for the hard real-time
-            board, runs 20 above (at most 99); the recorder always at normal priority. Where the system
-            refuses SCHED_FIFO, the launcher says so and runs them at normal priority.
+            board, runs 20 above (at most 99); the recorder 10 below (at least 1): above every ordinary
+            process, so that a loaded host does not starve it, below the loop. Where the system refuses
+            SCHED_FIFO, the launcher says so and runs them at normal priority.
     """
 
     plant: Literal["sim", "hardware", "hw"] = "sim"
@@ -508,8 +514,7 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
                 else spec
                 for spec in plant_side
             )
-    loop = tuple(_with_priority(spec, options) for spec in (*plant_side, *controller_side))
-    return (*recorder, *loop)
+    return tuple(_with_priority(spec, options) for spec in (*recorder, *plant_side, *controller_side))
 
 
 def _with_priority(spec: NodeSpec, options: GraphOptions) -> NodeSpec:
@@ -519,6 +524,8 @@ def _with_priority(spec: NodeSpec, options: GraphOptions) -> NodeSpec:
         priority = DEFAULT_HARDWARE_PRIORITY if options.plant == "hardware" else 0
     if priority and spec.name == EMULATOR_NODE:
         priority = min(MAX_PRIORITY, priority + BOARD_PRIORITY_OFFSET)
+    elif priority and spec.name == RECORDER_NODE:
+        priority = max(1, priority - RECORDER_PRIORITY_OFFSET)
     return dataclasses.replace(spec, rt_priority=priority)
 
 

@@ -178,6 +178,7 @@ class BridgeCore:
         self._recent: OrderedDict[int, tuple[int, int]] = OrderedDict()
         self._last: FeedbackFrame | None = None
         self._last_rx_ns: int | None = None
+        self._effort = np.zeros(2)
         self._pending: _Pending | None = None
         self._active = False
         self._arm_tick = -1
@@ -273,6 +274,7 @@ class BridgeCore:
             self._recent.popitem(last=False)
         self.stats.on_feedback(frame.seq, frame.applied_seq, rx_ns)
         self._last, self._last_rx_ns = frame, rx_ns
+        self._effort = self._valve.effort(frame.output_codes, self._config.period_ns / 1e9)
         if frame.faults:
             self.state = BridgeState.FAULT
             self._pending = None
@@ -301,9 +303,11 @@ class BridgeCore:
 
     @property
     def applied_torque(self) -> FloatArray:
-        """Torque equivalent of the D/A codes the board reports on the valves now (N m), shape (2,)."""
-        codes = (0, 0) if self._last is None else self._last.output_codes
-        return self._valve.torque_of(codes)
+        """Torque the valves gave over the last tick (N m), shape (2,); 0 before any feedback.
+
+        The D/A codes the board reports, through the valve lag model (``valve.time_constants``).
+        """
+        return self._effort.copy()
 
     @property
     def supply_pressure_bar(self) -> float:

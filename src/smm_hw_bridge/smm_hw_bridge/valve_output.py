@@ -1,4 +1,4 @@
-"""Torque -> D/A code: torque-to-valve gain, deadband compensation, saturation, rate limit. Pure numpy."""
+"""Torque -> D/A code (gain, deadband, saturation, rate limit); and codes -> torque through the valve lag."""
 
 from __future__ import annotations
 
@@ -9,6 +9,11 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 from smm_dynamics.validation import check_pair, check_scalar
+from smm_dynamics.valve import (
+    PAPER_VALVE_RESPONSE_TIMES,
+    valve_lag_step,
+    valve_time_constants_from_response_times,
+)
 
 from smm_hw_bridge.protocol import CODE_MAX
 
@@ -16,6 +21,8 @@ __all__ = ["OutputSample", "ValveOutput", "ValveOutputConfig"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
+PAPER_TIME_CONSTANTS = valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES)
+"""(T_rise, T_fall) of the paper's servo valve (s)."""
 
 
 @dataclass(frozen=True)
@@ -30,7 +37,12 @@ class ValveOutputConfig:
         deadband_blend: Demand (codes) below which the offset is blended in linearly, > 0, so the map is
             continuous through zero.
         code_limit: Saturation of |code| (alpha, beta), in [1, 32767].
-        rate_limit: Largest code change per second (alpha, beta), > 0; ``inf`` = off.
+        rate_limit: Largest code change per second (alpha, beta), > 0; ``inf`` = off. Default: full scale
+            in 2 ms, a tenth of the valve's own opening time. Full scale in 20 ms made the FPDESO loop
+            unstable on the emulated bench (docs/LAUNCH.md, "Measured: the hardware path").
+        time_constants: (T_rise, T_fall) of the valves' first-order lag (s), both > 0, or (0, 0) for none:
+            the model by which :meth:`ValveOutput.effort` turns the codes on the valves into the torque they
+            give (the board cannot measure it). Default: the paper's valve (SPEC section 2).
     """
 
     gain: tuple[float, float] = (CODE_MAX / 10.0, CODE_MAX / 10.0)
@@ -38,7 +50,10 @@ class ValveOutputConfig:
     deadband: tuple[float, float] = (0.0, 0.0)
     deadband_blend: float = 50.0
     code_limit: tuple[int, int] = (CODE_MAX, CODE_MAX)
-    rate_limit: tuple[float, float] = (CODE_MAX / 0.02, CODE_MAX / 0.02)
+    rate_limit: tuple[float, float] = (CODE_MAX / 0.002, CODE_MAX / 0.002)
+    time_constants: tuple[float, float] = valve_time_constants_from_response_times(
+        *PAPER_VALVE_RESPONSE_TIMES
+    )
 
     def __post_init__(self) -> None:
         check_pair("gain", self.gain, positive=True)
@@ -62,6 +77,11 @@ class ValveOutputConfig:
         if any(self.deadband[j] >= self.code_limit[j] for j in range(2)):
             raise ValueError(f"deadband {self.deadband!r} must be below code_limit {self.code_limit!r}")
         check_pair("rate_limit", self.rate_limit, positive=True, allow_inf=True)
+        check_pair("time_constants", self.time_constants, non_negative=True)
+        if (self.time_constants[0] == 0.0) != (self.time_constants[1] == 0.0):
+            raise ValueError(
+                f"time_constants must be both > 0 or both 0 (no lag), got {self.time_constants!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -90,6 +110,7 @@ class ValveOutput:
         self._rate = np.asarray(config.rate_limit, dtype=np.float64)
         self._last = np.zeros(2)
         self._sample = OutputSample((0, 0), np.zeros(2), np.zeros(2, dtype=np.bool_))
+        self._valve = [0.0, 0.0]
 
     @property
     def config(self) -> ValveOutputConfig:
@@ -97,9 +118,10 @@ class ValveOutput:
         return self._config
 
     def reset(self) -> None:
-        """Valves at null: the rate limit starts again from code 0."""
+        """Valves at null: the rate limit starts again from code 0, the lag model from 0 N m."""
         self._last = np.zeros(2)
         self._sample = OutputSample((0, 0), np.zeros(2), np.zeros(2, dtype=np.bool_))
+        self._valve = [0.0, 0.0]
 
     def _compensate(self, demand: FloatArray) -> FloatArray:
         blend = self._config.deadband_blend
@@ -142,6 +164,23 @@ class ValveOutput:
     def torque_of(self, codes: tuple[int, int]) -> FloatArray:
         """Torque (N m) that D/A ``codes`` command, the inverse of the map (without clamping), shape (2,)."""
         return self._uncompensate(np.asarray(codes, dtype=np.float64)) / self._gain
+
+    def effort(self, codes: tuple[int, int], dt: float) -> FloatArray:
+        """Torque the valves gave over the last ``dt`` s (N m), shape (2,): ``codes`` through the lag model.
+
+        Called once per board tick with the codes the board reports on its valves; without a lag model
+        (``time_constants`` (0, 0)) it is :meth:`torque_of` ``codes``.
+        """
+        target = self.torque_of(codes)
+        rise, fall = self._config.time_constants
+        if rise == 0.0:
+            return target
+        mean = np.empty(2)
+        for joint in range(2):
+            self._valve[joint], mean[joint] = valve_lag_step(
+                self._valve[joint], float(target[joint]), dt, rise, fall
+            )
+        return mean
 
     @property
     def last(self) -> OutputSample:

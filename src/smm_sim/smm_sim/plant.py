@@ -51,6 +51,11 @@ from typing import Final, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from smm_dynamics.validation import check_pair
+from smm_dynamics.valve import (
+    PAPER_VALVE_RESPONSE_TIMES,
+    valve_lag_step,
+    valve_time_constants_from_response_times,
+)
 
 from smm_dynamics import SMMParameters, rk4_step_floats
 
@@ -73,40 +78,12 @@ DisturbanceModel = Literal["none", "eq46"]
 DISTURBANCE_MODELS: Final[tuple[str, ...]] = ("none", "eq46")
 """Names accepted by ``PlantConfig.disturbance``."""
 
-PAPER_VALVE_RESPONSE_TIMES: Final[tuple[float, float]] = (0.050, 0.025)
-"""Servo-valve response time for a +-100 % step of the paper's Table 5 (rise, fall) (s)."""
-
 _NS_PER_S: Final[int] = 1_000_000_000
 # Standard normal variates drawn per refill of the noise block (two per sample).
 _NOISE_BLOCK: Final[int] = 1024
 _EQ46_ONSET_NS: Final[int] = 1_000_000_000
 _EQ46_AMPLITUDE: Final[float] = 0.5
 _EQ46_FREQUENCY: Final[float] = 7.0
-
-
-def valve_time_constants_from_response_times(
-    rise_time: float, fall_time: float, reached_fraction: float = 0.9
-) -> tuple[float, float]:
-    """Maps a valve's step response times to first-order lag time constants.
-
-    A first-order lag reaches the fraction ``p`` of a step after ``-T ln(1 - p)``; the catalogue's
-    response time is read as the time to ``reached_fraction`` (default 90 %).
-
-    Args:
-        rise_time: Response time while the valve opens (s), > 0.
-        fall_time: Response time while the valve closes (s), > 0.
-        reached_fraction: Fraction of the step reached at the response time, in (0, 1).
-
-    Returns:
-        (T_rise, T_fall) (s). For the paper's valve (50 ms, 25 ms): (21.7 ms, 10.9 ms).
-    """
-    for name, value in (("rise_time", rise_time), ("fall_time", fall_time)):
-        if not math.isfinite(value) or value <= 0.0:
-            raise ValueError(f"{name} must be a finite number > 0 s, got {value!r}")
-    if not 0.0 < reached_fraction < 1.0:
-        raise ValueError(f"reached_fraction must be in (0, 1), got {reached_fraction!r}")
-    scale = -math.log(1.0 - reached_fraction)
-    return rise_time / scale, fall_time / scale
 
 
 def eq46_disturbance(t: float) -> tuple[float, float]:
@@ -465,16 +442,10 @@ class SimulatedPlant:
         constants = self._config.valve_time_constants
         assert constants is not None  # step() bypasses the lag when there is none
         rise, fall = constants
-        mean = [0.0, 0.0]
-        for joint in range(2):
-            start = self._valve[joint]
-            goal = target[joint]
-            opening = start == 0.0 or (goal - start) * start > 0.0
-            time_constant = rise if opening else fall
-            decay = math.exp(-h / time_constant)
-            self._valve[joint] = goal + (start - goal) * decay
-            mean[joint] = goal + (start - goal) * (time_constant / h) * (1.0 - decay)
-        return mean[0], mean[1]
+        alpha, mean_alpha = valve_lag_step(self._valve[0], target[0], h, rise, fall)
+        beta, mean_beta = valve_lag_step(self._valve[1], target[1], h, rise, fall)
+        self._valve = [alpha, beta]
+        return mean_alpha, mean_beta
 
     def _apply_stops(self, state: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
         alpha, beta, alpha_dot, beta_dot = state
