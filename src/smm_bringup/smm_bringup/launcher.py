@@ -541,7 +541,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="N",
         help="SCHED_FIFO priority of the loop's processes, 0 = normal scheduling (default: 50 with --plant "
-        "hardware, 0 with the simulator); the emulator runs 20 above",
+        "hardware, 0 with the simulator); the emulator runs 20 above, the recorder 10 below",
     )
     parser.add_argument("--composed", action="store_true", help="run all nodes in this process")
     parser.add_argument("--dry-run", action="store_true", help="print the node command lines and exit")
