@@ -50,7 +50,7 @@ PUBLISHERS_FILE = ".publishers"
 (read by smm-launch, which starts the plant once every controller-side publisher is matched)."""
 DEFAULT_EXTRA_TOPICS = ("/clock", "/diagnostics", "/parameter_events", "/rosout")
 _SUBSCRIPTION_DEPTH = 10_000
-_STAMPED = ("joint_states", "ground_truth", "reference", "torque_command")
+_STAMPED = ("joint_states", "ground_truth", "reference", "torque_command", stack.CLOCK)
 
 
 def message_class(type_name: str) -> Any:
