@@ -306,3 +306,42 @@ def test_track_saturation_tells_only_a_tracking_law_and_only_finite_limited_outp
     track_saturation(law, (5.0, 2.0), (1.0, 2.0), 2e-3)
     assert law.calls == [((5.0, 2.0), (1.0, 2.0), 2e-3)]
     track_saturation(object(), (5.0, 2.0), (1.0, 2.0), 2e-3)  # a law without it: nothing to tell
+
+
+def test_the_refusal_names_the_joint_out_of_range_when_the_other_is_exactly_on_its_bound() -> None:
+    limits = MeasurementLimits(position_limit=(1.0, 2.0))
+    assert PlausibilityCheck(limits).reason((1.0, 2.5), 0, MS) == "position[1] = 2.5 rad outside +-2.0 rad"
+    assert PlausibilityCheck(limits).reason((-1.5, 2.0), 0, MS) == "position[0] = -1.5 rad outside +-1.0 rad"
+
+
+def test_the_too_fast_joint_is_judged_against_its_own_speed() -> None:
+    check = PlausibilityCheck(MeasurementLimits(max_speed=(100.0, 50.0)))
+    check.accept((0.0, 0.0), 0)
+    # alpha at (0.2) or below (0.15) its own allowance of 0.2 rad, beta 0.125 > 0.1 rad: beta is named
+    for alpha in (0.2, 0.15):
+        assert (check.reason((alpha, -0.125), 2 * MS, MS) or "").startswith("position[1] moved -0.125 rad")
+
+
+def test_the_move_is_measured_from_the_last_accepted_position_and_stamp() -> None:
+    check = PlausibilityCheck(MeasurementLimits(max_speed=(100.0, 100.0)))
+    check.accept((0.3, -0.2), 10 * MS)
+    # 1 ms later: up to 0.1 rad per joint from (0.3, -0.2)
+    assert check.reason((0.35, -0.25), 11 * MS, MS) is None
+    assert check.reason((0.39, -0.11), 11 * MS, MS) is None
+    assert (
+        check.reason((0.45, -0.2), 11 * MS, MS)
+        == "position[0] moved +0.15 rad in 0.001 s, faster than 100.0 rad/s"
+    )
+    assert (
+        check.reason((0.3, -0.35), 11 * MS, MS)
+        == "position[1] moved -0.15 rad in 0.001 s, faster than 100.0 rad/s"
+    )
+
+
+def test_a_clamped_joint_counts_even_when_the_other_is_nan() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(10.0, 10.0)))
+    limiter.limit_floats((50.0, math.nan), 1e-3)
+    np.testing.assert_array_equal(limiter.internals["clamped"], [1.0, 0.0])
+    assert limiter.clamps == 1
+    limiter.limit_floats((math.nan, -50.0), 1e-3)
+    np.testing.assert_array_equal(limiter.internals["clamped"], [0.0, 1.0])
