@@ -60,3 +60,20 @@ def test_without_valve_lag_the_valve_torque_is_the_saturated_command_per_joint()
     plant.step((7.0, -3.0), 1e-3)
     np.testing.assert_array_equal(plant.internals["valve_torque"], [5.0, -3.0])
     np.testing.assert_array_equal(plant.internals["applied_torque"], [5.0, -3.0])
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-170])
+def test_the_valve_opens_with_t_rise_and_closes_with_t_fall_at_any_torque_scale(scale: float) -> None:
+    """First-order lag of the module docstring, by hand; at 1e-170 N m (goal - start) * start underflows."""
+    rise, fall, dt = 0.004, 0.010, 1e-3
+    plant = SimulatedPlant(PlantConfig(valve_time_constants=(rise, fall)))
+    c1, c2, c3 = 1.0 * scale, 3.0 * scale, -2.0 * scale
+    plant.step((c1, -c1), dt)
+    v1 = c1 * (1.0 - math.exp(-dt / rise))  # opening from 0
+    np.testing.assert_allclose(plant.internals["valve_torque"], [v1, -v1], rtol=1e-12)
+    plant.step((c2, -c2), dt)
+    v2 = c2 + (v1 - c2) * math.exp(-dt / rise)  # |tau| grows: opening
+    np.testing.assert_allclose(plant.internals["valve_torque"], [v2, -v2], rtol=1e-12)
+    plant.step((c3, -c3), dt)
+    v3 = c3 + (v2 - c3) * math.exp(-dt / fall)  # moves towards 0: closing
+    np.testing.assert_allclose(plant.internals["valve_torque"], [v3, -v3], rtol=1e-12)

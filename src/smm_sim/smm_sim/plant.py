@@ -473,7 +473,8 @@ class SimulatedPlant:
         for joint in range(2):
             start = self._valve[joint]
             goal = target[joint]
-            opening = start == 0.0 or (goal - start) * start > 0.0
+            # moving away from 0 (signs compared, not multiplied: (goal - start) * start underflows)
+            opening = start == 0.0 or (goal > start) == (start > 0.0)
             time_constant = rise if opening else fall
             decay = math.exp(-h / time_constant)
             self._valve[joint] = goal + (start - goal) * decay
