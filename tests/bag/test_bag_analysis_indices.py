@@ -124,10 +124,21 @@ def test_other_references_are_not_steps(
     assert step_target(make_run(desired, [[0.2, 0.3]] * 3, rates=rates)) is None, why
 
 
-def test_only_the_acceleration_not_0_is_not_a_step() -> None:
+@pytest.mark.parametrize("derivative", [1, 2])
+def test_only_one_derivative_not_0_is_not_a_step(derivative: int) -> None:
     run = make_run([[1.0, 0.5]] * 3, [[0.2, 0.3]] * 3)
-    run.reference[1, 2, 0] = 0.5  # q_d'' only
+    run.reference[1, derivative, 0] = 0.5  # q_d' or q_d'' only
     assert step_target(run) is None
+
+
+def test_a_one_sample_run_has_a_step_target() -> None:
+    assert step_target(make_run([[1.0, 0.5]], [[0.2, 0.3]])) == (1.0, 0.5)
+    assert step_target(make_run([[0.2, 0.3]], [[0.2, 0.3]])) is None
+
+
+def test_a_hold_is_judged_on_the_first_position_only() -> None:
+    # q_d = the start position, then the joints drift: a hold, not a step
+    assert step_target(make_run([[0.2, 0.3]] * 3, [[0.2, 0.3], [0.25, 0.35], [0.3, 0.4]])) is None
 
 
 # A step of alpha from 0.2 to 1.2 rad reached linearly in 5 s (then held), beta held: t = 0..10 s.
@@ -148,6 +159,14 @@ def test_step_metrics_are_per_moving_joint_from_the_recorded_start() -> None:
     assert alpha.overshoot == pytest.approx(0.0, abs=1e-12)
     # within 2 % of the move from 0.98 of it on: 4.9 s (interpolated between the samples at 4.5 and 5 s)
     assert alpha.settling_time == pytest.approx(4.9)
+
+
+def test_a_joint_whose_target_is_its_start_gets_no_step_metrics_even_if_it_drifts() -> None:
+    drifting = make_run(
+        [[1.2, 0.3]] * 21, [[0.2 + min(t / 5.0, 1.0), 0.3 + 0.01 * t] for t in RAMP_T], t_s=RAMP_T
+    )
+    step = evaluate(drifting).step
+    assert step is not None and set(step) == {"alpha"}
 
 
 def test_both_joints_get_step_metrics_when_both_move() -> None:
@@ -207,7 +226,7 @@ def test_metrics_document_names_runs_by_manifest_and_keeps_every_bag() -> None:
         "plant": "sim",
         "version": "v1.2",
         # median 3 ms; p99 by linear interpolation at rank 0.99 * 4 = 3.96: 4 + 0.96 * (5 - 4) ms; max 5 ms
-        "latency_ms": {"median": pytest.approx(3.0), "p99": pytest.approx(4.96), "max": pytest.approx(5.0)},
+        "latency_ms": {"median": 3.0, "p99": pytest.approx(4.96, rel=1e-12), "max": 5.0},
     }
     assert bags["/bags/b"]["controller"] == "fpdeso@b"
     assert bags["/bags/b"]["latency_ms"] is None
