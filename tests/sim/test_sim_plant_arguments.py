@@ -77,3 +77,15 @@ def test_the_valve_opens_with_t_rise_and_closes_with_t_fall_at_any_torque_scale(
     plant.step((c3, -c3), dt)
     v3 = c3 + (v2 - c3) * math.exp(-dt / fall)  # moves towards 0: closing
     np.testing.assert_allclose(plant.internals["valve_torque"], [v3, -v3], rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("quantum", "expected"),
+    [((1.0, 0.0), [2.0, 2.6]), ((0.0, 1.0), [2.4, 3.0]), ((0.5, 0.0), [2.5, 2.6]), ((0.0, 0.0), [2.4, 2.6])],
+)
+def test_a_zero_quantum_leaves_its_joint_unquantised(
+    quantum: tuple[float, float], expected: list[float]
+) -> None:
+    plant = SimulatedPlant(PlantConfig(torque_quantum=quantum))
+    plant.step((2.4, 2.6), 1e-3)
+    np.testing.assert_allclose(plant.internals["valve_torque"], expected, rtol=1e-15)
