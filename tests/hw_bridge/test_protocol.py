@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import struct
 import zlib
 
@@ -186,51 +187,52 @@ def test_hand_built_frames_decode_and_the_encoder_builds_the_same_bytes() -> Non
         assert p.decode(buffer) in (COMMAND, FEEDBACK)
 
 
-def test_the_parsing_order_of_section_6_and_the_reason_texts() -> None:
-    assert _reason(_command_bytes()[:19]) == (
-        p.Reason.LENGTH,
-        "length: 19 bytes is shorter than header + CRC",
-    )
-    # 20 bytes pass the first check: the magic comes next
-    assert _reason(_command_bytes(magic=0, size=20, length=40))[0] is p.Reason.MAGIC
-    assert _reason(_command_bytes(magic=0x424D4D54, length=41)) == (
+_GOOD_CRC_V2 = zlib.crc32(_command_bytes(version=2)[:36])
+#: Frames that break one or two checks of section 6 (the first one found is reported), with the full text.
+PARSING_ORDER = [
+    (_command_bytes()[:19], p.Reason.LENGTH, "length: 19 bytes is shorter than header + CRC"),
+    (b"", p.Reason.LENGTH, "length: 0 bytes is shorter than header + CRC"),
+    (
+        _command_bytes(magic=0, size=20, length=40),
+        p.Reason.MAGIC,
+        "magic: magic 0x00000000, expected 0x424d4d53",
+    ),
+    (
+        _command_bytes(magic=0x424D4D54, length=41),
         p.Reason.MAGIC,
         "magic: magic 0x424d4d54, expected 0x424d4d53",
-    )
-    assert _reason(_command_bytes(length=41, crc=0)) == (
-        p.Reason.LENGTH,
-        "length: length field 41, datagram 40 bytes",
-    )
-    good_crc = zlib.crc32(_command_bytes(version=2)[:36])
-    assert _reason(_command_bytes(version=2, crc=good_crc ^ 1)) == (
+    ),
+    (_command_bytes(length=41, crc=0), p.Reason.LENGTH, "length: length field 41, datagram 40 bytes"),
+    (
+        _command_bytes(version=2, crc=_GOOD_CRC_V2 ^ 1),
         p.Reason.CRC,
-        f"crc: CRC {good_crc ^ 1:#010x}, computed {good_crc:#010x}",
-    )
-    assert _reason(_command_bytes(version=2, frame_type=9)) == (
+        f"crc: CRC {_GOOD_CRC_V2 ^ 1:#010x}, computed {_GOOD_CRC_V2:#010x}",
+    ),
+    (
+        _command_bytes(version=2, frame_type=9),
         p.Reason.VERSION,
         "version: protocol version 2, this side speaks 1",
-    )
-    assert _reason(_command_bytes(version=0))[0] is p.Reason.VERSION
-    for frame_type in (0, 3):
-        assert _reason(_command_bytes(frame_type=frame_type, session=0)) == (
-            p.Reason.TYPE,
-            f"type: frame type {frame_type}",
-        )
-    assert _reason(_command_bytes(length=72, size=72)) == (
-        p.Reason.LENGTH,
-        "length: COMMAND frame of 72 bytes, expected 40",
-    )
-    assert _reason(_command_bytes(frame_type=2, session=0)) == (
+    ),
+    (_command_bytes(version=0), p.Reason.VERSION, "version: protocol version 0, this side speaks 1"),
+    (_command_bytes(frame_type=0, session=0), p.Reason.TYPE, "type: frame type 0"),
+    (_command_bytes(frame_type=3, session=0), p.Reason.TYPE, "type: frame type 3"),
+    (_command_bytes(length=72, size=72), p.Reason.LENGTH, "length: COMMAND frame of 72 bytes, expected 40"),
+    (
+        _command_bytes(frame_type=2, session=0),
         p.Reason.LENGTH,
         "length: FEEDBACK frame of 40 bytes, expected 72",
-    )
-    assert _reason(_command_bytes(session=0)) == (
-        p.Reason.FIELD,
-        "field: session must be != 0 (0 means no session)",
-    )
-    assert _reason(_feedback_bytes(reserved=2)) == (p.Reason.FIELD, "field: reserved field is 2, must be 0")
-    assert _reason(b"") == (p.Reason.LENGTH, "length: 0 bytes is shorter than header + CRC")
-    assert _reason(12345)[1] == "field: not a byte buffer: int"  # type: ignore[arg-type]
+    ),
+    (_command_bytes(session=0), p.Reason.FIELD, "field: session must be != 0 (0 means no session)"),
+    (_feedback_bytes(reserved=2), p.Reason.FIELD, "field: reserved field is 2, must be 0"),
+    (12345, p.Reason.FIELD, "field: not a byte buffer: int"),
+]
+
+
+@pytest.mark.parametrize(("data", "reason", "text"), PARSING_ORDER)
+def test_the_parsing_order_of_section_6_and_the_reason_texts(
+    data: bytes, reason: p.Reason, text: str
+) -> None:
+    assert _reason(data) == (reason, text)
 
 
 @pytest.mark.parametrize("bit", range(3, 16))
@@ -278,38 +280,17 @@ def test_feedback_fields_at_their_range_ends_are_accepted() -> None:
     )
 
 
+#: All-zero frames (session 1): each test changes one field with dataclasses.replace, which validates anew.
+ZERO_COMMAND = p.CommandFrame(1, 0, 0, 0, 0, 0, 0, (0, 0))
+ZERO_FEEDBACK = p.FeedbackFrame(1, 0, 0, 0, (0, 0), (0, 0, 0, 0), 0, 0, 0, 0, (0, 0), 0, 0, 0)
+
+
 def _command(**fields: object) -> p.CommandFrame:
-    values: dict[str, object] = {
-        "session": 1,
-        "seq": 0,
-        "board_session": 0,
-        "answers_seq": 0,
-        "answers_tick": 0,
-        "flags": 0,
-        "validity": 0,
-        "codes": (0, 0),
-    } | fields
-    return p.CommandFrame(**values)  # type: ignore[arg-type]
+    return dataclasses.replace(ZERO_COMMAND, **fields)  # type: ignore[arg-type]
 
 
 def _feedback(**fields: object) -> p.FeedbackFrame:
-    values: dict[str, object] = {
-        "session": 1,
-        "seq": 0,
-        "tick": 0,
-        "host_session": 0,
-        "counts": (0, 0),
-        "adc": (0, 0, 0, 0),
-        "status": 0,
-        "faults": 0,
-        "applied_seq": 0,
-        "applied_age": 0,
-        "output_codes": (0, 0),
-        "late_commands": 0,
-        "crc_errors": 0,
-        "dropped_frames": 0,
-    } | fields
-    return p.FeedbackFrame(**values)  # type: ignore[arg-type]
+    return dataclasses.replace(ZERO_FEEDBACK, **fields)  # type: ignore[arg-type]
 
 
 U32_FIELDS = ("session", "seq", "board_session", "answers_seq", "answers_tick")
