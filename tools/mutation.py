@@ -71,12 +71,12 @@ MODULES: tuple[Module, ...] = (
     Module("smm_controller/chain.py", CONTROLLER_TESTS),
     Module("smm_controller/torque_law.py", CONTROLLER_TESTS),
     Module("smm_controller/model.py", CONTROLLER_TESTS),
-    Module("smm_controller/limits.py", CONTROLLER_TESTS),
+    Module("smm_controller/limits.py", ("tests/controller/test_limits.py",)),
     Module("smm_sim/plant.py", ("tests/sim",)),
     Module("smm_analysis/metrics.py", ("tests/analysis/test_analysis_metrics.py",)),
     Module("smm_msgs_py/conversions.py", ("tests/msgs",)),
     Module("smm_hw_bridge/protocol.py", ("tests/hw_bridge/test_protocol.py",)),
-    Module("smm_bag/analysis.py", ("tests/bag/test_bag_analyze.py",)),
+    Module("smm_bag/analysis.py", ("tests/bag/test_bag_analysis_indices.py",)),
 )
 
 #: mutmut exit codes (mutmut.stats.status_by_exit_code), grouped for the score.

@@ -147,3 +147,195 @@ def test_the_reproduced_scenarios_stay_below_the_default_limit() -> None:
     peak = np.abs(np.asarray(run.command_torque)).max(axis=0)
     assert np.all(peak < DEFAULT_TORQUE_LIMIT)
     assert peak.max() > 0.9 * DEFAULT_TORQUE_LIMIT[0]  # the limit sits just above the largest command
+
+
+def test_the_refusal_names_the_joint_its_value_and_the_bound() -> None:
+    limits = MeasurementLimits(position_limit=(1.0, 2.0))
+    assert PlausibilityCheck(limits).reason((0.5, -2.5), 0, MS) == "position[1] = -2.5 rad outside +-2.0 rad"
+    assert PlausibilityCheck(limits).reason((1.25, 0.0), 0, MS) == "position[0] = 1.25 rad outside +-1.0 rad"
+    # exactly on the bound is plausible
+    assert PlausibilityCheck(limits).reason((-1.0, 2.0), 0, MS) is None
+
+
+def test_a_too_fast_move_names_the_joint_that_moved_too_fast() -> None:
+    check = PlausibilityCheck(MeasurementLimits(max_speed=(100.0, 50.0)))
+    check.accept((0.0, 0.0), 0)
+    # 2 ms since the last accepted stamp: alpha may move 0.2 rad, beta 0.1 rad
+    assert check.reason((0.2, -0.1), 2 * MS, MS) is None
+    assert (
+        check.reason((0.0, -0.125), 2 * MS, MS)
+        == "position[1] moved -0.125 rad in 0.002 s, faster than 50.0 rad/s"
+    )
+    assert (
+        check.reason((0.25, 0.0), 2 * MS, MS)
+        == "position[0] moved +0.25 rad in 0.002 s, faster than 100.0 rad/s"
+    )
+    # a stamp before the last accepted one: the allowance is from the distance between the stamps
+    assert check.reason((0.0, -0.05), -MS, MS) is None
+    assert check.reason((0.0, -0.1), -MS, MS) is not None
+    assert check.reason((0.0, -0.1), -2 * MS, MS) is None
+
+
+def test_admit_accepts_only_plausible_positions() -> None:
+    check = PlausibilityCheck(MeasurementLimits(max_speed=(100.0, 100.0)))
+    assert check.admit((0.0, 0.0), 0, MS) is None
+    assert check.admit((0.05, 0.0), MS, MS) is None  # accepted: the next move is measured from 0.05
+    assert check.admit((0.15, 0.0), 2 * MS, MS) is None
+    assert check.admit((1.0, 0.0), 3 * MS, MS) is not None  # refused: not the new reference
+    assert check.admit((0.2, -0.1), 4 * MS, MS) is None  # moved (0.05, -0.1) rad in 2 ms since 0.15
+
+
+def test_reconfigured_limits_apply_to_the_next_check_and_must_be_limits() -> None:
+    check = PlausibilityCheck()
+    assert check.reason((1.45, 0.0), 0, MS) is None
+    check.reconfigure(MeasurementLimits(position_limit=(1.4, 1.4)))
+    assert check.reason((1.45, 0.0), 0, MS) == "position[0] = 1.45 rad outside +-1.4 rad"
+    with pytest.raises(TypeError, match=r"^limits must be a MeasurementLimits"):
+        check.reconfigure(OutputLimitConfig())  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("config", "field", "value"),
+    [
+        (MeasurementLimits, "position_limit", (0.0, 1.0)),
+        (MeasurementLimits, "max_speed", (1.0, -1.0)),
+        (OutputLimitConfig, "torque_limit", (0.0, 1.0)),
+        (OutputLimitConfig, "rate_limit", (1.0, -1.0)),
+    ],
+)
+def test_limits_must_be_positive(config: type, field: str, value: tuple[float, float]) -> None:
+    with pytest.raises(ValueError, match=f"^{field}"):
+        config(**{field: value})
+
+
+def test_output_limits_may_be_infinite() -> None:
+    config = OutputLimitConfig(torque_limit=(math.inf, math.inf), rate_limit=(math.inf, 1.0))  # no limit
+    assert config.torque_limit == (math.inf, math.inf)
+
+
+def test_the_limiter_is_quiet_before_its_first_step_and_after_reset() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(1.0, 1.0), rate_limit=(1.0, 1.0)))
+    for key in ("tau_unlimited", "tau", "clamped", "clamps"):
+        np.testing.assert_array_equal(limiter.internals[key], [0.0, 0.0])
+    assert limiter.limit_floats((5.0, 0.5), 1e-3) == (1.0, 0.5)
+    assert limiter.clamps == 1
+    limiter.reset()
+    assert limiter.clamps == 0
+    for key in ("tau_unlimited", "tau", "clamped", "clamps"):
+        np.testing.assert_array_equal(limiter.internals[key], [0.0, 0.0])
+    assert limiter.limit_floats((-0.5, 0.5), 1e-3) == (-0.5, 0.5)  # no rate limit from before the reset
+
+
+def test_a_clamp_of_either_joint_counts_once_per_step() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(10.0, 20.0)))
+    limiter.limit_floats((0.0, 25.0), 1e-3)
+    np.testing.assert_array_equal(limiter.internals["clamped"], [0.0, 1.0])
+    limiter.limit_floats((-11.0, 0.0), 1e-3)
+    np.testing.assert_array_equal(limiter.internals["clamped"], [1.0, 0.0])
+    limiter.limit_floats((-11.0, 30.0), 1e-3)
+    limiter.limit_floats((10.0, -20.0), 1e-3)  # exactly at the limits: not clamped
+    assert limiter.clamps == 3
+    np.testing.assert_array_equal(limiter.internals["clamps"], [3.0, 3.0])
+    np.testing.assert_array_equal(limiter.internals["clamped"], [0.0, 0.0])
+
+
+def test_the_rate_limit_bounds_both_directions_of_each_joint() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(rate_limit=(1000.0, 2000.0)))
+    limiter.limit_floats((10.0, -10.0), 1e-3)
+    # alpha may change by 1 N m, beta by 2 N m in 1 ms; 2 ms allows twice that
+    assert limiter.limit_floats((0.0, 0.0), 1e-3) == (9.0, -8.0)
+    assert limiter.limit_floats((20.0, -20.0), 2e-3) == (11.0, -12.0)
+    np.testing.assert_array_equal(limiter.internals["tau_unlimited"], [20.0, -20.0])
+    np.testing.assert_array_equal(limiter.internals["tau"], [11.0, -12.0])
+    np.testing.assert_array_equal(limiter.internals["clamped"], [1.0, 1.0])
+
+
+def test_the_rate_limit_applies_before_the_torque_limit() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(5.0, 5.0), rate_limit=(1000.0, 1000.0)))
+    assert limiter.limit_floats((100.0, -100.0), 1e-3) == (5.0, -5.0)  # first step: no rate limit
+    # from 5: the rate limit allows 4..6, the torque limit then 5
+    assert limiter.limit_floats((100.0, -100.0), 1e-3) == (5.0, -5.0)
+
+
+def test_reconfigure_keeps_the_previous_output_and_the_count() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(10.0, 10.0)))
+    limiter.limit_floats((50.0, 0.0), 1e-3)
+    limiter.reconfigure(OutputLimitConfig(rate_limit=(1000.0, 1000.0)))
+    assert limiter.limit_floats((50.0, 0.0), 1e-3) == (11.0, 0.0)
+    assert limiter.clamps == 2
+    with pytest.raises(TypeError, match=r"^config must be a OutputLimitConfig"):
+        limiter.reconfigure(MeasurementLimits())  # type: ignore[arg-type]
+
+
+def test_a_nan_output_is_not_counted_as_a_clamp_and_inf_passes_through() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(1.0, 1.0)))
+    tau = limiter.limit_floats((math.nan, -math.inf), 1e-3)
+    assert math.isnan(tau[0]) and tau[1] == -math.inf
+    np.testing.assert_array_equal(limiter.internals["clamped"], [0.0, 0.0])
+    assert limiter.clamps == 0
+
+
+class _Recorder:
+    """A law that tracks saturation and records the calls."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[tuple[float, float], tuple[float, float], float]] = []
+
+    def track_saturation(
+        self, unlimited: tuple[float, float], limited: tuple[float, float], dt: float
+    ) -> None:
+        self.calls.append((unlimited, limited, dt))
+
+
+def test_track_saturation_tells_only_a_tracking_law_and_only_finite_limited_outputs() -> None:
+    law = _Recorder()
+    track_saturation(law, (1.0, 2.0), (1.0, 2.0), 1e-3)
+    assert law.calls == []  # not limited
+    for bad in (math.inf, -math.inf, math.nan):
+        track_saturation(law, (bad, 2.0), (1.0, 1.0), 1e-3)
+        track_saturation(law, (1.0, bad), (1.0, 1.0), 1e-3)
+        track_saturation(law, (5.0, 2.0), (bad, 2.0), 1e-3)
+        track_saturation(law, (5.0, 2.0), (1.0, bad), 1e-3)
+    assert law.calls == []
+    track_saturation(law, (5.0, 2.0), (1.0, 2.0), 2e-3)
+    assert law.calls == [((5.0, 2.0), (1.0, 2.0), 2e-3)]
+    track_saturation(object(), (5.0, 2.0), (1.0, 2.0), 2e-3)  # a law without it: nothing to tell
+
+
+def test_the_refusal_names_the_joint_out_of_range_when_the_other_is_exactly_on_its_bound() -> None:
+    limits = MeasurementLimits(position_limit=(1.0, 2.0))
+    assert PlausibilityCheck(limits).reason((1.0, 2.5), 0, MS) == "position[1] = 2.5 rad outside +-2.0 rad"
+    assert PlausibilityCheck(limits).reason((-1.5, 2.0), 0, MS) == "position[0] = -1.5 rad outside +-1.0 rad"
+
+
+def test_the_too_fast_joint_is_judged_against_its_own_speed() -> None:
+    check = PlausibilityCheck(MeasurementLimits(max_speed=(100.0, 50.0)))
+    check.accept((0.0, 0.0), 0)
+    # alpha at (0.2) or below (0.15) its own allowance of 0.2 rad, beta 0.125 > 0.1 rad: beta is named
+    for alpha in (0.2, 0.15):
+        assert (check.reason((alpha, -0.125), 2 * MS, MS) or "").startswith("position[1] moved -0.125 rad")
+
+
+def test_the_move_is_measured_from_the_last_accepted_position_and_stamp() -> None:
+    check = PlausibilityCheck(MeasurementLimits(max_speed=(100.0, 100.0)))
+    check.accept((0.3, -0.2), 10 * MS)
+    # 1 ms later: up to 0.1 rad per joint from (0.3, -0.2)
+    assert check.reason((0.35, -0.25), 11 * MS, MS) is None
+    assert check.reason((0.39, -0.11), 11 * MS, MS) is None
+    assert (
+        check.reason((0.45, -0.2), 11 * MS, MS)
+        == "position[0] moved +0.15 rad in 0.001 s, faster than 100.0 rad/s"
+    )
+    assert (
+        check.reason((0.3, -0.35), 11 * MS, MS)
+        == "position[1] moved -0.15 rad in 0.001 s, faster than 100.0 rad/s"
+    )
+
+
+def test_a_clamped_joint_counts_even_when_the_other_is_nan() -> None:
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(10.0, 10.0)))
+    limiter.limit_floats((50.0, math.nan), 1e-3)
+    np.testing.assert_array_equal(limiter.internals["clamped"], [1.0, 0.0])
+    assert limiter.clamps == 1
+    limiter.limit_floats((math.nan, -50.0), 1e-3)
+    np.testing.assert_array_equal(limiter.internals["clamped"], [0.0, 1.0])

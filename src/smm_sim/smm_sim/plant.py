@@ -253,6 +253,10 @@ def _validated_command(tau_command: ArrayLike) -> tuple[float, float]:
     return first, second
 
 
+_NO_DT: Final[object] = object()
+"""The cached dt before the first step: no argument is this object, so the first dt is always validated."""
+
+
 def _validated_dt_ns(dt: float) -> int:
     if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not math.isfinite(dt):
         raise ValueError(f"dt must be a finite number of seconds, got {dt!r}")
@@ -284,7 +288,7 @@ class SimulatedPlant:
         self._unlimited = math.isinf(config.torque_limit[0]) and math.isinf(config.torque_limit[1])
         self._quantised = config.torque_quantum != (0.0, 0.0)
         # dt of the last step and its validated length in ns (the loops pass the same dt every step).
-        self._last_dt: object = None
+        self._last_dt: object = _NO_DT
         self._last_dt_ns = 0
         # (alpha, beta, alpha', beta') (rad, rad/s), plain floats for the single-sample RK4.
         self._state = (0.0, 0.0, 0.0, 0.0)
