@@ -60,6 +60,7 @@ MODULES: tuple[Module, ...] = (
     Module("smm_dynamics/model.py", ("tests/dynamics",)),
     Module("smm_dynamics/parameters.py", ("tests/dynamics",)),
     Module("smm_dynamics/validation.py", ("tests/dynamics",)),
+    Module("smm_dynamics/valve.py", ("tests/dynamics",)),
     Module("smm_controller/td.py", CONTROLLER_TESTS),
     Module("smm_controller/fleso.py", CONTROLLER_TESTS),
     Module("smm_controller/fuzzy.py", FUZZY_TESTS),
