@@ -22,6 +22,7 @@ from smm_msgs_py import (
     LayoutError,
     NonFiniteError,
     StampError,
+    conversions,
     internals_to_msg,
     labelled_to_msg,
     msg_to_labelled,
@@ -388,3 +389,30 @@ def test_labelled_rows_must_match_expected_rows() -> None:
         msg_to_labelled(msg, expected_rows=["b", "a"])
     with pytest.raises(LayoutError):
         msg_to_labelled(msg, expected_rows=["a"])
+
+
+def test_layouts_follow_the_ros_stride_rule_when_built_afresh() -> None:
+    """Layouts are computed once and cached (the torque and reference ones at import): rebuild them here,
+    so the rule itself is tested and not a layout computed before, against strides written out by hand."""
+    conversions._labelled_layout.cache_clear()
+    conversions._checked_axis_label.cache_clear()
+    msg = labelled_to_msg(np.arange(8.0).reshape(4, 2), ["w", "x", "y", "z"], 7, row_dim="order")
+    assert dims(msg) == [("order:w,x,y,z", 4, 8), ("joint:alpha,beta", 2, 2), ("stamp_ns:7", 1, 1)]
+    parsed = msg_to_labelled(msg, row_dim="order")
+    assert parsed.row_labels == ("w", "x", "y", "z")
+    assert_array_equal(parsed.values, np.arange(8.0).reshape(4, 2))
+    torque = conversions._Layout((("joint:alpha,beta", 2, 2),), (2,), 2, ("alpha", "beta"))
+    reference = conversions._Layout(
+        (("order:position,velocity,acceleration", 3, 6), ("joint:alpha,beta", 2, 2)),
+        (3, 2),
+        6,
+        ("position", "velocity", "acceleration"),
+    )
+    for layout, built in (
+        (torque, conversions._make_layout((("joint", ("alpha", "beta")),))),
+        (reference, conversions._make_layout((("order", REFERENCE_ROWS), ("joint", ("alpha", "beta"))))),
+    ):
+        assert built == layout
+        assert all(type(stride) is int for _, _, stride in built.dims)
+    assert torque == conversions._TORQUE_LAYOUT
+    assert reference == conversions._REFERENCE_LAYOUT
