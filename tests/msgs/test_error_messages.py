@@ -8,8 +8,9 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
+from multiarray_mutations import Mutation, extra_dim, set_data, set_dim, set_offset
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from std_msgs.msg import Float64MultiArray
 
 from smm_msgs_py import (
     MAX_STAMP_NS,
@@ -34,30 +35,6 @@ from smm_msgs_py import (
 
 STAMP_NS = 42
 STAMP_LABEL = f"stamp_ns:{STAMP_NS}"
-Mutation = Callable[[Float64MultiArray], None]
-
-
-def set_dim(index: int, **fields: object) -> Mutation:
-    def mutate(msg: Float64MultiArray) -> None:
-        for name, value in fields.items():
-            setattr(msg.layout.dim[index], name, value)
-
-    return mutate
-
-
-def set_offset(msg: Float64MultiArray) -> None:
-    msg.layout.data_offset = 3
-
-
-def extra_dim(msg: Float64MultiArray) -> None:
-    msg.layout.dim = [*msg.layout.dim, MultiArrayDimension(label="extra:x", size=1, stride=1)]
-
-
-def set_data(values: list[float]) -> Mutation:
-    def mutate(msg: Float64MultiArray) -> None:
-        msg.data = values
-
-    return mutate
 
 
 def torque() -> Float64MultiArray:
@@ -80,7 +57,7 @@ CASES: dict[str, tuple[Callable[[], Float64MultiArray], Callable[..., object], M
         msg_to_torque,
         set_offset,
         LayoutError,
-        "torque command: data_offset is 3, must be 0",
+        "torque command: data_offset is 1, must be 0",
     ),
     "torque extra dimension": (
         torque,
