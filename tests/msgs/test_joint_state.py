@@ -199,3 +199,15 @@ def test_sample_rejects_non_finite_before_publishing(bad: float) -> None:
 def test_sample_rejects_bad_stamps(stamp_ns: int) -> None:
     with pytest.raises(StampError):
         JointSample(stamp_ns, np.zeros(2))
+
+
+@pytest.mark.parametrize("order", [("alpha", "beta"), ("beta", "alpha")])
+def test_names_in_any_sequence_type_reorder_the_same(order: tuple[str, str]) -> None:
+    """rclpy keeps ``name`` as assigned (a tuple stays a tuple): the names are matched by value, not type."""
+    values = {"alpha": (0.1, 0.3, 0.5), "beta": (0.2, 0.4, 0.6)}  # position, velocity, effort of each joint
+    msg = make_joint_state(list(order), *[[values[name][i] for name in order] for i in range(3)])
+    msg.name = tuple(order)
+    sample = joint_state_to_sample(msg)
+    assert_array_equal(sample.position, [0.1, 0.2])
+    assert_array_equal(sample.velocity, [0.3, 0.4])
+    assert_array_equal(sample.effort, [0.5, 0.6])

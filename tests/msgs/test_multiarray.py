@@ -1,15 +1,24 @@
 """Float64MultiArray <-> numpy: torque, reference, labelled arrays, the stamp dimension, every rejection."""
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+from multiarray_mutations import (
+    Mutation,
+    drop_stamp,
+    extra_dim,
+    second_stamp,
+    set_data,
+    set_dim,
+    set_offset,
+    stamp_first,
+)
 from numpy.testing import assert_array_equal
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from std_msgs.msg import Float64MultiArray
 
 from smm_msgs_py import (
     DISTURBANCE_ESTIMATE_ROWS,
@@ -22,6 +31,7 @@ from smm_msgs_py import (
     LayoutError,
     NonFiniteError,
     StampError,
+    conversions,
     internals_to_msg,
     labelled_to_msg,
     msg_to_labelled,
@@ -232,52 +242,6 @@ def test_bad_internals_are_not_published() -> None:
 
 # ---------------------------------------------------------------------------------- decode rejections
 
-Mutation = Callable[[Float64MultiArray], None]
-
-
-def set_dim(
-    index: int, label: str | None = None, size: int | None = None, stride: int | None = None
-) -> Mutation:
-    def mutate(msg: Float64MultiArray) -> None:
-        dim = msg.layout.dim[index]
-        if label is not None:
-            dim.label = label
-        if size is not None:
-            dim.size = size
-        if stride is not None:
-            dim.stride = stride
-
-    return mutate
-
-
-def set_offset(msg: Float64MultiArray) -> None:
-    msg.layout.data_offset = 1
-
-
-def drop_stamp(msg: Float64MultiArray) -> None:
-    msg.layout.dim = list(msg.layout.dim)[:-1]
-
-
-def stamp_first(msg: Float64MultiArray) -> None:
-    dims_list = list(msg.layout.dim)
-    msg.layout.dim = [dims_list[-1], *dims_list[:-1]]
-
-
-def extra_dim(msg: Float64MultiArray) -> None:
-    msg.layout.dim = [*msg.layout.dim, MultiArrayDimension(label="extra:x", size=1, stride=1)]
-
-
-def second_stamp(msg: Float64MultiArray) -> None:
-    msg.layout.dim = [*msg.layout.dim, MultiArrayDimension(label="stamp_ns:1", size=1, stride=1)]
-
-
-def set_data(values: list[float]) -> Mutation:
-    def mutate(msg: Float64MultiArray) -> None:
-        msg.data = values
-
-    return mutate
-
-
 TORQUE_MUTATIONS: dict[str, tuple[Mutation, type[InterfaceError]]] = {
     "data_offset": (set_offset, LayoutError),
     "missing stamp": (drop_stamp, LayoutError),
@@ -388,3 +352,30 @@ def test_labelled_rows_must_match_expected_rows() -> None:
         msg_to_labelled(msg, expected_rows=["b", "a"])
     with pytest.raises(LayoutError):
         msg_to_labelled(msg, expected_rows=["a"])
+
+
+def test_layouts_follow_the_ros_stride_rule_when_built_afresh() -> None:
+    """Layouts are computed once and cached (the torque and reference ones at import): rebuild them here,
+    so the rule itself is tested and not a layout computed before, against strides written out by hand."""
+    conversions._labelled_layout.cache_clear()
+    conversions._checked_axis_label.cache_clear()
+    msg = labelled_to_msg(np.arange(8.0).reshape(4, 2), ["w", "x", "y", "z"], 7, row_dim="order")
+    assert dims(msg) == [("order:w,x,y,z", 4, 8), ("joint:alpha,beta", 2, 2), ("stamp_ns:7", 1, 1)]
+    parsed = msg_to_labelled(msg, row_dim="order")
+    assert parsed.row_labels == ("w", "x", "y", "z")
+    assert_array_equal(parsed.values, np.arange(8.0).reshape(4, 2))
+    torque = conversions._Layout((("joint:alpha,beta", 2, 2),), (2,), 2, ("alpha", "beta"))
+    reference = conversions._Layout(
+        (("order:position,velocity,acceleration", 3, 6), ("joint:alpha,beta", 2, 2)),
+        (3, 2),
+        6,
+        ("position", "velocity", "acceleration"),
+    )
+    for layout, built in (
+        (torque, conversions._make_layout((("joint", ("alpha", "beta")),))),
+        (reference, conversions._make_layout((("order", REFERENCE_ROWS), ("joint", ("alpha", "beta"))))),
+    ):
+        assert built == layout
+        assert all(type(stride) is int for _, _, stride in built.dims)
+    assert torque == conversions._TORQUE_LAYOUT
+    assert reference == conversions._REFERENCE_LAYOUT

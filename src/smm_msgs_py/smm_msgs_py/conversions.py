@@ -317,12 +317,12 @@ def _joint_order(names: Sequence[str]) -> list[int] | None:
 
 
 def _joint_field(
-    values: Sequence[float], count: int, field: str, required: bool, order: list[int] | None
-) -> list[float] | FloatArray | None:
-    """Return the field reordered into JOINT_NAMES order, None if absent (finiteness is checked later).
+    values: array.array[float], count: int, field: str, required: bool, order: list[int] | None
+) -> list[float] | None:
+    """Return the field's floats in JOINT_NAMES order, None if absent (finiteness is checked later).
 
-    The ``array.array('d')`` rclpy stores doubles in comes back as Python floats; any other sequence as
-    the generic float64 array.
+    rclpy stores every double sequence of a message as an ``array.array('d')`` (its setters convert what
+    is assigned), so ``tolist()`` gives Python floats.
     """
     length = len(values)
     if length == 0:
@@ -331,21 +331,18 @@ def _joint_field(
         return None
     if length != count:
         raise ArrayLengthError(f"JointState.{field} has {length} values for {count} names")
-    if type(values) is array.array and values.typecode == "d":
-        items: list[float] = values.tolist()
-        return items if order is None else [items[index] for index in order]
-    as_array = np.asarray(values, dtype=np.float64)
-    return as_array if order is None else as_array[order]
+    items: list[float] = values.tolist()
+    return items if order is None else [items[index] for index in order]
 
 
-def _frozen_joint_field(values: list[float] | FloatArray | None, field: str) -> FloatArray | None:
+def _frozen_joint_field(values: list[float] | None, field: str) -> FloatArray | None:
     """Return a field of :func:`_joint_field` as a checked read-only array (the JointSample checks)."""
     if values is None:
         return None
     # Floats of a field whose length matched the valid names: shape (2,) already, only finiteness is left.
-    if type(values) is list and all(map(_isfinite, values)):
+    if all(map(_isfinite, values)):
         return _frozen_items(values, TORQUE_SHAPE)
-    return _validated(values, TORQUE_SHAPE, field)
+    return _frozen_copy(values, field)  # raises NonFiniteError naming the field and the bad values
 
 
 def joint_state_to_sample(
@@ -540,15 +537,14 @@ def _decode(
                 raise LayoutError(
                     f"{what}: dimension {dim.label!r} has stride {dim.stride}, expected {stride}"
                 )
-    data = msg.data
+    data = msg.data  # an array.array('d'), as rclpy stores every double sequence
     if len(data) != layout.size:
         raise ArrayLengthError(f"{what}: {len(data)} data values, layout needs {layout.size}")
-    if type(data) is array.array and data.typecode == "d":
-        items: list[float] = data.tolist()
-        if all(map(_isfinite, items)):
-            return stamp_ns, layout, _frozen_items(items, layout.shape)
-    # Another sequence type, or a NaN/Inf: the generic conversion converts it or names the bad values.
-    return stamp_ns, layout, _frozen_copy(np.asarray(data, dtype=np.float64).reshape(layout.shape), "values")
+    items: list[float] = data.tolist()
+    if all(map(_isfinite, items)):
+        return stamp_ns, layout, _frozen_items(items, layout.shape)
+    # A NaN/Inf: the generic check names the bad values and their (row, joint) index.
+    return stamp_ns, layout, _frozen_copy(np.reshape(items, layout.shape), "values")
 
 
 def _decode_stamped(msg: Float64MultiArray, layout: _Layout, what: str) -> StampedArray:
