@@ -67,7 +67,7 @@ def pd_systems(request: pytest.FixtureRequest) -> tuple[MamdaniSystem, MamdaniSy
     return pd_gain_system(TABLE_1, request.param), pd_gain_system(TABLE_7, request.param)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(x=st.tuples(values, values, values, values))
 def test_pd_batch_equals_the_dense_evaluation(
     pd_systems: tuple[MamdaniSystem, MamdaniSystem], x: tuple[float, float, float, float]
@@ -77,7 +77,7 @@ def test_pd_batch_equals_the_dense_evaluation(
     assert_allclose(MamdaniBatch(pd_systems).evaluate_flat(inputs), reference, rtol=0.0, atol=ATOL)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(
     x=st.tuples(
         *[
@@ -138,7 +138,7 @@ def fleso_systems(request: pytest.FixtureRequest) -> tuple[MamdaniSystem, Mamdan
     return system, system
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(
     s=st.tuples(
         st.floats(-1.5, 1.5, allow_nan=False, allow_subnormal=True),
