@@ -32,6 +32,8 @@ from smm_controller.rules import fleso_input_variable, fleso_output_variable, pd
 
 FloatArray = npt.NDArray[np.float64]
 ATOL = 1e-13
+# Building and evaluating the tables must not divide by zero or take the log of 0 on the way.
+pytestmark = pytest.mark.filterwarnings("error")
 
 
 def dense_centroids(grid: FloatArray, aggregated: FloatArray) -> FloatArray:
@@ -162,9 +164,12 @@ def test_single_input_table_is_none_outside_the_means() -> None:
 
 
 def test_identical_input_labels_need_no_crossing() -> None:
-    """Two labels with the same MF (a legal rule base) never cross: no breakpoint, no division by 0."""
+    """Two labels with the same MF (a legal rule base) never cross: no breakpoint, no division by 0.
+
+    Equal sigmas elsewhere: -1 and 0.2 cross once, at -0.4 (not mirrored by another pair).
+    """
     grid = np.linspace(-1.0, 1.0, 21)
-    inputs = [(-1.0, 0.4), (0.0, 0.4), (0.0, 0.4), (1.0, 0.4)]
+    inputs = [(-1.0, 0.4), (0.2, 0.4), (0.2, 0.4), (1.0, 0.4)]
     consequents = [(0,), (1,), (2,), (0,)]
     samples = gaussian_samples(grid, [-1.0, 0.0, 1.0], 0.5)[None]
     table = SingleInputCentroids(
