@@ -123,12 +123,23 @@ def uneven_case() -> tuple[list[tuple[float, float]], list[tuple[int, ...]], Flo
     gaussian_family = gaussian_samples(grid, [-1.5, -0.2, 0.9, 1.4], 0.3)
     triangle_family = np.vstack((triangle_samples(grid, [-1.0, 0.0, 1.0], 0.6), np.zeros((1, grid.size))))
     samples = np.stack((gaussian_family, 0.8 * triangle_family))
-    # Output 0: labels 3, 0, 3, 1, 2, 3; output 1: no rule for the second label, three conclude 2.
-    consequents = [(3, 0), (0, -1), (3, 2), (1, 2), (2, 1), (3, 2)]
+    # Output 0: labels 3, 0, 3, 1, 2, 3. Output 1: no rule for the second input label, three conclude
+    # label 2, none label 0 (so where only label 0 is positive no rule clips anything).
+    consequents = [(3, 1), (0, -1), (3, 2), (1, 2), (2, 1), (3, 2)]
     return inputs, consequents, samples, grid
 
 
+def mean_on_a_peak_case() -> tuple[list[tuple[float, float]], list[tuple[int, ...]], FloatArray, FloatArray]:
+    """On a coarse grid no crossing lies near the mean 0 of the middle label (sigma 0.2), so the nearest
+    ones are symmetric about it; its rule concludes B, whose peak 1.0 is a grid point: x = 0, where
+    that membership equals the sample 1.0, is a breakpoint of its own."""
+    grid = np.linspace(-1.0, 1.0, 5)
+    outputs = np.array([mf.sample(grid) for mf in fleso_output_variable().mfs])
+    return [(-1.0, 0.3), (0.0, 0.2), (1.0, 0.45)], [(0,), (2,), (1,)], outputs[None], grid
+
+
 CASES = {
+    "mean-on-a-peak": mean_on_a_peak_case,
     "fleso-201": lambda: fleso_case(201),
     "fleso-51": lambda: fleso_case(51),
     "fleso-3": lambda: fleso_case(3),

@@ -622,7 +622,7 @@ class SingleInputCentroids:
                         tuple(
                             (a, float(by_rule[k, a, 0]), float(by_rule[k, a, 1]))
                             for a in range(n_inputs)
-                            if by_rule[k, a, 0] != 0.0 or by_rule[k, a, 1] != 0.0
+                            if by_rule[k, a, 0] > 0.0  # else no point is clipped by rule a
                         ),
                     )
                     for constant, by_rule in per_output
