@@ -8,6 +8,7 @@ in [-1, 1].
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -173,11 +174,38 @@ def test_single_input_table_on_and_beside_every_breakpoint(
 
 
 @pytest.mark.parametrize(
-    ("gaussians", "consequents", "samples", "weights"),
+    ("gaussians", "consequents", "samples", "weights", "message"),
     [
-        ([(0.0, 1.0)], [(0,)], np.ones((1, 1, 5)), np.ones((4, 2))),  # weights for another grid
-        ([(0.0, 1.0)], [(0,)], np.ones((1, 5)), np.ones((5, 2))),  # samples not per output
-        ([(0.0, 1.0), (1.0, 1.0)], [(0,)], np.ones((1, 1, 5)), np.ones((5, 2))),  # a rule missing
+        (  # weights for another grid
+            [(0.0, 1.0)],
+            [(0,)],
+            np.ones((1, 1, 5)),
+            np.ones((4, 2)),
+            "samples must have shape (outputs, labels, n) and weights shape (n, 2), got (1, 1, 5) and (4, 2)",
+        ),
+        (  # samples not per output
+            [(0.0, 1.0)],
+            [(0,)],
+            np.ones((1, 5)),
+            np.ones((5, 2)),
+            "samples must have shape (outputs, labels, n) and weights shape (n, 2), got (1, 5) and (5, 2)",
+        ),
+        (  # a rule missing
+            [(0.0, 1.0), (1.0, 1.0)],
+            [(0,)],
+            np.ones((1, 1, 5)),
+            np.ones((5, 2)),
+            "consequents must give one output label per input label (2) and output (1), "
+            "got rows of lengths [1]",
+        ),
+        (  # a rule for one output of two
+            [(0.0, 1.0)],
+            [(0,)],
+            np.ones((2, 1, 5)),
+            np.ones((5, 2)),
+            "consequents must give one output label per input label (1) and output (2), "
+            "got rows of lengths [1]",
+        ),
     ],
 )
 def test_single_input_table_rejects_inconsistent_shapes(
@@ -185,8 +213,9 @@ def test_single_input_table_rejects_inconsistent_shapes(
     consequents: list[tuple[int, ...]],
     samples: np.ndarray,
     weights: np.ndarray,
+    message: str,
 ) -> None:
-    with pytest.raises(ValueError, match="must"):
+    with pytest.raises(ValueError, match=f"^{re.escape(message)}$"):
         SingleInputCentroids(gaussians, consequents, samples, weights)
 
 
@@ -212,7 +241,8 @@ def test_label_pair_centroids_match_the_dense_centroid(family: object) -> None:
 
 
 def test_label_pair_centroids_reject_inconsistent_shapes() -> None:
-    with pytest.raises(ValueError, match="must"):
+    message = "samples must have shape (labels, n) and weights shape (n, 2), got (2, 5) and (4, 2)"
+    with pytest.raises(ValueError, match=f"^{re.escape(message)}$"):
         LabelPairCentroids(np.ones((2, 5)), np.ones((4, 2)))
 
 

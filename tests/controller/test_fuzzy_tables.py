@@ -163,6 +163,18 @@ def test_single_input_table_equals_the_dense_evaluation_everywhere(case: str) ->
     )
 
 
+def test_an_output_no_rule_concludes_falls_back_to_zero() -> None:
+    inputs, consequents, samples, grid = uneven_case()
+    silent = [(label, -1) for label, _ in consequents]
+    table = SingleInputCentroids(
+        [(mean, 2.0 * sigma**2) for mean, sigma in inputs], silent, samples, centroid_weights(grid)
+    )
+    x = np.array([-1.0, -0.3, 0.5, 1.1])
+    expected = single_input_reference(inputs, silent, samples, grid, x)
+    assert_allclose(expected[:, 1], ZERO_AREA_FALLBACK, atol=0.0)
+    assert_allclose([table.evaluate(float(v)) for v in x], expected, rtol=0.0, atol=ATOL)
+
+
 def test_single_input_table_is_none_outside_the_means() -> None:
     inputs, consequents, samples, grid = uneven_case()
     table = SingleInputCentroids(
@@ -222,6 +234,11 @@ def test_single_input_batch_of_a_system_with_two_outputs() -> None:
 
 
 FAMILIES = {
+    # Wide labels overlap above 1/2 (the paper's cross at 1/2): both clipped, the larger level wins.
+    "wide-gaussians-21": lambda: (
+        np.linspace(-1.0, 1.0, 21),
+        FuzzyVariable(("L", "M", "H"), [GaussianMF(m, 0.5) for m in (-0.5, 0.0, 0.6)]),
+    ),
     "pd-gaussians-51": lambda: (np.linspace(-1.0, 1.0, 51), pd_output_variable()),
     "fleso-gaussians-201": lambda: (np.linspace(-1.0, 1.0, 201), fleso_output_variable()),
     "triangles-7": lambda: (
