@@ -260,6 +260,16 @@ def test_incomplete_rule_base_uses_the_general_path() -> None:
 @settings(max_examples=200, deadline=None)
 @given(x=st.floats(-1.0, 1.0, allow_nan=False, allow_subnormal=True))
 def test_lattice_pair_gives_the_two_triangle_memberships(x: float) -> None:
+    check_lattice_pair(x)
+
+
+@pytest.mark.parametrize("x", [x for x in SPECIAL if -1.0 <= x <= 1.0])
+def test_lattice_pair_on_and_beside_the_peaks(x: float) -> None:
+    """Where rounding puts x in the neighbouring interval and a side exceeds 1 before its clamp."""
+    check_lattice_pair(x)
+
+
+def check_lattice_pair(x: float) -> None:
     variable = pd_input_variable()
     pair = variable.lattice_pair(x)
     assert pair is not None

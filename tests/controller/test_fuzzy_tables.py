@@ -364,3 +364,46 @@ def test_rule_errors_name_the_rule_and_the_label() -> None:
         MamdaniSystem((variable,), (variable,), {("N",): ("Z",)})
     with pytest.raises(ValueError, match="at least one input and one output"):
         MamdaniSystem((variable,), (), {})
+
+
+def test_label_strengths_of_two_different_inputs_by_hand() -> None:
+    """Two inputs with their own labels (2 and 3): each input's degrees come from its own variable."""
+    two = FuzzyVariable(("n", "p"), [TriangularMF(-3.0, -1.0, 1.0), TriangularMF(-1.0, 1.0, 3.0)])
+    three = FuzzyVariable(
+        ("l", "m", "h"),
+        [TriangularMF(-2.0, -1.0, 0.0), TriangularMF(-1.0, 0.0, 1.0), TriangularMF(0.0, 1.0, 2.0)],
+    )
+    output = FuzzyVariable(tuple("ABCDEF"), [GaussianMF(-1.0 + 0.4 * k, 0.1) for k in range(6)])
+    rules = {
+        (a, b): (output.labels[i * 3 + j],)
+        for i, a in enumerate(two.labels)
+        for j, b in enumerate(three.labels)
+    }
+    system = MamdaniSystem((two, three), (output,), rules, grid_points=51)
+    # x = (0.5, -0.25): n = 0.25, p = 0.75; l = 0.25, m = 0.75, h = 0.
+    assert system.label_strengths((0.5, -0.25)) == pytest.approx(
+        [0.25, 0.25, 0.0, 0.25, 0.75, 0.0], abs=1e-15
+    )
+    # x = (-0.5, 0.5): n = 0.75, p = 0.25; l = 0, m = 0.5, h = 0.5.
+    assert system.label_strengths((-0.5, 0.5)) == pytest.approx([0.0, 0.5, 0.5, 0.0, 0.25, 0.25], abs=1e-15)
+
+
+@pytest.mark.parametrize("x", [-1.5, -1.0, -0.3, 0.0, 0.6, 1.0, 1.2])
+def test_label_strengths_of_one_gaussian_input_by_hand(x: float) -> None:
+    """FLESO rules NB, PB -> S; NS, PS -> M; ZE -> B, with mu(x) = exp(-(x - c)^2 / (2 sigma^2))."""
+    sigma = 0.25 / math.sqrt(2.0 * math.log(2.0))
+    mu = {c: math.exp(-((x - c) ** 2) / (2.0 * sigma**2)) for c in (-1.0, -0.5, 0.0, 0.5, 1.0)}
+    rules = {("NB",): ("S",), ("NS",): ("M",), ("ZE",): ("B",), ("PS",): ("M",), ("PB",): ("S",)}
+    system = MamdaniSystem((fleso_input_variable(),), (fleso_output_variable(),), rules, grid_points=21)
+    expected = [max(mu[-1.0], mu[1.0]), max(mu[-0.5], mu[0.5]), mu[0.0]]
+    assert system.label_strengths((x,)) == pytest.approx(expected, rel=1e-14, abs=1e-300)
+
+
+def test_a_label_with_no_sample_above_zero_has_no_centroid() -> None:
+    """A triangle narrower than the grid spacing samples to zeros: area 0, the fallback value."""
+    grid = np.linspace(-1.0, 1.0, 5)
+    samples = np.array([TriangularMF(0.1, 0.2, 0.3).sample(grid), TriangularMF(-1.0, 0.0, 1.0).sample(grid)])
+    assert not samples[0].any()
+    tables = LabelPairCentroids(samples, centroid_weights(grid))
+    assert tables.single(0, 0.7) == ZERO_AREA_FALLBACK
+    assert tables.single(1, 0.5) == pytest.approx(0.0, abs=1e-15)  # symmetric about 0
