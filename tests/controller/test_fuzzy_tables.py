@@ -390,12 +390,13 @@ def test_label_strengths_of_two_different_inputs_by_hand() -> None:
 
 @pytest.mark.parametrize("x", [-1.5, -1.0, -0.3, 0.0, 0.6, 1.0, 1.2])
 def test_label_strengths_of_one_gaussian_input_by_hand(x: float) -> None:
-    """FLESO rules NB, PB -> S; NS, PS -> M; ZE -> B, with mu(x) = exp(-(x - c)^2 / (2 sigma^2))."""
+    """FLESO labels, rules NB, PS -> S; NS, PB -> M; ZE -> B (not mirror-symmetric, unlike the paper's),
+    with mu(x) = exp(-(x - c)^2 / (2 sigma^2))."""
     sigma = 0.25 / math.sqrt(2.0 * math.log(2.0))
     mu = {c: math.exp(-((x - c) ** 2) / (2.0 * sigma**2)) for c in (-1.0, -0.5, 0.0, 0.5, 1.0)}
-    rules = {("NB",): ("S",), ("NS",): ("M",), ("ZE",): ("B",), ("PS",): ("M",), ("PB",): ("S",)}
+    rules = {("NB",): ("S",), ("NS",): ("M",), ("ZE",): ("B",), ("PS",): ("S",), ("PB",): ("M",)}
     system = MamdaniSystem((fleso_input_variable(),), (fleso_output_variable(),), rules, grid_points=21)
-    expected = [max(mu[-1.0], mu[1.0]), max(mu[-0.5], mu[0.5]), mu[0.0]]
+    expected = [max(mu[-1.0], mu[0.5]), max(mu[-0.5], mu[1.0]), mu[0.0]]
     assert system.label_strengths((x,)) == pytest.approx(expected, rel=1e-14, abs=1e-300)
 
 
