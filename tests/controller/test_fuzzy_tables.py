@@ -408,3 +408,22 @@ def test_a_label_with_no_sample_above_zero_has_no_centroid() -> None:
     tables = LabelPairCentroids(samples, centroid_weights(grid))
     assert tables.single(0, 0.7) == ZERO_AREA_FALLBACK
     assert tables.single(1, 0.5) == pytest.approx(0.0, abs=1e-15)  # symmetric about 0
+
+
+def test_two_labels_with_no_sample_above_zero_have_no_centroid() -> None:
+    grid = np.linspace(-1.0, 1.0, 5)
+    samples = np.array([TriangularMF(0.1, 0.2, 0.3).sample(grid), TriangularMF(0.6, 0.7, 0.8).sample(grid)])
+    assert LabelPairCentroids(samples, centroid_weights(grid)).pair(0, 0.25, 1, 0.75) == ZERO_AREA_FALLBACK
+
+
+@pytest.mark.parametrize("x", [(0.3, -0.2), (1.0, 0.0), (1.0, 1.0), (-1.0, 0.4)])
+def test_lattice_system_whose_output_samples_to_zero_falls_back(x: tuple[float, float]) -> None:
+    """One, two or four rules fire, but the output MFs lie between grid points: area 0 everywhere."""
+    partition = FuzzyVariable(("N", "P"), [TriangularMF(-3.0, -1.0, 1.0), TriangularMF(-1.0, 1.0, 3.0)])
+    narrow = FuzzyVariable(("A", "B"), [TriangularMF(0.1, 0.2, 0.3), TriangularMF(0.6, 0.7, 0.8)])
+    rules = {("N", "N"): ("A",), ("N", "P"): ("B",), ("P", "N"): ("B",), ("P", "P"): ("A",)}
+    system = MamdaniSystem((partition, partition), (narrow,), rules, grid_points=5)
+    batch = MamdaniBatch([system])
+    assert batch._lattice_plan is not None
+    assert not system.aggregated_membership(x).any()
+    assert batch.evaluate_flat([x]) == [ZERO_AREA_FALLBACK]

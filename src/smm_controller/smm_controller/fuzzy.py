@@ -978,10 +978,10 @@ class MamdaniBatch:
                         crisp[row + o] = pair_centroids[o].single(label, max(level, other_level))
                     else:
                         crisp[row + o] = pair_centroids[o].pair(label, level, other_label, other_level)
-            elif fired:
+            elif len(fired) == 4:
                 four_rules.append((system_index, fired))
             else:
-                return None  # impossible on a partition of unity; the general path copes
+                return None  # none, or two whose sum is not 1: impossible on a partition of unity
         if four_rules:
             self._clip_and_defuzzify(four_rules, crisp)
         return crisp
@@ -989,14 +989,13 @@ class MamdaniBatch:
     def _clip_and_defuzzify(
         self, systems: list[tuple[int, list[tuple[int, float]]]], crisp: list[float]
     ) -> None:
-        """Numpy min/max/centroid of the given systems' fired rules (padded to 4 by repeating one)."""
+        """Numpy min/max/centroid of the given systems' four fired rules each."""
         assert self._lattice_plan is not None
         slots: list[int] = []
         firings: list[float] = []
         for system_index, fired in systems:
             targets = self._lattice_plan[system_index][3]
-            for k in range(4):
-                cell, level = fired[k] if k < len(fired) else fired[0]
+            for cell, level in fired:
                 slots += targets[cell]
                 firings.append(level)
         firing, firing_view, gathered, gathered_view, aggregated, aggregated_view = self._lattice_buffers[
