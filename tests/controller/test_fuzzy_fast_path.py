@@ -313,3 +313,36 @@ def test_gain_schedule_uses_the_dense_result(e: tuple[float, float], e_dot: tupl
     )
     # The gains are k0 + k f with f in [-1, 1]: rounding is relative to k0.
     assert_allclose((kp0, kp1, kd0, kd1), expected, rtol=1e-15, atol=0.0)
+
+
+def _no_general_path(*_: object) -> None:
+    raise AssertionError("the general (rule by rule) path was taken")
+
+
+def test_inputs_on_the_lattice_never_take_the_general_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every input pair within the peaks is evaluated from the 1, 2 or 4 rules around it (the hot path)."""
+    systems = (pd_gain_system(TABLE_1, 51), pd_gain_system(TABLE_7, 51))
+    reference = (pd_gain_system(TABLE_1, 51), pd_gain_system(TABLE_7, 51))
+    batch = MamdaniBatch(systems)
+    for system in systems:
+        monkeypatch.setattr(system, "accumulate_strengths", _no_general_path)
+    rng = np.random.default_rng(11)
+    points = [*SPECIAL, *rng.uniform(-1.0, 1.0, 12)]
+    points = [p for p in points if -1.0 <= p <= 1.0]
+    for e, ce in zip(points, reversed(points), strict=True):
+        for inputs in (((e, ce), (ce, e)), ((e, e), (0.51, ce))):
+            assert_allclose(
+                batch.evaluate_flat(inputs), _dense_reference(reference, inputs), rtol=0.0, atol=ATOL
+            )
+
+
+def test_single_input_within_the_means_never_takes_the_general_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    system = fleso_bandwidth_system(51)
+    batch = MamdaniBatch([system, system])
+    reference = fleso_bandwidth_system(51)
+    monkeypatch.setattr(system, "accumulate_strengths", _no_general_path)
+    for s in np.linspace(-1.0, 1.0, 41):
+        inputs = ((float(s),), (float(-s),))
+        assert_allclose(
+            batch.evaluate_flat(inputs), _dense_reference((reference, reference), inputs), rtol=0.0, atol=ATOL
+        )
