@@ -11,6 +11,7 @@ engine's mutation kills (`make mutation`).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -27,8 +28,14 @@ from smm_controller.fuzzy import (
     SingleInputCentroids,
     TriangularMF,
     centroid_weights,
+    uniform_grid,
 )
-from smm_controller.rules import fleso_input_variable, fleso_output_variable, pd_output_variable
+from smm_controller.rules import (
+    fleso_bandwidth_system,
+    fleso_input_variable,
+    fleso_output_variable,
+    pd_output_variable,
+)
 
 FloatArray = npt.NDArray[np.float64]
 ATOL = 1e-13
@@ -427,3 +434,102 @@ def test_lattice_system_whose_output_samples_to_zero_falls_back(x: tuple[float, 
     assert batch._lattice_plan is not None
     assert not system.aggregated_membership(x).any()
     assert batch.evaluate_flat([x]) == [ZERO_AREA_FALLBACK]
+
+
+# --- set-up errors name what is wrong; set-up details -------------------------------------------------
+
+
+def exact(message: str) -> str:
+    return f"^{re.escape(message)}$"
+
+
+def test_membership_function_errors_name_the_parameter() -> None:
+    with pytest.raises(ValueError, match=exact("mean must be a finite number, got nan")):
+        GaussianMF(math.nan, 1.0)
+    with pytest.raises(ValueError, match=exact("sigma must be a finite number, got inf")):
+        GaussianMF(0.0, math.inf)
+    with pytest.raises(ValueError, match=exact("mean must be a finite number, got True")):
+        GaussianMF(True, 1.0)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=exact("sigma must be a finite number, got '1'")):
+        GaussianMF(0.0, "1")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=exact("b must be a finite number, got nan")):
+        TriangularMF(0.0, math.nan, 1.0)
+
+
+def test_grid_and_variable_errors() -> None:
+    assert_allclose(centroid_weights([0.0, 1.0]), [[0.5, 1.0 / 6.0], [0.5, 1.0 / 3.0]], rtol=1e-15)
+    grid_message = "grid must be a strictly increasing 1-D array of at least 2 points"
+    with pytest.raises(ValueError, match=exact(grid_message)):
+        centroid_weights([0.0])
+    with pytest.raises(ValueError, match=exact("universe must satisfy low < high, got (1.0, 1.0)")):
+        uniform_grid((1.0, 1.0), 5)
+    with pytest.raises(ValueError, match="must be non-empty and of equal length, got 0 labels and 0 mfs"):
+        FuzzyVariable((), ())
+
+
+def test_peaks_evenly_spaced_with_a_foot_off_are_no_partition() -> None:
+    """Only the first triangle's left foot is off: not a uniform partition, every label is evaluated."""
+    variable = FuzzyVariable(
+        ("A", "B", "C"),
+        [TriangularMF(-1.0, 0.0, 0.5), TriangularMF(0.0, 0.5, 1.0), TriangularMF(0.5, 1.0, 1.5)],
+    )
+    assert variable.lattice_pair(0.2) is None
+    assert variable.active(0.2) == [(0, pytest.approx(0.6)), (1, pytest.approx(0.4))]
+
+
+def test_batch_and_system_errors_name_what_is_wrong() -> None:
+    system = fleso_bandwidth_system(21)
+    with pytest.raises(ValueError, match=exact("MamdaniBatch needs at least one system")):
+        MamdaniBatch([])
+    narrower = MamdaniSystem(
+        (fleso_input_variable(),),
+        (FuzzyVariable(("S", "M", "B"), [GaussianMF(m, 0.3) for m in (-1.0, 0.0, 1.0)]),),
+        {("ZE",): ("B",)},
+        grid_points=21,
+    )
+    with pytest.raises(
+        ValueError, match=exact("all systems of a MamdaniBatch must share output MFs and grid")
+    ):
+        MamdaniBatch([system, narrower])
+    with pytest.raises(
+        ValueError, match=exact("a MamdaniSystem needs at least one input and one output variable")
+    ):
+        MamdaniSystem((), (fleso_output_variable(),), {})
+    with pytest.raises(ValueError, match=exact("expected 1 inputs, got 2")):
+        MamdaniBatch([system]).evaluate_flat([(0.1, 0.2)])
+
+
+def test_system_keeps_its_universe_and_read_only_samples() -> None:
+    system = MamdaniSystem(
+        (fleso_input_variable(),), (fleso_output_variable(),), {("ZE",): ("B",)}, universe=(-2.0, 3.0)
+    )
+    assert system.universe == (-2.0, 3.0)
+    assert (system.grid[0], system.grid[-1]) == (-2.0, 3.0)
+    with pytest.raises(ValueError, match="read-only"):
+        system.output_samples[0, 0, 0] = 0.5
+
+
+@pytest.mark.parametrize("x", [(0.3, -0.2), (-0.6, 0.5), (1.0, 0.0), (0.5, -1.0), (-1.0, 1.0)])
+def test_two_input_systems_with_different_inputs_match_brute_force(x: tuple[float, float]) -> None:
+    """Lattice inputs of 2 and 3 labels (the fast path), and a Gaussian first input (the general path)."""
+    two = FuzzyVariable(("n", "p"), [TriangularMF(-3.0, -1.0, 1.0), TriangularMF(-1.0, 1.0, 3.0)])
+    three = FuzzyVariable(
+        ("l", "m", "h"),
+        [TriangularMF(-2.0, -1.0, 0.0), TriangularMF(-1.0, 0.0, 1.0), TriangularMF(0.0, 1.0, 2.0)],
+    )
+    gaussian = FuzzyVariable(("n", "p"), [GaussianMF(-1.0, 0.6), GaussianMF(1.0, 0.6)])
+    output = FuzzyVariable(tuple("ABCDEF"), [GaussianMF(-1.0 + 0.4 * k, 0.2) for k in range(6)])
+    for first in (two, gaussian):
+        rules = {
+            (a, b): (output.labels[(i * 3 + j * 5) % 6],)
+            for i, a in enumerate(first.labels)
+            for j, b in enumerate(three.labels)
+        }
+        system = MamdaniSystem((first, three), (output,), rules, grid_points=41)
+        grid = system.grid
+        aggregated = np.zeros_like(grid)
+        for (a, b), (c,) in rules.items():
+            level = min(first.mfs[first.index(a)].degree(x[0]), three.mfs[three.index(b)].degree(x[1]))
+            aggregated = np.maximum(aggregated, np.minimum(level, output.mfs[output.index(c)].sample(grid)))
+        expected = float(dense_centroids(grid, aggregated))
+        assert MamdaniBatch([system]).evaluate_flat([x]) == pytest.approx([expected], abs=ATOL)
