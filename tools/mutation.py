@@ -32,7 +32,8 @@ EQUIVALENT_FILE = Path(__file__).resolve().with_name("mutation_equivalent.txt")
 CONTROLLER_TESTS = ("tests/controller",)
 #: The fuzzy engine is called by nearly every controller test; its own tests judge it (and keep it fast).
 FUZZY_TESTS = tuple(
-    f"tests/controller/test_{name}.py" for name in ("fuzzy", "fuzzy_fast_path", "fuzzy_pd", "rules")
+    f"tests/controller/test_{name}.py"
+    for name in ("fuzzy_tables", "fuzzy", "fuzzy_fast_path", "fuzzy_pd", "rules")
 )
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 import pytest
@@ -71,9 +71,14 @@ PD_RULES: Rules = {
     for r, ce in enumerate(("NB", "NM", "NS", "ZE", "PS", "PM", "PB"))
     for c, e in enumerate(("NB", "NM", "NS", "ZE", "PS", "PM", "PB"))
 }
-PD_SYSTEM = MamdaniSystem(
-    (pd_input_variable(), pd_input_variable()), (pd_output_variable(), pd_output_variable()), PD_RULES
-)
+
+
+@pytest.fixture(scope="module")
+def pd_system() -> MamdaniSystem:
+    """Built in the test session, not at import: mutation testing imports the tests before any mutant."""
+    return MamdaniSystem(
+        (pd_input_variable(), pd_input_variable()), (pd_output_variable(), pd_output_variable()), PD_RULES
+    )
 
 
 class TestMembershipFunctions:
@@ -83,7 +88,7 @@ class TestMembershipFunctions:
     def test_gaussian_values(self) -> None:
         assert_allclose(gaussian_mf([0.0, 2.0], 0.0, 2.0), [1.0, math.exp(-0.5)])
 
-    @settings(deadline=None)
+    @settings(max_examples=200, deadline=None)
     @given(x=st.floats(-3, 3, allow_subnormal=True))
     def test_scalar_and_array_forms_agree(self, x: float) -> None:
         tri = TriangularMF(-0.5, 0.25, 1.0)
@@ -112,15 +117,14 @@ class TestSpecMembershipShapes:
             assert left.degree(midpoint) == pytest.approx(0.5)
             assert right.degree(midpoint) == pytest.approx(0.5)
 
-    @settings(deadline=None)
+    @settings(max_examples=200, deadline=None)
     @given(x=unit)
     def test_input_triangles_sum_to_one(self, x: float) -> None:
         assert sum(pd_input_variable().memberships(x)) == pytest.approx(1.0, abs=1e-12)
 
-    @pytest.mark.parametrize(
-        "variable", [pd_output_variable(), fleso_input_variable(), fleso_output_variable()]
-    )
-    def test_gaussians_cross_at_half_midway(self, variable: FuzzyVariable) -> None:
+    @pytest.mark.parametrize("family", [pd_output_variable, fleso_input_variable, fleso_output_variable])
+    def test_gaussians_cross_at_half_midway(self, family: Callable[[], FuzzyVariable]) -> None:
+        variable = family()  # built in the test, not at collection (mutation testing)
         for left, right in zip(variable.mfs[:-1], variable.mfs[1:], strict=True):
             midpoint = 0.5 * (left.mean + right.mean)  # type: ignore[attr-defined]
             assert left.degree(midpoint) == pytest.approx(0.5, abs=1e-12)
@@ -133,7 +137,7 @@ class TestSpecMembershipShapes:
 
 
 class TestActiveLabels:
-    @settings(deadline=None)
+    @settings(max_examples=200, deadline=None)
     @given(x=st.floats(-1.5, 1.5, allow_subnormal=True))
     def test_lattice_shortcut_equals_all_labels(self, x: float) -> None:
         variable = pd_input_variable()
@@ -143,7 +147,7 @@ class TestActiveLabels:
         assert_allclose(dense, variable.memberships(x), rtol=0, atol=1e-12)
         assert len(variable.active(x)) <= 2
 
-    @settings(deadline=None)
+    @settings(max_examples=200, deadline=None)
     @given(x=st.floats(-1.5, 1.5, allow_subnormal=True))
     def test_gaussian_shortcut_is_bit_identical(self, x: float) -> None:
         variable = fleso_input_variable()
@@ -204,9 +208,9 @@ class TestCentroid:
 class TestMamdani:
     @settings(max_examples=60, deadline=None)
     @given(e=unit, ce=unit)
-    def test_pd_system_matches_brute_force(self, e: float, ce: float) -> None:
+    def test_pd_system_matches_brute_force(self, pd_system: MamdaniSystem, e: float, ce: float) -> None:
         assert_allclose(
-            PD_SYSTEM.evaluate((e, ce)), brute_force_outputs(PD_SYSTEM, PD_RULES, (e, ce)), atol=1e-12
+            pd_system.evaluate((e, ce)), brute_force_outputs(pd_system, PD_RULES, (e, ce)), atol=1e-12
         )
 
     @settings(max_examples=30, deadline=None)
@@ -229,21 +233,21 @@ class TestMamdani:
         system = MamdaniSystem((variable, variable, variable), (variable,), rules, grid_points=51)
         assert_allclose(system.evaluate(x), brute_force_outputs(system, rules, x), atol=1e-12)
 
-    def test_aggregated_membership_is_max_of_clipped_labels(self) -> None:
-        strengths = PD_SYSTEM.label_strengths((0.51, 0.2))
-        aggregated = PD_SYSTEM.aggregated_membership((0.51, 0.2))
-        n = PD_SYSTEM.n_labels
-        for o, output in enumerate(PD_SYSTEM.outputs):
+    def test_aggregated_membership_is_max_of_clipped_labels(self, pd_system: MamdaniSystem) -> None:
+        strengths = pd_system.label_strengths((0.51, 0.2))
+        aggregated = pd_system.aggregated_membership((0.51, 0.2))
+        n = pd_system.n_labels
+        for o, output in enumerate(pd_system.outputs):
             expected = np.max(
                 [
-                    np.minimum(strengths[o * n + i], mf.sample(PD_SYSTEM.grid))
+                    np.minimum(strengths[o * n + i], mf.sample(pd_system.grid))
                     for i, mf in enumerate(output.mfs)
                 ],
                 axis=0,
             )
             assert_allclose(aggregated[o], expected, atol=0)
-            assert PD_SYSTEM.evaluate((0.51, 0.2))[o] == pytest.approx(
-                centroid(PD_SYSTEM.grid, expected), abs=1e-14
+            assert pd_system.evaluate((0.51, 0.2))[o] == pytest.approx(
+                centroid(pd_system.grid, expected), abs=1e-14
             )
 
     def test_no_rule_fires_gives_fallback(self) -> None:
@@ -252,23 +256,23 @@ class TestMamdani:
         assert system.evaluate((-1.0,)) == (ZERO_AREA_FALLBACK,)
         assert system.evaluate((1.0,))[0] > 0.5
 
-    def test_batch_equals_individual_systems(self) -> None:
+    def test_batch_equals_individual_systems(self, pd_system: MamdaniSystem) -> None:
         other = pd_gain_system(tuple(reversed(TABLE_1)))
-        batch = MamdaniBatch([PD_SYSTEM, other])
+        batch = MamdaniBatch([pd_system, other])
         inputs = [(0.3, -0.7), (-0.9, 0.15)]
         result = batch.evaluate(inputs)
-        assert_allclose(result[0], PD_SYSTEM.evaluate(inputs[0]), atol=1e-15)
+        assert_allclose(result[0], pd_system.evaluate(inputs[0]), atol=1e-15)
         assert_allclose(result[1], other.evaluate(inputs[1]), atol=1e-15)
 
-    def test_batch_rejects_mismatched_outputs_and_inputs(self) -> None:
+    def test_batch_rejects_mismatched_outputs_and_inputs(self, pd_system: MamdaniSystem) -> None:
         with pytest.raises(ValueError, match="share output"):
-            MamdaniBatch([PD_SYSTEM, fleso_bandwidth_system()])
+            MamdaniBatch([pd_system, fleso_bandwidth_system()])
         with pytest.raises(ValueError, match="at least one"):
             MamdaniBatch([])
         with pytest.raises(ValueError, match="expected 1 input vectors"):
-            MamdaniBatch([PD_SYSTEM]).evaluate([(0.0, 0.0), (0.0, 0.0)])
+            MamdaniBatch([pd_system]).evaluate([(0.0, 0.0), (0.0, 0.0)])
         with pytest.raises(ValueError, match="expected 2 inputs"):
-            PD_SYSTEM.label_strengths((0.0,))
+            pd_system.label_strengths((0.0,))
 
     def test_rule_arity_and_labels_are_checked(self) -> None:
         variable = pd_input_variable()

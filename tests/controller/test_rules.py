@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import re
+
+import numpy as np
 import pytest
+from numpy.testing import assert_allclose
 from smm_controller.rules import (
     FLESO_BANDWIDTH_RULES,
     PD_LABELS,
     TABLE_1,
     TABLE_7,
+    fleso_bandwidth_system,
     parse_rule_table,
     pd_gain_system,
     pd_input_variable,
@@ -86,20 +91,63 @@ def test_fleso_rules_as_in_the_paper() -> None:
     assert FLESO_BANDWIDTH_RULES == {"NB": "S", "NS": "M", "ZE": "B", "PS": "M", "PB": "S"}
 
 
-@pytest.mark.parametrize(
-    ("text", "message"),
-    [
-        ("ce\\e NB NM\nNB PB\\PB PB\\PB", "header"),
-        (
-            "ce\\e " + " ".join(PD_LABELS) + "\n" + "\n".join(f"{r} " + "PB\\PB " * 6 for r in PD_LABELS),
-            "cells",
-        ),
-        (
-            "ce\\e " + " ".join(PD_LABELS) + "\n" + "\n".join(f"{r} " + "PB\\XX " * 7 for r in PD_LABELS),
-            "unknown",
-        ),
-    ],
-)
-def test_parser_rejects_malformed_tables(text: str, message: str) -> None:
-    with pytest.raises(ValueError, match=message):
+def table_text(table: tuple[tuple[tuple[str, str], ...], ...] = TABLE_1) -> list[list[str]]:
+    """The table as text cells: a header row, then one row per ce label."""
+    return [["ce\\e", *PD_LABELS]] + [
+        [ce, *(f"{a}\\{b}" for a, b in row)] for ce, row in zip(PD_LABELS, table, strict=True)
+    ]
+
+
+def joined(cells: list[list[str]]) -> str:
+    return "\n\n".join("  ".join(row) for row in cells)  # blank lines between rows are ignored
+
+
+def test_parser_reads_its_own_output_back() -> None:
+    reversed_rows = tuple(tuple(reversed(row)) for row in TABLE_1)
+    assert parse_rule_table(joined(table_text(reversed_rows))) == reversed_rows
+
+
+def rejects(text: str, message: str) -> None:
+    """parse_rule_table raises ValueError with exactly ``message``."""
+    with pytest.raises(ValueError, match=f"^{re.escape(message)}$"):
         parse_rule_table(text)
+
+
+def test_parser_errors_name_what_is_wrong() -> None:
+    """A malformed table is rejected with the header, row or cell at fault and what was found."""
+    labels = "NB NM NS ZE PS PM PB"
+    rejects(" \n\n", "rule table is empty")
+    cells = table_text()
+    cells[0] = cells[0][:3]
+    rejects(joined(cells), f"rule table header must list {labels} in order, got 'NB NM'")
+    cells = table_text()
+    cells[1], cells[2] = cells[2], cells[1]
+    rejects(joined(cells), f"rule table first column must list {labels} in order, got 'NM NB NS ZE PS PM PB'")
+    cells = table_text()
+    del cells[3][4]
+    rejects(joined(cells), "rule table row 'NS' must have 7 cells, got 6")
+    cells = table_text()
+    cells[3].append("PB\\PB")
+    rejects(joined(cells), "rule table row 'NS' must have 7 cells, got 8")
+    for cell in ("PB", "PB\\NS\\ZE"):
+        cells = table_text()
+        cells[3][4] = cell
+        rejects(
+            joined(cells),
+            f"rule table cell {cell} (row NS, column ZE) must be two labels joined by a backslash, "
+            "e.g. PB\\NS",
+        )
+    for cell, unknown in (("PB\\XX", "XX"), ("YY\\NS", "YY"), ("XX\\YY", "XX"), ("PB\\", "")):
+        cells = table_text()
+        cells[6][1] = cell
+        rejects(
+            joined(cells),
+            f"rule table cell {cell} (row PM, column NB) has unknown label {unknown!r}; labels are {labels}",
+        )
+
+
+@pytest.mark.parametrize("grid_points", [3, 51, 202])
+def test_systems_use_the_given_grid(grid_points: int) -> None:
+    grid = np.linspace(-1.0, 1.0, grid_points)
+    assert_allclose(fleso_bandwidth_system(grid_points).grid, grid, rtol=0.0, atol=0.0)
+    assert_allclose(pd_gain_system(TABLE_1, grid_points).grid, grid, rtol=0.0, atol=0.0)

@@ -287,7 +287,7 @@ class FuzzyVariable:
                 if rising > 0.0:
                     return [(left, falling), (left + 1, rising)]
                 return [(left, falling)]
-            return [(left + 1, rising)] if rising > 0.0 else []
+            return [(left + 1, rising)]  # falling <= 0 leaves rising >= 1 - rounding: they add up to 1
         if self._gaussians is not None:
             # Same expression as GaussianMF.degree; every label is active (a degree that underflows
             # to 0.0 is returned too: it fires no rule).
@@ -540,11 +540,17 @@ class SingleInputCentroids:
         sample_array = np.array(samples, dtype=np.float64)
         weight_array = np.array(weights, dtype=np.float64)
         if sample_array.ndim != 3 or weight_array.shape != (sample_array.shape[2], 2):
-            raise ValueError("samples must have shape (outputs, labels, n) and weights shape (n, 2)")
+            raise ValueError(
+                "samples must have shape (outputs, labels, n) and weights shape (n, 2), got "
+                f"{sample_array.shape} and {weight_array.shape}"
+            )
         if len(self._consequents) != len(self.gaussians) or any(
             len(row) != sample_array.shape[0] for row in self._consequents
         ):
-            raise ValueError("consequents must give one output label per input label and output")
+            raise ValueError(
+                f"consequents must give one output label per input label ({len(self.gaussians)}) and output "
+                f"({sample_array.shape[0]}), got rows of lengths {[len(row) for row in self._consequents]}"
+            )
         means = np.array([mean for mean, _ in self.gaussians])
         self.low = float(means.min())
         self.high = float(means.max())
@@ -622,7 +628,7 @@ class SingleInputCentroids:
                         tuple(
                             (a, float(by_rule[k, a, 0]), float(by_rule[k, a, 1]))
                             for a in range(n_inputs)
-                            if by_rule[k, a, 0] != 0.0 or by_rule[k, a, 1] != 0.0
+                            if by_rule[k, a, 0] > 0.0  # else no point is clipped by rule a
                         ),
                     )
                     for constant, by_rule in per_output
@@ -675,7 +681,10 @@ class LabelPairCentroids:
         sample_array = np.array(samples, dtype=np.float64)
         weight_array = np.array(weights, dtype=np.float64)
         if sample_array.ndim != 2 or weight_array.shape != (sample_array.shape[1], 2):
-            raise ValueError("samples must have shape (labels, n) and weights shape (n, 2)")
+            raise ValueError(
+                "samples must have shape (labels, n) and weights shape (n, 2), got "
+                f"{sample_array.shape} and {weight_array.shape}"
+            )
         self._singles = [self._clip_table(row, weight_array) for row in sample_array]
         self._pairs = {
             (a, b): self._pair_table(sample_array[a], sample_array[b], weight_array)
@@ -969,10 +978,10 @@ class MamdaniBatch:
                         crisp[row + o] = pair_centroids[o].single(label, max(level, other_level))
                     else:
                         crisp[row + o] = pair_centroids[o].pair(label, level, other_label, other_level)
-            elif fired:
+            elif len(fired) == 4:
                 four_rules.append((system_index, fired))
             else:
-                return None  # impossible on a partition of unity; the general path copes
+                return None  # none, or two whose sum is not 1: impossible on a partition of unity
         if four_rules:
             self._clip_and_defuzzify(four_rules, crisp)
         return crisp
@@ -980,14 +989,13 @@ class MamdaniBatch:
     def _clip_and_defuzzify(
         self, systems: list[tuple[int, list[tuple[int, float]]]], crisp: list[float]
     ) -> None:
-        """Numpy min/max/centroid of the given systems' fired rules (padded to 4 by repeating one)."""
+        """Numpy min/max/centroid of the given systems' four fired rules each."""
         assert self._lattice_plan is not None
         slots: list[int] = []
         firings: list[float] = []
         for system_index, fired in systems:
             targets = self._lattice_plan[system_index][3]
-            for k in range(4):
-                cell, level = fired[k] if k < len(fired) else fired[0]
+            for cell, level in fired:
                 slots += targets[cell]
                 firings.append(level)
         firing, firing_view, gathered, gathered_view, aggregated, aggregated_view = self._lattice_buffers[

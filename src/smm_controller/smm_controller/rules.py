@@ -81,20 +81,36 @@ def parse_rule_table(text: str) -> RuleTable:
 
     Returns:
         ``table[row][column] = (f(k_e) label, f(k_de) label)``, rows ce, columns e.
+
+    Raises:
+        ValueError: naming the header, row or cell that is wrong and what was found.
     """
-    lines = [line.split() for line in text.strip().splitlines()]
+    lines = [line.split() for line in text.splitlines() if line.strip()]
+    if not lines:
+        raise ValueError("rule table is empty")
     header, body = lines[0], lines[1:]
-    if tuple(header[1:]) != PD_LABELS or tuple(row[0] for row in body) != PD_LABELS:
-        raise ValueError("rule table header and first column must list NB NM NS ZE PS PM PB in order")
+    expected = " ".join(PD_LABELS)
+    if tuple(header[1:]) != PD_LABELS:
+        raise ValueError(f"rule table header must list {expected} in order, got {' '.join(header[1:])!r}")
+    rows = tuple(row[0] for row in body)
+    if rows != PD_LABELS:
+        raise ValueError(f"rule table first column must list {expected} in order, got {' '.join(rows)!r}")
     table = []
     for row in body:
         if len(row) != len(PD_LABELS) + 1:
-            raise ValueError(f"rule table row {row[0]!r} must have {len(PD_LABELS)} cells")
+            raise ValueError(
+                f"rule table row {row[0]!r} must have {len(PD_LABELS)} cells, got {len(row) - 1}"
+            )
         cells = []
-        for cell in row[1:]:
-            gain_e, gain_de = cell.split("\\")
-            if gain_e not in PD_LABELS or gain_de not in PD_LABELS:
-                raise ValueError(f"unknown label in rule table cell {cell!r}")
+        for column, cell in enumerate(row[1:]):
+            where = f"rule table cell {cell} (row {row[0]}, column {PD_LABELS[column]})"
+            labels = cell.split("\\")
+            if len(labels) != 2:
+                raise ValueError(f"{where} must be two labels joined by a backslash, e.g. PB\\NS")
+            gain_e, gain_de = labels
+            unknown = [label for label in labels if label not in PD_LABELS]
+            if unknown:
+                raise ValueError(f"{where} has unknown label {unknown[0]!r}; labels are {expected}")
             cells.append((gain_e, gain_de))
         table.append(tuple(cells))
     return tuple(table)
