@@ -7,7 +7,7 @@ import math
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from smm_dynamics.valve import valve_lag_step
+from smm_dynamics.valve import valve_lag_step, valve_time_constants_from_response_times
 
 RISE, FALL, H = 0.02, 0.01, 1e-3
 
@@ -53,3 +53,48 @@ def test_the_mean_lies_between_start_and_end_and_the_end_between_start_and_goal(
     assert min(start, goal) <= end <= max(start, goal)
     tolerance = 1e-12 * (abs(start) + abs(goal))
     assert min(start, end) - tolerance <= mean <= max(start, end) + tolerance
+
+
+def test_time_constants_from_response_times_by_hand() -> None:
+    # 90 % of a step after 3 T: T = t / ln(10); the paper's valve (50 ms, 25 ms).
+    rise, fall = valve_time_constants_from_response_times(0.050, 0.025)
+    assert (rise, fall) == pytest.approx((0.050 / math.log(10.0), 0.025 / math.log(10.0)), rel=1e-15)
+    # 63.2 % (1 - 1/e) after exactly T; 50 % after T ln 2.
+    assert valve_time_constants_from_response_times(2.0, 0.5, 1.0 - math.exp(-1.0)) == pytest.approx(
+        (2.0, 0.5), rel=1e-15
+    )
+    assert valve_time_constants_from_response_times(0.3, 0.2, 0.5) == pytest.approx(
+        (0.3 / math.log(2.0), 0.2 / math.log(2.0)), rel=1e-15
+    )
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        ((0.0, 0.025), "rise_time must be a finite number > 0 s, got 0.0"),
+        ((0.5, 0.025), None),  # a response time below 1 s is fine
+        ((math.inf, 0.025), "rise_time must be a finite number > 0 s, got inf"),
+        ((-0.1, 0.025), "rise_time must be a finite number > 0 s, got -0.1"),
+        ((0.05, 0.0), "fall_time must be a finite number > 0 s, got 0.0"),
+        ((0.05, math.nan), "fall_time must be a finite number > 0 s, got nan"),
+        ((0.05, 0.025, 0.0), "reached_fraction must be in (0, 1), got 0.0"),
+        ((0.05, 0.025, 1.0), "reached_fraction must be in (0, 1), got 1.0"),
+        ((0.05, 0.025, 1.5), "reached_fraction must be in (0, 1), got 1.5"),
+        ((0.05, 0.025, 0.999), None),
+    ],
+)
+def test_time_constants_refuse_what_has_no_first_order_reading(
+    arguments: tuple[float, ...], message: str | None
+) -> None:
+    if message is None:
+        rise, fall = valve_time_constants_from_response_times(*arguments)
+        assert rise > 0.0 and fall > 0.0
+        return
+    with pytest.raises(ValueError) as error:
+        valve_time_constants_from_response_times(*arguments)
+    assert str(error.value) == message
+
+
+def test_a_hold_exactly_at_the_goal_stays_there() -> None:
+    for start in (3.0, -3.0):
+        assert valve_lag_step(start, start, H, RISE, FALL) == (start, start)
