@@ -134,3 +134,31 @@ def test_reference_shape_is_checked(controller: PIDController | NPDController | 
         controller.step(np.zeros((2, 2)), ZERO, ZERO, ZERO, DT)
     with pytest.raises(ValueError, match="reference must be finite"):
         controller.step(np.full((3, 2), math.nan), ZERO, ZERO, ZERO, DT)
+
+
+def _integral_after_tracking(
+    config: PIDConfig, unlimited: tuple[float, float], limited: tuple[float, float]
+) -> np.ndarray:
+    """The PID's integral after one step with no error and one back-calculation (shown by a second step)."""
+    pid = PIDController(config)
+    rest = [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]
+    pid.step_floats(rest, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0), 1e-3)
+    pid.track_saturation(unlimited, limited, 0.01)
+    pid.step_floats(rest, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0), 1e-3)
+    return np.asarray(pid.internals["i"])
+
+
+def test_back_calculation_tracking_time_by_hand() -> None:
+    # Joint alpha with kd: T_t = sqrt(kd / ki) = sqrt(8 / 2) = 2 s; beta without kd: T_t = kp / ki = 5 s.
+    config = PIDConfig(kp=(1.0, 10.0), ki=(2.0, 2.0), kd=(8.0, 0.0))
+    integral = _integral_after_tracking(config, (7.0, -7.0), (3.0, -3.0))
+    assert_allclose(integral, [0.01 * (3.0 - 7.0) / 2.0, 0.01 * (-3.0 + 7.0) / 5.0], rtol=1e-12)
+
+
+def test_back_calculation_skips_a_joint_without_integral_or_tracking_time_and_goes_on() -> None:
+    # alpha: ki = 0 (no integral to correct); beta corrected with T_t = kp / ki = 1 s.
+    no_integral = PIDConfig(kp=(1.0, 1.0), ki=(0.0, 1.0), kd=(0.0, 0.0))
+    assert_allclose(_integral_after_tracking(no_integral, (5.0, 5.0), (1.0, 1.0)), [0.0, -0.04], rtol=1e-12)
+    # alpha: kp = kd = 0 gives T_t = 0 (pure I: nothing to track with); beta as above.
+    pure_integral = PIDConfig(kp=(0.0, 1.0), ki=(1.0, 1.0), kd=(0.0, 0.0))
+    assert_allclose(_integral_after_tracking(pure_integral, (5.0, 5.0), (1.0, 1.0)), [0.0, -0.04], rtol=1e-12)

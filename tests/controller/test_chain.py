@@ -110,3 +110,22 @@ def test_step_validates_inputs() -> None:
         chain.step([0.0, 0.0], [np.nan, 0.0], np.zeros((3, 2)), DT)
     with pytest.raises(ValueError, match="dt"):
         chain.step([0.0, 0.0], [0.0, 0.0], np.zeros((3, 2)), 0.0)
+
+
+def test_the_chain_uses_the_limiter_it_is_given_and_tells_the_law_what_it_cut() -> None:
+    from smm_controller.baselines import PIDConfig
+    from smm_controller.limits import OutputLimitConfig, OutputLimiter
+
+    # PI only (kd = 0): back-calculation with T_t = kp / ki = 2 s (control_toolbox's rule without kd).
+    pid = PIDController(PIDConfig(kp=(4.0, 4.0), ki=(2.0, 2.0), kd=(0.0, 0.0)))
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=(1.0, 1.0)))
+    chain = ControlChain(TrackingDifferentiator(), None, pid, limiter=limiter)
+    reference = [[1.0, -1.0], [0.0, 0.0], [0.0, 0.0]]  # 1 rad of error on each joint, at rest
+    tau = chain.step_floats((0.0, 0.0), (0.0, 0.0), reference, DT)
+    assert tau == (1.0, -1.0)  # cut at the given limiter's 1 N m, not the default 300 N m
+    # The integral got ki e dt = +-0.002, then the anti-windup correction dt (limited - unlimited) / T_t;
+    # a step with no error shows it (the integral does not move then).
+    unlimited = 4.0 * 1.0 + 2.0 * 1.0 * DT
+    expected = 2.0 * DT + DT * (1.0 - unlimited) / 2.0
+    chain.step_floats((0.0, 0.0), (0.0, 0.0), [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]], DT)
+    assert_allclose(pid.internals["i"], [expected, -expected], rtol=1e-12)
