@@ -30,6 +30,7 @@ OUT = REPO / "out" / "mutation"
 EQUIVALENT_FILE = Path(__file__).resolve().with_name("mutation_equivalent.txt")
 
 CONTROLLER_TESTS = ("tests/controller",)
+DYNAMICS_TESTS = ("tests/dynamics",)
 #: The fuzzy engine is called by nearly every controller test; its own tests judge it (and keep it fast).
 FUZZY_TESTS = tuple(
     f"tests/controller/test_{name}.py"
@@ -43,6 +44,8 @@ class Module:
 
     path: str
     tests: tuple[str, ...]
+    profile: str = "thorough"
+    """Hypothesis profile of its tests (tests/conftest.py), unless ``--profile`` is given."""
 
     @property
     def package(self) -> str:
@@ -56,12 +59,13 @@ class Module:
 
 
 #: The modules under mutation and their fast (pure unit) test layers. mutmut runs, for each mutant, only the
-#: selected tests that call the mutated function. One line per module.
+#: selected tests that call the mutated function. One line per module. The dynamics' properties run the `ci`
+#: profile's 100 examples: at `thorough`'s 1000 their run alone would take most of the hour.
 MODULES: tuple[Module, ...] = (
-    Module("smm_dynamics/model.py", ("tests/dynamics",)),
-    Module("smm_dynamics/parameters.py", ("tests/dynamics",)),
-    Module("smm_dynamics/validation.py", ("tests/dynamics",)),
-    Module("smm_dynamics/valve.py", ("tests/dynamics",)),
+    Module("smm_dynamics/model.py", DYNAMICS_TESTS, "ci"),
+    Module("smm_dynamics/parameters.py", DYNAMICS_TESTS, "ci"),
+    Module("smm_dynamics/validation.py", DYNAMICS_TESTS, "ci"),
+    Module("smm_dynamics/valve.py", DYNAMICS_TESTS, "ci"),
     Module("smm_controller/td.py", CONTROLLER_TESTS),
     Module("smm_controller/fleso.py", CONTROLLER_TESTS),
     Module("smm_controller/fuzzy.py", FUZZY_TESTS),
@@ -365,10 +369,20 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         "--collect", action="store_true", help="keep the results mutmut has saved so far (a run in progress)"
     )
     parser.add_argument("--max-children", type=int, default=2, help="parallel mutant workers (default 2)")
-    parser.add_argument("--profile", default="thorough", help="Hypothesis profile (tests/conftest.py)")
+    parser.add_argument(
+        "--profile", default=None, help="Hypothesis profile for every module (default: each module's own)"
+    )
     parser.add_argument("--threshold", type=float, default=90.0, help="score per module to reach, percent")
     parser.add_argument("--list", action="store_true", help="list the modules and their tests")
     return parser.parse_args(argv)
+
+
+def package_profile(modules: Sequence[Module]) -> str:
+    """The one Hypothesis profile of a package's modules (one mutmut run per package)."""
+    profiles = {m.profile for m in modules}
+    if len(profiles) != 1:
+        raise ValueError(f"one profile per package run, got {sorted(profiles)}")
+    return profiles.pop()
 
 
 def select(modules: Sequence[Module], patterns: Sequence[str] | None) -> list[Module]:
@@ -400,8 +414,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         for m in chosen:
             by_package.setdefault(m.package, []).append(m)
         for package, modules in by_package.items():
+            profile = args.profile or package_profile(modules)
             for result in run_package(
-                package, modules, max_children=args.max_children, profile=args.profile, equivalent=equivalent
+                package, modules, max_children=args.max_children, profile=profile, equivalent=equivalent
             ):
                 save_result(result)
                 print(f"  {result.path}: {score_text(result)} ({result.killed}/{result.scored})", flush=True)

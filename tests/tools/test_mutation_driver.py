@@ -118,3 +118,16 @@ def test_collect_reads_a_run_in_progress(
     assert partial.status == "partial" and "2 of 3 mutants run" in partial.note
     assert partial.score == pytest.approx(50.0)
     assert driver.score_text(partial) == "50.0 % (partial)"
+
+
+def test_each_package_run_has_one_profile(driver: ModuleType) -> None:
+    dynamics = [m for m in driver.MODULES if m.package == "smm_dynamics"]
+    assert dynamics and driver.package_profile(dynamics) == "ci"
+    controller = [m for m in driver.MODULES if m.package == "smm_controller"]
+    assert driver.package_profile(controller) == "thorough"
+    mixed = [
+        driver.Module("smm_sim/a.py", ("tests/sim",), "ci"),
+        driver.Module("smm_sim/b.py", ("tests/sim",)),
+    ]
+    with pytest.raises(ValueError, match=r"one profile per package run, got \['ci', 'thorough'\]"):
+        driver.package_profile(mixed)
