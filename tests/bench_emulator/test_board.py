@@ -108,6 +108,7 @@ def test_realtime_hold_then_null_at_the_first_tick_past_validity() -> None:
         if c == (0, 0)
     )
     assert fb.late_commands == 5  # ticks 3..7 held while the answer to the previous feedback was missing
+    assert core.enabled_ticks == 6  # the latch at tick 2 and the five late ticks (the last one nulls)
 
 
 def test_watchdog_ramp_reaches_null_in_ramp_ticks() -> None:

@@ -154,6 +154,8 @@ class BoardCore:
         self._fb_seq = 0
         self.host_session = 0
         self.late_commands = 0
+        self.enabled_ticks = 0
+        """Ticks that latched with a command on the valves (the late fraction's denominator); not on the wire."""
         self.crc_errors = 0
         self.dropped_frames = 0
         self._last_cmd_seq: int | None = None
@@ -291,8 +293,10 @@ class BoardCore:
             else:
                 self._disable()
                 self._watchdog = False
-        if self._active is not None and (command is None or command.answers_seq != expected_seq):
-            self.late_commands = (self.late_commands + 1) % _U32
+        if self._active is not None:
+            self.enabled_ticks += 1
+            if command is None or command.answers_seq != expected_seq:
+                self.late_commands = (self.late_commands + 1) % _U32
         if command is None and self._active is not None:
             if u32_diff(self.tick, self._active.answers_tick) <= self._active.validity:
                 self._holding = True

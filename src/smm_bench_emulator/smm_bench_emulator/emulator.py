@@ -205,6 +205,7 @@ class Emulator:
             "faults": board.faults,
             "host_session": board.host_session,
             "late_commands": board.late_commands,
+            "enabled_ticks": board.enabled_ticks,
             "crc_errors": board.crc_errors,
             "dropped_frames": board.dropped_frames,
             "overruns": self.overruns,
