@@ -55,6 +55,10 @@ def test_demo_runs_the_graph_and_matches_the_offline_loop(
     expected = {f"/smm/{topic}": STEPS for topic in stepped} | {"/clock": STEPS}
     assert run["simulator_steps"] == STEPS
     assert run["recorded_stamps"] == expected
+    # Every message the simulator published, re-publications included, is in the bag.
+    assert set(run["published"]) == {"/smm/joint_states", "/smm/ground_truth", "/clock"}
+    assert run["published"]["/smm/joint_states"] >= STEPS
+    assert run["recorded_messages"] == run["published"]
     for joint in ("alpha", "beta"):
         graph, offline = run["graph"][joint], run["offline"][joint]
         assert graph["RMS"] > 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import array
+import json
 import math
 import subprocess
 from collections.abc import Iterator
@@ -221,7 +222,14 @@ def test_lockstep_run_ends_after_max_steps_with_a_complete_record(make_harness: 
     np.testing.assert_array_equal(data["stamp_ns"], np.arange(21) * PERIOD_NS)
     np.testing.assert_array_equal(data["command_stamp_ns"], np.arange(20) * PERIOD_NS)
     assert data["position"].shape == (21, 2) and data["command"].shape == (20, 2)
-    assert '"steps": 20' in stats.read_text()
+    written = json.loads(stats.read_text())
+    assert written["steps"] == 20
+    # Every publication is counted, re-publications included: the measurements of steps 0..19 (the last
+    # one ends the run unpublished). Ground truth goes out only while a reader is matched.
+    published = {topic.rsplit("/", 1)[-1]: n for topic, n in written["published"].items()}
+    assert published["joint_states"] == 20 + written["republished"]
+    assert set(published) <= {"joint_states", "ground_truth", "clock"}
+    assert all(n <= published["joint_states"] for n in published.values())
     summary = statistics_summary(h.sim.statistics())
     assert summary.startswith("20 steps at ") and "steps/s (lockstep)" in summary
     assert "latency" not in summary and "nan" not in summary  # no deadlines in lockstep

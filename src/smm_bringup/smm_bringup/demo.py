@@ -68,6 +68,10 @@ class DemoRun:
     simulator_steps: int = 0
     recorded_stamps: Mapping[str, int] = dataclasses.field(default_factory=dict)
     """Per stepped topic, the simulator's step stamps found in the bag (== simulator_steps: nothing lost)."""
+    published: Mapping[str, int] = dataclasses.field(default_factory=dict)
+    """Per topic of the simulator, the messages it published (re-publications included)."""
+    recorded_messages: Mapping[str, int] = dataclasses.field(default_factory=dict)
+    """Per topic of the simulator, the messages in the bag (== published: nothing lost)."""
 
     @property
     def lost(self) -> dict[str, int]:
@@ -76,14 +80,26 @@ class DemoRun:
             t: self.simulator_steps - n for t, n in self.recorded_stamps.items() if n != self.simulator_steps
         }
 
+    @property
+    def unrecorded(self) -> dict[str, int]:
+        """Per topic of the simulator, its messages missing from the bag (only topics that miss some)."""
+        return {
+            t: n - self.recorded_messages.get(t, 0)
+            for t, n in self.published.items()
+            if n != self.recorded_messages.get(t, 0)
+        }
+
 
 def graph_command(options: GraphOptions) -> list[str]:
     """The ``smm-launch`` command line that starts the graph ``options`` describe."""
     return [sys.executable, "-m", "smm_bringup.launcher", *arguments_from_options(options)]
 
 
-def run_graph(options: GraphOptions, bags_dir: Path) -> tuple[Path, int]:
-    """Run the graph once with ``recorder_node`` recording; return the bag folder and the simulator's steps.
+def run_graph(options: GraphOptions, bags_dir: Path) -> tuple[Path, int, dict[str, int]]:
+    """Run the graph once with ``recorder_node`` recording.
+
+    Returns:
+        The bag folder, the simulator's steps and its published messages per topic.
 
     Raises:
         DemoError: ``smm-launch`` exited non-zero or wrote no bag or no simulator statistics.
@@ -114,8 +130,15 @@ def run_graph(options: GraphOptions, bags_dir: Path) -> tuple[Path, int]:
             raise DemoError(f"the recorder wrote no bag at {bag}")
         if not stats.is_file():
             raise DemoError(f"the simulator wrote no statistics ({stats})")
-        steps = int(json.loads(stats.read_text())["steps"])
-    return bag, steps
+        written = json.loads(stats.read_text())
+    published = {str(topic): int(n) for topic, n in written["published"].items()}
+    return bag, int(written["steps"]), published
+
+
+def recorded_messages(bag: Path, topics: Sequence[str]) -> dict[str, int]:
+    """Messages in ``bag`` per topic of ``topics`` (its ``metadata.yaml`` counts; 0 for a topic not in it)."""
+    metadata = read_metadata(bag)
+    return {topic: info.message_count if (info := metadata.topic(topic)) else 0 for topic in topics}
 
 
 def recorded_steps(bag: Path, steps: int) -> dict[str, int]:
@@ -210,24 +233,33 @@ def demo(
         )
         start = time.perf_counter()
         try:
-            bag, steps = run_graph(options, bags_dir)
+            bag, steps, published = run_graph(options, bags_dir)
             run = graph_indices(bag, options)
-            run = dataclasses.replace(run, simulator_steps=steps, recorded_stamps=recorded_steps(bag, steps))
+            run = dataclasses.replace(
+                run,
+                simulator_steps=steps,
+                recorded_stamps=recorded_steps(bag, steps),
+                published=published,
+                recorded_messages=recorded_messages(bag, sorted(published)),
+            )
         except (DemoError, AnalysisError, BagError) as error:
             print(f"[demo] error: {error}", file=sys.stderr)
             return 1
         wall = time.perf_counter() - start
         runs.append(dataclasses.replace(run, wall_time=wall))
         print(f"[demo] {run.steps} steps in {wall:.1f} s ({run.steps / wall:.0f} steps/s)", flush=True)
-        if run.lost or run.missing_steps:
+        if run.lost or run.missing_steps or run.unrecorded:
             print(
-                f"[demo] error: the bag misses simulator steps: {run.lost or run.missing_steps}",
+                f"[demo] error: the bag misses simulator steps: {run.lost or run.missing_steps}"
+                if run.lost or run.missing_steps
+                else f"[demo] error: the bag misses messages the simulator published: {run.unrecorded}",
                 file=sys.stderr,
             )
             return 1
         print(
             f"[demo] every one of the simulator's {steps} steps is in the bag on "
-            f"{', '.join(sorted(run.recorded_stamps))}",
+            f"{', '.join(sorted(run.recorded_stamps))}; every message it published on "
+            f"{', '.join(sorted(run.published))} too",
             flush=True,
         )
     print()
@@ -243,6 +275,8 @@ def demo(
                 "missing_steps": run.missing_steps,
                 "simulator_steps": run.simulator_steps,
                 "recorded_stamps": dict(run.recorded_stamps),
+                "published": dict(run.published),
+                "recorded_messages": dict(run.recorded_messages),
                 "bag": str(run.bag),
                 "graph": {joint: asdict(run.graph[joint]) for joint in JOINTS},
                 "offline": {joint: asdict(run.offline[joint]) for joint in JOINTS},

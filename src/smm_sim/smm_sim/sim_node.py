@@ -55,6 +55,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.context import Context
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 from rclpy.task import Future
 from rclpy.timer import Timer
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -415,6 +416,8 @@ class SimNode(SmmNode):
         self.dropped_unknown_stamp = 0
         self.ignored_late = 0
         self.republished = 0
+        self.published: dict[str, int] = {}
+        """Messages published per topic (fully qualified name), re-publications included."""
         self.stale_ticks = 0
         self.deadline_misses = 0
         self.late_ticks = 0
@@ -537,6 +540,7 @@ class SimNode(SmmNode):
             "dropped_unknown_stamp": self.dropped_unknown_stamp,
             "ignored_late": self.ignored_late,
             "republished": self.republished,
+            "published": dict(sorted(self.published.items())),
             "stale_ticks": self.stale_ticks,
             "deadline_misses": self.deadline_misses,
             "late_ticks": self.late_ticks,
@@ -690,19 +694,23 @@ class SimNode(SmmNode):
         # The measurement goes first: the controller-side nodes (other processes) start on it while this node
         # publishes the clock and the ground truth. Nothing in the loop reads /clock (stamps carry the time).
         now_ns = time.monotonic_ns()
-        self._joint_states_pub.publish(message)
+        self._publish(self._joint_states_pub, message)
         self._last_publish_ns = now_ns
         # /clock only matters to nodes running on sim time (they subscribe to it); unobserved, it is skipped.
         if self._clock_pub is not None and self._clock_pub.get_subscription_count() > 0:
-            self._clock_pub.publish(clock_msg(stamp_ns))
+            self._publish(self._clock_pub, clock_msg(stamp_ns))
         # Ground truth is for analysis only: built and sent only while something (a recorder) listens.
         if self._ground_truth_pub.get_subscription_count() > 0:
             sample = JointSample(stamp_ns, truth.position, truth.velocity, truth.applied_torque)
-            self._ground_truth_pub.publish(sample_to_joint_state(sample))
+            self._publish(self._ground_truth_pub, sample_to_joint_state(sample))
         if self._clock_mode == "realtime":
             self._published_at[stamp_ns] = now_ns
             while len(self._published_at) > _PUBLISHED_STAMPS_KEPT:
                 self._published_at.popitem(last=False)
+
+    def _publish(self, publisher: Publisher, message: object) -> None:
+        publisher.publish(message)
+        self.published[publisher.topic_name] = self.published.get(publisher.topic_name, 0) + 1
 
     def _gate_shortfall(self) -> list[str]:
         """The publishers still short of their start subscribers, as ``topic n/needed``; [] = open."""
