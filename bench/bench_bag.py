@@ -24,6 +24,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Literal
 
 HERE = Path(__file__).resolve().parent
 ANALYSIS_TARGET_S = 30.0
@@ -107,7 +108,7 @@ def record_at_1khz(seconds: float, workdir: Path) -> None:
             late += 1
     wall = time.monotonic() - start
     acked = all(p.wait_for_all_acked(Duration(seconds=10)) for p in publishers.values())
-    node.destroy_node()
+    node.destroy_node()  # type: ignore[no-untyped-call]
     context.try_shutdown()
     time.sleep(1.0)
     os.killpg(recorder.pid, signal.SIGINT)
@@ -135,10 +136,14 @@ def record_at_1khz(seconds: float, workdir: Path) -> None:
 
 def graph_recordings(runs: int, seconds: float, workdir: Path) -> None:
     """Record the lockstep case2 graph (processes) ``runs`` times per chain; steps found per topic."""
-    from smm_bringup.demo import recorded_steps, run_graph
+    from smm_bringup.demo import recorded_messages, recorded_steps, run_graph
     from smm_bringup.graph import GraphOptions
 
-    for chain, reference in (("fused", "controller"), ("split", "node")):
+    layouts: tuple[tuple[Literal["fused", "split"], Literal["controller", "node"]], ...] = (
+        ("fused", "controller"),
+        ("split", "node"),
+    )
+    for chain, reference in layouts:
         for run in range(runs):
             options = GraphOptions(
                 clock_mode="lockstep",
@@ -149,14 +154,18 @@ def graph_recordings(runs: int, seconds: float, workdir: Path) -> None:
                 seed=run,
             )
             start = time.perf_counter()
-            bag, steps = run_graph(options, workdir / "graph_bags")
+            bag, steps, published = run_graph(options, workdir / "graph_bags")
             wall = time.perf_counter() - start
             found = recorded_steps(bag, steps)
             lost = {topic: steps - count for topic, count in found.items() if count != steps}
+            in_bag = recorded_messages(bag, sorted(published))
+            unrecorded = {t: n - in_bag[t] for t, n in published.items() if n != in_bag[t]}
             print(
                 f"lockstep graph ({chain} chain) run {run + 1}: {steps} simulator steps in {wall:.1f} s, "
                 f"{len(found)} stepped topics in the bag: "
                 + ("every step on every topic" if not lost else f"MISSING {lost}")
+                + "; the simulator's published messages: "
+                + ("all in the bag" if not unrecorded else f"MISSING {unrecorded}")
             )
 
 

@@ -107,7 +107,7 @@ def pong(seconds: float) -> int:
     while time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
     executor.shutdown()
-    node.destroy_node()
+    node.destroy_node()  # type: ignore[no-untyped-call]
     context.try_shutdown()
     return 0
 
@@ -121,7 +121,7 @@ def process_cpu_seconds(pid: int) -> float:
 def ping_pong(seconds: float) -> dict[str, float]:
     """Round trips of a JointState at 1 kHz to a pong process and back (us)."""
     import rclpy
-    from rclpy.clock import Clock, ClockType
+    from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
     from rclpy.context import Context
     from sensor_msgs.msg import JointState
     from smm_msgs_py.qos import control_qos
@@ -179,7 +179,7 @@ def ping_pong(seconds: float) -> dict[str, float]:
         executor.spin_once(timeout_sec=0.05)
     partner_cpu = process_cpu_seconds(partner.pid) - partner_cpu_start
     executor.shutdown()
-    node.destroy_node()
+    node.destroy_node()  # type: ignore[no-untyped-call]
     context.try_shutdown()
     partner.terminate()
     partner.wait(timeout=30)
@@ -509,12 +509,12 @@ def main(argv: list[str] | None = None) -> int:
             line += f", {rates[label] / 1000:.2f}x real time (launch to exit {stats['launch_wall_s']:.1f} s)"
             print(line)
         for layout in LAYOUTS:
-            composed, separate = (
+            composed_rate, separate = (
                 rates.get(f"composed, {layout} graph"),
                 rates.get(f"separate processes, {layout} graph"),
             )
-            if composed and separate:
-                print(f"  {layout} graph, composed / separate processes: x{composed / separate:.2f}")
+            if composed_rate and separate:
+                print(f"  {layout} graph, composed / separate processes: x{composed_rate / separate:.2f}")
         default = rates.get("composed, default graph")
         for layout in list(LAYOUTS)[1:]:
             other = rates.get(f"composed, {layout} graph")

@@ -64,7 +64,7 @@ def tracking_rms(
     phase = np.pi * (t - origin)
     reference = np.stack([np.sin(phase), 0.785 * np.sin(phase)], axis=1)
     error = reference[window] - q[window]
-    return np.sqrt(np.mean(error**2, axis=0))
+    return np.asarray(np.sqrt(np.mean(error**2, axis=0)))
 
 
 def td_yaml(workdir: Path, period: float) -> Path:
@@ -247,8 +247,8 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
     seconds -= seconds % 2.0  # whole periods of the 2 s reference
     # The controller's time zero: the stamp of its first measurement, which it logs; the bridge stamps
     # measurements with board tick * period, so it is a time on the board's clock.
-    log = (workdir / f"controller_node_{tag}.log").read_text(errors="replace")
-    found = re.search(r"reference t = 0 s at measurement stamp (\d+) ns", log)
+    controller_log = (workdir / f"controller_node_{tag}.log").read_text(errors="replace")
+    found = re.search(r"reference t = 0 s at measurement stamp (\d+) ns", controller_log)
     if found is None:
         print("  the controller did not log its reference origin")
         return None
