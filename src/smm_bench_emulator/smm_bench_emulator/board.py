@@ -155,7 +155,7 @@ class BoardCore:
         self.host_session = 0
         self.late_commands = 0
         self.enabled_ticks = 0
-        """Ticks that latched with a command on the valves (the late fraction's denominator); not on the wire."""
+        """Ticks latched with a command on the valves (the late fraction's denominator); not on the wire."""
         self.crc_errors = 0
         self.dropped_frames = 0
         self._last_cmd_seq: int | None = None
