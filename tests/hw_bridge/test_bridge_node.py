@@ -54,6 +54,9 @@ class Bench:
                 host=(LOOPBACK, host_port),
                 control=(LOOPBACK, free_port()),
                 mode=mode,  # type: ignore[arg-type]
+                # lockstep as the product pairs it (bridge.lockstep): only an enabled answer ticks the board,
+                # so safe frames sent while the controller is slow never run the board ahead of it
+                lockstep_trigger="enabled" if mode == "lockstep" else "any",
             )
         )
         self.thread = threading.Thread(target=self.emulator.run, daemon=True)
@@ -65,6 +68,7 @@ class Bench:
             "link.configure_timeout": 2.0,
             "bridge.link_timeout_ns": 1_000_000_000,
             "bridge.admission.stale_ns": 1_000_000_000,
+            "bridge.lockstep": mode == "lockstep",
             **parameters,
         }
         self.node = HwBridgeNode(context=context, parameter_overrides=overrides)
@@ -301,23 +305,11 @@ def test_fuzz_10000_frames_into_the_running_bridge_socket(ros_context: Any) -> N
         bench.close()
 
 
-def fuzz(bench: Bench) -> None:
-    from smm_hw_bridge.protocol import FeedbackFrame, Reason, encode
+def fuzz_frames(genuine: Any) -> list[bytes]:
+    """10,400 frames the bridge must reject: random and one-byte-mutated ones (hypothesis), foreign sessions,
+    another protocol version (valid CRC)."""
+    from smm_hw_bridge.protocol import FeedbackFrame, encode
 
-    bench.start()
-    core = bench.node.core
-    parse_reasons = (
-        Reason.CRC,
-        Reason.MAGIC,
-        Reason.LENGTH,
-        Reason.VERSION,
-        Reason.TYPE,
-        Reason.FIELD,
-        Reason.SESSION,
-    )
-    before = sum(core.rejected.get(r, 0) for r in parse_reasons)
-    genuine = bench.board.last_feedback
-    assert genuine is not None
     template = encode(genuine)
     frames: list[bytes] = []
 
@@ -344,6 +336,31 @@ def fuzz(bench: Bench) -> None:
         body = template[:4] + b"\x02" + template[5:-4]
         frames.append(body + zlib.crc32(body).to_bytes(4, "little"))
     assert len(frames) >= 10_000
+    return frames
+
+
+def fuzz(bench: Bench) -> None:
+    from smm_hw_bridge.protocol import Reason
+
+    # The frames are made before the output is armed: making them takes seconds in which nothing spins
+    # the executor, and an armed lockstep loop nobody answers rightly loses its link.
+    assert bench.spin_until(lambda: bench.board.last_feedback is not None)
+    genuine = bench.board.last_feedback
+    assert genuine is not None
+    frames = fuzz_frames(genuine)
+    bench.start()
+    core = bench.node.core
+    parse_reasons = (
+        Reason.CRC,
+        Reason.MAGIC,
+        Reason.LENGTH,
+        Reason.VERSION,
+        Reason.TYPE,
+        Reason.FIELD,
+        Reason.SESSION,
+    )
+    before = sum(core.rejected.get(r, 0) for r in parse_reasons)
+
     sender = bench.emulator.transport  # from the board's own address and port
     for start in range(0, len(frames), 20):  # small batches: the socket buffer never overflows
         batch = frames[start : start + 20]
@@ -355,9 +372,16 @@ def fuzz(bench: Bench) -> None:
                     break
                 time.sleep(0.001)
         target = before + start + len(batch)
+        answered = bench.measurements
+        # Every batch is rejected and the control loop answers a new measurement meanwhile: the fuzz runs
+        # into a live loop. (Waiting for the rejections alone spun nothing, as the bridge reads in its own
+        # thread: the lockstep board starved and the bridge rightly lost the link after link_timeout.)
         assert bench.spin_until(
-            lambda t=target: sum(core.rejected.get(r, 0) for r in parse_reasons) >= t, 10.0
-        )
+            lambda t=target, m=answered: (
+                sum(core.rejected.get(r, 0) for r in parse_reasons) >= t and bench.measurements > m
+            ),
+            10.0,
+        ), (core.state, bench.measurements, core.watchdog_trips)
     counted = {r.value: core.rejected.get(r, 0) for r in parse_reasons}
     print(f"fuzz: {len(frames)} frames into the running bridge, rejected by reason: {counted}")
     assert sum(counted.values()) - before == len(frames)
@@ -365,4 +389,5 @@ def fuzz(bench: Bench) -> None:
     values = bench.node.health().values
     for reason in ("crc", "magic", "length", "version", "session"):
         assert int(values[f"rejected_{reason}"]) > 0, reason  # type: ignore[call-overload]
-    assert bench.spin_until(bench.live)
+    assert bench.spin_until(bench.live), (core.state, bench.measurements)
+    assert bench.measurements > len(frames) // 20  # at least one control step per batch
