@@ -20,8 +20,8 @@ from smm_hw_bridge.protocol import Reason, encode
 from smm_hw_bridge.transport import UdpTransport
 from smm_hw_bridge.valve_output import ValveOutputConfig
 from smm_sim.plant import PlantConfig
+from udp_bench import LOOPBACK, parse_and_session_rejections
 
-LOOPBACK = "127.0.0.1"
 CPR = 1 << 16
 BRIDGE = BridgeConfig(
     encoder=EncoderConfig(counts_per_rev=(CPR, CPR)),
@@ -111,18 +111,7 @@ def test_injected_faults_are_seen_and_counted_by_the_bridge() -> None:
         ):
             assert control(emu, request)["ok"] is True
             drive(core, host, 30)
-        parse_errors = sum(
-            core.rejected.get(r, 0)
-            for r in (
-                Reason.CRC,
-                Reason.MAGIC,
-                Reason.LENGTH,
-                Reason.VERSION,
-                Reason.TYPE,
-                Reason.FIELD,
-                Reason.SESSION,
-            )
-        )
+        parse_errors = parse_and_session_rejections(core)
         assert parse_errors >= 5  # corrupted frames (and the lockstep re-sends after them)
         assert core.rejected.get(Reason.DUPLICATE, 0) >= 4
         assert core.rejected.get(Reason.OUT_OF_ORDER, 0) >= 1

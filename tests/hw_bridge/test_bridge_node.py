@@ -16,17 +16,11 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from udp_bench import LOOPBACK, PARSE_AND_SESSION_REASONS, free_port, parse_and_session_rejections
 
 pytestmark = pytest.mark.ros
 
-LOOPBACK = "127.0.0.1"
 TORQUE = (0.3, -0.2)
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind((LOOPBACK, 0))
-        return int(sock.getsockname()[1])
 
 
 class Bench:
@@ -340,8 +334,6 @@ def fuzz_frames(genuine: Any) -> list[bytes]:
 
 
 def fuzz(bench: Bench) -> None:
-    from smm_hw_bridge.protocol import Reason
-
     # The frames are made before the output is armed: making them takes seconds in which nothing spins
     # the executor, and an armed lockstep loop nobody answers rightly loses its link.
     assert bench.spin_until(lambda: bench.board.last_feedback is not None)
@@ -350,16 +342,7 @@ def fuzz(bench: Bench) -> None:
     frames = fuzz_frames(genuine)
     bench.start()
     core = bench.node.core
-    parse_reasons = (
-        Reason.CRC,
-        Reason.MAGIC,
-        Reason.LENGTH,
-        Reason.VERSION,
-        Reason.TYPE,
-        Reason.FIELD,
-        Reason.SESSION,
-    )
-    before = sum(core.rejected.get(r, 0) for r in parse_reasons)
+    before = parse_and_session_rejections(core)
 
     sender = bench.emulator.transport  # from the board's own address and port
     for start in range(0, len(frames), 20):  # small batches: the socket buffer never overflows
@@ -377,12 +360,10 @@ def fuzz(bench: Bench) -> None:
         # into a live loop. (Waiting for the rejections alone spun nothing, as the bridge reads in its own
         # thread: the lockstep board starved and the bridge rightly lost the link after link_timeout.)
         assert bench.spin_until(
-            lambda t=target, m=answered: (
-                sum(core.rejected.get(r, 0) for r in parse_reasons) >= t and bench.measurements > m
-            ),
+            lambda t=target, m=answered: parse_and_session_rejections(core) >= t and bench.measurements > m,
             10.0,
         ), (core.state, bench.measurements, core.watchdog_trips)
-    counted = {r.value: core.rejected.get(r, 0) for r in parse_reasons}
+    counted = {r.value: core.rejected.get(r, 0) for r in PARSE_AND_SESSION_REASONS}
     print(f"fuzz: {len(frames)} frames into the running bridge, rejected by reason: {counted}")
     assert sum(counted.values()) - before == len(frames)
     assert bench.node.lifecycle_state == "active", core.state  # the node keeps running

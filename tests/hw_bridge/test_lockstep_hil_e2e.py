@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -16,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from udp_bench import free_port
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -28,12 +28,6 @@ TOLERANCE_COUNTS = 1.0
 """The acceptance: one encoder count. Without the D/A quantum in the simulator the runs part by 1.90 counts
 (docs/HW_PROTOCOL.md, Lockstep)."""
 SECONDS = 5.0
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def simulator_run(tmp_path: Path) -> Any:

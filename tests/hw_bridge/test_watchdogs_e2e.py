@@ -16,18 +16,12 @@ import time
 from typing import Any
 
 import pytest
+from udp_bench import LOOPBACK, free_port
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-LOOPBACK = "127.0.0.1"
 VALIDITY = 50  # ticks: long enough that the controller-kill case shows the host watchdog, not the board's
 HOST_WATCHDOG_MS = 10.0
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind((LOOPBACK, 0))
-        return int(sock.getsockname()[1])
 
 
 def status(port: int) -> dict[str, Any]:
