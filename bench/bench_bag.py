@@ -136,7 +136,7 @@ def record_at_1khz(seconds: float, workdir: Path) -> None:
 
 def graph_recordings(runs: int, seconds: float, workdir: Path) -> None:
     """Record the lockstep case2 graph (processes) ``runs`` times per chain; steps found per topic."""
-    from smm_bringup.demo import recorded_messages, recorded_steps, run_graph
+    from smm_bringup.demo import recorded_messages, recorded_steps, run_graph, shortfall
     from smm_bringup.graph import GraphOptions
 
     layouts: tuple[tuple[Literal["fused", "split"], Literal["controller", "node"]], ...] = (
@@ -157,9 +157,8 @@ def graph_recordings(runs: int, seconds: float, workdir: Path) -> None:
             bag, steps, published = run_graph(options, workdir / "graph_bags")
             wall = time.perf_counter() - start
             found = recorded_steps(bag, steps)
-            lost = {topic: steps - count for topic, count in found.items() if count != steps}
-            in_bag = recorded_messages(bag, sorted(published))
-            unrecorded = {t: n - in_bag[t] for t, n in published.items() if n != in_bag[t]}
+            lost = shortfall(dict.fromkeys(found, steps), found)
+            unrecorded = shortfall(published, recorded_messages(bag, sorted(published)))
             print(
                 f"lockstep graph ({chain} chain) run {run + 1}: {steps} simulator steps in {wall:.1f} s, "
                 f"{len(found)} stepped topics in the bag: "

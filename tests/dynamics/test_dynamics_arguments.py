@@ -163,9 +163,12 @@ def test_viscous_friction_errors_name_the_field() -> None:
 
 def test_inertia_scale_accepts_any_positive_factor_and_names_a_bad_one() -> None:
     half = P.with_inertia_scale(0.5)
-    assert pytest.approx(
-        (P.I11 / 2, P.I22 / 2, P.I44 / 2, P.I55 / 2)
-    ) == (half.I11, half.I22, half.I44, half.I55)
+    assert pytest.approx((P.I11 / 2, P.I22 / 2, P.I44 / 2, P.I55 / 2)) == (
+        half.I11,
+        half.I22,
+        half.I44,
+        half.I55,
+    )
     assert half.mass_lever == P.mass_lever
     with pytest.raises(ValueError, match=r"^factor must be > 0"):
         P.with_inertia_scale(0.0)

@@ -76,18 +76,17 @@ class DemoRun:
     @property
     def lost(self) -> dict[str, int]:
         """Per stepped topic, the simulator's steps missing from the bag (only topics that miss some)."""
-        return {
-            t: self.simulator_steps - n for t, n in self.recorded_stamps.items() if n != self.simulator_steps
-        }
+        return shortfall(dict.fromkeys(self.recorded_stamps, self.simulator_steps), self.recorded_stamps)
 
     @property
     def unrecorded(self) -> dict[str, int]:
         """Per topic of the simulator, its messages missing from the bag (only topics that miss some)."""
-        return {
-            t: n - self.recorded_messages.get(t, 0)
-            for t, n in self.published.items()
-            if n != self.recorded_messages.get(t, 0)
-        }
+        return shortfall(self.published, self.recorded_messages)
+
+
+def shortfall(expected: Mapping[str, int], found: Mapping[str, int]) -> dict[str, int]:
+    """Per topic, how many of ``expected`` are not in ``found`` (only topics that miss some)."""
+    return {topic: n - found.get(topic, 0) for topic, n in expected.items() if found.get(topic, 0) != n}
 
 
 def graph_command(options: GraphOptions) -> list[str]:
@@ -248,11 +247,15 @@ def demo(
         wall = time.perf_counter() - start
         runs.append(dataclasses.replace(run, wall_time=wall))
         print(f"[demo] {run.steps} steps in {wall:.1f} s ({run.steps / wall:.0f} steps/s)", flush=True)
-        if run.lost or run.missing_steps or run.unrecorded:
+        if run.lost or run.missing_steps:
             print(
-                f"[demo] error: the bag misses simulator steps: {run.lost or run.missing_steps}"
-                if run.lost or run.missing_steps
-                else f"[demo] error: the bag misses messages the simulator published: {run.unrecorded}",
+                f"[demo] error: the bag misses simulator steps: {run.lost or run.missing_steps}",
+                file=sys.stderr,
+            )
+            return 1
+        if run.unrecorded:
+            print(
+                f"[demo] error: the bag misses messages the simulator published: {run.unrecorded}",
                 file=sys.stderr,
             )
             return 1
