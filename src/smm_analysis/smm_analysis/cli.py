@@ -32,7 +32,8 @@ from pathlib import Path
 from typing import TextIO
 
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD
-from smm_analysis.energy_study import EnergyStudy, run_energy_study, write_energy_plot
+from smm_analysis.energy_report import write_energy_plot
+from smm_analysis.energy_study import EnergyStudy, run_energy_study
 from smm_analysis.errors import AnalysisError
 from smm_analysis.plots import write_plots
 from smm_analysis.report import render_report
