@@ -70,7 +70,13 @@ from smm_controller.baselines import (
     PIDConfig,
     PIDController,
 )
-from smm_controller.chain import CONTROLLER_NAMES, ControlChain, JointController, stage_internals
+from smm_controller.chain import (
+    CONTROLLER_NAMES,
+    ControlChain,
+    JointController,
+    limited_torque,
+    stage_internals,
+)
 from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
@@ -79,7 +85,6 @@ from smm_controller.limits import (
     OutputLimitConfig,
     OutputLimiter,
     PlausibilityCheck,
-    track_saturation,
 )
 from smm_controller.reference_node import ReferenceClock, ReferenceParameters
 from smm_controller.sync import ExactTimeSynchronizer, Matched
@@ -484,12 +489,16 @@ class ControllerNode(MeasurementDrivenNode):
         xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
         observer = estimate is not None and self.controller.velocity_source == "observer"
         velocity = estimate.values[1] if estimate is not None and observer else filtered.velocity
-        law_tau = self.controller.step(
-            np.array(reference), filtered.position, velocity, xi, self.control_period
+        # The conversions validated shapes and finiteness: step 4 of the chain, on floats.
+        limited = limited_torque(
+            self.controller,
+            self.limiter,
+            reference,
+            (float(filtered.position[0]), float(filtered.position[1])),
+            (float(velocity[0]), float(velocity[1])),
+            disturbance=(float(xi[0]), float(xi[1])),
+            dt=self.control_period,
         )
-        unlimited = (float(law_tau[0]), float(law_tau[1]))
-        limited = self.limiter.limit_floats(unlimited, self.control_period)
-        track_saturation(self.controller, unlimited, limited, self.control_period)
         return [(self._torque_publisher, torque_to_msg(np.array(limited), matched.stamp_ns))]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
