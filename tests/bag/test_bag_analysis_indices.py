@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from smm_analysis.reproduction import METRICS_UNITS
+from smm_analysis.metrics_json import METRICS_UNITS
 from smm_bag.analysis import comparison_table, evaluate, metrics_document, step_target
 from smm_bag.manifest import RunManifest
 from smm_bag.recorded import RecordedRun

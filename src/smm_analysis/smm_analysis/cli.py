@@ -31,10 +31,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
+from smm_analysis.acceptance import acceptance_verdict
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD
 from smm_analysis.energy_report import write_energy_plot
 from smm_analysis.energy_study import EnergyStudy, run_energy_study
 from smm_analysis.errors import AnalysisError
+from smm_analysis.metrics_json import metrics_document
 from smm_analysis.plots import write_plots
 from smm_analysis.report import render_report
 from smm_analysis.reproduction import (
@@ -42,14 +44,11 @@ from smm_analysis.reproduction import (
     REPRODUCTION_CONTROLLERS,
     ReproductionResult,
     RunResult,
-    acceptance_verdict,
-    controller_label,
-    metrics_document,
     resolve_controllers,
     resolve_scenarios,
     run_reproduction,
 )
-from smm_analysis.retuned import RETUNED_SETS
+from smm_analysis.retuned import RETUNED_SETS, controller_label
 from smm_analysis.scenarios import SCENARIOS
 from smm_analysis.tune_td import TDSweepPoint, sweep_td
 from smm_controller import TrackingDifferentiatorConfig

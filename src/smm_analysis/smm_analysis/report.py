@@ -5,6 +5,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
+from smm_analysis.acceptance import (
+    CASE2_RMS_REDUCTION,
+    STEP_OVERSHOOT_LIMIT,
+    AcceptanceCheck,
+    acceptance_verdict,
+)
 from smm_analysis.energy_report import energy_section
 from smm_analysis.energy_study import EnergyStudy
 from smm_analysis.linearisation import baseline_linearisations
@@ -16,18 +22,19 @@ from smm_analysis.paper_values import (
     PAPER_STEP,
 )
 from smm_analysis.reproduction import (
-    CASE2_RMS_REDUCTION,
     JOINTS,
-    STEP_OVERSHOOT_LIMIT,
-    AcceptanceCheck,
     ReproductionResult,
-    acceptance_verdict,
-    controller_label,
     ideal_step_response,
     paper_fpdeso_ideal_step,
     torque_limit_note,
 )
-from smm_analysis.retuned import RETUNED_SETS, RetunedSet, damping_ratio, matched_damping_kd0
+from smm_analysis.retuned import (
+    RETUNED_SETS,
+    RetunedSet,
+    controller_label,
+    damping_ratio,
+    matched_damping_kd0,
+)
 from smm_analysis.tune_td import TDSweepPoint, best_point, chosen_point, format_table
 from smm_controller import FPDESOConfig
 from smm_dynamics import SMMParameters

@@ -21,7 +21,7 @@ from smm_analysis.metrics import (
     joint_indices,
     step_metrics,
 )
-from smm_analysis.reproduction import METRICS_UNITS, run_entry
+from smm_analysis.metrics_json import METRICS_UNITS, run_entry
 
 from smm_bag.recorded import JOINTS, RecordedRun
 from smm_dynamics import SMMParameters
