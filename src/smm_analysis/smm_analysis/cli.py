@@ -1,22 +1,8 @@
-r"""``smm-reproduce``: runs the paper's scenarios with every controller and reports the metrics.
+"""``smm-reproduce``: the paper's scenarios with every controller, their metrics and report.
 
-Three layers: :func:`main` parses the command line (argparse), :func:`reproduce` is the command (it
-prints, writes files and returns the exit code), and the library (:mod:`smm_analysis.reproduction`,
-:mod:`smm_analysis.report`, :mod:`smm_analysis.plots`) computes and raises typed errors.
-
-Exit codes: 0 success; 1 ``--check`` was given and an acceptance claim is not met; 2 bad arguments or
-an analysis error (unknown scenario or controller, unstable run, unwritable output).
-
-By default the clearly labelled retuned FPDESO set (``fpdeso_retuned``, :mod:`smm_analysis.retuned`)
-runs beside the paper's gains. With ``--check`` a step claim that the paper's gains miss counts as met
-only if that labelled set meets it, and the output says so; every other claim must hold with the
-paper's gains, and the retuned set's own step checks must pass.
-
-With ``--out DIR`` it writes ``DIR/metrics.json``, the report ``DIR/REPORT.md`` (or ``--report``) and
-the PNG figures into ``DIR/`` (or ``--plots-dir``). The committed docs are made with::
-
-    smm-reproduce --out out/reproduce --report docs/REPRODUCTION.md --plots-dir docs/reproduction \
-        --td-sweep --step-study --check
+:func:`main` parses, :func:`reproduce` runs the command and returns the exit code (0 success; 1 ``--check``
+and a claim not met; 2 bad arguments or an analysis error). Options and the command that makes the
+committed docs: docs/REPRODUCTION.md and README.
 """
 
 from __future__ import annotations
