@@ -17,7 +17,7 @@ from smm_bag.commands import (
     EXIT_PARAMS,
     EXIT_TRUNCATED,
 )
-from smm_bag.recorded import load_run
+from smm_analysis.runs.recorded import load_run
 from smm_bag.writer import BagWriter, WriterOptions
 
 from smm_bag import (

@@ -15,7 +15,7 @@ from typing import TextIO
 
 import numpy as np
 
-from smm_bag.analysis import comparison_table, evaluate, metrics_document
+from smm_analysis.runs.indices import comparison_table, evaluate, metrics_document
 from smm_bag.errors import (
     BagError,
     CorruptBagError,
@@ -27,12 +27,12 @@ from smm_bag.errors import (
 from smm_bag.info import format_info
 from smm_bag.lockstep import LockstepOptions, LockstepResult, play_lockstep
 from smm_bag.player import PlayOptions, PlayResult, play
-from smm_bag.plots import write_plots
+from smm_analysis.runs.plots import write_plots
 from smm_bag.progress import Progress
-from smm_bag.recorded import load_run
+from smm_analysis.runs.recorded import load_run
 from smm_bag.repair import repair_bag
-from smm_bag.report import render_report
-from smm_bag.rerun import chain_settings, read_params_files, rerun
+from smm_analysis.runs.report import render_report
+from smm_analysis.runs.rerun import chain_settings, read_params_files, rerun
 
 __all__ = [
     "EXIT_CHECK_FAILED",

@@ -23,7 +23,7 @@ from smm_analysis.metrics import (
 )
 from smm_analysis.reproduction import METRICS_UNITS, run_entry
 
-from smm_bag.recorded import JOINTS, RecordedRun
+from smm_analysis.runs.recorded import JOINTS, RecordedRun
 from smm_dynamics import SMMParameters
 
 __all__ = ["RunMetrics", "comparison_table", "evaluate", "metrics_document", "step_target"]

@@ -17,7 +17,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
-from smm_bag.recorded import JOINTS, RecordedRun
+from smm_analysis.runs.recorded import JOINTS, RecordedRun
 
 __all__ = ["PLOTS", "true_disturbance", "write_plots"]
 
