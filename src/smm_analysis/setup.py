@@ -17,15 +17,19 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
     ],
-    install_requires=["setuptools", "numpy"],
+    install_requires=["setuptools", "numpy", "PyYAML", "matplotlib"],
     zip_safe=True,
     maintainer="SMM control stack maintainers",
     maintainer_email="smm-maintainers@example.org",
-    description="Offline closed-loop reproduction of the FPDESO paper, metrics and bag analysis.",
+    description="Offline closed loop, paper reproduction, metrics, and analysis and re-run of recorded bags.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
             "smm-reproduce = smm_analysis.cli:main",
+        ],
+        "smm_bag.commands": [
+            "analyze = smm_analysis.runs.cli:add_analyze",
+            "rerun = smm_analysis.runs.cli:add_rerun",
         ],
     },
 )

@@ -21,7 +21,7 @@ setup(
     zip_safe=True,
     maintainer="SMM control stack maintainers",
     maintainer_email="smm-maintainers@example.org",
-    description="MCAP rosbag2 recorder, reader, repair, replay and offline analysis of SMM runs.",
+    description="MCAP rosbag2 bags of SMM runs: writer, reader, repair, info, recorder node and replay.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -1,4 +1,4 @@
-"""MCAP rosbag2 bags of SMM runs: writer, reader, repair, info, analysis, offline re-run (``smm-bag``)."""
+"""MCAP rosbag2 bags of SMM runs: writer, reader, repair, info, recorder and replay (``smm-bag``)."""
 
 from smm_bag.errors import (
     BagError,

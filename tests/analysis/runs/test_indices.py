@@ -1,4 +1,4 @@
-"""smm_analysis.runs.indices on hand-built recorded runs (pure, no bag files): indices, step target, JSON and table."""
+"""smm_analysis.runs.indices on hand-built recorded runs (no bag files): indices, step target, JSON, table."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from smm_analysis.reproduction import METRICS_UNITS
 from smm_analysis.runs.indices import comparison_table, evaluate, metrics_document, step_target
-from smm_bag.manifest import RunManifest
 from smm_analysis.runs.recorded import RecordedRun
+from smm_bag.manifest import RunManifest
 
 from smm_dynamics import SMMParameters
 

@@ -9,10 +9,10 @@ import pytest
 from bag.bag_helpers import mcap_messages, rosbags_messages
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.metrics import joint_indices
-from smm_analysis.scenarios import get_scenario
 from smm_analysis.runs.indices import evaluate
 from smm_analysis.runs.recorded import load_run
 from smm_analysis.runs.rerun import chain_settings, rerun
+from smm_analysis.scenarios import get_scenario
 
 from smm_bag import read_metadata
 

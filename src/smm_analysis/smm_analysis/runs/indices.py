@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
 from smm_analysis.metrics import (
     AxisError,
     JointIndices,
@@ -22,7 +23,6 @@ from smm_analysis.metrics import (
     step_metrics,
 )
 from smm_analysis.reproduction import METRICS_UNITS, run_entry
-
 from smm_analysis.runs.recorded import JOINTS, RecordedRun
 from smm_dynamics import SMMParameters
 

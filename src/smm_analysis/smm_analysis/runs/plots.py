@@ -37,8 +37,9 @@ def true_disturbance(run: RecordedRun) -> FloatArray | None:
     if run.manifest.plant != "sim" or not run.manifest.scenario:
         return None
     try:
-        from smm_analysis.scenarios import get_scenario  # noqa: PLC0415
         from smm_sim.plant import disturbance_torque  # noqa: PLC0415
+
+        from smm_analysis.scenarios import get_scenario  # noqa: PLC0415
 
         model = get_scenario(run.manifest.scenario).disturbance
     except (ImportError, ValueError):
