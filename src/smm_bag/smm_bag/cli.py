@@ -13,6 +13,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from smm_bag import commands
+from smm_bag.exit_codes import EXIT_USAGE
 from smm_bag.lockstep import LockstepOptions
 from smm_bag.player import PlayOptions, parse_remaps
 
@@ -101,7 +102,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 )
         except ValueError as error:
             print(f"smm-bag: error: {error}", file=sys.stderr)
-            return commands.EXIT_USAGE
+            return EXIT_USAGE
         return commands.play_command(options.bag, play_options)
     return commands.repair(options.bag, backup=not options.no_backup)
 

@@ -11,17 +11,7 @@ from pathlib import Path
 from typing import TextIO
 
 from smm_bag.errors import BagError
-from smm_bag.exit_codes import (
-    EXIT_CHECK_FAILED,
-    EXIT_CORRUPT,
-    EXIT_MISSING_TOPICS,
-    EXIT_NOT_A_BAG,
-    EXIT_OK,
-    EXIT_PARAMS,
-    EXIT_TRUNCATED,
-    EXIT_USAGE,
-    exit_code,
-)
+from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_OK
 from smm_bag.exit_codes import fail as _fail
 from smm_bag.info import format_info
 from smm_bag.lockstep import LockstepOptions, LockstepResult, play_lockstep
@@ -29,20 +19,7 @@ from smm_bag.player import PlayOptions, PlayResult, play
 from smm_bag.progress import Progress
 from smm_bag.repair import repair_bag
 
-__all__ = [
-    "EXIT_CHECK_FAILED",
-    "EXIT_CORRUPT",
-    "EXIT_MISSING_TOPICS",
-    "EXIT_NOT_A_BAG",
-    "EXIT_OK",
-    "EXIT_PARAMS",
-    "EXIT_TRUNCATED",
-    "EXIT_USAGE",
-    "exit_code",
-    "info",
-    "play_command",
-    "repair",
-]
+__all__ = ["info", "play_command", "repair"]
 
 
 def info(bag: Path, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
