@@ -9,7 +9,6 @@ from smm_bag.errors import (
     CorruptBagError,
     MissingTopicsError,
     NotABagError,
-    ParamsFileError,
     TruncatedBagError,
 )
 
@@ -34,6 +33,7 @@ EXIT_TRUNCATED = 4
 EXIT_CORRUPT = 5
 EXIT_MISSING_TOPICS = 6
 EXIT_PARAMS = 7
+"""A parameters file of ``smm-bag rerun`` is unreadable or invalid (``smm_analysis.errors``)."""
 
 
 def exit_code(error: BagError) -> int:
@@ -43,7 +43,6 @@ def exit_code(error: BagError) -> int:
         (TruncatedBagError, EXIT_TRUNCATED),
         (CorruptBagError, EXIT_CORRUPT),
         (MissingTopicsError, EXIT_MISSING_TOPICS),
-        (ParamsFileError, EXIT_PARAMS),
     ):
         if isinstance(error, kind):
             return code

@@ -11,9 +11,10 @@ from typing import TextIO
 
 import numpy as np
 from smm_bag.errors import BagError
-from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_CORRUPT, EXIT_OK, fail
+from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_CORRUPT, EXIT_OK, EXIT_PARAMS, fail
 from smm_bag.progress import Progress
 
+from smm_analysis.errors import ParamsFileError
 from smm_analysis.runs.indices import comparison_table, evaluate, metrics_document
 from smm_analysis.runs.plots import write_plots
 from smm_analysis.runs.recorded import load_run
@@ -99,6 +100,9 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
         result = rerun(run, settings)
     except BagError as error:
         return fail(error, err)
+    except ParamsFileError as error:
+        err.write(f"smm-bag: error: {error}\n")
+        return EXIT_PARAMS
     difference = np.abs(result.command - result.recorded_command)
     summary: dict[str, object] = {
         "bag": str(options.bag),
