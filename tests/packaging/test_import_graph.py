@@ -3,6 +3,8 @@
 Rules (docs/DESIGN.md, "Packages and their roles"):
 - only ``smm_bringup`` imports the ROS side (node modules) of two node packages;
 - ``smm_controller`` imports nothing of ``smm_sim``;
+- ``smm_bag`` (bag storage and ROS I/O) imports nothing of the stack but ``smm_msgs_py`` and
+  ``smm_node_runtime``;
 - ``smm_msgs_py`` defines no ``Node`` subclass and imports no node runtime (executor, parameters);
 - an algorithm module (every module of an algorithm package but its node modules) reaches no ``rclpy``,
   directly or through the modules it imports.
@@ -25,6 +27,12 @@ ROS_BASE_CLASSES = frozenset({"Node", "LifecycleNode"})
 ROS_ROOTS = ("rclpy",)
 ALGORITHM_PACKAGES = ("smm_dynamics", "smm_controller", "smm_sim", "smm_analysis", "smm_hw_bridge")
 """Packages whose modules are algorithms (pure numpy), except their node modules."""
+BAG_STORAGE = "smm_bag"
+BAG_STORAGE_MAY_IMPORT = frozenset({MESSAGE_CONTRACT, NODE_RUNTIME})
+"""The only packages of the stack that the bag storage layer imports (analysis sits on top of it)."""
+ROS_THROUGH_PENDING_SPLIT = frozenset({"smm_node_runtime.parameters"})
+"""Modules whose rclpy import is not counted: the pure config <-> parameter mapping that ``smm_analysis.runs``
+uses shares a module with its rclpy binding until that module is split (issue 22, point 4)."""
 
 
 @dataclass
@@ -126,7 +134,7 @@ class ImportGraph:
         """True when module ``name`` imports ``rclpy``, directly or through our modules."""
         return any(
             imported.split(".")[0] in ROS_ROOTS
-            for reached in self.reachable(name)
+            for reached in self.reachable(name) - ROS_THROUGH_PENDING_SPLIT
             for imported in self.modules[reached].imports
         )
 
@@ -159,6 +167,9 @@ class ImportGraph:
             imported_packages = {self.modules[target].package for target in self.edges[name]}
             if module.package == "smm_controller" and "smm_sim" in imported_packages:
                 found.append(f"{name} imports smm_sim")
+            above_storage = imported_packages - BAG_STORAGE_MAY_IMPORT - {BAG_STORAGE}
+            if module.package == BAG_STORAGE and above_storage:
+                found.append(f"{name} imports {', '.join(sorted(above_storage))}: bag storage is below them")
             if module.package == MESSAGE_CONTRACT:
                 if self.defines_node(name):
                     found.append(f"{name} defines a Node subclass")
@@ -262,6 +273,29 @@ def test_the_controller_importing_the_simulator_is_refused(tmp_path: Path) -> No
     files = dict(NODES)
     files["smm_controller/chain.py"] = "def f():\n    from smm_sim.plant import y\n"
     assert "smm_controller.chain imports smm_sim" in _tree(tmp_path, files).violations()
+
+
+def test_bag_storage_importing_the_analysis_is_refused(tmp_path: Path) -> None:
+    files = dict(NODES)
+    files["smm_bag/__init__.py"] = ""
+    files["smm_bag/recorder_node.py"] = (
+        "from smm_msgs_py.conversions import x\nfrom smm_node_runtime import SmmNode\n"
+        "class RecorderNode(SmmNode): ...\n"
+    )
+    assert _tree(tmp_path, files).violations() == []
+    files["smm_bag/plots.py"] = "def f():\n    from smm_analysis.scenarios import g\n    import smm_sim\n"
+    files["smm_analysis/__init__.py"] = ""
+    files["smm_analysis/scenarios.py"] = "import numpy\n"
+    assert _tree(tmp_path, files).violations() == [
+        "smm_bag.plots imports smm_analysis, smm_sim: bag storage is below them"
+    ]
+
+
+def test_rclpy_is_counted_through_every_module_but_the_one_pending_its_split() -> None:
+    graph = ImportGraph(read_tree(SRC))
+    for name in ROS_THROUGH_PENDING_SPLIT:  # once split, its rclpy import is gone: drop it from the set
+        assert any(imported.split(".")[0] in ROS_ROOTS for imported in graph.modules[name].imports), name
+    assert graph.reaches_ros("smm_node_runtime.node")
 
 
 def test_a_node_in_the_message_contract_is_refused(tmp_path: Path) -> None:

@@ -9,14 +9,14 @@ import pytest
 from bag.bag_helpers import mcap_messages, rosbags_messages
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.metrics import joint_indices
+from smm_analysis.runs.indices import evaluate
+from smm_analysis.runs.recorded import load_run
+from smm_analysis.runs.rerun import chain_settings, rerun
 from smm_analysis.scenarios import get_scenario
-from smm_bag.analysis import evaluate
-from smm_bag.recorded import load_run
-from smm_bag.rerun import chain_settings, rerun
 
 from smm_bag import read_metadata
 
-SAMPLE = Path(__file__).resolve().parents[2] / "bags" / "sample_case2_fpdeso"
+SAMPLE = Path(__file__).resolve().parents[3] / "bags" / "sample_case2_fpdeso"
 
 
 def test_both_readers_agree_with_the_metadata() -> None:

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from smm_analysis.closed_loop import Trajectory, run_closed_loop
 from smm_analysis.reproduction import evaluate_run
+from smm_analysis.runs.from_trajectory import write_trajectory_bag
+from smm_analysis.runs.indices import evaluate
+from smm_analysis.runs.plots import PLOTS
+from smm_analysis.runs.recorded import load_run
 from smm_analysis.scenarios import get_scenario
-from smm_bag.analysis import evaluate
 from smm_bag.cli import main
-from smm_bag.commands import EXIT_CHECK_FAILED
-from smm_bag.from_trajectory import write_trajectory_bag
-from smm_bag.plots import PLOTS
-from smm_bag.recorded import load_run
+from smm_bag.exit_codes import EXIT_CHECK_FAILED
 
 JOINTS = ("alpha", "beta")
 

@@ -20,8 +20,8 @@ import yaml
 from numpy.typing import NDArray
 from smm_node_runtime.parameters import config_from_parameters
 
-from smm_bag.errors import ParamsFileError
-from smm_bag.recorded import RecordedRun
+from smm_analysis.errors import ParamsFileError
+from smm_analysis.runs.recorded import RecordedRun
 from smm_controller import (
     CONTROLLER_NAMES,
     FLESO,
