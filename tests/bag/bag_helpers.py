@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +12,8 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from smm_bag.cdr import encode_float64_multi_array, encode_joint_state
+from smm_bag.reader import BagMessage, BagReader
+from smm_bag.writer import BagWriter
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 T0 = 1_700_000_000_000_000_000
@@ -123,3 +125,20 @@ def reference(k: int) -> bytes:
     return encode_float64_multi_array(
         [*dims, (f"stamp_ns:{k * 1_000_000}", 1, 1)], [0.01 * k, 0.0, 0, 0, 0, 0]
     )
+
+
+def rewrite_bag(source: Path, target: Path, change: Callable[[BagMessage], bytes | None]) -> None:
+    """Copies ``source`` into a new bag ``target`` with the project's writer; ``change`` gives each
+    message's new CDR bytes, or None to drop it (a topic whose every message is dropped is dropped too)."""
+    with BagReader(source) as reader:
+        kept = [(message, change(message)) for message in reader.messages()]
+        emptied = {message.topic for message, _ in kept} - {message.topic for message, data in kept if data is not None}
+        with BagWriter(target) as writer:
+            for topic in reader.metadata.topics:
+                if topic.name not in emptied:
+                    writer.create_topic(topic.name, topic.type, topic.offered_qos_profiles)
+            for key, value in reader.metadata.custom_data.items():
+                writer.set_custom_data(key, value)
+            for message, data in kept:
+                if data is not None:
+                    writer.write(message.topic, data, message.log_time_ns, message.publish_time_ns)

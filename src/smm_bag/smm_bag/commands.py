@@ -15,6 +15,7 @@ from typing import TextIO
 
 import numpy as np
 
+from smm_bag.agreement import judge, tolerance_for
 from smm_bag.analysis import comparison_table, evaluate, metrics_document
 from smm_bag.errors import (
     BagError,
@@ -171,7 +172,8 @@ class RerunOptions:
     json: bool = False
     out: Path | None = None
     expect_equal: bool = False
-    tolerance: float = 0.0
+    tolerance: float | None = None
+    """Per-step relative tolerance; None: what a bag from another machine passes; 0: bit for bit."""
 
 
 def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
@@ -190,8 +192,21 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
         parameters = {**recorded, **read_params_files(options.params_files)}
         settings = chain_settings(parameters, run.manifest.controller or "fpdeso")
         result = rerun(run, settings)
+        tolerance = tolerance_for(options.tolerance)
     except BagError as error:
         return _fail(error, err)
+    except ValueError as error:
+        err.write(f"smm-bag: error: --tolerance: {error}\n")
+        return EXIT_USAGE
+    agreement = judge(
+        result.t_ns,
+        result.command,
+        result.recorded_command,
+        settings.flip_size,
+        tolerance,
+        result.estimate,
+        result.recorded_estimate,
+    )
     difference = np.abs(result.command - result.recorded_command)
     summary: dict[str, object] = {
         "bag": str(options.bag),
@@ -207,6 +222,16 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
         summary["estimate_max_abs_difference_Nm"] = [
             float(v) for v in np.abs(result.estimate - result.recorded_estimate).max(axis=0)
         ]
+    summary["tolerance"] = {
+        "relative": tolerance.relative,
+        "flip_share": tolerance.flip_share,
+        "index_relative": tolerance.index_relative,
+    }
+    summary["command_tolerance_Nm"] = list(agreement.command_allowed)
+    summary["sign_flips"] = [len(steps) for steps in agreement.flip_steps]
+    summary["sign_flip_steps"] = [list(steps) for steps in agreement.flip_steps]
+    summary["index_max_relative_difference"] = agreement.index_relative_difference
+    summary["reproduces_recording"] = agreement.ok
     if options.json:
         out.write(json.dumps(summary, indent=2) + "\n")
     else:
@@ -238,11 +263,13 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
             fmt="%.17g",
         )
         err.write(f"wrote {options.out / 'rerun.csv'}\n")
-    if options.expect_equal and float(difference.max()) > options.tolerance:
+    if options.expect_equal and not agreement.ok:
         err.write(
-            f"smm-bag: offline commands differ from the recorded ones by up to "
-            f"{float(difference.max()):.3g} N m (tolerance {options.tolerance:g})\n"
+            f"smm-bag: the re-run does not reproduce the recording (commands differ by up to "
+            f"{float(difference.max()):.3g} N m; tolerance relative {tolerance.relative:g}):\n"
         )
+        for reason in agreement.failures:
+            err.write(f"  {reason}\n")
         return EXIT_CHECK_FAILED
     return EXIT_OK
 
