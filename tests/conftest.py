@@ -69,7 +69,7 @@ def _why_no_private_netns() -> str | None:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Registers the markers of this conftest; re-executes the session inside a fresh network namespace, once."""
+    """Registers the ``cross_machine`` marker; re-executes the session in a fresh network namespace, once."""
     config.addinivalue_line(
         "markers",
         "cross_machine: compares numbers computed here with data made on another machine (the committed "

@@ -132,7 +132,8 @@ def rewrite_bag(source: Path, target: Path, change: Callable[[BagMessage], bytes
     message's new CDR bytes, or None to drop it (a topic whose every message is dropped is dropped too)."""
     with BagReader(source) as reader:
         kept = [(message, change(message)) for message in reader.messages()]
-        emptied = {message.topic for message, _ in kept} - {message.topic for message, data in kept if data is not None}
+        emptied = {message.topic for message, _ in kept}
+        emptied -= {message.topic for message, data in kept if data is not None}
         with BagWriter(target) as writer:
             for topic in reader.metadata.topics:
                 if topic.name not in emptied:

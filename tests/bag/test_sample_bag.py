@@ -9,6 +9,7 @@ are marked ``cross_machine`` and run under other numeric paths by ``make test-ot
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -57,8 +58,8 @@ def test_the_graph_recording_equals_the_offline_loop_within_the_cross_machine_to
         run.t_ns,
         offline.command_torque[:steps],
         run.command_torque,
-        chain_settings({}, "fpdeso").flip_size,
-        CROSS_MACHINE,
+        flip_size=chain_settings({}, "fpdeso").flip_size,
+        tolerance=CROSS_MACHINE,
     )
     assert agreement.ok, agreement.failures
     expected = joint_indices(
@@ -84,10 +85,10 @@ def test_rerun_reproduces_the_recorded_commands_and_estimates_within_the_cross_m
         result.t_ns,
         result.command,
         result.recorded_command,
-        settings.flip_size,
-        CROSS_MACHINE,
-        result.estimate,
-        result.recorded_estimate,
+        flip_size=settings.flip_size,
+        tolerance=CROSS_MACHINE,
+        estimate=result.estimate,
+        recorded_estimate=result.recorded_estimate,
     )
     assert agreement.ok, agreement.failures
     assert agreement.estimate_max_difference is not None
@@ -96,7 +97,7 @@ def test_rerun_reproduces_the_recorded_commands_and_estimates_within_the_cross_m
     )
 
 
-def _shift_recorded_values(topics: frozenset[str], ulps: int) -> object:
+def _shift_recorded_values(topics: frozenset[str], ulps: int) -> Callable[[BagMessage], bytes]:
     """A ``rewrite_bag`` change: every value of ``topics`` moved ``ulps`` units in the last place up."""
 
     def change(message: BagMessage) -> bytes:
@@ -117,7 +118,7 @@ def test_a_copy_a_few_ulp_off_passes_the_default_and_fails_bit_for_bit(
     manifest = load_run(SAMPLE).manifest
     recorded_topics = frozenset({manifest.topic("torque_command"), manifest.topic("disturbance_estimate")})
     shifted = tmp_path / "shifted"
-    rewrite_bag(SAMPLE, shifted, _shift_recorded_values(recorded_topics, SHIFT_ULPS))  # type: ignore[arg-type]
+    rewrite_bag(SAMPLE, shifted, _shift_recorded_values(recorded_topics, SHIFT_ULPS))
     original, moved = load_run(SAMPLE), load_run(shifted)
     assert np.all(moved.command_torque != original.command_torque)
     np.testing.assert_array_equal(moved.measured_position, original.measured_position)

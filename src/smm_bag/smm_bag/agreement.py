@@ -105,17 +105,16 @@ class Agreement:
                 reasons.append(f"{name}: {len(outside)} step(s) differ (first at step {outside[0]})")
             elif outside:
                 reasons.append(
-                    f"{name}: {len(outside)} step(s) differ by more than {self.command_allowed[joint]:.3g} N m "
-                    f"and are not isolated sign flips (first at step {outside[0]})"
+                    f"{name}: {len(outside)} step(s) differ by more than {self.command_allowed[joint]:.3g} "
+                    f"N m and are not isolated sign flips (first at step {outside[0]})"
                 )
             if len(flips) > self.flips_allowed:
                 reasons.append(f"{name}: {len(flips)} sign flips, at most {self.flips_allowed} allowed")
-            if self.estimate_max_difference is not None and self.estimate_allowed is not None:
-                if self.estimate_max_difference[joint] > self.estimate_allowed[joint]:
-                    reasons.append(
-                        f"{name}: estimate differs by {self.estimate_max_difference[joint]:.3g} N m "
-                        f"(tolerance {self.estimate_allowed[joint]:.3g})"
-                    )
+            estimate, allowed = self.estimate_max_difference, self.estimate_allowed
+            if estimate is not None and allowed is not None and estimate[joint] > allowed[joint]:
+                reasons.append(
+                    f"{name}: estimate differs by {estimate[joint]:.3g} N m (tolerance {allowed[joint]:.3g})"
+                )
         if self.index_relative_difference > self.tolerance.index_relative:
             reasons.append(
                 f"torque indices differ by {self.index_relative_difference:.3g} relative "
@@ -130,7 +129,7 @@ class Agreement:
 
 
 def _allowed(recorded: FloatArray, relative: float) -> FloatArray:
-    return relative * np.max(np.abs(recorded), axis=0, initial=0.0)
+    return np.asarray(relative * np.max(np.abs(recorded), axis=0, initial=0.0), dtype=np.float64)
 
 
 def _relative(a: float, b: float) -> float:
@@ -141,6 +140,7 @@ def judge(
     t_ns: NDArray[np.int64],
     command: FloatArray,
     recorded_command: FloatArray,
+    *,
     flip_size: tuple[float, float],
     tolerance: Tolerance,
     estimate: FloatArray | None = None,

@@ -202,10 +202,10 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
         result.t_ns,
         result.command,
         result.recorded_command,
-        settings.flip_size,
-        tolerance,
-        result.estimate,
-        result.recorded_estimate,
+        flip_size=settings.flip_size,
+        tolerance=tolerance,
+        estimate=result.estimate,
+        recorded_estimate=result.recorded_estimate,
     )
     difference = np.abs(result.command - result.recorded_command)
     summary: dict[str, object] = {
