@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from smm_bag.agreement import BIT_FOR_BIT, CROSS_MACHINE, Tolerance, judge, tolerance_for
+from smm_bag.cli import main
+from smm_bag.commands import EXIT_USAGE
 from smm_bag.rerun import chain_settings
 
 STEPS = 2000
@@ -121,3 +125,10 @@ def test_tolerance_for_and_validation() -> None:
         Tolerance(0.0, 2.0, 0.0)
     with pytest.raises(ValueError, match="index_relative must be a finite number"):
         Tolerance(0.0, 0.0, float("nan"))
+
+
+def test_a_negative_tolerance_is_a_usage_error_before_the_bag_is_read(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["rerun", str(tmp_path / "absent"), "--tolerance=-1e-9"]) == EXIT_USAGE
+    assert "--tolerance: relative must be >= 0, got -1e-09" in capsys.readouterr().err

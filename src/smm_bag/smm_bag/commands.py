@@ -180,6 +180,11 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
     """``smm-bag rerun BAG --params-file F``: offline chain beside the recorded commands and estimates."""
     out, err = stdout or sys.stdout, stderr or sys.stderr
     try:
+        tolerance = tolerance_for(options.tolerance)
+    except ValueError as error:
+        err.write(f"smm-bag: error: --tolerance: {error}\n")
+        return EXIT_USAGE
+    try:
         run = load_run(options.bag, progress=Progress(f"reading {options.bag.name}", 1, err))
         recorded = next(
             (
@@ -192,12 +197,8 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
         parameters = {**recorded, **read_params_files(options.params_files)}
         settings = chain_settings(parameters, run.manifest.controller or "fpdeso")
         result = rerun(run, settings)
-        tolerance = tolerance_for(options.tolerance)
     except BagError as error:
         return _fail(error, err)
-    except ValueError as error:
-        err.write(f"smm-bag: error: --tolerance: {error}\n")
-        return EXIT_USAGE
     agreement = judge(
         result.t_ns,
         result.command,
