@@ -14,6 +14,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from smm_bag.cdr import encode_float64_multi_array, encode_joint_state
 from smm_bag.exit_codes import EXIT_CORRUPT, EXIT_NOT_A_BAG, EXIT_TRUNCATED
+from smm_bag.reader import BagMessage, BagReader
 from smm_bag.writer import BagWriter, WriterOptions
 
 from smm_bag import CorruptBagError, NotABagError, TruncatedBagError
@@ -200,3 +201,21 @@ DAMAGES: list[tuple[str, Callable[[Path], None], type[Exception], int]] = [
     ("metadata without version", metadata_without_version, CorruptBagError, EXIT_CORRUPT),
     ("storage file missing", missing_file, CorruptBagError, EXIT_CORRUPT),
 ]
+
+
+def rewrite_bag(source: Path, target: Path, change: Callable[[BagMessage], bytes | None]) -> None:
+    """Copies ``source`` into a new bag ``target`` with the project's writer; ``change`` gives each
+    message's new CDR bytes, or None to drop it (a topic whose every message is dropped is dropped too)."""
+    with BagReader(source) as reader:
+        kept = [(message, change(message)) for message in reader.messages()]
+        emptied = {message.topic for message, _ in kept}
+        emptied -= {message.topic for message, data in kept if data is not None}
+        with BagWriter(target) as writer:
+            for topic in reader.metadata.topics:
+                if topic.name not in emptied:
+                    writer.create_topic(topic.name, topic.type, topic.offered_qos_profiles)
+            for key, value in reader.metadata.custom_data.items():
+                writer.set_custom_data(key, value)
+            for message, data in kept:
+                if data is not None:
+                    writer.write(message.topic, data, message.log_time_ns, message.publish_time_ns)

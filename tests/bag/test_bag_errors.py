@@ -56,4 +56,3 @@ def test_truncated_bag_readable_after_repair(tmp_path: Path) -> None:
     with BagReader(bag) as reader:
         assert 0 < reader.message_count < 600
         assert sum(1 for _ in reader.messages()) == reader.message_count
-

@@ -47,9 +47,16 @@ def add_rerun(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -
     parser.add_argument(
         "--expect-equal",
         action="store_true",
-        help="exit 1 if the offline commands differ from the recorded ones by more than --tolerance",
+        help="exit 1 unless the offline commands and estimates reproduce the recorded ones (--tolerance)",
     )
-    parser.add_argument("--tolerance", type=float, default=0.0, help="N m (default 0: bit for bit)")
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=None,
+        metavar="RELATIVE",
+        help="per-step tolerance, relative to the largest recorded |value| of each joint (default: what a "
+        "bag recorded on another machine passes, 1e-9 and isolated sign flips; 0: bit for bit)",
+    )
     parser.set_defaults(
         handler=lambda options: rerun_command(
             RerunOptions(

@@ -11,10 +11,11 @@ from typing import TextIO
 
 import numpy as np
 from smm_bag.errors import BagError
-from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_CORRUPT, EXIT_OK, EXIT_PARAMS, fail
+from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_CORRUPT, EXIT_OK, EXIT_PARAMS, EXIT_USAGE, fail
 from smm_bag.progress import Progress
 
 from smm_analysis.errors import ParamsFileError
+from smm_analysis.runs.agreement import judge, tolerance_for
 from smm_analysis.runs.indices import comparison_table, evaluate, metrics_document
 from smm_analysis.runs.plots import write_plots
 from smm_analysis.runs.recorded import load_run
@@ -79,12 +80,18 @@ class RerunOptions:
     json: bool = False
     out: Path | None = None
     expect_equal: bool = False
-    tolerance: float = 0.0
+    tolerance: float | None = None
+    """Per-step relative tolerance; None: what a bag from another machine passes; 0: bit for bit."""
 
 
 def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
     """``smm-bag rerun BAG --params-file F``: offline chain beside the recorded commands and estimates."""
     out, err = stdout or sys.stdout, stderr or sys.stderr
+    try:
+        tolerance = tolerance_for(options.tolerance)
+    except ValueError as error:
+        err.write(f"smm-bag: error: --tolerance: {error}\n")
+        return EXIT_USAGE
     try:
         run = load_run(options.bag, progress=Progress(f"reading {options.bag.name}", 1, err))
         recorded = next(
@@ -103,6 +110,15 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
     except ParamsFileError as error:
         err.write(f"smm-bag: error: {error}\n")
         return EXIT_PARAMS
+    agreement = judge(
+        result.t_ns,
+        result.command,
+        result.recorded_command,
+        flip_size=settings.flip_size,
+        tolerance=tolerance,
+        estimate=result.estimate,
+        recorded_estimate=result.recorded_estimate,
+    )
     difference = np.abs(result.command - result.recorded_command)
     summary: dict[str, object] = {
         "bag": str(options.bag),
@@ -118,6 +134,16 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
         summary["estimate_max_abs_difference_Nm"] = [
             float(v) for v in np.abs(result.estimate - result.recorded_estimate).max(axis=0)
         ]
+    summary["tolerance"] = {
+        "relative": tolerance.relative,
+        "flip_share": tolerance.flip_share,
+        "index_relative": tolerance.index_relative,
+    }
+    summary["command_tolerance_Nm"] = list(agreement.command_allowed)
+    summary["sign_flips"] = [len(steps) for steps in agreement.flip_steps]
+    summary["sign_flip_steps"] = [list(steps) for steps in agreement.flip_steps]
+    summary["index_max_relative_difference"] = agreement.index_relative_difference
+    summary["reproduces_recording"] = agreement.ok
     if options.json:
         out.write(json.dumps(summary, indent=2) + "\n")
     else:
@@ -149,10 +175,12 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
             fmt="%.17g",
         )
         err.write(f"wrote {options.out / 'rerun.csv'}\n")
-    if options.expect_equal and float(difference.max()) > options.tolerance:
+    if options.expect_equal and not agreement.ok:
         err.write(
-            f"smm-bag: offline commands differ from the recorded ones by up to "
-            f"{float(difference.max()):.3g} N m (tolerance {options.tolerance:g})\n"
+            f"smm-bag: the re-run does not reproduce the recording (commands differ by up to "
+            f"{float(difference.max()):.3g} N m; tolerance relative {tolerance.relative:g}):\n"
         )
+        for reason in agreement.failures:
+            err.write(f"  {reason}\n")
         return EXIT_CHECK_FAILED
     return EXIT_OK
