@@ -34,17 +34,10 @@ def is_real(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def _out_of_range(value: Any, *, positive: bool, non_negative: bool, allow_inf: bool) -> str | None:
-    """What ``value`` must be and is not ("a real number", "finite", "> 0", ">= 0"), or None if it is fine."""
-    if not is_real(value) or math.isnan(value):
-        return "a real number"
-    if math.isinf(value) and not (allow_inf and value > 0.0):
-        return "finite"
-    if positive and not value > 0.0:
-        return "> 0"
-    if non_negative and not value >= 0.0:
-        return ">= 0"
-    return None
+def _sign_range(positive: bool, non_negative: bool, allow_inf: bool) -> Range:
+    """The range the flags of :func:`check_scalar` describe (``allow_inf``: +inf only)."""
+    low = 0.0 if positive or non_negative else -math.inf
+    return Range(low, math.inf, low_open=positive or low == -math.inf, high_open=not allow_inf)
 
 
 def check_scalar(
@@ -60,7 +53,7 @@ def check_scalar(
     Raises:
         ValueError: naming ``name`` and the value.
     """
-    problem = _out_of_range(value, positive=positive, non_negative=non_negative, allow_inf=allow_inf)
+    problem = _problem(value, _sign_range(positive, non_negative, allow_inf), integer=False)
     if problem is not None:
         raise ValueError(f"{name} must be {problem}, got {value!r}")
 
@@ -87,8 +80,9 @@ def check_pair(
     """
     if not isinstance(value, tuple) or len(value) != 2:
         raise ValueError(f"{name} must be a tuple (alpha, beta) of 2 numbers, got {value!r}")
+    value_range = _sign_range(positive, non_negative, allow_inf)
     for element in value:
-        problem = _out_of_range(element, positive=positive, non_negative=non_negative, allow_inf=allow_inf)
+        problem = _problem(element, value_range, integer=False)
         if problem is not None:
             raise ValueError(f"{name} must be {problem} for both joints, got {value!r}")
 
@@ -142,14 +136,24 @@ class Range:
         if self.unbounded:
             return "finite"
         if self.high == math.inf:
-            return f"{'>' if self.low_open else '>='} {self.low:g}"
+            also = "" if self.high_open else " or inf"
+            return f"{'>' if self.low_open else '>='} {_number(self.low)}{also}"
         if self.low == -math.inf:
-            return f"{'<' if self.high_open else '<='} {self.high:g}"
+            also = "" if self.low_open else " or -inf"
+            return f"{'<' if self.high_open else '<='} {_number(self.high)}{also}"
         return f"in {self}"
 
     def __str__(self) -> str:
         """Interval notation, e.g. ``(0, inf)``, ``[0.001, 3600]``."""
-        return f"{'(' if self.low_open else '['}{self.low:g}, {self.high:g}{')' if self.high_open else ']'}"
+        low, high = _number(self.low), _number(self.high)
+        return f"{'(' if self.low_open else '['}{low}, {high}{')' if self.high_open else ']'}"
+
+
+def _number(value: float) -> str:
+    """A range end as written: integers exactly (``4294967295``), other numbers short (``0.001``)."""
+    if math.isfinite(value) and value == int(value) and abs(value) < 2**53:
+        return str(int(value))
+    return f"{value:g}"
 
 
 NO_RANGE = Range(-math.inf, math.inf, low_open=True, high_open=True)
@@ -185,13 +189,12 @@ def field_range(item: dataclasses.Field[Any]) -> Range | None:
 def _problem(value: Any, value_range: Range, integer: bool) -> str | None:
     """What ``value`` must be and is not, or None if it is a number (an int if ``integer``) in range."""
     finite = not (value_range.contains(math.inf) or value_range.contains(-math.inf))
-    number = "an integer" if integer else "a finite number" if finite else "a number"
     if not is_real(value) or (integer and not isinstance(value, int)) or math.isnan(value):
-        return number
+        return "an integer" if integer else "a finite number" if finite else "a real number"
     if value_range.contains(value):
         return None
     if math.isinf(value) and value_range.contains(math.copysign(1e300, value)):
-        return number
+        return "a finite number" if finite else f"a number other than {value}"
     return value_range.requirement()
 
 
