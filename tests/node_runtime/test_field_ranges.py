@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import pytest
 from hypothesis import given
@@ -115,33 +116,33 @@ def test_an_empty_range_is_refused() -> None:
         bounds(1.0, 1.0, low_open=True)
 
 
-def _descriptors() -> dict[str, object]:
+def _descriptors() -> dict[str, Any]:
     return {item.name: parameter_descriptor(item, item.name) for item in config_fields(Ranged)}
 
 
 def test_a_scalar_double_gets_the_closed_ros_range_and_its_open_end_in_words() -> None:
     period = _descriptors()["period"]
-    assert period.type == ParameterType.PARAMETER_DOUBLE  # type: ignore[attr-defined]
-    (ros_range,) = period.floating_point_range  # type: ignore[attr-defined]
+    assert period.type == ParameterType.PARAMETER_DOUBLE
+    (ros_range,) = period.floating_point_range
     assert (ros_range.from_value, ros_range.to_value) == (0.0, 1.0)
-    assert period.additional_constraints == "in (0, 1]"  # type: ignore[attr-defined]
+    assert period.additional_constraints == "in (0, 1]"
 
 
 def test_an_integer_range_is_exact_open_ends_moved_inward() -> None:
     descriptors = _descriptors()
-    (count,) = descriptors["count"].integer_range  # type: ignore[attr-defined]
+    (count,) = descriptors["count"].integer_range
     assert (count.from_value, count.to_value) == (3, 2**63 - 1)
-    (odd,) = descriptors["odd"].integer_range  # type: ignore[attr-defined]
+    (odd,) = descriptors["odd"].integer_range
     assert (odd.from_value, odd.to_value) == (1, 9)
 
 
 def test_arrays_state_their_element_range_in_words_and_no_range_declares_none() -> None:
     descriptors = _descriptors()
     gain = descriptors["gain"]
-    assert not gain.floating_point_range  # type: ignore[attr-defined]
-    assert gain.additional_constraints == "2 values, per joint (alpha, beta), each > 0"  # type: ignore[attr-defined]
+    assert not gain.floating_point_range
+    assert gain.additional_constraints == "2 values, per joint (alpha, beta), each > 0"
     limit = descriptors["limit"]
-    assert limit.additional_constraints == "2 values, per joint (alpha, beta), each > 0 or inf"  # type: ignore[attr-defined]
+    assert limit.additional_constraints == "2 values, per joint (alpha, beta), each > 0 or inf"
     offset = descriptors["offset"]
-    assert not offset.floating_point_range  # type: ignore[attr-defined]
-    assert offset.additional_constraints == ""  # type: ignore[attr-defined]
+    assert not offset.floating_point_range
+    assert offset.additional_constraints == ""
