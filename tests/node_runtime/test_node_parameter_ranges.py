@@ -9,13 +9,15 @@ from __future__ import annotations
 import importlib
 import inspect
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import pytest
+import rclpy
 from rcl_interfaces.msg import ParameterType
 from rclpy.node import Node
+from smm_dynamics.validation import above
 from smm_node_runtime.parameters import ConfigParameters, parameter_descriptor
 from smm_node_runtime.schema import config_fields, parameter_name, unranged_fields
 
@@ -84,6 +86,40 @@ def test_every_node_module_is_found() -> None:
     assert "RecorderNode" in names
 
 
+def range_problems(node: Any, bindings: list[Binding]) -> list[str]:
+    """What is wrong with the ranges of ``node``'s parameters (empty when each mirrors its metadata)."""
+    problems: list[str] = []
+    bound: set[str] = set()
+    for binding in bindings:
+        name_of_config = binding.config_cls.__name__
+        missing = unranged_fields(binding.config_cls)
+        if name_of_config in AWAITING_ANNOTATION and not missing:
+            problems.append(f"{name_of_config} has every range now: drop it from AWAITING_ANNOTATION")
+        elif missing and name_of_config not in AWAITING_ANNOTATION:
+            problems.append(f"{name_of_config}: no range declared for {list(missing)}")
+        for item in config_fields(binding.config_cls):
+            name = parameter_name(binding.prefix, item.name)
+            bound.add(name)
+            expected = parameter_descriptor(item, name, binding.read_only)
+            actual = node.describe_parameter(name)
+            for attribute in (
+                "type",
+                "additional_constraints",
+                "read_only",
+                "floating_point_range",
+                "integer_range",
+            ):
+                if getattr(actual, attribute) != getattr(expected, attribute):
+                    problems.append(
+                        f"{name}: {attribute} {getattr(actual, attribute)} != {getattr(expected, attribute)}"
+                    )
+    loose = sorted(set(node.list_parameters([], 0).names) - ROS_OWN - bound)
+    numeric = [name for name in loose if node.describe_parameter(name).type in NUMERIC_TYPES]
+    if numeric:
+        problems.append(f"numeric parameters declared outside a config, without a declared range: {numeric}")
+    return problems
+
+
 @pytest.mark.parametrize(("node_class", "overrides"), STARTS)
 def test_every_numeric_parameter_has_its_fields_range_and_ros_shows_it(
     ros_context: Any, bindings: list[Binding], node_class: type[Any], overrides: dict[str, Any]
@@ -91,27 +127,32 @@ def test_every_numeric_parameter_has_its_fields_range_and_ros_shows_it(
     node: Any = node_class(context=ros_context, parameter_overrides=overrides)
     try:
         assert bindings, f"{node_class.__name__} mirrors no config"
-        bound: set[str] = set()
-        for binding in bindings:
-            missing = unranged_fields(binding.config_cls)
-            if binding.config_cls.__name__ in AWAITING_ANNOTATION:
-                assert missing, f"{binding.config_cls.__name__} has every range now: drop it from the list"
-            else:
-                assert missing == (), f"{binding.config_cls.__name__}: numeric fields without a range"
-            for item in config_fields(binding.config_cls):
-                name = parameter_name(binding.prefix, item.name)
-                bound.add(name)
-                expected = parameter_descriptor(item, name, binding.read_only)
-                actual = node.describe_parameter(name)
-                assert (actual.type, actual.additional_constraints, actual.read_only) == (
-                    expected.type,
-                    expected.additional_constraints,
-                    expected.read_only,
-                ), name
-                assert actual.floating_point_range == expected.floating_point_range, name
-                assert actual.integer_range == expected.integer_range, name
-        loose = sorted(set(node.list_parameters([], 0).names) - ROS_OWN - bound)
-        numeric = [name for name in loose if node.describe_parameter(name).type in NUMERIC_TYPES]
-        assert numeric == [], "numeric parameters declared outside a config have no declared range"
+        assert range_problems(node, bindings) == []
+    finally:
+        node.destroy_node()
+
+
+@dataclass(frozen=True)
+class Planted:
+    """A config with one number that forgot its range.
+
+    Attributes:
+        gain: Per joint (1/s), > 0.
+        forgotten: A scalar (m), > 0 in prose only.
+    """
+
+    gain: tuple[float, float] = field(default=(1.0, 2.0), metadata=above(0.0))
+    forgotten: float = 1.0
+
+
+def test_a_planted_field_without_a_range_fails_the_check(ros_context: Any, bindings: list[Binding]) -> None:
+    node = rclpy.create_node("planted", context=ros_context)
+    try:
+        ConfigParameters(node, "planted", Planted())
+        node.declare_parameter("loose_gain", 1.0)
+        assert range_problems(node, bindings) == [
+            "Planted: no range declared for ['forgotten']",
+            "numeric parameters declared outside a config, without a declared range: ['loose_gain']",
+        ]
     finally:
         node.destroy_node()
