@@ -146,7 +146,7 @@ class Planted:
 
 
 def test_a_planted_field_without_a_range_fails_the_check(ros_context: Any, bindings: list[Binding]) -> None:
-    node = rclpy.create_node("planted", context=ros_context)
+    node: Any = rclpy.create_node("planted", context=ros_context)
     try:
         ConfigParameters(node, "planted", Planted())
         node.declare_parameter("loose_gain", 1.0)
