@@ -79,17 +79,11 @@ _PARAMETER_TYPES = {
 
 def _integer_range(value_range: Range) -> IntegerRange:
     """The closed IntegerRange of the integers in ``value_range`` (an open end moves one inward)."""
-    low, high = value_range.low, value_range.high
-    first = (
-        -_INT64_MAX - 1
-        if math.isinf(low)
-        else math.floor(low) + 1
-        if value_range.low_open
-        else math.ceil(low)
-    )
-    last = (
-        _INT64_MAX if math.isinf(high) else math.ceil(high) - 1 if value_range.high_open else math.floor(high)
-    )
+    first, last = -_INT64_MAX - 1, _INT64_MAX
+    if math.isfinite(value_range.low):
+        first = math.floor(value_range.low) + 1 if value_range.low_open else math.ceil(value_range.low)
+    if math.isfinite(value_range.high):
+        last = math.ceil(value_range.high) - 1 if value_range.high_open else math.floor(value_range.high)
     return IntegerRange(from_value=first, to_value=last, step=1)
 
 

@@ -58,6 +58,12 @@ class FieldKind(enum.Enum):
         return self in NUMERIC_KINDS
 
 
+NUMERIC_KINDS = frozenset(
+    {FieldKind.DOUBLE, FieldKind.INTEGER, FieldKind.DOUBLE_ARRAY, FieldKind.INTEGER_ARRAY}
+)
+"""Kinds whose fields must declare a range (or :func:`~smm_dynamics.validation.no_range`)."""
+
+
 @dataclass(frozen=True)
 class ConfigField:
     """One leaf field of a (possibly nested) config dataclass, i.e. one ROS parameter.
@@ -313,9 +319,3 @@ def _replaced(config: Any, changes: Mapping[tuple[str, ...], Any]) -> Any:
     for attribute, inner_changes in nested.items():
         direct[attribute] = _replaced(getattr(config, attribute), inner_changes)
     return dataclasses.replace(config, **direct)
-
-
-NUMERIC_KINDS = frozenset(
-    {FieldKind.DOUBLE, FieldKind.INTEGER, FieldKind.DOUBLE_ARRAY, FieldKind.INTEGER_ARRAY}
-)
-"""Kinds whose fields must declare a range (or :func:`~smm_dynamics.validation.no_range`)."""
