@@ -38,16 +38,16 @@ command, while something (a recorder) listens. See ``docs/NODES.md``.
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Final, Generic, TypeVar, Unpack
 
 import numpy as np
 import numpy.typing as npt
 from sensor_msgs.msg import JointState
+from smm_dynamics.validation import at_least, check_bounds
 from smm_msgs_py.conversions import (
     internals_to_msg,
     joint_state_to_sample,
@@ -149,15 +149,12 @@ class ControllerSelection:
     """
 
     algorithm: str = "fpdeso"
-    switch_idle_time: float = DEFAULT_SWITCH_IDLE_TIME
+    switch_idle_time: float = field(default=DEFAULT_SWITCH_IDLE_TIME, metadata=at_least(0.0))
 
     def __post_init__(self) -> None:
         if self.algorithm not in CONTROLLER_NAMES:
             raise ValueError(f"algorithm must be one of {CONTROLLER_NAMES}, got {self.algorithm!r}")
-        if not (math.isfinite(self.switch_idle_time) and self.switch_idle_time >= 0.0):
-            raise ValueError(
-                f"switch_idle_time must be a finite number >= 0 s, got {self.switch_idle_time!r}"
-            )
+        check_bounds(self)
 
 
 @dataclass(frozen=True)

@@ -27,9 +27,12 @@ from smm_node_runtime.node import (
 )
 from smm_node_runtime.parameters import (
     ConfigParameters,
+    above,
+    at_least,
     bounds,
     check_bounds,
     config_fields,
+    no_range,
     parameter_name,
 )
 from smm_node_runtime.process import (
@@ -71,13 +74,16 @@ __all__ = [
     "SmmNode",
     "StampGate",
     "StampPolicy",
+    "above",
     "as_parameter_list",
+    "at_least",
     "bounds",
     "check_bounds",
     "config_fields",
     "ensure_localhost_discovery",
     "level_for",
     "make_executor",
+    "no_range",
     "node_arguments",
     "node_main",
     "parameter_name",
