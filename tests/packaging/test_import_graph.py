@@ -13,6 +13,8 @@ Rules (docs/DESIGN.md, "Packages and their roles"):
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,9 +32,6 @@ ALGORITHM_PACKAGES = ("smm_dynamics", "smm_controller", "smm_sim", "smm_analysis
 BAG_STORAGE = "smm_bag"
 BAG_STORAGE_MAY_IMPORT = frozenset({MESSAGE_CONTRACT, NODE_RUNTIME})
 """The only packages of the stack that the bag storage layer imports (analysis sits on top of it)."""
-ROS_THROUGH_PENDING_SPLIT = frozenset({"smm_node_runtime.parameters"})
-"""Modules whose rclpy import is not counted: the pure config <-> parameter mapping that ``smm_analysis.runs``
-uses shares a module with its rclpy binding until that module is split (issue 22, point 4)."""
 
 
 @dataclass
@@ -134,7 +133,7 @@ class ImportGraph:
         """True when module ``name`` imports ``rclpy``, directly or through our modules."""
         return any(
             imported.split(".")[0] in ROS_ROOTS
-            for reached in self.reachable(name) - ROS_THROUGH_PENDING_SPLIT
+            for reached in self.reachable(name)
             for imported in self.modules[reached].imports
         )
 
@@ -291,11 +290,15 @@ def test_bag_storage_importing_the_analysis_is_refused(tmp_path: Path) -> None:
     ]
 
 
-def test_rclpy_is_counted_through_every_module_but_the_one_pending_its_split() -> None:
-    graph = ImportGraph(read_tree(SRC))
-    for name in ROS_THROUGH_PENDING_SPLIT:  # once split, its rclpy import is gone: drop it from the set
-        assert any(imported.split(".")[0] in ROS_ROOTS for imported in graph.modules[name].imports), name
-    assert graph.reaches_ros("smm_node_runtime.node")
+def test_pure_modules_import_without_rclpy() -> None:
+    """At run time too: ``smm_node_runtime`` loads its names lazily, so its pure modules pull in no rclpy."""
+    modules = ("smm_node_runtime.schema", "smm_analysis.runs.rerun", "smm_analysis.runs.commands")
+    code = (
+        f"import sys\nfor m in {modules!r}: __import__(m)\n"
+        "print(sorted(k for k in sys.modules if k.startswith('rclpy')))"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout.strip() == "[]", result.stdout
 
 
 def test_a_node_in_the_message_contract_is_refused(tmp_path: Path) -> None:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import yaml
 from numpy.typing import NDArray
-from smm_node_runtime.parameters import config_from_parameters
+from smm_node_runtime.schema import config_from_parameters
 
 from smm_analysis.errors import ParamsFileError
 from smm_analysis.runs.recorded import RecordedRun
