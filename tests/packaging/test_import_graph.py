@@ -201,6 +201,17 @@ def test_the_graph_is_read_from_the_code() -> None:
     assert {"smm_controller", NODE_RUNTIME} <= bringup_uses
 
 
+PURE_CORES = ("smm_node_runtime.ranges", "smm_node_runtime.health", "smm_node_runtime.stamp_gate")
+"""Pure halves of the node runtime: the ROS side imports them, they import no ``rclpy``."""
+
+
+@pytest.mark.parametrize("name", PURE_CORES)
+def test_pure_cores_reach_no_rclpy(name: str) -> None:
+    graph = ImportGraph(read_tree(SRC))
+    assert name in graph.modules
+    assert not graph.reaches_ros(name), f"{name} imports rclpy, directly or through our modules"
+
+
 # ------------------------------------------------------------------------- each rule fires on a violation
 
 

@@ -1,20 +1,16 @@
 """What every SMM node runs on: process main, executor, node base classes, parameters, ``/diagnostics``."""
 
-from smm_node_runtime.diagnostics import CountWindows, DiagnosticsPublisher, Health, Level, level_for, worst
+from smm_node_runtime.diagnostics import DiagnosticsPublisher
+from smm_node_runtime.health import CountWindows, Health, Level, level_for, worst
 from smm_node_runtime.measurement import (
     COUNTER_ROWS,
-    DEFAULT_CONTROL_PERIOD,
-    REFUSED,
     STAMP_PREFIX,
     WARN_COUNTERS,
     WARN_THROTTLE_S,
-    Admission,
     ControlPeriodConfig,
     InputCounters,
     MeasurementDrivenNode,
     Output,
-    StampGate,
-    StampPolicy,
     values_of,
 )
 from smm_node_runtime.node import (
@@ -25,13 +21,7 @@ from smm_node_runtime.node import (
     node_arguments,
     wait_for_delivery,
 )
-from smm_node_runtime.parameters import (
-    ConfigParameters,
-    bounds,
-    check_bounds,
-    config_fields,
-    parameter_name,
-)
+from smm_node_runtime.parameters import ConfigParameters, config_fields, parameter_name
 from smm_node_runtime.process import (
     EXIT_INVALID_PARAMETER,
     EXIT_OK,
@@ -44,6 +34,8 @@ from smm_node_runtime.process import (
     run_nodes,
     spin_until_shutdown,
 )
+from smm_node_runtime.ranges import bounds, check_bounds
+from smm_node_runtime.stamp_gate import DEFAULT_CONTROL_PERIOD, REFUSED, Admission, StampGate, StampPolicy
 
 __all__ = [
     "COUNTER_ROWS",
