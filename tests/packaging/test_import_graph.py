@@ -201,8 +201,14 @@ def test_the_graph_is_read_from_the_code() -> None:
     assert {"smm_controller", NODE_RUNTIME} <= bringup_uses
 
 
-PURE_CORES = ("smm_node_runtime.ranges", "smm_node_runtime.health", "smm_node_runtime.stamp_gate")
-"""Pure halves of the node runtime: the ROS side imports them, they import no ``rclpy``."""
+PURE_CORES = (
+    "smm_node_runtime.ranges",
+    "smm_node_runtime.health",
+    "smm_node_runtime.stamp_gate",
+    "smm_sim.config",
+    "smm_sim.core",
+)
+"""Logic the nodes wrap (times passed in): the node modules import it, it imports no ``rclpy``."""
 
 
 @pytest.mark.parametrize("name", PURE_CORES)
