@@ -37,10 +37,6 @@ VARIANTS: dict[str, list[dict[str, Any]]] = {
 }
 """Overrides under which a node declares more parameters (one start per entry; default: ``[{}]``)."""
 
-AWAITING_ANNOTATION = {"PlantParameters", "SimNodeConfig"}
-"""smm_sim_node's configs, being moved out of sim_node.py on another branch; their ranges are added when the
-branches merge (remove each name then: the test fails while a listed config has every range)."""
-
 
 def _node_classes() -> Iterator[type[Any]]:
     for path in sorted(SRC.glob("*/*/*_node.py")):
@@ -93,9 +89,7 @@ def range_problems(node: Any, bindings: list[Binding]) -> list[str]:
     for binding in bindings:
         name_of_config = binding.config_cls.__name__
         missing = unranged_fields(binding.config_cls)
-        if name_of_config in AWAITING_ANNOTATION and not missing:
-            problems.append(f"{name_of_config} has every range now: drop it from AWAITING_ANNOTATION")
-        elif missing and name_of_config not in AWAITING_ANNOTATION:
+        if missing:
             problems.append(f"{name_of_config}: no range declared for {list(missing)}")
         for item in config_fields(binding.config_cls):
             name = parameter_name(binding.prefix, item.name)

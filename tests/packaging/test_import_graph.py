@@ -211,6 +211,23 @@ def test_the_graph_is_read_from_the_code() -> None:
     assert {"smm_controller", NODE_RUNTIME} <= bringup_uses
 
 
+PURE_CORES = (
+    "smm_node_runtime.health",
+    "smm_node_runtime.schema",
+    "smm_node_runtime.stamp_gate",
+    "smm_sim.config",
+    "smm_sim.core",
+)
+"""Logic the nodes wrap (times passed in): the node modules import it, it imports no ``rclpy``."""
+
+
+@pytest.mark.parametrize("name", PURE_CORES)
+def test_pure_cores_reach_no_rclpy(name: str) -> None:
+    graph = ImportGraph(read_tree(SRC))
+    assert name in graph.modules
+    assert not graph.reaches_ros(name), f"{name} imports rclpy, directly or through our modules"
+
+
 # ------------------------------------------------------------------------- each rule fires on a violation
 
 
@@ -292,7 +309,7 @@ def test_bag_storage_importing_the_analysis_is_refused(tmp_path: Path) -> None:
 
 def test_pure_modules_import_without_rclpy() -> None:
     """At run time too: ``smm_node_runtime`` loads its names lazily, so its pure modules pull in no rclpy."""
-    modules = ("smm_node_runtime.schema", "smm_analysis.runs.rerun", "smm_analysis.runs.commands")
+    modules = (*PURE_CORES, "smm_analysis.runs.rerun", "smm_analysis.runs.commands")
     code = (
         f"import sys\nfor m in {modules!r}: __import__(m)\n"
         "print(sorted(k for k in sys.modules if k.startswith('rclpy')))"

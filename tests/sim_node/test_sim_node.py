@@ -1,4 +1,4 @@
-"""smm_sim_node: lockstep gating, stamp matching, bad-command rejection, realtime timeout, parameters."""
+"""smm_sim_node (the glue around smm_sim.core): timers, publishers, message parsing, parameters, run end."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from smm_sim.sim_node import statistics_summary
+from smm_sim.core import statistics_summary
 
 pytestmark = pytest.mark.ros
 
@@ -104,32 +104,16 @@ def test_lockstep_does_not_advance_without_the_answering_command(make_harness: A
     h = make_harness(**LOCKSTEP)
     h.wait_matched()
     h.spin_until(lambda: len(h.measurements) >= 4)
-    assert h.sim.steps == 0
+    assert h.sim.core.steps == 0
     assert set(h.stamps()) == {0}, "an unanswered measurement must be re-published with the same stamp"
-    assert h.sim.republished >= 3
+    assert h.sim.core.republished >= 3
 
     h.send([0.5, -0.5], 0)
-    assert h.spin_until(lambda: h.sim.steps == 1)
+    assert h.spin_until(lambda: h.sim.core.steps == 1)
     assert h.spin_until(lambda: PERIOD_NS in h.stamps())
     h.spin_for(0.1)
-    assert h.sim.steps == 1, "one answer must give exactly one step"
+    assert h.sim.core.steps == 1, "one answer must give exactly one step"
     assert max(h.stamps()) == PERIOD_NS
-
-
-def test_lockstep_ignores_commands_with_other_stamps(make_harness: Any) -> None:
-    h = make_harness(**LOCKSTEP)
-    h.wait_matched()
-    h.send([1.0, 1.0], 5 * PERIOD_NS)  # a stamp never published
-    h.send([1.0, 1.0], 1)  # off by one nanosecond
-    assert h.spin_until(lambda: h.sim.dropped_unknown_stamp == 2)
-    assert h.sim.steps == 0
-
-    h.send([0.25, 0.0], 0)
-    assert h.spin_until(lambda: h.sim.steps == 1)
-    h.send([9.0, 9.0], 0)  # a late re-transmission of the answer to stamp 0
-    assert h.spin_until(lambda: h.sim.ignored_late == 1)
-    assert h.sim.steps == 1
-    np.testing.assert_array_equal(h.sim.plant.internals["commanded_torque"], [0.25, 0.0])
 
 
 def _bad_commands() -> list[tuple[str, Any]]:
@@ -164,39 +148,16 @@ def test_bad_commands_are_dropped_and_never_applied(make_harness: Any, clock_mod
     bad = _bad_commands()
     for _, msg in bad:
         h.send_raw(msg)
-    assert h.spin_until(lambda: h.sim.dropped_invalid == len(bad)), h.sim.statistics()
+    assert h.spin_until(lambda: h.sim.core.dropped_invalid == len(bad)), h.sim.core.statistics()
     h.spin_for(0.05)
-    internals = h.sim.plant.internals
+    internals = h.sim.core.plant.internals
     np.testing.assert_array_equal(internals["commanded_torque"], [0.0, 0.0])
-    truth = h.sim.plant.ground_truth
+    truth = h.sim.core.plant.ground_truth
     # At rest at q = 0 with zero torque the plant stays exactly at the unstable equilibrium.
     np.testing.assert_array_equal(truth.position, [0.0, 0.0])
     np.testing.assert_array_equal(truth.velocity, [0.0, 0.0])
     if clock_mode == "lockstep":
-        assert h.sim.steps == 0
-
-
-def test_realtime_applies_zero_torque_once_the_command_is_stale(make_harness: Any, tmp_path: Path) -> None:
-    record = tmp_path / "rt.npz"
-    h = make_harness(clock_mode="realtime", command_timeout=0.02, record_file=str(record))
-    h.wait_matched()
-    h.spin_until(lambda: len(h.measurements) >= 3)
-    h.send([0.7, -0.3], h.stamps()[-1])
-    assert h.spin_until(lambda: h.sim.latency.count == 1)
-    applied_steps = h.sim.steps
-    h.spin_until(lambda: h.sim.steps >= applied_steps + 150, timeout_s=20.0)
-    h.sim.write_outputs()
-    commands = np.load(record)["command"]
-    nonzero = np.flatnonzero(np.any(commands != 0.0, axis=1))
-    assert nonzero.size >= 1, "the command was never applied"
-    np.testing.assert_array_equal(commands[nonzero], np.tile([0.7, -0.3], (nonzero.size, 1)))
-    assert np.all(commands[nonzero[-1] + 1 :] == 0.0)
-    assert commands.shape[0] - nonzero[-1] > 50, "zero torque must follow the timeout"
-    assert h.sim.stale_ticks > 50
-    np.testing.assert_array_equal(h.sim.plant.internals["commanded_torque"], [0.0, 0.0])
-    summary = statistics_summary(h.sim.statistics())
-    assert "(real time); latency p50 " in summary and "(1 answers)" in summary
-    assert f"zero-torque ticks {h.sim.stale_ticks};" in summary
+        assert h.sim.core.steps == 0
 
 
 def test_lockstep_run_ends_after_max_steps_with_a_complete_record(make_harness: Any, tmp_path: Path) -> None:
@@ -214,7 +175,7 @@ def test_lockstep_run_ends_after_max_steps_with_a_complete_record(make_harness: 
             if sample.stamp_ns not in answered:
                 answered.add(sample.stamp_ns)
                 h.send(-2.0 * sample.position + 0.1, sample.stamp_ns)
-        return h.sim.finished
+        return h.sim.core.finished
 
     assert h.spin_until(answer_pending, timeout_s=20.0)
     assert h.sim.done.done() and h.sim.done.result() == 20
@@ -230,53 +191,9 @@ def test_lockstep_run_ends_after_max_steps_with_a_complete_record(make_harness: 
     assert published["joint_states"] == 20 + written["republished"]
     assert set(published) <= {"joint_states", "ground_truth", "clock"}
     assert all(n <= published["joint_states"] for n in published.values())
-    summary = statistics_summary(h.sim.statistics())
+    summary = statistics_summary(h.sim.core.statistics())
     assert summary.startswith("20 steps at ") and "steps/s (lockstep)" in summary
     assert "latency" not in summary and "nan" not in summary  # no deadlines in lockstep
-
-
-def test_realtime_summary_without_answers_says_so_instead_of_nan() -> None:
-    stats = {
-        "clock_mode": "realtime",
-        "steps": 7,
-        "latency": {"count": 0.0, "p50_us": math.nan, "p99_us": math.nan},
-        "deadline_misses": 7,
-        "late_ticks": 0,
-        "stale_ticks": 7,
-        "dropped_invalid": 1,
-        "dropped_unknown_stamp": 2,
-    }
-    summary = statistics_summary(stats)
-    assert "no command answered a measurement" in summary and "nan" not in summary
-    assert "deadline misses 7" in summary and "dropped 1 invalid, 2 unknown-stamp commands" in summary
-
-
-def _lockstep_record(make_harness: Any, path: Path, seed: int) -> dict[str, np.ndarray]:
-    from smm_msgs_py.conversions import joint_state_to_sample
-
-    h = make_harness(**LOCKSTEP, max_steps=30, seed=seed, noise_std=[0.01, 0.01], record_file=str(path))
-    answered: set[int] = set()
-
-    def answer_pending() -> bool:
-        for msg in h.measurements:
-            sample = joint_state_to_sample(msg, require_effort=True)
-            if sample.stamp_ns not in answered:
-                answered.add(sample.stamp_ns)
-                h.send(np.array([1.0, -1.0]) - 5.0 * sample.position, sample.stamp_ns)
-        return h.sim.finished
-
-    assert h.spin_until(answer_pending, timeout_s=20.0)
-    h.close()
-    return dict(np.load(path))
-
-
-def test_lockstep_is_deterministic_for_a_seed(make_harness: Any, tmp_path: Path) -> None:
-    first = _lockstep_record(make_harness, tmp_path / "a.npz", seed=3)
-    second = _lockstep_record(make_harness, tmp_path / "b.npz", seed=3)
-    other = _lockstep_record(make_harness, tmp_path / "c.npz", seed=4)
-    for key in first:
-        np.testing.assert_array_equal(first[key], second[key], err_msg=key)
-    assert not np.array_equal(first["measured_position"], other["measured_position"])
 
 
 @pytest.mark.parametrize(
@@ -343,18 +260,18 @@ def test_console_script_exits_2_on_an_invalid_parameter(ros_domain_id: int) -> N
 
 
 def test_a_diverging_plant_ends_the_run_as_failed(make_harness: Any, tmp_path: Path) -> None:
-    from smm_sim.sim_node import PlantDivergedError
+    from smm_sim.core import PlantDivergedError
 
     record = tmp_path / "diverged.npz"
     h = make_harness(**LOCKSTEP, record_file=str(record))
     h.wait_matched()
     h.send([1e300, -1e300], 0)  # finite, so accepted, but no integrator survives it
-    assert h.spin_until(lambda: h.sim.finished)
+    assert h.spin_until(lambda: h.sim.core.finished)
     failure = h.sim.done.exception()
     assert isinstance(failure, PlantDivergedError)
     assert "non-finite" in str(failure)
     h.spin_for(0.1)
-    assert h.sim.steps == 1, "a diverged plant must not step again"
+    assert h.sim.core.steps == 1, "a diverged plant must not step again"
     assert np.load(record)["command"].shape == (1, 2)
 
 
@@ -370,7 +287,7 @@ def test_lockstep_publishes_sim_time_on_clock_for_its_subscribers(make_harness: 
     assert h.spin_until(lambda: h.sim.count_subscribers("/clock") >= 1)
     for step in range(3):
         h.send([0.0, 0.0], step * PERIOD_NS)
-        assert h.spin_until(lambda step=step: h.sim.steps == step + 1)
+        assert h.spin_until(lambda step=step: h.sim.core.steps == step + 1)
     assert h.spin_until(lambda: any(stamp_to_ns(c.clock) == 3 * PERIOD_NS for c in clocks))
     times = {stamp_to_ns(c.clock) for c in clocks}
     assert {PERIOD_NS, 2 * PERIOD_NS, 3 * PERIOD_NS} <= times <= {k * PERIOD_NS for k in range(4)}
@@ -384,12 +301,12 @@ def test_realtime_status_goes_to_error_when_the_watchdog_applies_zero_torque(mak
     h.spin_until(lambda: len(h.measurements) >= 3)
     assert h.sim.health().level is not Level.ERROR  # no command yet: waiting, not a fault
     h.send([0.1, -0.1], h.stamps()[-1])
-    assert h.spin_until(lambda: h.sim.latency.count == 1)
-    assert h.spin_until(lambda: h.sim.command_timeouts > 0)  # then no command any more
+    assert h.spin_until(lambda: h.sim.core.latency.count == 1)
+    assert h.spin_until(lambda: h.sim.core.command_timeouts > 0)  # then no command any more
     health = h.sim.health()
     assert health.level is Level.ERROR
     assert "zero torque" in health.message
-    assert health.values["command_timeouts"] == h.sim.command_timeouts
+    assert health.values["command_timeouts"] == h.sim.core.command_timeouts
     assert h.spin_until(lambda: h.sim.diagnostics.level is Level.ERROR)  # sent at once, not a second later
 
 
@@ -406,7 +323,7 @@ def test_lockstep_start_gate_holds_step_0_until_every_publisher_has_its_subscrib
     h = make_harness(**LOCKSTEP, **{"start.min_subscribers": 2})  # the peer reads joint_states once
     assert h.spin_until(lambda: h.sim.count_subscribers(f"/{topics.JOINT_STATES}") >= 1)
     h.spin_for(0.3)
-    assert h.measurements == [] and h.sim.republished == 0, "step 0 must wait for the second reader"
+    assert h.measurements == [] and h.sim.core.republished == 0, "step 0 must wait for the second reader"
     recorder = h.peer  # a second joint_states reader and a /clock reader: what a recorder adds
     second: list[Any] = []
     recorder.create_subscription(JointState, topics.JOINT_STATES, second.append, 10)
@@ -416,7 +333,7 @@ def test_lockstep_start_gate_holds_step_0_until_every_publisher_has_its_subscrib
     assert h.spin_until(lambda: len(h.measurements) >= 1 and len(second) >= 1)
     assert h.stamps()[0] == 0
     h.send([0.0, 0.0], 0)
-    assert h.spin_until(lambda: h.sim.steps == 1)
+    assert h.spin_until(lambda: h.sim.core.steps == 1)
     result = h.sim.set_parameters([Parameter("start.min_subscribers", value=0)])[0]
     assert not result.successful and "start-up" in result.reason
 

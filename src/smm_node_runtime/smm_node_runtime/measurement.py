@@ -1,12 +1,7 @@
-"""Nodes that answer stamped measurements: the stamp gate, the drop counters and their base class.
-
-The stamp policy (new, re-transmission, stale, ahead, future, time jump, invalid) and the status
-thresholds are described in ``docs/NODES.md``.
-"""
+"""Base class of the nodes that answer stamped measurements, and their drop counters (``docs/NODES.md``)."""
 
 from __future__ import annotations
 
-import enum
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -16,25 +11,22 @@ import numpy as np
 import numpy.typing as npt
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
+from smm_dynamics.validation import bounds, check_bounds
 
 from smm_node_runtime.diagnostics import CountWindows, DiagnosticsPublisher, Health, Level, worst
 from smm_node_runtime.node import NodeOptions, SmmNode
-from smm_node_runtime.parameters import ConfigParameters, bounds, check_bounds
+from smm_node_runtime.parameters import ConfigParameters
+from smm_node_runtime.stamp_gate import DEFAULT_CONTROL_PERIOD, Admission, StampGate, StampPolicy
 
 __all__ = [
     "COUNTER_ROWS",
-    "DEFAULT_CONTROL_PERIOD",
-    "REFUSED",
     "STAMP_PREFIX",
     "WARN_COUNTERS",
     "WARN_THROTTLE_S",
-    "Admission",
     "ControlPeriodConfig",
     "InputCounters",
     "MeasurementDrivenNode",
     "Output",
-    "StampGate",
-    "StampPolicy",
     "values_of",
 ]
 
@@ -46,10 +38,6 @@ WARN_THROTTLE_S: Final[float] = 1.0
 
 Output = tuple[Publisher, Any]
 """A message ready to go: ``(publisher, message)``."""
-
-
-DEFAULT_CONTROL_PERIOD: Final[float] = 1e-3
-"""Default control period (s): 1 kHz, the paper's."""
 
 _NS_PER_S: Final[int] = 1_000_000_000
 
@@ -67,129 +55,6 @@ class ControlPeriodConfig:
 
     def __post_init__(self) -> None:
         check_bounds(self)
-
-
-@dataclass(frozen=True)
-class StampPolicy:
-    """How far a stamp may jump before it is refused, and when a jump is believed (``docs/NODES.md``).
-
-    Attributes:
-        max_ahead_periods: A stamp more than this many control periods ahead of the last answered one is
-            refused (dropped_ahead), an integer in [1, 100000].
-        clock_tolerance: A stamp more than this many seconds ahead of the node's clock (ROS time: sim time
-            with use_sim_time) is refused (dropped_future), in [0.001, 3600] s; not checked while the
-            clock reads 0 (sim time before the first /clock).
-        resync_samples: After this many consecutive refused stamps that follow each other (each at or after
-            the previous one, within max_ahead_periods), with no acceptable stamp in between, the node takes
-            them for a genuine time jump and resynchronises, an integer in [2, 1000].
-    """
-
-    max_ahead_periods: int = field(default=100, metadata=bounds(1, 100_000))
-    clock_tolerance: float = field(default=1.0, metadata=bounds(1e-3, 3600.0))
-    resync_samples: int = field(default=5, metadata=bounds(2, 1000))
-
-    def __post_init__(self) -> None:
-        check_bounds(self)
-
-
-class Admission(enum.Enum):
-    """What to do with an incoming stamp, relative to the last answered stamp and the node's clock."""
-
-    NEW = "new"
-    """Newer than the last answered, within ``max_ahead_periods``: process it."""
-    RESYNC = "resync"
-    """Accepted after a time jump (the last answered mark was forgotten): process it, warn."""
-    DUPLICATE = "duplicate"
-    """Equal to the last answered: a re-transmission."""
-    STALE = "stale"
-    """Older than the last answered: refused."""
-    AHEAD = "ahead"
-    """More than ``max_ahead_periods`` ahead of the last answered: refused."""
-    FUTURE = "future"
-    """More than ``clock_tolerance`` ahead of the node's clock: refused, never a resynchronisation."""
-
-
-REFUSED: Final[frozenset[Admission]] = frozenset({Admission.STALE, Admission.AHEAD, Admission.FUTURE})
-"""Admissions whose input is dropped and counted."""
-
-
-class StampGate:
-    """Remember the last answered stamp and classify incoming ones (pure, no ROS; ``docs/NODES.md``).
-
-    A refused stamp never moves the last answered mark. Refused stamps that form a consistent track of their
-    own (non-decreasing, steps of at most ``max_ahead_periods``), ``resync_samples`` in a row with no
-    acceptable stamp in between, are a time jump: the gate forgets the mark and answers RESYNC.
-
-    Args:
-        policy: The limits (default :class:`StampPolicy`).
-        control_period: Control period (s), the unit of ``max_ahead_periods``.
-    """
-
-    def __init__(
-        self, policy: StampPolicy | None = None, control_period: float = DEFAULT_CONTROL_PERIOD
-    ) -> None:
-        self.policy = policy if policy is not None else StampPolicy()
-        self.control_period = control_period
-        self._last_stamp_ns: int | None = None
-        self._track_ns: int | None = None
-        self._track_length = 0
-        self.last_jump: tuple[int, int] | None = None
-        """``(old mark, new stamp)`` (ns) of the last resynchronisation, None before any."""
-
-    @property
-    def last_stamp_ns(self) -> int | None:
-        """Stamp of the last answered measurement (ns), None before the first."""
-        return self._last_stamp_ns
-
-    @property
-    def max_ahead_ns(self) -> int:
-        """Largest accepted distance ahead of the last answered stamp (ns)."""
-        return self.policy.max_ahead_periods * round(self.control_period * _NS_PER_S)
-
-    def classify(self, stamp_ns: int, now_ns: int | None = None) -> Admission:
-        """Classify ``stamp_ns`` (ns) given the node's clock ``now_ns`` (ns; None or 0: not checked).
-
-        Refused stamps advance the jump detection; RESYNC has already forgotten the last answered mark.
-        """
-        policy = self.policy
-        if now_ns and stamp_ns > now_ns + round(policy.clock_tolerance * _NS_PER_S):
-            return Admission.FUTURE
-        last = self._last_stamp_ns
-        if last is None:
-            return Admission.NEW
-        if stamp_ns == last:
-            return Admission.DUPLICATE
-        window = self.max_ahead_ns
-        if last < stamp_ns <= last + window:
-            self._track_ns, self._track_length = None, 0
-            return Admission.NEW
-        track = self._track_ns
-        follows = track is not None and track <= stamp_ns <= track + window
-        self._track_length = self._track_length + 1 if follows else 1
-        self._track_ns = stamp_ns
-        if self._track_length >= policy.resync_samples:
-            self.last_jump = (last, stamp_ns)
-            self._last_stamp_ns = None
-            self._track_ns, self._track_length = None, 0
-            return Admission.RESYNC
-        return Admission.STALE if stamp_ns < last else Admission.AHEAD
-
-    def mark_answered(self, stamp_ns: int) -> None:
-        """Record ``stamp_ns`` (ns) as answered.
-
-        Raises:
-            ValueError: ``stamp_ns`` is not newer than the last answered stamp.
-        """
-        if self._last_stamp_ns is not None and stamp_ns <= self._last_stamp_ns:
-            raise ValueError(
-                f"stamp {stamp_ns} ns is not newer than the last answered {self._last_stamp_ns} ns"
-            )
-        self._last_stamp_ns = stamp_ns
-
-    def reset(self) -> None:
-        """Forget the last answered stamp and any jump in progress (every stamp is NEW again)."""
-        self._last_stamp_ns = None
-        self._track_ns, self._track_length = None, 0
 
 
 COUNTER_ROWS: Final[tuple[str, ...]] = (

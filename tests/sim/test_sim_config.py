@@ -1,4 +1,4 @@
-"""Pure tests of the simulator node's parameter mirror and statistics (no DDS traffic)."""
+"""smm_sim.config: the plant mirror, the run config, their validation and the default parameter file."""
 
 from __future__ import annotations
 
@@ -6,14 +6,13 @@ import dataclasses
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 import yaml
 from smm_node_runtime.parameters import config_fields, config_to_parameters
 from smm_sim.plant import PlantConfig
-from smm_sim.sim_node import LatencyStats, PlantParameters, SimNodeConfig
 
 from smm_dynamics import SMMParameters
+from smm_sim.config import MAX_COMMAND_TIMEOUT, PlantParameters, SimNodeConfig
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "src" / "smm_sim" / "config"
 
@@ -83,20 +82,6 @@ def test_step_limit_is_the_earlier_of_max_steps_and_duration(
     assert SimNodeConfig(max_steps=max_steps, duration=duration).step_limit(1_000_000) == expected
 
 
-def test_latency_percentiles_match_numpy() -> None:
-    rng = np.random.default_rng(1)
-    samples = rng.integers(10_000, 2_000_000, size=999)
-    stats = LatencyStats()
-    for value in samples:
-        stats.add(int(value))
-    summary = stats.summary()
-    assert summary["count"] == 999
-    assert summary["p50_us"] == pytest.approx(np.percentile(samples, 50) / 1e3)
-    assert summary["p99_us"] == pytest.approx(np.percentile(samples, 99) / 1e3)
-    assert summary["max_us"] == pytest.approx(samples.max() / 1e3)
-    assert math.isnan(LatencyStats().summary()["p50_us"])
-
-
 def test_default_parameter_file_matches_the_dataclass_defaults() -> None:
     content = yaml.safe_load((CONFIG_DIR / "smm_sim.yaml").read_text())
     values = content["/**/smm_sim_node"]["ros__parameters"]
@@ -116,8 +101,6 @@ def test_every_parameter_has_a_description() -> None:
 
 
 def test_command_timeout_is_bounded_to_what_still_protects_the_plant() -> None:
-    from smm_sim.sim_node import MAX_COMMAND_TIMEOUT, SimNodeConfig
-
     assert SimNodeConfig(command_timeout=MAX_COMMAND_TIMEOUT).command_timeout == MAX_COMMAND_TIMEOUT
     with pytest.raises(ValueError, match="command_timeout"):
         SimNodeConfig(command_timeout=1e9)
