@@ -1,7 +1,8 @@
 """The ``smm-bag`` commands: each takes parsed options, prints, and returns an exit code.
 
 Exit codes: 0 done; 1 a check failed (rerun differs where equality was asked for); 2 usage or invalid
-input; 3 not a bag; 4 truncated bag (repair it); 5 corrupt bag; 6 missing topics; 7 bad parameters file.
+input; 3 not a bag; 4 truncated bag (repair it); 5 corrupt bag; 6 missing topics; 7 bad parameters file;
+8 repair could save nothing of a storage file (the file is left as it was).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from smm_bag.errors import (
     NotABagError,
     ParamsFileError,
     TruncatedBagError,
+    UnsalvageableFileError,
 )
 from smm_bag.info import format_info
 from smm_bag.lockstep import LockstepOptions, LockstepResult, play_lockstep
@@ -31,6 +33,7 @@ from smm_bag.plots import write_plots
 from smm_bag.progress import Progress
 from smm_bag.recorded import load_run
 from smm_bag.repair import repair_bag
+from smm_bag.repair_report import format_repair
 from smm_bag.report import render_report
 from smm_bag.rerun import chain_settings, read_params_files, rerun
 
@@ -42,6 +45,7 @@ __all__ = [
     "EXIT_OK",
     "EXIT_PARAMS",
     "EXIT_TRUNCATED",
+    "EXIT_UNSALVAGEABLE",
     "EXIT_USAGE",
     "AnalyzeOptions",
     "RerunOptions",
@@ -61,6 +65,7 @@ EXIT_TRUNCATED = 4
 EXIT_CORRUPT = 5
 EXIT_MISSING_TOPICS = 6
 EXIT_PARAMS = 7
+EXIT_UNSALVAGEABLE = 8
 
 
 def exit_code(error: BagError) -> int:
@@ -71,6 +76,7 @@ def exit_code(error: BagError) -> int:
         (CorruptBagError, EXIT_CORRUPT),
         (MissingTopicsError, EXIT_MISSING_TOPICS),
         (ParamsFileError, EXIT_PARAMS),
+        (UnsalvageableFileError, EXIT_UNSALVAGEABLE),
     ):
         if isinstance(error, kind):
             return code
@@ -95,25 +101,19 @@ def info(bag: Path, stdout: TextIO | None = None, stderr: TextIO | None = None) 
 def repair(
     bag: Path, *, backup: bool = True, stdout: TextIO | None = None, stderr: TextIO | None = None
 ) -> int:
-    """``smm-bag repair BAG``: rebuild damaged files and metadata.yaml; prints what was done."""
+    """``smm-bag repair BAG``: rebuild damaged files and metadata.yaml; prints per file what was lost.
+
+    Exit 0 when every file is intact or repaired, 8 when nothing could be saved of a file (left as it was).
+    """
     out, err = stdout or sys.stdout, stderr or sys.stderr
     try:
         report = repair_bag(bag, backup=backup, progress=lambda name: print(f"checking {name}", file=err))
     except BagError as error:
         return _fail(error, err)
-    for item in report.files:
-        if item.rebuilt:
-            kept = f"; original kept as {item.backup}" if item.backup else ""
-            out.write(
-                f"{item.path}: {item.reason}; rebuilt with {item.messages} messages, "
-                f"{item.dropped_bytes} bytes after the last complete chunk dropped{kept}\n"
-            )
-        else:
-            out.write(f"{item.path}: intact ({item.messages} messages)\n")
-    out.write(
-        f"metadata.yaml: {report.metadata.message_count} messages on {len(report.metadata.topics)} topics\n"
-    )
-    return EXIT_OK
+    out.write(format_repair(report) + "\n")
+    for error in report.errors:
+        err.write(f"smm-bag: error: {error}\n")
+    return exit_code(report.errors[0]) if report.errors else EXIT_OK
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ __all__ = [
     "ParamsFileError",
     "TruncatedBagError",
     "UnknownTypeError",
+    "UnsalvageableFileError",
     "WriterStateError",
 ]
 
@@ -47,3 +48,7 @@ class WriterStateError(BagError):
 
 class ParamsFileError(BagError):
     """A parameters file for ``smm-bag rerun`` is unreadable or holds invalid gains."""
+
+
+class UnsalvageableFileError(BagError):
+    """No record of a storage file checks: ``smm-bag repair`` can save nothing of it and leaves it as it was."""
