@@ -96,7 +96,9 @@ def read_original(bag: Path) -> list[OriginalFile]:
             messages = []
             for record in breakup_chunk(chunk, validate_crc=True):
                 if isinstance(record, Message):
-                    messages.append((topics[record.channel_id], record.log_time, record.publish_time, record.data))
+                    messages.append(
+                        (topics[record.channel_id], record.log_time, record.publish_time, record.data)
+                    )
                 elif isinstance(record, Channel):
                     original.definitions.setdefault(record.id, []).append((start, length))
                     original.schema_of[record.id] = record.schema_id
@@ -116,7 +118,9 @@ class Damaged:
     kinds: tuple[str, ...]
 
 
-def damage_copy(source: Path, originals: Sequence[OriginalFile], target: Path, places: Sequence[Place]) -> Damaged:
+def damage_copy(
+    source: Path, originals: Sequence[OriginalFile], target: Path, places: Sequence[Place]
+) -> Damaged:
     """Copies ``source`` to ``target`` and damages it at ``places``; returns what changed."""
     shutil.copytree(source, target)
     metadata_text = (target / "metadata.yaml").read_bytes()
@@ -191,7 +195,10 @@ def file_checks(data: bytes) -> bool:
 
 def _mcap_messages(path: Path) -> list[MessageKey]:
     reader = make_reader(path.open("rb"), validate_crcs=True)
-    return [(c.topic, m.log_time, m.publish_time, m.data) for _, c, m in reader.iter_messages(log_time_order=False)]
+    return [
+        (c.topic, m.log_time, m.publish_time, m.data)
+        for _, c, m in reader.iter_messages(log_time_order=False)
+    ]
 
 
 @dataclass
@@ -242,7 +249,9 @@ def repair_and_check(source: Path, originals: Sequence[OriginalFile], damaged: D
             assert file_checks(after), f"{o.name}: called intact, but a CRC does not check:\n{text}"
             assert _mcap_messages(bag / o.name) == everything, f"{o.name}: called intact, messages differ"
         if not changes:
-            assert status[o.name] == "intact", f"{o.name}: undamaged, but repair said {status[o.name]!r}:\n{text}"
+            assert status[o.name] == "intact", (
+                f"{o.name}: undamaged, but repair said {status[o.name]!r}:\n{text}"
+            )
         if status[o.name] == "unsalvageable":
             outcome.unsalvageable_files += 1
             assert after == damaged_bytes, f"{o.name}: nothing saved, yet the file was changed"
@@ -278,7 +287,9 @@ def repair_and_check(source: Path, originals: Sequence[OriginalFile], damaged: D
             for m in messages
             if m[0] in usable_topics
         ]
-        assert not Counter(must) - Counter(kept), f"{o.name}: a message of an undamaged chunk was lost:\n{text}"
+        assert not Counter(must) - Counter(kept), (
+            f"{o.name}: a message of an undamaged chunk was lost:\n{text}"
+        )
         outcome.undamaged += len(must)
         outcome.kept += len(kept)
         kept_per_topic.update(m[0] for m in kept)
@@ -289,7 +300,9 @@ def repair_and_check(source: Path, originals: Sequence[OriginalFile], damaged: D
             assert entry["starting_time"]["nanoseconds_since_epoch"] == min(times)
             assert entry["duration"]["nanoseconds"] == max(times) - min(times)
     counts = {t["topic_metadata"]["name"]: t["message_count"] for t in listed["topics_with_message_count"]}
-    assert {k: v for k, v in counts.items() if v} == dict(kept_per_topic), "metadata.yaml differs from the files"
+    assert {k: v for k, v in counts.items() if v} == dict(kept_per_topic), (
+        "metadata.yaml differs from the files"
+    )
     assert listed["message_count"] == outcome.kept
     if outcome.kept or code == EXIT_OK:
         with AnyReader([bag]) as reader:

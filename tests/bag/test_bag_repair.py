@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
+import io
 import os
+import random
 import shutil
 import signal
+import struct
 import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from bag.bag_helpers import T0, joint_state, mcap_messages, rosbags_messages
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from smm_bag.cli import main
+from smm_bag.commands import EXIT_UNSALVAGEABLE, repair
+from smm_bag.errors import UnsalvageableFileError
 from smm_bag.repair import repair_bag
 from smm_bag.writer import BagWriter, WriterOptions
 
@@ -88,12 +95,61 @@ def test_repair_of_a_file_cut_anywhere_keeps_a_readable_prefix(
     cut = int(8 + fraction * (flushed_size - 8))
     path = bag / "bag_0.mcap"
     path.write_bytes(path.read_bytes()[:cut])
+    header_end = 8 + 9 + struct.unpack_from("<Q", path.read_bytes(), 9)[0] if cut >= 17 else 17
+    if cut < header_end:  # not even the header record: nothing checks, the bag is left as it was
+        with pytest.raises(UnsalvageableFileError, match="nothing can be saved"):
+            repair_bag(bag, backup=False)
+        assert path.stat().st_size == cut
+        return
     report = repair_bag(bag, backup=False)
     assert not (bag / "bag_0.mcap.damaged").exists()
     with BagReader(bag) as reader:
         times = [m.log_time_ns for m in reader.messages()]
     assert times == [T0 + k * 1_000_000 for k in range(len(times))]
     assert report.files[0].messages == len(times)
+
+
+def test_garbage_file_is_unsalvageable_exit_8_left_as_it_was_and_the_rest_repaired(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    with BagWriter(bag, WriterOptions(max_duration_ns=100_000_000)) as writer:
+        writer.create_topic("/smm/joint_states", "sensor_msgs/msg/JointState")
+        for k in range(250):
+            writer.write("/smm/joint_states", joint_state(k), T0 + k * 1_000_000)
+    garbage = bytes(random.Random(1).randrange(256) for _ in range(20_000))
+    (bag / "bag_1.mcap").write_bytes(garbage)
+    out, err = io.StringIO(), io.StringIO()
+    assert repair(bag, stdout=out, stderr=err) == EXIT_UNSALVAGEABLE == 8
+    assert "bag_1.mcap: unsalvageable" in out.getvalue() and "nothing can be saved" in err.getvalue()
+    assert (bag / "bag_1.mcap").read_bytes() == garbage
+    assert not (bag / "bag_1.mcap.damaged").exists()
+    assert read_metadata(bag).relative_file_paths == ("bag_0.mcap", "bag_2.mcap")
+    with BagReader(bag) as reader:  # the rest of the bag reads again
+        assert reader.message_count == 250 - sum(1 for k in range(250) if 100 <= k < 200)
+
+
+def test_bag_of_garbage_only_is_left_alone_with_exit_8(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "bag_0.mcap").write_bytes(b"not an MCAP file at all" * 100)
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    before = {path.name: path.read_bytes() for path in bag.iterdir()}
+    assert main(["repair", str(bag)]) == EXIT_UNSALVAGEABLE
+    assert {path.name: path.read_bytes() for path in bag.iterdir()} == before
+
+
+def test_a_broken_chunk_crc_is_named_and_not_intact(tmp_path: Path) -> None:
+    bag, _ = _partial_bag(tmp_path)
+    path = bag / "bag_0.mcap"
+    data = bytearray(path.read_bytes())
+    data[len(data) // 3] ^= 0x10  # inside a chunk's records: its CRC no longer checks
+    path.write_bytes(bytes(data))
+    out = io.StringIO()
+    assert repair(bag, stdout=out, stderr=io.StringIO()) == 0
+    text = out.getvalue()
+    assert "intact" not in text and "chunk CRC mismatch" in text and "lost 1 chunks, " in text
+    assert "/smm/joint_states 1)" in text  # the statistics (their CRC checks) say what was lost
+    assert read_metadata(bag).message_count == 299
+    assert (bag / "metadata.yaml.damaged").exists() and (bag / "bag_0.mcap.damaged").read_bytes() == data
 
 
 def test_repair_of_an_intact_bag_changes_nothing(tmp_path: Path) -> None:

@@ -111,8 +111,8 @@ def repair(
     except BagError as error:
         return _fail(error, err)
     out.write(format_repair(report) + "\n")
-    for error in report.errors:
-        err.write(f"smm-bag: error: {error}\n")
+    for failure in report.errors:
+        err.write(f"smm-bag: error: {failure}\n")
     return exit_code(report.errors[0]) if report.errors else EXIT_OK
 
 

@@ -51,4 +51,4 @@ class ParamsFileError(BagError):
 
 
 class UnsalvageableFileError(BagError):
-    """No record of a storage file checks: ``smm-bag repair`` can save nothing of it and leaves it as it was."""
+    """No record of a storage file checks: ``smm-bag repair`` saves nothing of it and leaves it as it was."""

@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from io import BytesIO
 
-import lz4.frame
+import lz4.frame  # type: ignore[import-untyped]
 import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
@@ -189,7 +189,9 @@ def chunk_records(records: bytes) -> Iterator[tuple[int, Schema | Channel | Mess
         item: Schema | Channel | Message | None = None
         if opcode == Opcode.MESSAGE:
             channel, sequence, log_time, publish_time = _MESSAGE.unpack_from(records, body)
-            item = Message(channel, log_time, bytes(records[body + 22 : body + length]), publish_time, sequence)
+            item = Message(
+                channel, log_time, bytes(records[body + 22 : body + length]), publish_time, sequence
+            )
         elif opcode == Opcode.SCHEMA:
             item = Schema.read(_stream(records[body : body + length]))
         elif opcode == Opcode.CHANNEL:
@@ -202,7 +204,7 @@ def chunk_records(records: bytes) -> Iterator[tuple[int, Schema | Channel | Mess
 
 
 def _chunk_fields(data: bytes, offset: int, limit: int) -> tuple[int, int, int, str, int, int] | None:
-    """``(length, uncompressed size, crc, compression, records start, records length)`` if the framing fits."""
+    """``(length, uncompressed size, crc, compression, records start, records length)`` if framed well."""
     if offset + 9 + _CHUNK_FIXED.size > limit or data[offset] != Opcode.CHUNK:
         return None
     (length,) = struct.unpack_from("<Q", data, offset + 1)
@@ -213,7 +215,9 @@ def _chunk_fields(data: bytes, offset: int, limit: int) -> tuple[int, int, int, 
     if name_length > 4 or _CHUNK_FIXED.size + name_length + 8 > length:
         return None
     try:
-        compression = bytes(data[body + _CHUNK_FIXED.size : body + _CHUNK_FIXED.size + name_length]).decode("ascii")
+        compression = bytes(data[body + _CHUNK_FIXED.size : body + _CHUNK_FIXED.size + name_length]).decode(
+            "ascii"
+        )
     except UnicodeDecodeError:
         return None
     (records_length,) = struct.unpack_from("<Q", data, body + _CHUNK_FIXED.size + name_length)
@@ -231,9 +235,7 @@ def chunk_data(data: bytes, chunk: GoodChunk) -> bytes:
     return _decompress(compression, bytes(data[start : start + length]), size)
 
 
-def _check_chunk(
-    data: bytes, offset: int, limit: int, trusted: bool
-) -> tuple[GoodChunk, bytes] | str:
+def _check_chunk(data: bytes, offset: int, limit: int, trusted: bool) -> tuple[GoodChunk, bytes] | str:
     """The chunk at ``offset`` and its records if they check, else why not."""
     fields = _chunk_fields(data, offset, limit)
     if fields is None:
@@ -280,7 +282,7 @@ def _footer(data: bytes) -> Footer | None:
     at = size - _TAIL
     if _PREFIX.unpack_from(data, at) != (Opcode.FOOTER, 20):
         return None
-    footer = Footer.read(_stream(bytes(data[at + 9 : at + 29])))
+    footer: Footer = Footer.read(_stream(bytes(data[at + 9 : at + 29])))
     if footer.summary_start and not len(MCAP_MAGIC) < footer.summary_start <= at:
         return None
     if footer.summary_offset_start and not footer.summary_start < footer.summary_offset_start <= at:
@@ -293,7 +295,9 @@ def _summary(data: bytes, footer: Footer) -> Summary | None:
         return None
     footer_at = len(data) - _TAIL
     crc = zlib.crc32(data[footer.summary_start : footer_at + 25])
-    summary = Summary(checked=footer.summary_crc != 0 and crc == footer.summary_crc, start=footer.summary_start)
+    summary = Summary(
+        checked=footer.summary_crc != 0 and crc == footer.summary_crc, start=footer.summary_start
+    )
     position = footer.summary_start
     end = footer.summary_offset_start or footer_at
     try:
@@ -449,7 +453,10 @@ def _compare_summary(
     expected: dict[int, dict[int, list[tuple[int, int]]]],
 ) -> None:
     """Notes every way the summary (whose CRC checks) disagrees with the data section."""
-    for kind, copies, found in (("schema", summary.schemas, scan.schemas), ("channel", summary.channels, scan.channels)):
+    for kind, copies, found in (
+        ("schema", summary.schemas, scan.schemas),
+        ("channel", summary.channels, scan.channels),
+    ):
         for key, record in copies.items():
             if key in found and found[key] != record:
                 scan.inconsistencies.append(f"summary {kind} {key} differs from the data section's")
@@ -461,16 +468,20 @@ def _compare_summary(
             scan.inconsistencies.append(f"indexed chunk at byte {entry.chunk_start_offset} not found")
             continue
         if (entry.chunk_length, entry.compression) != (chunk.length, chunk.compression) or (
-            chunk.counts and (entry.message_start_time, entry.message_end_time) != (chunk.start_ns, chunk.end_ns)
+            chunk.counts
+            and (entry.message_start_time, entry.message_end_time) != (chunk.start_ns, chunk.end_ns)
         ):
-            scan.inconsistencies.append(f"chunk index of byte {entry.chunk_start_offset} disagrees with the chunk")
+            scan.inconsistencies.append(
+                f"chunk index of byte {entry.chunk_start_offset} disagrees with the chunk"
+            )
         wanted = expected.get(entry.chunk_start_offset, {})
         got = {
-            channel: message_indexes.get(offset)
-            for channel, offset in entry.message_index_offsets.items()
+            channel: message_indexes.get(offset) for channel, offset in entry.message_index_offsets.items()
         }
         if got and {c: (i.records if i else None) for c, i in got.items()} != wanted:
-            scan.inconsistencies.append(f"message index of the chunk at byte {entry.chunk_start_offset} wrong")
+            scan.inconsistencies.append(
+                f"message index of the chunk at byte {entry.chunk_start_offset} wrong"
+            )
     if len(summary.chunk_indexes) != len(scan.chunks):
         scan.inconsistencies.append(
             f"summary indexes {len(summary.chunk_indexes)} chunks, the data section holds {len(scan.chunks)}"

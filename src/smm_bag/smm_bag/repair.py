@@ -46,7 +46,8 @@ class FileRepair:
             checks; left as it was) or ``missing`` (listed in ``metadata.yaml``, not on disk).
         messages: Messages in the file after repair.
         chunks: Chunks whose CRC checks (kept).
-        lost_chunks: Chunks lost; None if unknown (no summary that checks).
+        lost_chunks: Chunks lost: exact with a chunk index that checks, else the damaged chunk records found.
+        lost_chunks_exact: True if ``lost_chunks`` comes from a chunk index that checks.
         lost_messages: Messages lost per topic, where the file's statistics say (empty if unknown).
         lost_ranges: Log-time ranges (ns) of lost data: exact from the chunk index, else the gap between
             the kept chunks around a damaged place (None: open end).
@@ -60,7 +61,8 @@ class FileRepair:
     status: str
     messages: int = 0
     chunks: int = 0
-    lost_chunks: int | None = None
+    lost_chunks: int = 0
+    lost_chunks_exact: bool = True
     lost_messages: Mapping[str, int] = field(default_factory=dict)
     lost_ranges: tuple[tuple[int | None, int | None], ...] = ()
     findings: tuple[str, ...] = ()
@@ -86,8 +88,9 @@ class RepairReport:
     Attributes:
         files: Per storage file.
         metadata: The metadata now in ``metadata.yaml``.
-        metadata_note: What was wrong with the old ``metadata.yaml`` (empty if it agreed or was rewritten
-            only because a file was).
+        metadata_note: What was wrong with the old ``metadata.yaml`` (empty if it agreed with the files
+            before repair).
+        metadata_rewritten: True if ``metadata.yaml`` was written.
         metadata_backup: Name of the kept old ``metadata.yaml``, if any.
         lost_messages: Messages per topic the old ``metadata.yaml`` listed and the files no longer hold.
     """
@@ -95,6 +98,7 @@ class RepairReport:
     files: tuple[FileRepair, ...]
     metadata: BagMetadata
     metadata_note: str = ""
+    metadata_rewritten: bool = False
     metadata_backup: str = ""
     lost_messages: Mapping[str, int] = field(default_factory=dict)
 
@@ -125,7 +129,10 @@ class _File:
 
     def info(self) -> FileInfo:
         spans = [
-            span for chunk in self.scan.chunks for channel, span in chunk.spans.items() if channel in self.usable
+            span
+            for chunk in self.scan.chunks
+            for channel, span in chunk.spans.items()
+            if channel in self.usable
         ]
         if not spans:
             return FileInfo(path=self.path.name)
@@ -188,7 +195,10 @@ def _rewrite(item: _File, data: bytes, serialized: str) -> Path:
             if schema is not None and schema.id not in schemas:
                 schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
             channels[key] = writer.register_channel(
-                channel.topic, channel.message_encoding, schemas.get(channel.schema_id, 0), dict(channel.metadata)
+                channel.topic,
+                channel.message_encoding,
+                schemas.get(channel.schema_id, 0),
+                dict(channel.metadata),
             )
         for _, _, record in scan.metadata:
             if record.name != "rosbag2":
@@ -209,7 +219,7 @@ def _rewrite(item: _File, data: bytes, serialized: str) -> Path:
 
 
 def _losses(item: _File) -> tuple[int | None, dict[str, int], tuple[tuple[int | None, int | None], ...]]:
-    """Lost chunks, lost messages per topic and lost log-time ranges of a damaged file."""
+    """Lost chunks (None: not known exactly), lost messages per topic and lost log-time ranges."""
     scan, kept = item.scan, {chunk.offset for chunk in item.scan.chunks}
     topics = {key: channel.topic for key, channel in scan.channels.items()}
     lost: dict[str, int] = {}
@@ -304,7 +314,9 @@ def _scan_files(
         if progress is not None:
             progress(path.name)
         if not path.is_file():
-            failed.append(FileRepair(path.name, "missing", findings=("listed in metadata.yaml, not on disk",)))
+            failed.append(
+                FileRepair(path.name, "missing", findings=("listed in metadata.yaml, not on disk",))
+            )
             continue
         with _mapped(path) as data:
             scan = scan_mcap(data)
@@ -349,14 +361,18 @@ def repair_bag(
     if not files:
         first = next(item.error for item in failed if item.error is not None)
         raise first
-    base = old if old is not None else _record_metadata(files) or BagMetadata()
+    # A metadata.yaml that disagrees with the files may be damaged itself: the last rosbag2 record wins then.
+    agrees = old is not None and not _disagrees(old, _metadata_from(old, files))
+    base = old if agrees and old is not None else _record_metadata(files) or old or BagMetadata()
     metadata = _metadata_from(base, files)
     results: dict[str, FileRepair] = {item.path: item for item in failed}
     for item in files:
         counts = item.counts()
         messages = sum(counts.values())
         if item.scan.intact and len(item.usable) == len(item.scan.channels):
-            data_crc = "data section CRC checks" if item.scan.data_crc == "checks" else "no data section CRC written"
+            data_crc = (
+                "data section CRC checks" if item.scan.data_crc == "checks" else "no data section CRC written"
+            )
             results[item.path.name] = FileRepair(
                 item.path.name,
                 "intact",
@@ -379,7 +395,8 @@ def repair_bag(
             "repaired",
             messages,
             len(item.scan.chunks),
-            lost_chunks,
+            item.scan.bad_chunks if lost_chunks is None else lost_chunks,
+            lost_chunks is not None,
             lost,
             ranges,
             tuple(item.scan.findings),
@@ -387,14 +404,17 @@ def repair_bag(
         )
     reports = tuple(results[p.name] for p in paths)
     rebuilt = [item for item in reports if item.rebuilt]
-    note = old_problem if old_problem else "" if old is None or not _disagrees(old, metadata) else "disagreed with the files"
+    note = old_problem or (
+        "disagreed with the files" if old is not None and _disagrees(old, metadata) else ""
+    )
     lost_total: dict[str, int] = {}
     if old is not None:
         now = {topic.name: topic.message_count for topic in metadata.topics}
         lost_total = {t.name: t.message_count - now.get(t.name, 0) for t in old.topics}
         lost_total = {name: count for name, count in lost_total.items() if count > 0}
     metadata_backup = ""
-    if rebuilt or old is None or _disagrees(old, metadata):
+    rewrite = bool(rebuilt) or old is None or _disagrees(old, metadata)
+    if rewrite:
         custom = dict(metadata.custom_data)
         if rebuilt:
             custom["smm.repaired"] = ", ".join(
@@ -407,7 +427,7 @@ def repair_bag(
             current.replace(target)
             metadata_backup = target.name
         write_metadata(bag, metadata)
-    return RepairReport(reports, metadata, note, metadata_backup, lost_total)
+    return RepairReport(reports, metadata, note, rewrite, metadata_backup, lost_total)
 
 
 def _disagrees(old: BagMetadata, new: BagMetadata) -> bool:

@@ -22,13 +22,20 @@ def _file_lines(item: FileRepair) -> list[str]:
         return [f"{item.path}: intact ({item.messages} messages in {item.chunks} chunks; {item.checked})"]
     if item.status in ("missing", "unsalvageable"):
         return [f"{item.path}: {item.status}: {item.reason or 'nothing checks'}; left as it was"]
-    lines = [f"{item.path}: damaged: {item.reason}", f"  kept {item.messages} messages in {item.chunks} chunks"]
-    chunks = "an unknown number of chunks" if item.lost_chunks is None else f"{item.lost_chunks} chunks"
+    lines = [
+        f"{item.path}: damaged: {item.reason}",
+        f"  kept {item.messages} messages in {item.chunks} chunks",
+    ]
+    chunks = (
+        f"{item.lost_chunks} chunks"
+        if item.lost_chunks_exact
+        else (f"at least {item.lost_chunks} chunks (no chunk index that checks)")
+    )
     messages = (
         f"{sum(item.lost_messages.values())} messages ({_per_topic(item.lost_messages)})"
         if item.lost_messages
         else "messages per topic unknown (no statistics that check)"
-        if item.lost_chunks is None
+        if not item.lost_chunks_exact
         else "no message"
     )
     lines.append(f"  lost {chunks}, {messages}")
@@ -43,9 +50,13 @@ def format_repair(report: RepairReport) -> str:
     """The report as printed by ``smm-bag repair``."""
     lines = [line for item in report.files for line in _file_lines(item)]
     metadata = report.metadata
-    summary = f"{metadata.message_count} messages on {len(metadata.topics)} topics in {len(metadata.files)} files"
+    summary = (
+        f"{metadata.message_count} messages on {len(metadata.topics)} topics in {len(metadata.files)} file(s)"
+    )
+    if report.metadata_rewritten:
+        summary = f"rebuilt to what the files hold: {summary}"
     if report.metadata_note:
-        summary = f"{report.metadata_note}; rebuilt: {summary}"
+        summary = f"{report.metadata_note}; {summary}"
     if report.metadata_backup:
         summary += f"; original kept as {report.metadata_backup}"
     lines.append(f"metadata.yaml: {summary}")
