@@ -1,48 +1,35 @@
 """MCAP record scanner of ``smm-bag repair``: which records of a file check, and where it is damaged.
 
-Follows the MCAP specification (mcap.dev/spec): records are ``<opcode u8><length u64><body>``; a Chunk's
+Follows the MCAP specification (mcap.dev/spec): a Chunk's
 ``uncompressed_crc`` covers its uncompressed records, DataEnd's ``data_section_crc`` every byte before it,
 the Footer's ``summary_crc`` the summary section up to and including the Footer's ``summary_offset_start``.
-A CRC of 0 means "not written". Record layouts are read with the ``mcap`` library's record classes.
+A CRC of 0 means "not written". Record layouts: :mod:`smm_bag.mcap_records`.
 """
 
 from __future__ import annotations
 
-import struct
 import zlib
-from collections.abc import Iterator
 from dataclasses import dataclass, field
-from io import BytesIO
 
-import lz4.frame  # type: ignore[import-untyped]
 import zstandard
-from mcap.data_stream import ReadDataStream
-from mcap.exceptions import McapError
 from mcap.opcode import Opcode
-from mcap.records import (
-    Channel,
-    ChunkIndex,
-    DataEnd,
-    Footer,
-    Header,
-    Message,
-    MessageIndex,
-    Metadata,
-    MetadataIndex,
-    Schema,
-    Statistics,
-)
+from mcap.records import Channel, DataEnd, Header, Message, MessageIndex, Metadata, Schema
 
+from smm_bag.mcap_records import (
+    PARSE_ERRORS,
+    PREFIX,
+    Summary,
+    chunk_fields,
+    chunk_records,
+    decompress,
+    read_footer,
+    read_summary,
+    stream,
+)
 from smm_bag.reader import MCAP_MAGIC
 
-__all__ = ["Damage", "FileScan", "GoodChunk", "Summary", "chunk_records", "scan_mcap"]
+__all__ = ["Damage", "FileScan", "GoodChunk", "chunk_data", "scan_mcap"]
 
-_PREFIX = struct.Struct("<BQ")
-_CHUNK_FIXED = struct.Struct("<QQQII")  # start, end, uncompressed size, crc, compression length
-_MESSAGE = struct.Struct("<HIQQ")
-_FOOTER_RECORD = 9 + 20
-_TAIL = _FOOTER_RECORD + len(MCAP_MAGIC)
-_COMPRESSIONS = ("", "zstd", "lz4")
 _DATA_OPCODES = frozenset(
     {
         Opcode.HEADER,
@@ -56,21 +43,6 @@ _DATA_OPCODES = frozenset(
         Opcode.DATA_END,
     }
 )
-_PARSE_ERRORS = (McapError, ValueError, EOFError, struct.error, KeyError, IndexError, zstandard.ZstdError)
-
-
-class _Exact(ReadDataStream):
-    """A ReadDataStream that fails on a short read (a field running past the record)."""
-
-    def read(self, length: int) -> bytes:
-        data = super().read(length)
-        if len(data) != length:
-            raise EOFError("field runs past the end of the record")
-        return data
-
-
-def _stream(body: bytes) -> _Exact:
-    return _Exact(BytesIO(body))
 
 
 @dataclass(frozen=True)
@@ -105,20 +77,6 @@ class GoodChunk:
     spans: dict[int, tuple[int, int]]
     start_ns: int | None
     end_ns: int | None
-
-
-@dataclass
-class Summary:
-    """The summary section's records; ``checked`` if its CRC was written and checks."""
-
-    checked: bool
-    start: int
-    schemas: dict[int, Schema] = field(default_factory=dict)
-    channels: dict[int, Channel] = field(default_factory=dict)
-    chunk_indexes: list[ChunkIndex] = field(default_factory=list)
-    metadata_indexes: list[MetadataIndex] = field(default_factory=list)
-    statistics: Statistics | None = None
-    other: int = 0
 
 
 @dataclass
@@ -164,85 +122,22 @@ class FileScan:
         return found + self.inconsistencies
 
 
-def _decompress(compression: str, data: bytes, size: int) -> bytes:
-    if compression == "zstd":
-        return bytes(zstandard.ZstdDecompressor().decompress(data, max_output_size=size))
-    if compression == "lz4":
-        return bytes(lz4.frame.decompress(data))
-    return data
-
-
-def chunk_records(records: bytes) -> Iterator[tuple[int, Schema | Channel | Message]]:
-    """``(offset in the records, record)`` of the Schema, Channel and Message records of a chunk's records.
-
-    Raises:
-        ValueError: A record runs past the end or does not parse.
-    """
-    position, end = 0, len(records)
-    while position < end:
-        if end - position < 9:
-            raise ValueError(f"record header at {position} runs past the chunk's end")
-        opcode, length = _PREFIX.unpack_from(records, position)
-        body = position + 9
-        if length > end - body:
-            raise ValueError(f"record at {position} runs past the chunk's end")
-        item: Schema | Channel | Message | None = None
-        if opcode == Opcode.MESSAGE:
-            channel, sequence, log_time, publish_time = _MESSAGE.unpack_from(records, body)
-            item = Message(
-                channel, log_time, bytes(records[body + 22 : body + length]), publish_time, sequence
-            )
-        elif opcode == Opcode.SCHEMA:
-            item = Schema.read(_stream(records[body : body + length]))
-        elif opcode == Opcode.CHANNEL:
-            item = Channel.read(_stream(records[body : body + length]))
-        elif opcode == 0:
-            raise ValueError(f"opcode 0 at {position}")
-        if item is not None:
-            yield position, item
-        position = body + length
-
-
-def _chunk_fields(data: bytes, offset: int, limit: int) -> tuple[int, int, int, str, int, int] | None:
-    """``(length, uncompressed size, crc, compression, records start, records length)`` if framed well."""
-    if offset + 9 + _CHUNK_FIXED.size > limit or data[offset] != Opcode.CHUNK:
-        return None
-    (length,) = struct.unpack_from("<Q", data, offset + 1)
-    body = offset + 9
-    if length < _CHUNK_FIXED.size + 8 or length > limit - body:
-        return None
-    _, _, size, crc, name_length = _CHUNK_FIXED.unpack_from(data, body)
-    if name_length > 4 or _CHUNK_FIXED.size + name_length + 8 > length:
-        return None
-    try:
-        compression = bytes(data[body + _CHUNK_FIXED.size : body + _CHUNK_FIXED.size + name_length]).decode(
-            "ascii"
-        )
-    except UnicodeDecodeError:
-        return None
-    (records_length,) = struct.unpack_from("<Q", data, body + _CHUNK_FIXED.size + name_length)
-    records_start = body + _CHUNK_FIXED.size + name_length + 8
-    if compression not in _COMPRESSIONS or records_start + records_length != body + length:
-        return None
-    return 9 + length, size, crc, compression, records_start, records_length
-
-
 def chunk_data(data: bytes, chunk: GoodChunk) -> bytes:
     """The uncompressed records of a chunk found by :func:`scan_mcap`."""
-    fields = _chunk_fields(data, chunk.offset, len(data))
+    fields = chunk_fields(data, chunk.offset, len(data))
     assert fields is not None
     _, size, _, compression, start, length = fields
-    return _decompress(compression, bytes(data[start : start + length]), size)
+    return decompress(compression, bytes(data[start : start + length]), size)
 
 
 def _check_chunk(data: bytes, offset: int, limit: int, trusted: bool) -> tuple[GoodChunk, bytes] | str:
     """The chunk at ``offset`` and its records if they check, else why not."""
-    fields = _chunk_fields(data, offset, limit)
+    fields = chunk_fields(data, offset, limit)
     if fields is None:
         return "chunk framing damaged"
     length, size, crc, compression, start, records_length = fields
     try:
-        records = _decompress(compression, bytes(data[start : start + records_length]), size)
+        records = decompress(compression, bytes(data[start : start + records_length]), size)
     except (zstandard.ZstdError, RuntimeError, ValueError, MemoryError) as error:
         return f"chunk does not decompress ({error})"
     if crc != 0 and zlib.crc32(records) != crc:
@@ -258,7 +153,7 @@ def _check_chunk(data: bytes, offset: int, limit: int, trusted: bool) -> tuple[G
                 counts[channel] = counts.get(channel, 0) + 1
                 low, high = spans.get(channel, (time, time))
                 spans[channel] = (min(low, time), max(high, time))
-    except _PARSE_ERRORS as error:
+    except PARSE_ERRORS as error:
         return f"chunk records malformed ({error})"
     start_ns = min((low for low, _ in spans.values()), default=None)
     end_ns = max((high for _, high in spans.values()), default=None)
@@ -269,62 +164,10 @@ def _record(data: bytes, offset: int, limit: int) -> tuple[int, int] | None:
     """``(opcode, end offset)`` of a plausibly framed data-section record at ``offset``, else None."""
     if offset + 9 > limit:
         return None
-    opcode, length = _PREFIX.unpack_from(data, offset)
+    opcode, length = PREFIX.unpack_from(data, offset)
     if opcode not in _DATA_OPCODES or length > limit - offset - 9:
         return None
     return opcode, offset + 9 + length
-
-
-def _footer(data: bytes) -> Footer | None:
-    size = len(data)
-    if size < len(MCAP_MAGIC) + _TAIL or bytes(data[size - len(MCAP_MAGIC) :]) != MCAP_MAGIC:
-        return None
-    at = size - _TAIL
-    if _PREFIX.unpack_from(data, at) != (Opcode.FOOTER, 20):
-        return None
-    footer: Footer = Footer.read(_stream(bytes(data[at + 9 : at + 29])))
-    if footer.summary_start and not len(MCAP_MAGIC) < footer.summary_start <= at:
-        return None
-    if footer.summary_offset_start and not footer.summary_start < footer.summary_offset_start <= at:
-        return None
-    return footer
-
-
-def _summary(data: bytes, footer: Footer) -> Summary | None:
-    if footer.summary_start == 0:
-        return None
-    footer_at = len(data) - _TAIL
-    crc = zlib.crc32(data[footer.summary_start : footer_at + 25])
-    summary = Summary(
-        checked=footer.summary_crc != 0 and crc == footer.summary_crc, start=footer.summary_start
-    )
-    position = footer.summary_start
-    end = footer.summary_offset_start or footer_at
-    try:
-        while position < end:
-            opcode, length = _PREFIX.unpack_from(data, position)
-            if length > end - position - 9:
-                raise ValueError("summary record runs past the summary")
-            body = _stream(bytes(data[position + 9 : position + 9 + length]))
-            if opcode == Opcode.SCHEMA:
-                schema = Schema.read(body)
-                summary.schemas[schema.id] = schema
-            elif opcode == Opcode.CHANNEL:
-                channel = Channel.read(body)
-                summary.channels[channel.id] = channel
-            elif opcode == Opcode.CHUNK_INDEX:
-                summary.chunk_indexes.append(ChunkIndex.read(body))
-            elif opcode == Opcode.METADATA_INDEX:
-                summary.metadata_indexes.append(MetadataIndex.read(body))
-            elif opcode == Opcode.STATISTICS:
-                summary.statistics = Statistics.read(body)
-            else:
-                summary.other += 1
-            position += 9 + length
-    except _PARSE_ERRORS:
-        if summary.checked:
-            raise
-    return summary
 
 
 def _resync(data: bytes, start: int, limit: int, index: list[int]) -> int:
@@ -340,7 +183,7 @@ def _resync(data: bytes, start: int, limit: int, index: list[int]) -> int:
         position = data.find(bytes([Opcode.CHUNK]), position, limit)
         if position < 0:
             return limit
-        if _chunk_fields(data, position, limit) is not None and not isinstance(
+        if chunk_fields(data, position, limit) is not None and not isinstance(
             _check_chunk(data, position, limit, trusted=False), str
         ):
             return position
@@ -350,10 +193,10 @@ def _resync(data: bytes, start: int, limit: int, index: list[int]) -> int:
 def scan_mcap(data: bytes) -> FileScan:
     """Reads every record of an MCAP file's bytes, keeping those that check, and notes the damage."""
     scan = FileScan(size=len(data))
-    footer = _footer(data)
+    footer = read_footer(data)
     try:
-        summary = _summary(data, footer) if footer is not None else None
-    except _PARSE_ERRORS as error:
+        summary = read_summary(data, footer) if footer is not None else None
+    except PARSE_ERRORS as error:
         summary = None
         scan.inconsistencies.append(f"summary unreadable although its CRC checks ({error})")
     if footer is None:
@@ -407,9 +250,9 @@ def scan_mcap(data: bytes) -> FileScan:
                         else:
                             scan.channels.setdefault(record.id, record)
             elif opcode == Opcode.HEADER:
-                scan.header = Header.read(_stream(body))
+                scan.header = Header.read(stream(body))
             elif opcode == Opcode.DATA_END:
-                written = DataEnd.read(_stream(body)).data_section_crc
+                written = DataEnd.read(stream(body)).data_section_crc
                 scan.data_end = position
                 if written == 0:
                     scan.data_crc = "not written"
@@ -418,16 +261,16 @@ def scan_mcap(data: bytes) -> FileScan:
                 position = end
                 break
             elif opcode == Opcode.METADATA:
-                scan.metadata.append((position, end - position, Metadata.read(_stream(body))))
+                scan.metadata.append((position, end - position, Metadata.read(stream(body))))
             elif opcode == Opcode.MESSAGE_INDEX:
-                message_indexes[position] = MessageIndex.read(_stream(body))
+                message_indexes[position] = MessageIndex.read(stream(body))
             elif opcode == Opcode.SCHEMA and clean:
-                top_level.append((position, Schema.read(_stream(body))))
+                top_level.append((position, Schema.read(stream(body))))
             elif opcode == Opcode.CHANNEL and clean:
-                top_level.append((position, Channel.read(_stream(body))))
+                top_level.append((position, Channel.read(stream(body))))
             elif opcode == Opcode.MESSAGE:
                 scan.top_level_messages += 1
-        except _PARSE_ERRORS as error:
+        except PARSE_ERRORS as error:
             scan.damage.append(Damage(position, end, f"record {Opcode(opcode).name} malformed ({error})"))
             clean = False
         position = end

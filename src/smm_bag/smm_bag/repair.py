@@ -11,15 +11,16 @@ from __future__ import annotations
 import mmap
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import yaml
 from mcap.records import Channel, Message, Schema
 from mcap.writer import CompressionType, Writer
 
-from smm_bag.errors import BagError, CorruptBagError, NotABagError, UnsalvageableFileError
-from smm_bag.mcap_scan import FileScan, chunk_data, chunk_records, scan_mcap
+from smm_bag.errors import CorruptBagError, NotABagError, UnsalvageableFileError
+from smm_bag.mcap_records import chunk_records
+from smm_bag.mcap_scan import FileScan, chunk_data, scan_mcap
 from smm_bag.metadata import (
     METADATA_FILE,
     BagMetadata,
@@ -30,87 +31,11 @@ from smm_bag.metadata import (
     write_metadata,
 )
 from smm_bag.qos import load_profiles
+from smm_bag.repair_report import FileRepair, RepairReport
 
 __all__ = ["FileRepair", "RepairReport", "repair_bag"]
 
 _COMPRESSION = {"": CompressionType.NONE, "zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4}
-
-
-@dataclass(frozen=True)
-class FileRepair:
-    """What repair found in one storage file and did to it.
-
-    Attributes:
-        path: File name inside the bag.
-        status: ``intact`` (left untouched), ``repaired`` (rewritten), ``unsalvageable`` (nothing in it
-            checks; left as it was) or ``missing`` (listed in ``metadata.yaml``, not on disk).
-        messages: Messages in the file after repair.
-        chunks: Chunks whose CRC checks (kept).
-        lost_chunks: Chunks lost: exact with a chunk index that checks, else the damaged chunk records found.
-        lost_chunks_exact: True if ``lost_chunks`` comes from a chunk index that checks.
-        lost_messages: Messages lost per topic, where the file's statistics say (empty if unknown).
-        lost_ranges: Log-time ranges (ns) of lost data: exact from the chunk index, else the gap between
-            the kept chunks around a damaged place (None: open end).
-        findings: Every damaged place and disagreement found (empty if intact).
-        backup: Name of the kept original, if any.
-        error: Why nothing could be saved (status ``unsalvageable``).
-        checked: For an intact file, which CRCs it holds and that they check.
-    """
-
-    path: str
-    status: str
-    messages: int = 0
-    chunks: int = 0
-    lost_chunks: int = 0
-    lost_chunks_exact: bool = True
-    lost_messages: Mapping[str, int] = field(default_factory=dict)
-    lost_ranges: tuple[tuple[int | None, int | None], ...] = ()
-    findings: tuple[str, ...] = ()
-    backup: str = ""
-    error: BagError | None = None
-    checked: str = ""
-
-    @property
-    def rebuilt(self) -> bool:
-        """True if the file was rewritten."""
-        return self.status == "repaired"
-
-    @property
-    def reason(self) -> str:
-        """The findings in one line."""
-        return "; ".join(self.findings)
-
-
-@dataclass(frozen=True)
-class RepairReport:
-    """Result of :func:`repair_bag`: per-file results, the new metadata and what became of the old one.
-
-    Attributes:
-        files: Per storage file.
-        metadata: The metadata now in ``metadata.yaml``.
-        metadata_note: What was wrong with the old ``metadata.yaml`` (empty if it agreed with the files
-            before repair).
-        metadata_rewritten: True if ``metadata.yaml`` was written.
-        metadata_backup: Name of the kept old ``metadata.yaml``, if any.
-        lost_messages: Messages per topic the old ``metadata.yaml`` listed and the files no longer hold.
-    """
-
-    files: tuple[FileRepair, ...]
-    metadata: BagMetadata
-    metadata_note: str = ""
-    metadata_rewritten: bool = False
-    metadata_backup: str = ""
-    lost_messages: Mapping[str, int] = field(default_factory=dict)
-
-    @property
-    def changed(self) -> bool:
-        """True if any file was rebuilt."""
-        return any(item.rebuilt for item in self.files)
-
-    @property
-    def errors(self) -> tuple[BagError, ...]:
-        """The errors of files nothing could be saved from."""
-        return tuple(item.error for item in self.files if item.error is not None)
 
 
 @dataclass

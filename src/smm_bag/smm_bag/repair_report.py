@@ -1,12 +1,91 @@
-"""Text of an ``smm-bag repair`` report: per file what checked, what was lost and where the original is."""
+"""The report of ``smm-bag repair``: per file what checked, what was lost, where the original is; its text."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 
-from smm_bag.repair import FileRepair, RepairReport
+from smm_bag.errors import BagError
+from smm_bag.metadata import BagMetadata
 
-__all__ = ["format_repair"]
+__all__ = ["FileRepair", "RepairReport", "format_repair"]
+
+
+@dataclass(frozen=True)
+class FileRepair:
+    """What repair found in one storage file and did to it.
+
+    Attributes:
+        path: File name inside the bag.
+        status: ``intact`` (left untouched), ``repaired`` (rewritten), ``unsalvageable`` (nothing in it
+            checks; left as it was) or ``missing`` (listed in ``metadata.yaml``, not on disk).
+        messages: Messages in the file after repair.
+        chunks: Chunks whose CRC checks (kept).
+        lost_chunks: Chunks lost: exact with a chunk index that checks, else the damaged chunk records found.
+        lost_chunks_exact: True if ``lost_chunks`` comes from a chunk index that checks.
+        lost_messages: Messages lost per topic, where the file's statistics say (empty if unknown).
+        lost_ranges: Log-time ranges (ns) of lost data: exact from the chunk index, else the gap between
+            the kept chunks around a damaged place (None: open end).
+        findings: Every damaged place and disagreement found (empty if intact).
+        backup: Name of the kept original, if any.
+        error: Why nothing could be saved (status ``unsalvageable``).
+        checked: For an intact file, which CRCs it holds and that they check.
+    """
+
+    path: str
+    status: str
+    messages: int = 0
+    chunks: int = 0
+    lost_chunks: int = 0
+    lost_chunks_exact: bool = True
+    lost_messages: Mapping[str, int] = field(default_factory=dict)
+    lost_ranges: tuple[tuple[int | None, int | None], ...] = ()
+    findings: tuple[str, ...] = ()
+    backup: str = ""
+    error: BagError | None = None
+    checked: str = ""
+
+    @property
+    def rebuilt(self) -> bool:
+        """True if the file was rewritten."""
+        return self.status == "repaired"
+
+    @property
+    def reason(self) -> str:
+        """The findings in one line."""
+        return "; ".join(self.findings)
+
+
+@dataclass(frozen=True)
+class RepairReport:
+    """Result of :func:`repair_bag`: per-file results, the new metadata and what became of the old one.
+
+    Attributes:
+        files: Per storage file.
+        metadata: The metadata now in ``metadata.yaml``.
+        metadata_note: What was wrong with the old ``metadata.yaml`` (empty if it agreed with the files
+            before repair).
+        metadata_rewritten: True if ``metadata.yaml`` was written.
+        metadata_backup: Name of the kept old ``metadata.yaml``, if any.
+        lost_messages: Messages per topic the old ``metadata.yaml`` listed and the files no longer hold.
+    """
+
+    files: tuple[FileRepair, ...]
+    metadata: BagMetadata
+    metadata_note: str = ""
+    metadata_rewritten: bool = False
+    metadata_backup: str = ""
+    lost_messages: Mapping[str, int] = field(default_factory=dict)
+
+    @property
+    def changed(self) -> bool:
+        """True if any file was rebuilt."""
+        return any(item.rebuilt for item in self.files)
+
+    @property
+    def errors(self) -> tuple[BagError, ...]:
+        """The errors of files nothing could be saved from."""
+        return tuple(item.error for item in self.files if item.error is not None)
 
 
 def _time(ns: int | None, open_end: str) -> str:
