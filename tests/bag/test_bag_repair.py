@@ -16,6 +16,7 @@ import pytest
 from bag.bag_helpers import T0, joint_state, mcap_messages, rosbags_messages
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mcap.reader import make_reader
 from smm_bag.cli import main
 from smm_bag.commands import EXIT_UNSALVAGEABLE, repair
 from smm_bag.errors import UnsalvageableFileError
@@ -150,6 +151,32 @@ def test_a_broken_chunk_crc_is_named_and_not_intact(tmp_path: Path) -> None:
     assert "/smm/joint_states 1)" in text  # the statistics (their CRC checks) say what was lost
     assert read_metadata(bag).message_count == 299
     assert (bag / "metadata.yaml.damaged").exists() and (bag / "bag_0.mcap.damaged").read_bytes() == data
+
+
+@pytest.mark.parametrize("summary_damaged", [False, True])
+def test_chunks_after_damaged_framing_are_found_by_the_index_or_by_a_crc_checked_search(
+    tmp_path: Path, summary_damaged: bool
+) -> None:
+    bag, _ = _partial_bag(tmp_path)  # one message per chunk
+    path = bag / "bag_0.mcap"
+    data = bytearray(path.read_bytes())
+    with path.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None and len(summary.chunk_indexes) == 300
+    for k in (10, 200):  # two places: the chunk's length field, so the next record cannot be framed
+        offset = summary.chunk_indexes[k].chunk_start_offset
+        data[offset + 1 : offset + 9] = b"\xff" * 8
+    footer_at = len(data) - 8 - 29
+    if summary_damaged:  # the chunk index no longer checks: the search must find the chunks
+        data[(footer_at + struct.unpack_from("<Q", data, footer_at + 9)[0]) // 2] ^= 0x01
+        data[struct.unpack_from("<Q", data, footer_at + 9)[0] + 40] ^= 0x01
+    path.write_bytes(bytes(data))
+    out = io.StringIO()
+    assert repair(bag, stdout=out, stderr=io.StringIO()) == 0
+    assert ("summary CRC mismatch" in out.getvalue()) == summary_damaged
+    with BagReader(bag) as reader:
+        times = [m.log_time_ns for m in reader.messages()]
+    assert times == [T0 + k * 1_000_000 for k in range(300) if k not in (10, 200)]
 
 
 def test_repair_of_an_intact_bag_changes_nothing(tmp_path: Path) -> None:
