@@ -41,7 +41,16 @@ _MESSAGE = struct.Struct("<HIQQ")
 _FOOTER_RECORD = 9 + 20
 TAIL = _FOOTER_RECORD + len(MCAP_MAGIC)
 _COMPRESSIONS = ("", "zstd", "lz4")
-PARSE_ERRORS = (McapError, ValueError, EOFError, struct.error, KeyError, IndexError, zstandard.ZstdError)
+PARSE_ERRORS = (
+    McapError,
+    ValueError,
+    EOFError,
+    struct.error,
+    KeyError,
+    IndexError,
+    OverflowError,
+    zstandard.ZstdError,
+)
 
 
 class _Exact(ReadDataStream):

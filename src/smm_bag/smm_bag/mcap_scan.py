@@ -138,7 +138,7 @@ def _check_chunk(data: bytes, offset: int, limit: int, trusted: bool) -> tuple[G
     length, size, crc, compression, start, records_length = fields
     try:
         records = decompress(compression, bytes(data[start : start + records_length]), size)
-    except (zstandard.ZstdError, RuntimeError, ValueError, MemoryError) as error:
+    except (zstandard.ZstdError, RuntimeError, ValueError, MemoryError, OverflowError) as error:
         return f"chunk does not decompress ({error})"
     if crc != 0 and zlib.crc32(records) != crc:
         return "chunk CRC mismatch"
@@ -231,13 +231,11 @@ def scan_mcap(data: bytes) -> FileScan:
             if opcode == Opcode.CHUNK:
                 found = _check_chunk(data, position, limit, trusted=clean or position in indexed)
                 if isinstance(found, str):
+                    # Its length may be what is damaged: go on at the next chunk that checks, not at its end.
                     scan.bad_chunks += 1
                     scan.damage.append(Damage(position, end, found))
                     clean = False
-                    if _record(data, end, limit) is None:
-                        after = _resync(data, position + 1, limit, index)
-                        scan.damage.append(Damage(end, after, "unreadable bytes after a damaged chunk"))
-                        end = after
+                    end = _resync(data, position + 1, limit, index)
                 else:
                     chunk, records = found
                     scan.chunks.append(chunk)
