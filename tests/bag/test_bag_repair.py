@@ -151,6 +151,11 @@ def test_a_broken_chunk_crc_is_named_and_not_intact(tmp_path: Path) -> None:
     assert "/smm/joint_states 1)" in text  # the statistics (their CRC checks) say what was lost
     assert read_metadata(bag).message_count == 299
     assert (bag / "metadata.yaml.damaged").exists() and (bag / "bag_0.mcap.damaged").read_bytes() == data
+    before = {path.name: path.read_bytes() for path in bag.iterdir()}
+    again = io.StringIO()
+    assert repair(bag, stdout=again, stderr=io.StringIO()) == 0  # a repaired bag is intact: nothing changes
+    assert "bag_0.mcap: intact (299 messages" in again.getvalue()
+    assert {path.name: path.read_bytes() for path in bag.iterdir()} == before
 
 
 @pytest.mark.parametrize("summary_damaged", [False, True])

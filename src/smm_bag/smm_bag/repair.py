@@ -287,8 +287,9 @@ def repair_bag(
         first = next(item.error for item in failed if item.error is not None)
         raise first
     # A metadata.yaml that disagrees with the files may be damaged itself: the last rosbag2 record wins then.
-    agrees = old is not None and not _disagrees(old, _metadata_from(old, files))
-    base = old if agrees and old is not None else _record_metadata(files) or old or BagMetadata()
+    recorded = _record_metadata(files)
+    agrees = old is not None and _agrees(old, _metadata_from(old, files), recorded)
+    base = old if agrees and old is not None else recorded or old or BagMetadata()
     metadata = _metadata_from(base, files)
     results: dict[str, FileRepair] = {item.path: item for item in failed}
     for item in files:
@@ -329,16 +330,14 @@ def repair_bag(
         )
     reports = tuple(results[p.name] for p in paths)
     rebuilt = [item for item in reports if item.rebuilt]
-    note = old_problem or (
-        "disagreed with the files" if old is not None and _disagrees(old, metadata) else ""
-    )
+    note = old_problem or ("" if agrees or old is None else "disagreed with the files")
     lost_total: dict[str, int] = {}
     if old is not None:
         now = {topic.name: topic.message_count for topic in metadata.topics}
         lost_total = {t.name: t.message_count - now.get(t.name, 0) for t in old.topics}
         lost_total = {name: count for name, count in lost_total.items() if count > 0}
     metadata_backup = ""
-    rewrite = bool(rebuilt) or old is None or _disagrees(old, metadata)
+    rewrite = bool(rebuilt) or not agrees
     if rewrite:
         custom = dict(metadata.custom_data)
         if rebuilt:
@@ -355,11 +354,12 @@ def repair_bag(
     return RepairReport(reports, metadata, note, rewrite, metadata_backup, lost_total)
 
 
-def _disagrees(old: BagMetadata, new: BagMetadata) -> bool:
-    counts = {topic.name: topic.message_count for topic in old.topics}
-    return (
-        counts != {topic.name: topic.message_count for topic in new.topics}
-        or old.files != new.files
-        or old.starting_time_ns != new.starting_time_ns
-        or old.duration_ns != new.duration_ns
-    )
+def _agrees(old: BagMetadata, derived: BagMetadata, recorded: BagMetadata | None) -> bool:
+    """True if ``metadata.yaml`` says what the files hold and what their last ``rosbag2`` record says."""
+    if old != derived:
+        return False
+    if recorded is None:
+        return True
+    own = {key: value for key, value in old.custom_data.items() if key != "smm.repaired"}
+    written = {key: value for key, value in recorded.custom_data.items() if key != "smm.repaired"}
+    return own == written and old.ros_distro == recorded.ros_distro
