@@ -255,7 +255,9 @@ def scan_mcap(data: bytes) -> FileScan:
                 if written == 0:
                     scan.data_crc = "not written"
                 else:
-                    scan.data_crc = "checks" if zlib.crc32(data[:position]) == written else "mismatch"
+                    with memoryview(data) as view:  # no copy of the data section
+                        crc = zlib.crc32(view[:position])
+                    scan.data_crc = "checks" if crc == written else "mismatch"
                 position = end
                 break
             elif opcode == Opcode.METADATA:
