@@ -184,6 +184,31 @@ def test_chunks_after_damaged_framing_are_found_by_the_index_or_by_a_crc_checked
     assert times == [T0 + k * 1_000_000 for k in range(300) if k not in (10, 200)]
 
 
+@pytest.mark.parametrize("summary_damaged", [False, True])
+def test_channels_come_from_whichever_copy_checks(tmp_path: Path, summary_damaged: bool) -> None:
+    bag, _ = _partial_bag(tmp_path)  # the first chunk holds the only in-chunk schema and channel records
+    path = bag / "bag_0.mcap"
+    data = bytearray(path.read_bytes())
+    with path.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    first = summary.chunk_indexes[0]
+    data[first.chunk_start_offset + first.chunk_length // 2] ^= 0x04  # its CRC no longer checks
+    footer_at = len(data) - 8 - 29
+    if summary_damaged:
+        data[struct.unpack_from("<Q", data, footer_at + 9)[0] + 20] ^= 0x04
+    path.write_bytes(bytes(data))
+    out = io.StringIO()
+    assert repair(bag, stdout=out, stderr=io.StringIO()) == 0
+    kept = mcap_messages(bag).get("/smm/joint_states", [])
+    if summary_damaged:  # no copy of the channel record checks: its messages cannot be kept, and say so
+        assert kept == []
+        assert "channel 1 (no channel or schema record survives) 299" in out.getvalue()
+        assert "lost log time from the start to the end" in out.getvalue()
+    else:  # the summary's copy checks: every message of the 299 undamaged chunks is kept
+        assert [time for time, _ in kept] == [T0 + k * 1_000_000 for k in range(1, 300)]
+
+
 def test_repair_of_an_intact_bag_changes_nothing(tmp_path: Path) -> None:
     bag, _ = _partial_bag(tmp_path)
     before = {path.name: path.read_bytes() for path in bag.iterdir()}

@@ -169,9 +169,14 @@ def _losses(item: _File) -> tuple[int | None, dict[str, int], tuple[tuple[int | 
         return len(gone), lost, tuple(ranges)
     ranges = []
     places = [damage.start for damage in scan.damage] + ([scan.size] if scan.truncated else [])
+    kept_spans = [  # (offset, first, last log time) of the kept messages of each chunk
+        (c.offset, min(s[0] for s in spans), max(s[1] for s in spans))
+        for c in scan.chunks
+        if (spans := [span for key, span in c.spans.items() if key in item.usable])
+    ]
     for place in places:
-        before = [c.end_ns for c in scan.chunks if c.offset < place and c.end_ns is not None]
-        after = [c.start_ns for c in scan.chunks if c.offset > place and c.start_ns is not None]
+        before = [last for offset, _, last in kept_spans if offset < place]
+        after = [first for offset, first, _ in kept_spans if offset > place]
         gap = (before[-1] if before else None, after[0] if after else None)
         if gap not in ranges:
             ranges.append(gap)
