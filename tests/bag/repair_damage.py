@@ -111,11 +111,10 @@ def read_original(bag: Path) -> list[OriginalFile]:
 
 @dataclass(frozen=True)
 class Damaged:
-    """A damaged copy: where it is, whether its metadata.yaml now says something else, the kinds of damage."""
+    """A damaged copy: where it is, and whether its metadata.yaml now says something else."""
 
     bag: Path
     metadata_damaged: bool
-    kinds: tuple[str, ...]
 
 
 def damage_copy(
@@ -160,7 +159,7 @@ def damage_copy(
         changed = now != yaml.safe_load(metadata_text)
     except (yaml.YAMLError, UnicodeDecodeError):
         changed = True
-    return Damaged(target, changed, tuple(place.kind for place in places))
+    return Damaged(target, changed)
 
 
 def _touched(ranges: Sequence[tuple[int, int]], start: int, length: int) -> bool:

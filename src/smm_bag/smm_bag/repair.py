@@ -236,7 +236,7 @@ def _metadata_from(base: BagMetadata, files: list[_File]) -> BagMetadata:
 
 
 def _scan_files(
-    bag: Path, paths: list[Path], progress: Callable[[str], None] | None
+    paths: list[Path], progress: Callable[[str], None] | None
 ) -> tuple[list[_File], list[FileRepair]]:
     kept: list[_File] = []
     failed: list[FileRepair] = []
@@ -287,7 +287,7 @@ def repair_bag(
     paths = _storage_files(bag, old)
     if not any(p.is_file() for p in paths):
         raise NotABagError(f"{bag} holds no .mcap file: nothing to repair")
-    files, failed = _scan_files(bag, paths, progress)
+    files, failed = _scan_files(paths, progress)
     if not files:
         first = next(item.error for item in failed if item.error is not None)
         raise first
