@@ -17,6 +17,7 @@ from bag.bag_helpers import T0, joint_state, mcap_messages, rosbags_messages
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
 from smm_bag.cli import main
 from smm_bag.commands import EXIT_UNSALVAGEABLE, repair
 from smm_bag.errors import UnsalvageableFileError
@@ -207,6 +208,45 @@ def test_channels_come_from_whichever_copy_checks(tmp_path: Path, summary_damage
         assert "lost log time from the start to the end" in out.getvalue()
     else:  # the summary's copy checks: every message of the 299 undamaged chunks is kept
         assert [time for time, _ in kept] == [T0 + k * 1_000_000 for k in range(1, 300)]
+
+
+def test_lz4_chunks_are_checked_and_kept_as_lz4(tmp_path: Path) -> None:
+    bag, _ = _partial_bag(tmp_path)
+    path = bag / "bag_0.mcap"
+    with path.open("rb") as stream:  # the same records in lz4 chunks of 10 messages (the writer has no lz4)
+        reader = make_reader(stream)
+        summary = reader.get_summary()
+        assert summary is not None
+        records = list(reader.iter_messages())
+    with path.open("wb") as stream:
+        writer = Writer(stream, chunk_size=2000, compression=CompressionType.LZ4)
+        writer.start(profile="ros2", library="test")
+        for schema in summary.schemas.values():
+            writer.register_schema(schema.name, schema.encoding, schema.data)
+        for channel in summary.channels.values():
+            writer.register_channel(
+                channel.topic, channel.message_encoding, channel.schema_id, channel.metadata
+            )
+        for _, _, message in records:
+            writer.add_message(message.channel_id, message.log_time, message.data, message.publish_time)
+        writer.finish()  # type: ignore[no-untyped-call]
+    data = bytearray(path.read_bytes())
+    with path.open("rb") as stream:
+        rewritten = make_reader(stream).get_summary()
+    assert rewritten is not None
+    chunks = rewritten.chunk_indexes
+    assert len(chunks) > 10 and {chunk.compression for chunk in chunks} == {"lz4"}
+    damaged = chunks[5]
+    data[damaged.chunk_start_offset + damaged.chunk_length - 3] ^= 0x20  # inside its compressed records
+    path.write_bytes(bytes(data))
+    assert repair(bag, stdout=io.StringIO(), stderr=io.StringIO()) == 0
+    kept = [time for time, _ in mcap_messages(bag)["/smm/joint_states"]]
+    lost = {time for time in (T0 + k * 1_000_000 for k in range(300)) if time not in kept}
+    assert kept == sorted(kept) and len(kept) + len(lost) == 300
+    assert lost == set(range(damaged.message_start_time, damaged.message_end_time + 1, 1_000_000))
+    with path.open("rb") as stream:
+        repaired = make_reader(stream).get_summary()
+    assert repaired is not None and {chunk.compression for chunk in repaired.chunk_indexes} == {"lz4"}
 
 
 def test_repair_of_an_intact_bag_changes_nothing(tmp_path: Path) -> None:
