@@ -29,7 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="smm-bag",
         description="Inspect, analyse, re-run and repair rosbag2 MCAP bags of the SMM stack.",
         epilog="Exit codes: 0 ok, 1 check failed, 2 usage, 3 not a bag, 4 truncated (run repair), "
-        "5 corrupt, 6 missing topics, 7 bad parameters file.",
+        "5 corrupt, 6 missing topics, 7 bad parameters file, 8 repair saved nothing of a file.",
     )
     parser.set_defaults(handler=None)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -58,7 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     play.add_argument("--answer-timeout", type=float, default=1.0, help="lockstep: wait per answer (s)")
 
-    repair = sub.add_parser("repair", help="rebuild summaries, indexes and metadata.yaml after a crash")
+    repair = sub.add_parser(
+        "repair", help="keep every chunk whose CRC checks; rebuild damaged files and metadata.yaml"
+    )
     repair.add_argument("bag", type=Path)
     repair.add_argument("--no-backup", action="store_true", help="do not keep damaged files as *.damaged")
 

@@ -11,13 +11,14 @@ from pathlib import Path
 from typing import TextIO
 
 from smm_bag.errors import BagError
-from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_OK
+from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_OK, exit_code
 from smm_bag.exit_codes import fail as _fail
 from smm_bag.info import format_info
 from smm_bag.lockstep import LockstepOptions, LockstepResult, play_lockstep
 from smm_bag.player import PlayOptions, PlayResult, play
 from smm_bag.progress import Progress
 from smm_bag.repair import repair_bag
+from smm_bag.repair_report import format_repair
 
 __all__ = ["info", "play_command", "repair"]
 
@@ -35,25 +36,19 @@ def info(bag: Path, stdout: TextIO | None = None, stderr: TextIO | None = None) 
 def repair(
     bag: Path, *, backup: bool = True, stdout: TextIO | None = None, stderr: TextIO | None = None
 ) -> int:
-    """``smm-bag repair BAG``: rebuild damaged files and metadata.yaml; prints what was done."""
+    """``smm-bag repair BAG``: rebuild damaged files and metadata.yaml; prints per file what was lost.
+
+    Exit 0 when every file is intact or repaired, 8 when nothing could be saved of a file (left as it was).
+    """
     out, err = stdout or sys.stdout, stderr or sys.stderr
     try:
         report = repair_bag(bag, backup=backup, progress=lambda name: print(f"checking {name}", file=err))
     except BagError as error:
         return _fail(error, err)
-    for item in report.files:
-        if item.rebuilt:
-            kept = f"; original kept as {item.backup}" if item.backup else ""
-            out.write(
-                f"{item.path}: {item.reason}; rebuilt with {item.messages} messages, "
-                f"{item.dropped_bytes} bytes after the last complete chunk dropped{kept}\n"
-            )
-        else:
-            out.write(f"{item.path}: intact ({item.messages} messages)\n")
-    out.write(
-        f"metadata.yaml: {report.metadata.message_count} messages on {len(report.metadata.topics)} topics\n"
-    )
-    return EXIT_OK
+    out.write(format_repair(report) + "\n")
+    for failure in report.errors:
+        err.write(f"smm-bag: error: {failure}\n")
+    return exit_code(report.errors[0]) if report.errors else EXIT_OK
 
 
 def play_command(

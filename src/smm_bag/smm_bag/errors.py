@@ -8,6 +8,7 @@ __all__ = [
     "NotABagError",
     "TruncatedBagError",
     "UnknownTypeError",
+    "UnsalvageableFileError",
     "WriterStateError",
 ]
 
@@ -42,3 +43,7 @@ class UnknownTypeError(BagError):
 
 class WriterStateError(BagError):
     """A writer call out of order: write before create_topic, write after close, duplicate topic."""
+
+
+class UnsalvageableFileError(BagError):
+    """No record of a storage file checks: ``smm-bag repair`` saves nothing of it and leaves it as it was."""

@@ -10,6 +10,7 @@ from smm_bag.errors import (
     MissingTopicsError,
     NotABagError,
     TruncatedBagError,
+    UnsalvageableFileError,
 )
 
 __all__ = [
@@ -20,6 +21,7 @@ __all__ = [
     "EXIT_OK",
     "EXIT_PARAMS",
     "EXIT_TRUNCATED",
+    "EXIT_UNSALVAGEABLE",
     "EXIT_USAGE",
     "exit_code",
     "fail",
@@ -34,6 +36,8 @@ EXIT_CORRUPT = 5
 EXIT_MISSING_TOPICS = 6
 EXIT_PARAMS = 7
 """A parameters file of ``smm-bag rerun`` is unreadable or invalid (``smm_analysis.errors``)."""
+EXIT_UNSALVAGEABLE = 8
+"""``smm-bag repair`` could save nothing of a storage file (the file is left as it was)."""
 
 
 def exit_code(error: BagError) -> int:
@@ -43,6 +47,7 @@ def exit_code(error: BagError) -> int:
         (TruncatedBagError, EXIT_TRUNCATED),
         (CorruptBagError, EXIT_CORRUPT),
         (MissingTopicsError, EXIT_MISSING_TOPICS),
+        (UnsalvageableFileError, EXIT_UNSALVAGEABLE),
     ):
         if isinstance(error, kind):
             return code

@@ -1,29 +1,28 @@
-"""``smm-bag repair``: rebuild MCAP summaries and indexes and ``metadata.yaml`` from what is on disk.
+"""``smm-bag repair``: rebuild a bag's damaged MCAP files and ``metadata.yaml`` from the records that check.
 
-A recording killed (SIGKILL, power loss) leaves its last file without summary, index and footer, and
-``metadata.yaml`` as written at open or at the last split. Every complete record up to the damage is kept:
-schemas, channels and the messages of every complete chunk (the writer finishes a chunk at least every
-flush interval, so the loss is at most that interval). A damaged file is rewritten next to itself and the
-original kept as ``<file>.damaged`` (unless ``backup=False``).
+Each file is scanned record by record (:mod:`smm_bag.mcap_scan`). A file is intact only if every CRC it
+holds checks and its summary agrees with its data; it is then left untouched. Any other file is rewritten
+from the chunks whose CRC checks, with the schemas and channels of whichever copy checks, and the original
+kept as ``<file>.damaged``. docs/BAGS.md ("smm-bag repair") says what is kept and why.
 """
 
 from __future__ import annotations
 
-import re
-import struct
+import mmap
 from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import yaml
-from mcap.exceptions import McapError
-from mcap.reader import SeekingReader
-from mcap.records import Channel, DataEnd, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Message, Schema
 from mcap.writer import CompressionType, Writer
 
-from smm_bag.errors import BagError, CorruptBagError, NotABagError, TruncatedBagError
+from smm_bag.errors import CorruptBagError, NotABagError, UnsalvageableFileError
+from smm_bag.mcap_records import chunk_records
+from smm_bag.mcap_scan import FileScan, chunk_data, scan_mcap
 from smm_bag.metadata import (
+    METADATA_FILE,
     BagMetadata,
     FileInfo,
     TopicInfo,
@@ -32,270 +31,192 @@ from smm_bag.metadata import (
     write_metadata,
 )
 from smm_bag.qos import load_profiles
-from smm_bag.reader import check_mcap_file
+from smm_bag.repair_report import FileRepair, RepairReport
 
 __all__ = ["FileRepair", "RepairReport", "repair_bag"]
 
-_INDEX = re.compile(r"_(\d+)\.mcap$")
-
-
-@dataclass(frozen=True)
-class FileRepair:
-    """What repair did to one storage file.
-
-    Attributes:
-        path: File name inside the bag.
-        rebuilt: True if the file was rewritten (it was truncated or had no summary).
-        messages: Messages in the file after repair.
-        dropped_bytes: Bytes after the last complete record (lost data), 0 for an intact file.
-        backup: Name of the kept original, if any.
-        reason: Why the file needed repair (empty if intact).
-    """
-
-    path: str
-    rebuilt: bool
-    messages: int
-    dropped_bytes: int
-    backup: str
-    reason: str
-
-
-@dataclass(frozen=True)
-class RepairReport:
-    """Result of :func:`repair_bag`: per-file actions and the rewritten metadata."""
-
-    files: tuple[FileRepair, ...]
-    metadata: BagMetadata
-
-    @property
-    def changed(self) -> bool:
-        """True if any file was rebuilt."""
-        return any(item.rebuilt for item in self.files)
+_COMPRESSION = {"": CompressionType.NONE, "zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4}
 
 
 @dataclass
-class _Content:
-    schemas: dict[int, Schema]
-    channels: dict[int, Channel]
-    counts: dict[int, int]
-    first_ns: int | None
-    last_ns: int | None
-    metadata_records: list[Metadata]
-    good_bytes: int
+class _File:
+    path: Path
+    scan: FileScan
+    usable: dict[int, Channel]
+
+    def counts(self) -> dict[int, int]:
+        counts: dict[int, int] = {}
+        for chunk in self.scan.chunks:
+            for channel, count in chunk.counts.items():
+                if channel in self.usable:
+                    counts[channel] = counts.get(channel, 0) + count
+        return counts
+
+    def info(self) -> FileInfo:
+        spans = [
+            span
+            for chunk in self.scan.chunks
+            for channel, span in chunk.spans.items()
+            if channel in self.usable
+        ]
+        if not spans:
+            return FileInfo(path=self.path.name)
+        start, end = min(low for low, _ in spans), max(high for _, high in spans)
+        return FileInfo(self.path.name, start, end - start, sum(self.counts().values()))
 
 
-def _scan(path: Path, on_message: Callable[[Message], None] | None = None) -> _Content:
-    """Reads records in order until the end or the first damaged one."""
-    content = _Content({}, {}, {}, None, None, [], 0)
+@contextmanager
+def _mapped(path: Path) -> Iterator[bytes]:
     with path.open("rb") as stream:
-        reader = StreamReader(stream, validate_crcs=True)
-        records: Iterator[object] = iter(reader.records)
-        while True:
-            try:
-                record = next(records)
-            except StopIteration:
-                break
-            except (
-                McapError,
-                ValueError,
-                EOFError,
-                OSError,
-                MemoryError,
-                IndexError,
-                KeyError,
-                struct.error,
-            ):
-                break
-            if isinstance(record, Schema):
-                content.schemas.setdefault(record.id, record)
-            elif isinstance(record, Channel):
-                content.channels.setdefault(record.id, record)
-            elif isinstance(record, Message):
-                content.counts[record.channel_id] = content.counts.get(record.channel_id, 0) + 1
-                time = record.log_time
-                content.first_ns = time if content.first_ns is None else min(content.first_ns, time)
-                content.last_ns = time if content.last_ns is None else max(content.last_ns, time)
-                if on_message is not None:
-                    on_message(record)
-            elif isinstance(record, Metadata):
-                content.metadata_records.append(record)
-            elif isinstance(record, DataEnd):
-                content.good_bytes = stream.tell()
-                break
-            # Only what the reader consumed entirely counts as good (a chunk is consumed whole).
-            content.good_bytes = stream.tell() if not isinstance(record, Message) else content.good_bytes
-    return content
+        if path.stat().st_size == 0:
+            yield b""
+            return
+        with mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ) as data:
+            yield data  # type: ignore[misc]
+
+
+def _usable(scan: FileScan) -> dict[int, Channel]:
+    """Channels whose record and schema record both survive in a copy that checks."""
+    return {
+        key: channel
+        for key, channel in scan.channels.items()
+        if channel.schema_id == 0 or channel.schema_id in scan.schemas
+    }
 
 
 def _storage_files(bag: Path, metadata: BagMetadata | None) -> list[Path]:
-    on_disk = sorted(
-        (path for path in bag.glob("*.mcap")),
-        key=lambda p: int(m.group(1)) if (m := _INDEX.search(p.name)) else 0,
-    )
-    if metadata is None:
-        return on_disk
-    listed = [bag / name for name in metadata.relative_file_paths]
+    def index(path: Path) -> tuple[int, str]:
+        tail = path.stem.rsplit("_", 1)[-1]
+        return (int(tail) if tail.isdigit() else 0, path.name)
+
+    on_disk = sorted((path for path in bag.glob("*.mcap") if path.is_file()), key=index)
+    listed = [bag / name for name in metadata.relative_file_paths] if metadata is not None else []
     return listed + [path for path in on_disk if path not in listed]
 
 
-def _intact(path: Path) -> bool:
-    try:
-        check_mcap_file(path)
-        with path.open("rb") as stream:
-            summary = SeekingReader(stream).get_summary()
-        return summary is not None and summary.statistics is not None
-    except (BagError, McapError, ValueError, EOFError, OSError):
-        return False
+def _free_name(path: Path) -> Path:
+    candidate, number = path.with_name(path.name + ".damaged"), 1
+    while candidate.exists():
+        number += 1
+        candidate = path.with_name(f"{path.name}.damaged.{number}")
+    return candidate
 
 
-def _rewrite(path: Path, content: _Content, backup: bool, serialized: str) -> str:
-    temporary = path.with_name(path.name + ".repairing")
+def _rewrite(item: _File, data: bytes, serialized: str) -> Path:
+    """Writes the kept records of ``item`` to a temporary file next to it and returns that file."""
+    scan = item.scan
+    temporary = item.path.with_name(item.path.name + ".repairing")
+    kinds = [chunk.compression for chunk in scan.chunks]
+    compression = _COMPRESSION[max(set(kinds), key=kinds.count) if kinds else ""]
     with temporary.open("wb") as stream:
-        writer = Writer(stream, compression=CompressionType.NONE)
-        header_profile, library = "ros2", "smm_bag repair"
-        writer.start(profile=header_profile, library=library)
-        schema_ids = {
-            old: writer.register_schema(name=s.name, encoding=s.encoding, data=s.data)
-            for old, s in sorted(content.schemas.items())
-        }
-        channel_ids = {
-            old: writer.register_channel(
-                topic=c.topic,
-                message_encoding=c.message_encoding,
-                schema_id=schema_ids.get(c.schema_id, 0),
-                metadata=dict(c.metadata),
+        writer = Writer(stream, chunk_size=768 * 1024, compression=compression, enable_data_crcs=True)
+        header = scan.header
+        library = f"{header.library}; repaired by smm-bag" if header is not None else "repaired by smm-bag"
+        writer.start(profile=header.profile if header is not None else "ros2", library=library)
+        schemas: dict[int, int] = {}
+        channels: dict[int, int] = {}
+        for key, channel in sorted(item.usable.items()):
+            schema: Schema | None = scan.schemas.get(channel.schema_id)
+            if schema is not None and schema.id not in schemas:
+                schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
+            channels[key] = writer.register_channel(
+                channel.topic,
+                channel.message_encoding,
+                schemas.get(channel.schema_id, 0),
+                dict(channel.metadata),
             )
-            for old, c in sorted(content.channels.items())
-        }
+        for _, _, record in scan.metadata:
+            if record.name != "rosbag2":
+                writer.add_metadata(record.name, dict(record.metadata))
         writer.add_metadata("rosbag2", {"serialized_metadata": serialized})
-
-        def copy(message: Message) -> None:
-            writer.add_message(
-                channel_id=channel_ids[message.channel_id],
-                log_time=message.log_time,
-                data=message.data,
-                publish_time=message.publish_time,
-                sequence=message.sequence,
-            )
-
-        _scan(path, copy)
+        for chunk in scan.chunks:
+            for _, message in chunk_records(chunk_data(data, chunk)):
+                if isinstance(message, Message) and message.channel_id in channels:
+                    writer.add_message(
+                        channels[message.channel_id],
+                        message.log_time,
+                        message.data,
+                        message.publish_time,
+                        message.sequence,
+                    )
         writer.finish()  # type: ignore[no-untyped-call]
-    kept = ""
-    if backup:
-        kept = path.name + ".damaged"
-        path.replace(path.with_name(kept))
-    temporary.replace(path)
-    return kept
+    return temporary
 
 
-def _old_metadata(bag: Path) -> BagMetadata | None:
+def _losses(item: _File) -> tuple[int | None, dict[str, int], tuple[tuple[int | None, int | None], ...]]:
+    """Lost chunks (None: not known exactly), lost messages per topic and lost log-time ranges."""
+    scan, kept = item.scan, {chunk.offset for chunk in item.scan.chunks}
+    topics = {key: channel.topic for key, channel in scan.channels.items()}
+    lost: dict[str, int] = {}
+    counts = item.counts()
+    for chunk in scan.chunks:
+        for channel, count in chunk.counts.items():
+            if channel not in item.usable:
+                name = f"{topics.get(channel, f'channel {channel}')} (no channel or schema record survives)"
+                lost[name] = lost.get(name, 0) + count
+    summary = scan.summary
+    if summary is not None and summary.statistics is not None:
+        for channel, count in summary.statistics.channel_message_counts.items():
+            missing = count - counts.get(channel, 0)
+            name = topics.get(channel, f"channel {channel}")
+            if missing > 0 and channel in item.usable:
+                lost[name] = lost.get(name, 0) + missing
+    if summary is not None:
+        gone = [entry for entry in summary.chunk_indexes if entry.chunk_start_offset not in kept]
+        ranges: list[tuple[int | None, int | None]] = [
+            (entry.message_start_time, entry.message_end_time) for entry in gone
+        ]
+        return len(gone), lost, tuple(ranges)
+    ranges = []
+    places = [damage.start for damage in scan.damage] + ([scan.size] if scan.truncated else [])
+    kept_spans = [  # (offset, first, last log time) of the kept messages of each chunk
+        (c.offset, min(s[0] for s in spans), max(s[1] for s in spans))
+        for c in scan.chunks
+        if (spans := [span for key, span in c.spans.items() if key in item.usable])
+    ]
+    for place in places:
+        before = [last for offset, _, last in kept_spans if offset < place]
+        after = [first for offset, first, _ in kept_spans if offset > place]
+        gap = (before[-1] if before else None, after[0] if after else None)
+        if gap not in ranges:
+            ranges.append(gap)
+    return None, lost, tuple(ranges)
+
+
+def _old_metadata(bag: Path) -> tuple[BagMetadata | None, str]:
+    if not (bag / METADATA_FILE).exists():
+        return None, "missing"
     try:
-        return read_metadata(bag)
-    except (NotABagError, CorruptBagError):
-        return None
+        return read_metadata(bag), ""
+    except (NotABagError, CorruptBagError) as error:
+        return None, f"unreadable ({error})"
 
 
-def _record_metadata(records: list[Metadata]) -> BagMetadata | None:
-    for record in reversed(records):
-        text = record.metadata.get("serialized_metadata") if record.name == "rosbag2" else None
-        if text:
-            try:
-                return parse_metadata(yaml.safe_load(text), "rosbag2 metadata record")
-            except (CorruptBagError, yaml.YAMLError):
-                continue
+def _record_metadata(files: list[_File]) -> BagMetadata | None:
+    for item in reversed(files):
+        for _, _, record in reversed(item.scan.metadata):
+            text = record.metadata.get("serialized_metadata") if record.name == "rosbag2" else None
+            if text:
+                try:
+                    return parse_metadata(yaml.safe_load(text), "rosbag2 metadata record")
+                except (CorruptBagError, yaml.YAMLError):
+                    continue
     return None
 
 
-def repair_bag(
-    path: Path | str, *, backup: bool = True, progress: Callable[[str], None] | None = None
-) -> RepairReport:
-    """Rebuilds damaged storage files and ``metadata.yaml`` of a bag from what is on disk.
-
-    Args:
-        path: The bag folder.
-        backup: Keep each damaged original as ``<file>.damaged``.
-        progress: Called with each file name as it is processed.
-
-    Returns:
-        What was done.
-
-    Raises:
-        NotABagError: Not a folder, or no MCAP file in it.
-        CorruptBagError: A file is not MCAP at all (bad magic).
-    """
-    bag = Path(path)
-    if not bag.is_dir():
-        raise NotABagError(f"{bag} is not a directory (a rosbag2 bag is a folder)")
-    old = _old_metadata(bag)
-    files = _storage_files(bag, old)
-    if not files:
-        raise NotABagError(f"{bag} holds no .mcap file: nothing to repair")
-    scans: list[tuple[Path, _Content, bool, str]] = []
-    for file in files:
-        if progress is not None:
-            progress(file.name)
-        if not file.is_file():
-            continue
-        with file.open("rb") as stream:
-            if stream.read(8) != b"\x89MCAP0\r\n":
-                raise CorruptBagError(f"{file} is not an MCAP file (bad magic); it cannot be repaired")
-        intact = _intact(file)
-        reason = ""
-        if not intact:
-            try:
-                check_mcap_file(file)
-                reason = "no readable summary"
-            except TruncatedBagError:
-                reason = "truncated (no footer)"
-        scans.append((file, _scan(file), intact, reason))
-
-    recorded = next(
-        (m for _, c, _, _ in reversed(scans) if (m := _record_metadata(c.metadata_records))), None
-    )
-    base = old if old is not None else recorded if recorded is not None else BagMetadata()
-    metadata = _metadata_from(base, scans)
-    reports = []
-    for file, content, intact, reason in scans:
-        messages = sum(content.counts.values())
-        if intact:
-            reports.append(FileRepair(file.name, False, messages, 0, "", ""))
-            continue
-        dropped = file.stat().st_size - content.good_bytes
-        kept = _rewrite(file, content, backup, metadata.serialized())
-        reports.append(FileRepair(file.name, True, messages, dropped, kept, reason))
-    if any(item.rebuilt for item in reports) or old is None or _disagrees(old, metadata):
-        custom = dict(metadata.custom_data)
-        if any(item.rebuilt for item in reports):
-            custom["smm.repaired"] = ", ".join(
-                f"{item.path}: {item.reason}, {item.messages} messages kept, "
-                f"{item.dropped_bytes} bytes dropped"
-                for item in reports
-                if item.rebuilt
-            )
-        metadata = replace(metadata, custom_data=custom)
-        write_metadata(bag, metadata)
-    return RepairReport(tuple(reports), metadata)
-
-
-def _disagrees(old: BagMetadata, new: BagMetadata) -> bool:
-    counts = {topic.name: topic.message_count for topic in old.topics}
-    return counts != {topic.name: topic.message_count for topic in new.topics} or (
-        old.relative_file_paths != new.relative_file_paths
-    )
-
-
-def _metadata_from(base: BagMetadata, scans: list[tuple[Path, _Content, bool, str]]) -> BagMetadata:
+def _metadata_from(base: BagMetadata, files: list[_File]) -> BagMetadata:
     known: Mapping[str, TopicInfo] = {topic.name: topic for topic in base.topics}
     topics: dict[str, TopicInfo] = {}
     counts: dict[str, int] = {}
-    files = []
-    for file, content, _, _ in scans:
-        for channel_id, channel in content.channels.items():
-            schema = content.schemas.get(channel.schema_id)
+    for item in files:
+        file_counts = item.counts()
+        for key, channel in item.usable.items():
+            schema = item.scan.schemas.get(channel.schema_id)
             previous = known.get(channel.topic)
-            if channel.topic not in topics:
-                qos = channel.metadata.get("offered_qos_profiles")
-                topics[channel.topic] = TopicInfo(
+            qos = channel.metadata.get("offered_qos_profiles")
+            topics.setdefault(
+                channel.topic,
+                TopicInfo(
                     name=channel.topic,
                     type=schema.name if schema is not None else (previous.type if previous else ""),
                     serialization_format=channel.message_encoding,
@@ -305,14 +226,145 @@ def _metadata_from(base: BagMetadata, scans: list[tuple[Path, _Content, bool, st
                     type_description_hash=channel.metadata.get(
                         "topic_type_hash", previous.type_description_hash if previous else ""
                     ),
-                )
-            counts[channel.topic] = counts.get(channel.topic, 0) + content.counts.get(channel_id, 0)
-        count = sum(content.counts.values())
-        if content.first_ns is None or content.last_ns is None:
-            files.append(FileInfo(path=file.name))
-        else:
-            files.append(FileInfo(file.name, content.first_ns, content.last_ns - content.first_ns, count))
+                ),
+            )
+            counts[channel.topic] = counts.get(channel.topic, 0) + file_counts.get(key, 0)
     for name, topic in known.items():
-        topics.setdefault(name, replace(topic, message_count=0))
+        topics.setdefault(name, topic)
     final = tuple(replace(topic, message_count=counts.get(name, 0)) for name, topic in topics.items())
-    return base.with_counts(final, tuple(files))
+    return base.with_counts(final, tuple(item.info() for item in files))
+
+
+def _scan_files(
+    paths: list[Path], progress: Callable[[str], None] | None
+) -> tuple[list[_File], list[FileRepair]]:
+    kept: list[_File] = []
+    failed: list[FileRepair] = []
+    for path in paths:
+        if progress is not None:
+            progress(path.name)
+        if not path.is_file():
+            failed.append(
+                FileRepair(path.name, "missing", findings=("listed in metadata.yaml, not on disk",))
+            )
+            continue
+        with _mapped(path) as data:
+            scan = scan_mcap(data)
+        if scan.header is None and not scan.chunks and not scan.channels:
+            error = UnsalvageableFileError(
+                f"{path}: no MCAP record in it checks ({'; '.join(scan.findings) or 'not MCAP'}); "
+                "nothing can be saved, the file is left as it was"
+            )
+            failed.append(FileRepair(path.name, "unsalvageable", findings=tuple(scan.findings), error=error))
+            continue
+        kept.append(_File(path, scan, _usable(scan)))
+    return kept, failed
+
+
+def repair_bag(
+    path: Path | str, *, backup: bool = True, progress: Callable[[str], None] | None = None
+) -> RepairReport:
+    """Rebuilds the damaged storage files and ``metadata.yaml`` of a bag from what checks on disk.
+
+    Args:
+        path: The bag folder.
+        backup: Keep each damaged original as ``<file>.damaged`` and the old ``metadata.yaml`` as
+            ``metadata.yaml.damaged``.
+        progress: Called with each file name as it is scanned.
+
+    Returns:
+        What was found and done; files nothing could be saved from carry an
+        :class:`~smm_bag.errors.UnsalvageableFileError` and are left as they were.
+
+    Raises:
+        NotABagError: Not a folder, or no MCAP file in it.
+        UnsalvageableFileError: No file of the bag holds anything that checks (nothing is changed).
+    """
+    bag = Path(path)
+    if not bag.is_dir():
+        raise NotABagError(f"{bag} is not a directory (a rosbag2 bag is a folder)")
+    old, old_problem = _old_metadata(bag)
+    paths = _storage_files(bag, old)
+    if not any(p.is_file() for p in paths):
+        raise NotABagError(f"{bag} holds no .mcap file: nothing to repair")
+    files, failed = _scan_files(paths, progress)
+    if not files:
+        first = next(item.error for item in failed if item.error is not None)
+        raise first
+    # A metadata.yaml that disagrees with the files may be damaged itself: the last rosbag2 record wins then.
+    recorded = _record_metadata(files)
+    agrees = old is not None and _agrees(old, _metadata_from(old, files), recorded)
+    base = old if agrees and old is not None else recorded or old or BagMetadata()
+    metadata = _metadata_from(base, files)
+    results: dict[str, FileRepair] = {item.path: item for item in failed}
+    for item in files:
+        counts = item.counts()
+        messages = sum(counts.values())
+        if item.scan.intact and len(item.usable) == len(item.scan.channels):
+            data_crc = (
+                "data section CRC checks" if item.scan.data_crc == "checks" else "no data section CRC written"
+            )
+            results[item.path.name] = FileRepair(
+                item.path.name,
+                "intact",
+                messages,
+                len(item.scan.chunks),
+                checked=f"every chunk CRC and the summary CRC check, {data_crc}",
+            )
+            continue
+        with _mapped(item.path) as data:
+            temporary = _rewrite(item, data, metadata.serialized())
+        kept = ""
+        if backup:
+            target = _free_name(item.path)
+            item.path.replace(target)
+            kept = target.name
+        temporary.replace(item.path)
+        lost_chunks, lost, ranges = _losses(item)
+        results[item.path.name] = FileRepair(
+            item.path.name,
+            "repaired",
+            messages,
+            len(item.scan.chunks),
+            item.scan.bad_chunks if lost_chunks is None else lost_chunks,
+            lost_chunks is not None,
+            lost,
+            ranges,
+            tuple(item.scan.findings),
+            kept,
+        )
+    reports = tuple(results[p.name] for p in paths)
+    rebuilt = [item for item in reports if item.rebuilt]
+    note = old_problem or ("" if agrees or old is None else "disagreed with the files")
+    lost_total: dict[str, int] = {}
+    if old is not None:
+        now = {topic.name: topic.message_count for topic in metadata.topics}
+        lost_total = {t.name: t.message_count - now.get(t.name, 0) for t in old.topics}
+        lost_total = {name: count for name, count in lost_total.items() if count > 0}
+    metadata_backup = ""
+    rewrite = bool(rebuilt) or not agrees
+    if rewrite:
+        custom = dict(metadata.custom_data)
+        if rebuilt:
+            custom["smm.repaired"] = ", ".join(
+                f"{item.path}: {item.reason}, {item.messages} messages kept" for item in rebuilt
+            )
+        metadata = replace(metadata, custom_data=custom)
+        current = bag / METADATA_FILE
+        if backup and current.exists():
+            target = _free_name(current)
+            current.replace(target)
+            metadata_backup = target.name
+        write_metadata(bag, metadata)
+    return RepairReport(reports, metadata, note, rewrite, metadata_backup, lost_total)
+
+
+def _agrees(old: BagMetadata, derived: BagMetadata, recorded: BagMetadata | None) -> bool:
+    """True if ``metadata.yaml`` says what the files hold and what their last ``rosbag2`` record says."""
+    if old != derived:
+        return False
+    if recorded is None:
+        return True
+    own = {key: value for key, value in old.custom_data.items() if key != "smm.repaired"}
+    written = {key: value for key, value in recorded.custom_data.items() if key != "smm.repaired"}
+    return own == written and old.ros_distro == recorded.ros_distro
