@@ -284,7 +284,7 @@ class BatchPID(BatchLaw):
         self.derivative = np.zeros_like(self.kp)
         self.previous: FloatArray | None = None
         self.uses_observer = np.zeros(len(configs), dtype=bool)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             tracking = np.where(self.kd > 0.0, np.sqrt(self.kd / self.ki), self.kp / self.ki)
         self._tracks = (self.ki > 0.0) & (tracking > 0.0)
         self._tracking_time = np.where(self._tracks, tracking, 1.0)

@@ -78,10 +78,11 @@ class LabelSetCentroids:
             levels: Firing strength of each rule, >= 0, shape (..., m); at least one > 0 per row.
         """
         order = np.argsort(-levels, axis=-1, kind="stable")
-        sorted_levels = np.take_along_axis(levels, order, axis=-1)
+        upper = np.take_along_axis(levels, order, axis=-1)
         masks = np.bitwise_or.accumulate(np.left_shift(1, np.take_along_axis(labels, order, axis=-1)), axis=-1)
-        lower = np.concatenate((sorted_levels[..., 1:], np.zeros_like(sorted_levels[..., :1])), axis=-1)
-        terms = self._clipped(masks, sorted_levels) - self._clipped(masks, lower)
+        # F_K(0) = 0: the last layer has no lower term.
+        terms = self._clipped(masks, upper)
+        terms[..., :-1, :] -= self._clipped(masks[..., :-1], upper[..., 1:])
         area_moment = terms.sum(axis=-2)
         area = area_moment[..., 0]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -139,15 +140,17 @@ class PDGainFuzzy:
         ]
         self._radix = [len(system.inputs[1].labels) for system in systems]
         self._labels = [_rule_labels(system) for system in systems]
-        self._tables = _output_tables(systems[0])
-        for system in systems[1:]:
-            if not np.array_equal(system.output_samples, systems[0].output_samples):
-                raise ValueError("the joints' PD rule bases must share their output MFs")
+        samples = systems[0].output_samples
+        if any(not np.array_equal(system.output_samples, samples) for system in systems) or not np.array_equal(
+            samples[:, 0, :], samples[:, 1, :]
+        ):
+            raise ValueError("the PD rule bases must share one output MF family")
+        self._table = _output_tables(systems[0])[0]
 
     def evaluate(self, x: FloatArray, c: FloatArray) -> tuple[FloatArray, FloatArray]:
         """(f(k_e), f(k_de)) for normalised inputs x = e~, c = ce~ in [-1, 1], each shape (N, 2)."""
-        f_ke = np.empty_like(x)
-        f_kde = np.empty_like(x)
+        labels = []
+        levels = []
         for joint in range(2):
             first, second = self._lattices[joint]
             i, di, di1 = first.pair(x[:, joint])
@@ -155,13 +158,15 @@ class PDGainFuzzy:
             radix = self._radix[joint]
             cell = i * radix + j
             cells = np.stack((cell, cell + 1, cell + radix, cell + radix + 1), axis=-1)
-            levels = np.stack(
+            level = np.stack(
                 (np.minimum(di, dj), np.minimum(di, dj1), np.minimum(di1, dj), np.minimum(di1, dj1)), axis=-1
             )
-            labels = self._labels[joint][cells]
-            f_ke[:, joint] = self._tables[0].centroid(labels[..., 0], levels)
-            f_kde[:, joint] = self._tables[1].centroid(labels[..., 1], levels)
-        return f_ke, f_kde
+            label = self._labels[joint][cells]
+            labels += [label[..., 0], label[..., 1]]
+            levels += [level, level]
+        # Both outputs have the same MFs: one table, all four (joint, output) pairs at once.
+        crisp = self._table.centroid(np.stack(labels), np.stack(levels))
+        return np.stack((crisp[0], crisp[2]), axis=-1), np.stack((crisp[1], crisp[3]), axis=-1)
 
 
 class BandwidthFuzzy:
@@ -176,11 +181,15 @@ class BandwidthFuzzy:
         gaussians = [mf for mf in system.inputs[0].mfs if isinstance(mf, GaussianMF)]
         self._means = np.array([mf.mean for mf in gaussians])
         self._widths = np.array([2.0 * mf.sigma * mf.sigma for mf in gaussians])
-        self._labels = _rule_labels(system)[:, 0]
+        rule_labels = _rule_labels(system)[:, 0]
+        # Rules concluding the same label clip it at the largest of their strengths: one level per label.
+        self._labels = np.unique(rule_labels)
+        self._groups = [np.flatnonzero(rule_labels == label) for label in self._labels]
         self._table = _output_tables(system)[0]
 
     def evaluate(self, s: FloatArray) -> FloatArray:
         """f(w) for s in [-1, 1], any shape."""
-        levels = np.exp(-((s[..., None] - self._means) ** 2) / self._widths)
+        strengths = np.exp(-((s[..., None] - self._means) ** 2) / self._widths)
+        levels = np.stack([strengths[..., group].max(axis=-1) for group in self._groups], axis=-1)
         labels = np.broadcast_to(self._labels, levels.shape)
         return self._table.centroid(labels, levels)

@@ -4,7 +4,8 @@ One :class:`RunSettings` holds everything ``run_closed_loop`` takes; :func:`run_
 (one law, equal durations and control periods) as the scalar loop steps one, and :func:`run_scalar`
 runs one with the scalar loop, the reference the batch is tested against. A run whose torque becomes
 non-finite is marked diverged (where the scalar loop raises) and its indices are NaN; the other runs
-carry on.
+carry on. A run whose plant state overflows under a finite torque (the scalar loop does not stop
+there) is diverged too.
 """
 
 from __future__ import annotations
@@ -100,9 +101,19 @@ class RunSettings:
         return NPDController(law)
 
 
-def indices_of(t_ns: NDArray[np.int64], scenario: Scenario, position: FloatArray, torque: FloatArray) -> dict[str, float]:
-    """The run's indices (``INDEX_NAMES``) from its true position and command torque, (N + 1, 2) each."""
-    desired = scenario.reference().sample(t_ns.astype(np.float64) / _NS_PER_S)[:, 0, :]
+def indices_of(
+    t_ns: NDArray[np.int64],
+    scenario: Scenario,
+    position: FloatArray,
+    torque: FloatArray,
+    desired: FloatArray | None = None,
+) -> dict[str, float]:
+    """The run's indices (``INDEX_NAMES``) from its true position and command torque, (N + 1, 2) each.
+
+    ``desired`` is the scenario's q_d at the stamps, (N + 1, 2), if already sampled.
+    """
+    if desired is None:
+        desired = scenario.reference().sample(t_ns.astype(np.float64) / _NS_PER_S)[:, 0, :]
     joints = joint_indices(t_ns, desired, position, torque)
     result: dict[str, float] = {}
     for name in _JOINT_INDICES:
@@ -150,6 +161,8 @@ def scalar_indices(settings: RunSettings) -> dict[str, float]:
         trajectory = run_scalar(settings)
     except ClosedLoopDivergedError:
         return _diverged()
+    if not np.all(np.isfinite(trajectory.position)):
+        return _diverged()  # the plant's state overflowed under a finite torque
     return indices_of(trajectory.t_ns, settings.scenario, trajectory.position, trajectory.command_torque)
 
 
@@ -176,17 +189,23 @@ def run_batch(runs: Sequence[RunSettings]) -> list[dict[str, float]]:
     """
     if not runs:
         return []
-    position, torque, t_ns = _simulate(runs)
+    position, torque, t_ns, tables, which = _simulate(runs)
     return [
-        indices_of(t_ns, run.scenario, position[:, row], torque[:, row])
+        indices_of(t_ns, run.scenario, position[:, row], torque[:, row], tables[:, which[row], 0])
         if np.all(np.isfinite(torque[:, row]))
         else _diverged()
         for row, run in enumerate(runs)
     ]
 
 
-def _simulate(runs: Sequence[RunSettings]) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
-    """True positions and commands of every run, (N + 1, runs, 2) each (NaN from a divergence on)."""
+def _simulate(
+    runs: Sequence[RunSettings],
+) -> tuple[FloatArray, FloatArray, NDArray[np.int64], FloatArray, NDArray[np.int64]]:
+    """True positions and commands of every run, (N + 1, runs, 2) each (NaN from a divergence on).
+
+    Also the stamps, the references of the distinct scenarios (N + 1, scenarios, 3, 2) and each run's
+    scenario index.
+    """
     period_ns, steps = _steps(runs)
     samples = steps + 1
     dt = period_ns / _NS_PER_S
@@ -208,9 +227,9 @@ def _simulate(runs: Sequence[RunSettings]) -> tuple[FloatArray, FloatArray, NDAr
         for k in range(samples):
             reference = tables[k, which]
             tau = chain.step(plant.measured, plant.applied, (reference[:, 0], reference[:, 1], reference[:, 2]), dt)
-            alive &= np.all(np.isfinite(tau), axis=1)
+            alive &= np.all(np.isfinite(tau), axis=1) & np.all(np.isfinite(plant.state), axis=1)
             tau = np.where(alive[:, None], tau, 0.0)
             position[k] = plant.state[:, :2]
             command[k] = np.where(alive[:, None], tau, np.nan)
             plant.step(tau, period_ns)
-    return position, command, t_ns
+    return position, command, t_ns, tables, which
