@@ -26,6 +26,7 @@ setup(
     entry_points={
         "console_scripts": [
             "smm-reproduce = smm_analysis.cli:main",
+            "smm-sweep = smm_analysis.sweep.cli:main",
         ],
     },
 )

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from smm_analysis.batch import INDEX_NAMES, RunSettings, run_batch, scalar_indices
+from smm_analysis.batch import INDEX_NAMES, SIGN_TOLERANCE, SMOOTH_TOLERANCE, RunSettings, run_batch, scalar_indices
 from smm_analysis.batch.fuzzy import BandwidthFuzzy, PDGainFuzzy
 from smm_analysis.errors import AnalysisError
 from smm_analysis.scenarios import get_scenario
@@ -20,13 +20,6 @@ from smm_controller.limits import OutputLimitConfig
 from smm_controller.rules import TABLE_1, TABLE_7, fleso_bandwidth_system, pd_gain_system
 from smm_dynamics import SMMParameters
 from smm_sim.plant import PlantConfig
-
-SMOOTH_TOLERANCE = 1e-9
-"""Relative agreement of every index with a smooth robust term (boundary_layer > 0) or no robust term."""
-SIGN_TOLERANCE = 1e-3
-"""Relative agreement with the pure sign (docs/SWEEPS.md, "Batched equals scalar"): a last-bit difference
-can flip sign(M^-1 e') where it is 0 to rounding, which moves that one step's torque by 2 b_d (< 0.2 N m)."""
-
 
 def _close(batch: dict[str, float], scalar: dict[str, float], tolerance: float) -> None:
     for name in INDEX_NAMES:
