@@ -40,7 +40,11 @@ _SCENARIOS = st.sampled_from(["step", "case1", "case2"]).map(lambda name: get_sc
 @st.composite
 def _plants(draw: st.DrawFn) -> PlantConfig:
     params = SMMParameters(
-        I11=draw(st.floats(0.05, 0.09)), viscous_friction=draw(_pair(0.0, 0.3)), mass_lever=draw(st.floats(0.0, 0.05))
+        I11=draw(st.floats(0.05, 0.09)),
+        viscous_friction=draw(_pair(0.0, 0.3)),
+        coulomb_friction=draw(st.sampled_from([(0.0, 0.0), (0.2, 0.1)])),
+        torque_offset=draw(st.sampled_from([(0.0, 0.0), (0.05, -0.1)])),
+        mass_lever=draw(st.floats(0.0, 0.05)),
     )
     return PlantConfig(
         params=params,

@@ -44,6 +44,10 @@ class BatchPlant:
         self.inertias = tuple(np.array([getattr(p, name) for p in true]) for name in ("I11", "I22", "I44", "I55"))
         self.gravity = np.array([-p.gravity_sign * p.mass_lever * p.gravity for p in true])
         self.friction = pairs(true, lambda p: p.viscous_friction)
+        self.coulomb = pairs(true, lambda p: p.coulomb_friction)
+        self.offset = pairs(true, lambda p: p.torque_offset)
+        # Rows with Coulomb friction take smm_dynamics' float path (sign(q') is not in the generated step).
+        self.signed = np.any(self.coulomb != 0.0, axis=1)
         self.limits = pairs(configs, lambda c: c.joint_limits)
         self.saturation = pairs(configs, lambda c: c.torque_limit)
         self.quantum = pairs(configs, lambda c: c.torque_quantum)
@@ -88,21 +92,27 @@ class BatchPlant:
         return np.where(self.lagged[:, None], mean, target)
 
     def _rk4(self, load: FloatArray, h: float) -> FloatArray:
+        """One RK4 step under ``load`` = applied - disturbance torque (N m), as ``rk4_step_floats``."""
         inertias, gravity = self.inertias, self.gravity
         fa, fb = self.friction[:, 0], self.friction[:, 1]
+        ca, cb = self.coulomb[:, 0], self.coulomb[:, 1]
+        oa, ob = self.offset[:, 0], self.offset[:, 1]
+        signed = self.signed if np.any(self.signed) else None
+        # The generated step subtracts the offset from the load, then f_v q' (and G) per stage.
+        offset_a, offset_b = load[:, 0] - oa, load[:, 1] - ob
 
         def accel(a: FloatArray, b: FloatArray, ad: FloatArray, bd: FloatArray) -> tuple[FloatArray, FloatArray]:
             sb = np.sin(b)
+            torque_a = offset_a - ad * fa
+            torque_b = offset_b - bd * fb - gravity * sb
+            if signed is not None:
+                # forward_dynamics_floats: load - G - (f_v q' + f_c sign(q') + offset).
+                full_a = load[:, 0] - (fa * ad + ca * np.sign(ad) + oa)
+                full_b = load[:, 1] - gravity * sb - (fb * bd + cb * np.sign(bd) + ob)
+                torque_a = np.where(signed, full_a, torque_a)
+                torque_b = np.where(signed, full_b, torque_b)
             qdd_a, qdd_b = forward_dynamics_entries_spin_form(
-                np.sin(a),
-                np.cos(a),
-                sb,
-                np.cos(b),
-                ad,
-                bd,
-                load[:, 0] - ad * fa,
-                load[:, 1] - bd * fb - gravity * sb,
-                *inertias,
+                np.sin(a), np.cos(a), sb, np.cos(b), ad, bd, torque_a, torque_b, *inertias
             )
             return qdd_a, qdd_b
 
