@@ -166,7 +166,9 @@ def _dask(
             client.submit(run_task, batch.run_ids, runs, key=f"smm-sweep-{digest}-{batch.index}", retries=2): batch
             for batch, runs in todo
         }
-        for future in as_completed(futures):
+        with client.as_current():
+            finished = as_completed(list(futures))
+        for future in finished:
             try:
                 result = future.result()
             except Exception as error:  # noqa: BLE001 (any failure of the cluster ends the sweep, with the address)

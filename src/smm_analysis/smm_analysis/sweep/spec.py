@@ -180,12 +180,15 @@ def _check_name(where: str, name: str, known: Mapping[str, Any], hint: str) -> N
 
 
 def _merged(where: str, values: Mapping[str, Any], current: Mapping[str, Any]) -> dict[str, Any]:
-    """Flat values with ``name[j]`` entries folded into their pair (taken from ``current``)."""
+    """Flat values with ``name[j]`` entries folded into their pair (taken from ``current``); one number
+    for a per-joint parameter is given to both joints."""
     result: dict[str, Any] = {}
     for name, value in values.items():
         base, joint = _split(where, name)
         if joint is None:
-            result[base] = value
+            pair = isinstance(current.get(base), list) and len(current[base]) == 2
+            number = isinstance(value, (int, float)) and not isinstance(value, bool)
+            result[base] = [value, value] if pair and number else value
             continue
         pair = list(result.get(base, current[base]))
         pair[joint] = value
