@@ -59,16 +59,17 @@ class LabelSetCentroids:
             above[row, :-1] = np.cumsum(w[::-1], axis=0)[::-1]
         self._grid = grid
         self._keys = keys.ravel()
-        self._below = below.reshape(-1, 2)
-        self._above = above.reshape(-1, 2)
+        self._below_area, self._below_moment = (np.ascontiguousarray(below[..., k].ravel()) for k in range(2))
+        self._above_area, self._above_moment = (np.ascontiguousarray(above[..., k].ravel()) for k in range(2))
 
-    def _clipped(self, mask: IntArray, level: FloatArray) -> FloatArray:
-        """F_K(level) for label sets ``mask`` (bit l = label l), shape (..., 2): area, moment."""
+    def _clipped(self, mask: IntArray, level: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """F_K(level) for label sets ``mask`` (bit l = label l): (area, moment), each shaped like ``level``."""
         row = mask - 1
-        found = np.searchsorted(self._keys, level + _KEY_SHIFT * (row + 1), side="right")
-        index = found - row * self._grid + row * (self._grid + 1)
-        result: FloatArray = self._below[index] + level[..., None] * self._above[index]
-        return result
+        found = np.searchsorted(self._keys, level + _KEY_SHIFT * mask, side="right")
+        index = found + row  # row r's table has grid + 1 entries, its keys grid
+        area = np.take(self._below_area, index) + level * np.take(self._above_area, index)
+        moment = np.take(self._below_moment, index) + level * np.take(self._above_moment, index)
+        return area, moment
 
     def centroid(self, labels: IntArray, levels: FloatArray) -> FloatArray:
         """Centroid of ``max_r min(levels[..., r], S[labels[..., r]])``, shape levels.shape[:-1].
@@ -81,12 +82,14 @@ class LabelSetCentroids:
         upper = np.take_along_axis(levels, order, axis=-1)
         masks = np.bitwise_or.accumulate(np.left_shift(1, np.take_along_axis(labels, order, axis=-1)), axis=-1)
         # F_K(0) = 0: the last layer has no lower term.
-        terms = self._clipped(masks, upper)
-        terms[..., :-1, :] -= self._clipped(masks[..., :-1], upper[..., 1:])
-        area_moment = terms.sum(axis=-2)
-        area = area_moment[..., 0]
+        area, moment = self._clipped(masks, upper)
+        lower_area, lower_moment = self._clipped(masks[..., :-1], upper[..., 1:])
+        area[..., :-1] -= lower_area
+        moment[..., :-1] -= lower_moment
+        total_area = area.sum(axis=-1)
+        total_moment = moment.sum(axis=-1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            crisp: FloatArray = np.where(area > 0.0, area_moment[..., 1] / area, 0.0)
+            crisp: FloatArray = np.where(total_area > 0.0, total_moment / total_area, 0.0)
         return crisp
 
 

@@ -112,6 +112,7 @@ class SweepSpec:
     select: str
     batch_size: int
     source: Mapping[str, Any]
+    _built: dict[tuple[int, int, int], RunSettings] = dataclasses.field(default_factory=dict, repr=False, compare=False)
 
     @property
     def run_count(self) -> int:
@@ -135,9 +136,19 @@ class SweepSpec:
     def settings(self, run_id: int) -> RunSettings:
         """The run's settings."""
         gain_set, draw, scenario = self.locate(run_id)
-        controller = {**self.fixed, **self.gain_sets[gain_set]}
-        plant = {**self.plant_fixed, **self.plant_draws[draw]}
-        return build_settings(self.controller, self.scenarios[scenario], controller, plant, "run")
+        # Building configs costs milliseconds: a gain set's controller side is built once, and so is each
+        # plant draw's plant per scenario; a run combines the two.
+        law_key = (gain_set, -1, -1)
+        plant_key = (-1, draw, scenario)
+        if law_key not in self._built:
+            controller = {**self.fixed, **self.gain_sets[gain_set]}
+            self._built[law_key] = build_settings(self.controller, self.scenarios[0], controller, self.plant_fixed, "run")
+        if plant_key not in self._built:
+            plant = {**self.plant_fixed, **self.plant_draws[draw]}
+            self._built[plant_key] = build_settings(self.controller, self.scenarios[scenario], self.fixed, plant, "run")
+        return dataclasses.replace(
+            self._built[law_key], scenario=self.scenarios[scenario], plant=self._built[plant_key].plant
+        )
 
     def columns(self) -> tuple[str, ...]:
         """Every ``scenario.index`` column of a gain set."""
