@@ -16,7 +16,7 @@ PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg sr
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export PYTHONDONTWRITEBYTECODE := 1
 
-.PHONY: setup test demo bench lint typecheck reproduce colcon clean mutation
+.PHONY: setup test demo bench lint typecheck reproduce sweep colcon clean mutation
 
 setup: $(STAMP)
 
@@ -46,6 +46,10 @@ lint: $(STAMP)
 
 typecheck: $(STAMP)
 	$(VENV)/bin/mypy
+
+# A gain study on the batched closed loop: make sweep SPEC=examples/sweeps/case2_td_tradeoff.yaml [OUT=dir]
+sweep: $(STAMP)
+	$(PY) -m smm_analysis.sweep.cli $(SPEC) $(if $(OUT),--out $(OUT))
 
 reproduce: $(STAMP)
 	$(PY) -m smm_analysis.cli --out out/reproduce

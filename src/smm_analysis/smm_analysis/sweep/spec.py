@@ -450,9 +450,31 @@ def _constraints(spec: Mapping[str, Any], scenarios: Sequence[Scenario]) -> tupl
     return tuple(result)
 
 
+def _claims(scenarios: Sequence[Scenario]) -> tuple[Constraint, ...]:
+    """The reproduction's claims (``smm_analysis.reproduction``) as constraints on step, case1 and case2."""
+    from smm_analysis.reproduction import CASE2_RMS_REDUCTION, STEP_OVERSHOOT_LIMIT, STEP_RISE_TIME_RANGE
+
+    names = {s.name for s in scenarios}
+    if not {"step", "case1", "case2"} <= names:
+        raise SpecError(f"reproduction_claims needs the scenarios step, case1 and case2, got {sorted(names)}")
+    low, high = STEP_RISE_TIME_RANGE
+    result = []
+    for joint in ("alpha", "beta"):
+        result += [
+            Constraint(f"step.overshoot_{joint}", "<", STEP_OVERSHOOT_LIMIT),
+            Constraint(f"step.rise_time_{joint}", ">=", low),
+            Constraint(f"step.rise_time_{joint}", "<=", high),
+            Constraint(f"case1.RMS_{joint}", "<", None, ("fpd", "pid", "npd")),
+            Constraint(f"case1.Ma_{joint}", "<", None, ("fpd", "pid", "npd")),
+            Constraint(f"case2.RMS_{joint}", "<=", None, ("fpd",), 1.0 - CASE2_RMS_REDUCTION),
+            Constraint(f"case2.eps_u_{joint}", "<", None, ("fpd",)),
+        ]
+    return tuple(result)
+
+
 _KEYS = {
     "name", "scenarios", "controller", "duration", "fixed", "gains", "sampling", "plant", "plant_draws",
-    "objectives", "statistic", "constraints", "select", "batch_size",
+    "objectives", "statistic", "constraints", "reproduction_claims", "select", "batch_size",
 }
 
 
@@ -515,7 +537,7 @@ def parse_spec(spec: Mapping[str, Any]) -> SweepSpec:
         plant_draws=tuple(draws),
         objectives=objectives,
         statistic=statistic,
-        constraints=_constraints(spec, scenarios),
+        constraints=_constraints(spec, scenarios) + (_claims(scenarios) if spec.get("reproduction_claims") else ()),
         select=select,
         batch_size=_count("batch_size", spec.get("batch_size", 250)),
         source=dict(spec),
