@@ -52,7 +52,10 @@ def main() -> None:
         wall = time.perf_counter() - start
     batched = spec.run_count * steps / wall
     print(f"scalar loop (case2, FPDESO, 1 run):  {scalar:12,.0f} steps/s")
-    print(f"batched loop, one process ({len(one_batch)} runs): {per_process:12,.0f} steps/s ({per_process / scalar:.1f} x)")
+    print(
+        f"batched loop, one process ({len(one_batch)} runs): {per_process:12,.0f} steps/s "
+        f"({per_process / scalar:.1f} x)"
+    )
     print(f"batched sweep ({spec.run_count} runs, {workers} processes): {batched:12,.0f} steps/s aggregate")
     print(f"ratio batched / scalar:              {batched / scalar:12.1f} x   (target >= {TARGET_RATIO:g} x)")
     print(f"1,000-run case-2 sweep wall time:    {wall:12.1f} s   (target < {TARGET_S:g} s on 2 cores)")

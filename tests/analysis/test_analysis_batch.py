@@ -9,17 +9,33 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from smm_analysis.batch import INDEX_NAMES, SIGN_TOLERANCE, SMOOTH_TOLERANCE, RunSettings, run_batch, scalar_indices
+from smm_analysis.batch import (
+    INDEX_NAMES,
+    SIGN_TOLERANCE,
+    SMOOTH_TOLERANCE,
+    RunSettings,
+    run_batch,
+    scalar_indices,
+)
 from smm_analysis.batch.fuzzy import BandwidthFuzzy, PDGainFuzzy
 from smm_analysis.errors import AnalysisError
 from smm_analysis.scenarios import get_scenario
-from smm_controller import FLESOConfig, FPDConfig, FPDESOConfig, NPDConfig, PIDConfig, TrackingDifferentiatorConfig
 from smm_controller.fuzzy import MamdaniBatch
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, FuzzyPDConfig
 from smm_controller.limits import OutputLimitConfig
 from smm_controller.rules import TABLE_1, TABLE_7, fleso_bandwidth_system, pd_gain_system
-from smm_dynamics import SMMParameters
 from smm_sim.plant import PlantConfig
+
+from smm_controller import (
+    FLESOConfig,
+    FPDConfig,
+    FPDESOConfig,
+    NPDConfig,
+    PIDConfig,
+    TrackingDifferentiatorConfig,
+)
+from smm_dynamics import SMMParameters
+
 
 def _close(batch: dict[str, float], scalar: dict[str, float], tolerance: float) -> None:
     for name in INDEX_NAMES:
@@ -34,7 +50,9 @@ def _pair(low: float, high: float) -> st.SearchStrategy[tuple[float, float]]:
     return st.tuples(st.floats(low, high), st.floats(low, high))
 
 
-_SCENARIOS = st.sampled_from(["step", "case1", "case2"]).map(lambda name: get_scenario(name).with_duration(0.12))
+_SCENARIOS = st.sampled_from(["step", "case1", "case2"]).map(
+    lambda name: get_scenario(name).with_duration(0.12)
+)
 
 
 @st.composite
@@ -94,7 +112,9 @@ def _settings(draw: st.DrawFn, controller: str, smooth: bool = True) -> RunSetti
             output_limit=draw(st.sampled_from([(math.inf, math.inf), (20.0, 20.0)])),
         )
     else:
-        law = NPDConfig(k_np=draw(_pair(10.0, 40.0)), rho_p=draw(_pair(0.6, 1.4)), rho_d=draw(_pair(0.6, 1.4)))
+        law = NPDConfig(
+            k_np=draw(_pair(10.0, 40.0)), rho_p=draw(_pair(0.6, 1.4)), rho_d=draw(_pair(0.6, 1.4))
+        )
     return RunSettings(
         scenario=scenario,
         controller=controller,
@@ -139,7 +159,9 @@ def test_results_do_not_depend_on_how_runs_are_grouped(runs: list[RunSettings], 
         equal_nan=True,
     )
     assert np.array_equal(
-        np.array([parts[-1][k] for k in INDEX_NAMES]), np.array([whole[0][k] for k in INDEX_NAMES]), equal_nan=True
+        np.array([parts[-1][k] for k in INDEX_NAMES]),
+        np.array([whole[0][k] for k in INDEX_NAMES]),
+        equal_nan=True,
     )
 
 
@@ -160,16 +182,25 @@ def test_a_batch_refuses_runs_of_different_length_or_controller() -> None:
     plant = PlantConfig()
     step = get_scenario("step")
     with pytest.raises(AnalysisError, match="same control period, duration and controller"):
-        run_batch([RunSettings(step, "npd", NPDConfig(), plant), RunSettings(step.with_duration(0.5), "npd", NPDConfig(), plant)])
+        run_batch(
+            [
+                RunSettings(step, "npd", NPDConfig(), plant),
+                RunSettings(step.with_duration(0.5), "npd", NPDConfig(), plant),
+            ]
+        )
     with pytest.raises(AnalysisError, match="same control period, duration and controller"):
-        run_batch([RunSettings(step, "npd", NPDConfig(), plant), RunSettings(step, "pid", PIDConfig(), plant)])
+        run_batch(
+            [RunSettings(step, "npd", NPDConfig(), plant), RunSettings(step, "pid", PIDConfig(), plant)]
+        )
     with pytest.raises(AnalysisError, match="needs a FPDESOConfig"):
         RunSettings(step, "fpdeso", NPDConfig(), plant)
 
 
 @settings(max_examples=50)
 @given(
-    x=st.lists(st.floats(-1.0, 1.0) | st.sampled_from([-1.0, -2 / 3, 0.0, 1 / 3, 1.0]), min_size=4, max_size=4),
+    x=st.lists(
+        st.floats(-1.0, 1.0) | st.sampled_from([-1.0, -2 / 3, 0.0, 1 / 3, 1.0]), min_size=4, max_size=4
+    ),
     s=st.lists(st.floats(-1.0, 1.0) | st.sampled_from([-1.0, -0.5, 0.0, 1.0]), min_size=2, max_size=2),
 )
 def test_fuzzy_centroids_equal_the_scalar_engine(x: list[float], s: list[float]) -> None:

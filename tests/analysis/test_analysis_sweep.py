@@ -32,7 +32,10 @@ BASE: dict[str, Any] = {
     "plant_draws": {
         "count": 2,
         "seed": 4,
-        "parameters": {"inertia_scale": {"uniform": [0.8, 1.2], "relative": True}, "seed": {"integers": [0, 999]}},
+        "parameters": {
+            "inertia_scale": {"uniform": [0.8, 1.2], "relative": True},
+            "seed": {"integers": [0, 999]},
+        },
     },
     "objectives": ["case2.RMS_beta", "case2.eps_u_beta", "step.overshoot_beta"],
     "constraints": {"step.overshoot_beta": {"<": 0.05}, "case2.RMS_beta": {"<": "fpd"}},
@@ -55,8 +58,14 @@ def _write(tmp_path: Path, spec: dict[str, Any]) -> Path:
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"gains": {"fpdeso.fuzzy.bogus": {"grid": [1.0]}}}, r"gains\.fpdeso\.fuzzy\.bogus: unknown parameter"),
-        ({"gains": {"fpd.fuzzy.kd0": {"grid": [[1.0, 1.0]]}}}, r"gains\.fpd\.fuzzy\.kd0: unknown parameter .* runs fpdeso"),
+        (
+            {"gains": {"fpdeso.fuzzy.bogus": {"grid": [1.0]}}},
+            r"gains\.fpdeso\.fuzzy\.bogus: unknown parameter",
+        ),
+        (
+            {"gains": {"fpd.fuzzy.kd0": {"grid": [[1.0, 1.0]]}}},
+            r"gains\.fpd\.fuzzy\.kd0: unknown parameter .* runs fpdeso",
+        ),
         ({"fixed": {"td.nothing": 1.0}}, r"fixed\.td\.nothing: unknown parameter"),
         ({"plant": {"params.bogus": 1.0}}, r"plant\.params\.bogus: unknown parameter"),
         (
@@ -64,9 +73,18 @@ def _write(tmp_path: Path, spec: dict[str, Any]) -> Path:
             r"plant_draws\.parameters\.params\.I99: unknown parameter",
         ),
         ({"plant": {"control_period": 0.002}}, r"plant\.control_period: control_period cannot be swept"),
-        ({"gains": {"fpdeso.fuzzy.kp0[0]": {"range": [-5.0, 10.0]}}}, r"gains\.fpdeso\.fuzzy\.kp0\[0\]\.range end -5\.0: kp0"),
-        ({"sampling": None, "gains": {"fleso.w0": {"grid": [[20.0, 28.0], [0.0, 28.0]]}}}, r"gains\.fleso\.w0\.grid value \[0\.0, 28\.0\]: w0"),
-        ({"gains": {"td.filter_factor": {"grid": []}}}, r"gains\.td\.filter_factor\.grid must be a non-empty list"),
+        (
+            {"gains": {"fpdeso.fuzzy.kp0[0]": {"range": [-5.0, 10.0]}}},
+            r"gains\.fpdeso\.fuzzy\.kp0\[0\]\.range end -5\.0: kp0",
+        ),
+        (
+            {"sampling": None, "gains": {"fleso.w0": {"grid": [[20.0, 28.0], [0.0, 28.0]]}}},
+            r"gains\.fleso\.w0\.grid value \[0\.0, 28\.0\]: w0",
+        ),
+        (
+            {"gains": {"td.filter_factor": {"grid": []}}},
+            r"gains\.td\.filter_factor\.grid must be a non-empty list",
+        ),
         ({"gains": {"td.speed": {"range": [5.0, 1.0]}}}, r"gains\.td\.speed\.range must have low < high"),
         ({"plant": {"noise_std": [-0.1, 0.0]}}, r"noise_std"),
         ({"objectives": ["case2.bogus"]}, r"objectives\[0\]: unknown index 'bogus'"),
@@ -75,7 +93,10 @@ def _write(tmp_path: Path, spec: dict[str, Any]) -> Path:
         ({"controller": "lqr"}, r"controller must be one of"),
         ({"constraints": {"case2.RMS_beta": {"<<": 1.0}}}, r"constraints\.case2\.RMS_beta: unknown operator"),
         ({"bogus": 1}, r"unknown spec keys \['bogus'\]"),
-        ({"fpdeso.fuzzy.kd0[2]": None, "gains": {"fpdeso.fuzzy.kd0[2]": {"grid": [1.0]}}}, r"is not a parameter name"),
+        (
+            {"fpdeso.fuzzy.kd0[2]": None, "gains": {"fpdeso.fuzzy.kd0[2]": {"grid": [1.0]}}},
+            r"is not a parameter name",
+        ),
     ],
 )
 def test_a_bad_spec_is_refused_naming_the_field(changes: dict[str, Any], message: str) -> None:
@@ -120,13 +141,24 @@ def test_a_sweep_writes_every_output_and_does_not_depend_on_workers_or_batch_siz
     other = _write(tmp_path / "b", _spec(batch_size=5)) if (tmp_path / "b").mkdir() is None else path
     assert sweep(SweepOptions(other, two, 2, None, None), io.StringIO(), io.StringIO()) == EXIT_OK
     assert np.array_equal(_runs(one), _runs(two), equal_nan=True)
-    for name in ("runs.parquet", "gain_sets.parquet", "pareto.png", "sensitivity.png", "report.md", "chosen.yaml"):
+    for name in (
+        "runs.parquet",
+        "gain_sets.parquet",
+        "pareto.png",
+        "sensitivity.png",
+        "report.md",
+        "chosen.yaml",
+    ):
         assert (one / name).is_file(), name
     runs = pq.read_table(one / "runs.parquet")
     assert runs.num_rows == 16
-    assert {"gain.td.filter_factor[0]", "gain.fpdeso.fuzzy.kd0[1]", "plant.inertia_scale", "plant.seed", "seed"} <= set(
-        runs.column_names
-    )
+    assert {
+        "gain.td.filter_factor[0]",
+        "gain.fpdeso.fuzzy.kd0[1]",
+        "plant.inertia_scale",
+        "plant.seed",
+        "seed",
+    } <= set(runs.column_names)
     spec = parse_spec(_spec())
     row = 5
     expected = scalar_indices(spec.settings(row))
@@ -137,14 +169,23 @@ def test_a_sweep_writes_every_output_and_does_not_depend_on_workers_or_batch_siz
 
 def test_the_chosen_parameters_file_holds_the_chosen_gains(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    assert sweep(SweepOptions(_write(tmp_path, _spec()), out, 1, None, None), io.StringIO(), io.StringIO()) == 0
+    assert (
+        sweep(SweepOptions(_write(tmp_path, _spec()), out, 1, None, None), io.StringIO(), io.StringIO()) == 0
+    )
     document = yaml.safe_load((out / "chosen.yaml").read_text(encoding="utf-8"))
     controller = document["/**/controller_node"]["ros__parameters"]
     chain = document["/**"]["ros__parameters"]
     gain_sets = pq.read_table(out / "gain_sets.parquet")
-    chosen = int(next(line for line in (out / "report.md").read_text().splitlines() if line.startswith("Gain set ")).split()[2])
+    chosen = int(
+        next(
+            line for line in (out / "report.md").read_text().splitlines() if line.startswith("Gain set ")
+        ).split()[2]
+    )
     assert controller["algorithm"] == "fpdeso"
-    assert controller["fpdeso"]["fuzzy"]["kd0"][1] == gain_sets.column("gain.fpdeso.fuzzy.kd0[1]")[chosen].as_py()
+    assert (
+        controller["fpdeso"]["fuzzy"]["kd0"][1]
+        == gain_sets.column("gain.fpdeso.fuzzy.kd0[1]")[chosen].as_py()
+    )
     assert chain["td"]["filter_factor"][0] == gain_sets.column("gain.td.filter_factor[0]")[chosen].as_py()
     assert controller["fpdeso"]["boundary_layer"] == [0.05, 0.05]
 
@@ -164,7 +205,9 @@ def test_an_interrupted_sweep_resumes_from_its_parts(tmp_path: Path) -> None:
 def _parts(out: Path) -> dict[str, bytes]:
     """Each part's values as bytes (NaN compares equal to NaN this way)."""
     return {
-        path.name: np.stack([column.to_numpy().astype(float) for column in pq.read_table(path).columns]).tobytes()
+        path.name: np.stack(
+            [column.to_numpy().astype(float) for column in pq.read_table(path).columns]
+        ).tobytes()
         for path in sorted((out / "parts").glob("*.parquet"))
     }
 
@@ -198,7 +241,9 @@ def test_an_unreachable_scheduler_is_named_and_finished_batches_are_kept(tmp_pat
     assert address in stderr.getvalue()
 
 
-def test_rerun_gives_the_sweeps_indices_with_the_scalar_loop(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_rerun_gives_the_sweeps_indices_with_the_scalar_loop(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "out"
     path = _write(tmp_path, _spec())
     assert main([str(path), "--out", str(out), "--workers", "1"]) == 0

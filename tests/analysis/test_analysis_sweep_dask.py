@@ -47,11 +47,24 @@ class Cluster:
         self.address = f"tcp://127.0.0.1:{self.port}"
         self.log_dir = log_dir
         self.processes: list[subprocess.Popen[bytes]] = []
-        self.scheduler = self._start("scheduler", [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(self.port), "--no-dashboard"])
+        self.scheduler = self._start(
+            "scheduler",
+            [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(self.port), "--no-dashboard"],
+        )
         self.workers = [
             self._start(
                 f"worker{index}",
-                [DASK, "worker", self.address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1"],
+                [
+                    DASK,
+                    "worker",
+                    self.address,
+                    "--nthreads",
+                    "1",
+                    "--no-nanny",
+                    "--no-dashboard",
+                    "--host",
+                    "127.0.0.1",
+                ],
             )
             for index in range(2)
         ]
@@ -89,7 +102,9 @@ def cluster(tmp_path: Path) -> Iterator[Cluster]:
 
 def _rows(out: Path) -> np.ndarray:
     table = read_parts(out)
-    return np.stack([table.column(name).to_numpy().astype(float) for name in ("run_id", *INDEX_NAMES)], axis=-1)
+    return np.stack(
+        [table.column(name).to_numpy().astype(float) for name in ("run_id", *INDEX_NAMES)], axis=-1
+    )
 
 
 def test_a_sweep_on_dask_equals_the_local_run_row_by_row_even_when_a_worker_dies(

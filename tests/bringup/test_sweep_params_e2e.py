@@ -36,7 +36,11 @@ def test_the_chosen_parameters_file_runs_on_the_graph_and_reproduces_the_sweeps_
     spec_path.write_text(yaml.safe_dump(SPEC), encoding="utf-8")
     out = tmp_path / "sweep"
     assert sweep(SweepOptions(spec_path, out, 1, None, None), io.StringIO(), io.StringIO()) == 0
-    chosen = int(next(line for line in (out / "report.md").read_text().splitlines() if line.startswith("Gain set ")).split()[2])
+    chosen = int(
+        next(
+            line for line in (out / "report.md").read_text().splitlines() if line.startswith("Gain set ")
+        ).split()[2]
+    )
     record = tmp_path / "record.npz"
     extra = tmp_path / "record.yaml"
     extra.write_text(f'/**/smm_sim_node:\n  ros__parameters:\n    record_file: "{record}"\n')

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from smm_controller.limits import OutputLimitConfig, OutputLimiter
 from smm_sim.plant import PlantConfig, SimulatedPlant, disturbance_torque
 
 from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError, UnknownControllerError
@@ -35,7 +36,6 @@ from smm_controller import (
     TrackingDifferentiatorConfig,
     make_controller,
 )
-from smm_controller.limits import OutputLimitConfig, OutputLimiter
 from smm_dynamics import SMMParameters
 
 __all__ = [

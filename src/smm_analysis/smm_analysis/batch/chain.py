@@ -10,11 +10,17 @@ summed in another order, see ``smm_analysis.batch.fuzzy``).
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from smm_controller.fuzzy_pd import FuzzyPDConfig
+from smm_controller.limits import OutputLimitConfig
+from smm_dynamics._generated import mass_matrix_entries_spin_form, rigid_body_entries_spin_form
+
+from smm_analysis.batch.fuzzy import BandwidthFuzzy, PDGainFuzzy
 from smm_controller import (
     FLESOConfig,
     FPDConfig,
@@ -23,12 +29,7 @@ from smm_controller import (
     PIDConfig,
     TrackingDifferentiatorConfig,
 )
-from smm_controller.fuzzy_pd import FuzzyPDConfig
-from smm_controller.limits import OutputLimitConfig
 from smm_dynamics import SMMParameters
-from smm_dynamics._generated import mass_matrix_entries_spin_form, rigid_body_entries_spin_form
-
-from smm_analysis.batch.fuzzy import BandwidthFuzzy, PDGainFuzzy
 
 __all__ = [
     "BatchChain",
@@ -51,6 +52,11 @@ def pairs(configs: Sequence[Any], get: Callable[[Any], tuple[float, float]]) -> 
     return np.array([get(config) for config in configs], dtype=np.float64).reshape(len(configs), 2)
 
 
+def _fields(configs: Sequence[Any], names: Sequence[str]) -> list[FloatArray]:
+    """The per-joint fields ``names`` of every config, each (N, 2)."""
+    return [pairs(configs, operator.attrgetter(name)) for name in names]
+
+
 def _same(configs: Sequence[Any], get: Callable[[Any], Any], what: str) -> Any:
     values = {get(config) for config in configs}
     if len(values) != 1:
@@ -70,7 +76,9 @@ class BatchModel:
     """
 
     def __init__(self, params: Sequence[SMMParameters]) -> None:
-        self.inertias = tuple(np.array([getattr(p, name) for p in params]) for name in ("I11", "I22", "I44", "I55"))
+        self.inertias = tuple(
+            np.array([getattr(p, name) for p in params]) for name in ("I11", "I22", "I44", "I55")
+        )
         self.gravity = np.array([-p.gravity_sign * p.mass_lever * p.gravity for p in params])
 
     def mass(self, alpha: FloatArray, beta: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -190,7 +198,9 @@ class BatchLaw:
     uses_observer = np.zeros(0, dtype=bool)
     """Per run: the law takes the FLESO's velocity estimate (FPDESO, velocity_source "observer")."""
 
-    def step(self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float) -> FloatArray:
+    def step(
+        self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float
+    ) -> FloatArray:
         """The law's torque (N m), (N, 2)."""
         raise NotImplementedError
 
@@ -208,7 +218,9 @@ class BatchFPDESO(BatchLaw):
         self.phi = pairs(configs, lambda c: c.boundary_layer)
         self.uses_observer = np.array([c.velocity_source == "observer" for c in configs])
 
-    def step(self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float) -> FloatArray:
+    def step(
+        self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float
+    ) -> FloatArray:
         position, velocity, acceleration = reference
         e = position - q
         ed = velocity - qd
@@ -235,7 +247,9 @@ class BatchFPD(BatchLaw):
         self.schedule = BatchSchedule([c.fuzzy for c in configs])
         self.uses_observer = np.zeros(len(configs), dtype=bool)
 
-    def step(self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float) -> FloatArray:
+    def step(
+        self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float
+    ) -> FloatArray:
         e = reference[0] - q
         ed = reference[1] - qd
         kp, kd = self.schedule.gains(e, ed)
@@ -243,7 +257,9 @@ class BatchFPD(BatchLaw):
         return tau
 
 
-def _npd_gain(x: FloatArray, coefficient: FloatArray, threshold: FloatArray, exponent: FloatArray) -> FloatArray:
+def _npd_gain(
+    x: FloatArray, coefficient: FloatArray, threshold: FloatArray, exponent: FloatArray
+) -> FloatArray:
     magnitude = np.abs(x)
     gain: FloatArray = np.where(
         magnitude > threshold,
@@ -257,13 +273,14 @@ class BatchNPD(BatchLaw):
     """``smm_controller.baselines.NPDController`` per run."""
 
     def __init__(self, configs: Sequence[NPDConfig]) -> None:
-        self.k_np, self.k_nd, self.delta_p, self.delta_d, self.rho_p, self.rho_d = (
-            pairs(configs, lambda c, name=name: getattr(c, name))
-            for name in ("k_np", "k_nd", "delta_p", "delta_d", "rho_p", "rho_d")
+        self.k_np, self.k_nd, self.delta_p, self.delta_d, self.rho_p, self.rho_d = _fields(
+            configs, ("k_np", "k_nd", "delta_p", "delta_d", "rho_p", "rho_d")
         )
         self.uses_observer = np.zeros(len(configs), dtype=bool)
 
-    def step(self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float) -> FloatArray:
+    def step(
+        self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float
+    ) -> FloatArray:
         e = reference[0] - q
         ed = reference[1] - qd
         kp = _npd_gain(e, self.k_np, self.delta_p, self.rho_p)
@@ -276,9 +293,8 @@ class BatchPID(BatchLaw):
     """``smm_controller.baselines.PIDController`` per run."""
 
     def __init__(self, configs: Sequence[PIDConfig]) -> None:
-        self.kp, self.ki, self.kd, self.n, self.i_max, self.limit = (
-            pairs(configs, lambda c, name=name: getattr(c, name))
-            for name in ("kp", "ki", "kd", "derivative_filter", "integrator_limit", "output_limit")
+        self.kp, self.ki, self.kd, self.n, self.i_max, self.limit = _fields(
+            configs, ("kp", "ki", "kd", "derivative_filter", "integrator_limit", "output_limit")
         )
         self.integral = np.zeros_like(self.kp)
         self.derivative = np.zeros_like(self.kp)
@@ -289,7 +305,9 @@ class BatchPID(BatchLaw):
         self._tracks = (self.ki > 0.0) & (tracking > 0.0)
         self._tracking_time = np.where(self._tracks, tracking, 1.0)
 
-    def step(self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float) -> FloatArray:
+    def step(
+        self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float
+    ) -> FloatArray:
         e = reference[0] - q
         previous = self.previous if self.previous is not None else e
         self.derivative = (self.derivative + self.kd * self.n * (e - previous)) / (1.0 + self.n * dt)

@@ -63,7 +63,7 @@ class LabelSetCentroids:
         self._above_area, self._above_moment = (np.ascontiguousarray(above[..., k].ravel()) for k in range(2))
 
     def _clipped(self, mask: IntArray, level: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """F_K(level) for label sets ``mask`` (bit l = label l): (area, moment), each shaped like ``level``."""
+        """F_K(level) for label sets ``mask`` (bit l = label l): (area, moment), each like ``level``."""
         row = mask - 1
         found = np.searchsorted(self._keys, level + _KEY_SHIFT * mask, side="right")
         index = found + row  # row r's table has grid + 1 entries, its keys grid
@@ -80,7 +80,9 @@ class LabelSetCentroids:
         """
         order = np.argsort(-levels, axis=-1, kind="stable")
         upper = np.take_along_axis(levels, order, axis=-1)
-        masks = np.bitwise_or.accumulate(np.left_shift(1, np.take_along_axis(labels, order, axis=-1)), axis=-1)
+        masks = np.bitwise_or.accumulate(
+            np.left_shift(1, np.take_along_axis(labels, order, axis=-1)), axis=-1
+        )
         # F_K(0) = 0: the last layer has no lower term.
         area, moment = self._clipped(masks, upper)
         lower_area, lower_moment = self._clipped(masks[..., :-1], upper[..., 1:])
@@ -144,9 +146,9 @@ class PDGainFuzzy:
         self._radix = [len(system.inputs[1].labels) for system in systems]
         self._labels = [_rule_labels(system) for system in systems]
         samples = systems[0].output_samples
-        if any(not np.array_equal(system.output_samples, samples) for system in systems) or not np.array_equal(
-            samples[:, 0, :], samples[:, 1, :]
-        ):
+        if any(
+            not np.array_equal(system.output_samples, samples) for system in systems
+        ) or not np.array_equal(samples[:, 0, :], samples[:, 1, :]):
             raise ValueError("the PD rule bases must share one output MF family")
         self._table = _output_tables(systems[0])[0]
 

@@ -16,21 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from smm_controller import (
-    FLESOConfig,
-    FPDConfig,
-    FPDESOConfig,
-    FPDESOController,
-    FPDController,
-    JointController,
-    NPDConfig,
-    NPDController,
-    PIDConfig,
-    PIDController,
-    TrackingDifferentiatorConfig,
-)
 from smm_controller.limits import OutputLimitConfig
-from smm_dynamics import SMMParameters
 from smm_sim.plant import PlantConfig
 
 from smm_analysis.batch.chain import BatchChain, BatchFLESO, BatchLimiter, BatchModel, BatchTD, make_batch_law
@@ -39,6 +25,20 @@ from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD, Trajectory, run_clo
 from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError
 from smm_analysis.metrics import joint_indices, step_metrics
 from smm_analysis.scenarios import Scenario
+from smm_controller import (
+    FLESOConfig,
+    FPDConfig,
+    FPDController,
+    FPDESOConfig,
+    FPDESOController,
+    JointController,
+    NPDConfig,
+    NPDController,
+    PIDConfig,
+    PIDController,
+    TrackingDifferentiatorConfig,
+)
+from smm_dynamics import SMMParameters
 
 __all__ = [
     "INDEX_NAMES",
@@ -64,7 +64,12 @@ INDEX_NAMES: tuple[str, ...] = tuple(
 )
 """Index columns of a run: ``RMS_alpha`` ... (rad, N^2 m^2 s, N m); step ones NaN for a sine."""
 
-_CONFIG_TYPES: Mapping[str, type] = {"fpdeso": FPDESOConfig, "fpd": FPDConfig, "pid": PIDConfig, "npd": NPDConfig}
+_CONFIG_TYPES: Mapping[str, type] = {
+    "fpdeso": FPDESOConfig,
+    "fpd": FPDConfig,
+    "pid": PIDConfig,
+    "npd": NPDConfig,
+}
 
 
 @dataclass(frozen=True)
@@ -98,7 +103,9 @@ class RunSettings:
         if expected is None:
             raise AnalysisError(f"unknown controller {self.controller!r}; known: {', '.join(_CONFIG_TYPES)}")
         if not isinstance(self.law, expected):
-            raise AnalysisError(f"{self.controller} needs a {expected.__name__}, got {type(self.law).__name__}")
+            raise AnalysisError(
+                f"{self.controller} needs a {expected.__name__}, got {type(self.law).__name__}"
+            )
 
     def make_law(self) -> JointController:
         """The scalar law of these settings."""
@@ -188,7 +195,9 @@ def _steps(runs: Sequence[RunSettings]) -> tuple[int, int]:
         )
     period_ns, duration_ns = periods.pop(), durations.pop()
     if period_ns <= 0 or duration_ns % period_ns != 0:
-        raise AnalysisError(f"duration {duration_ns} ns is not a whole number of control periods {period_ns} ns")
+        raise AnalysisError(
+            f"duration {duration_ns} ns is not a whole number of control periods {period_ns} ns"
+        )
     return period_ns, duration_ns // period_ns
 
 
@@ -229,7 +238,9 @@ def _simulate(
     controller = runs[0].controller
     law = make_batch_law(controller, [run.law for run in runs], model)
     fleso = BatchFLESO([run.fleso for run in runs], model) if controller == "fpdeso" else None
-    chain = BatchChain(BatchTD([run.td for run in runs]), fleso, law, BatchLimiter([run.output for run in runs]))
+    chain = BatchChain(
+        BatchTD([run.td for run in runs]), fleso, law, BatchLimiter([run.output for run in runs])
+    )
     plant = BatchPlant([run.plant for run in runs], samples + 1)
     position = np.empty((samples, len(runs), 2))
     command = np.empty((samples, len(runs), 2))
@@ -237,7 +248,9 @@ def _simulate(
     with np.errstate(all="ignore"):
         for k in range(samples):
             reference = tables[k, which]
-            tau = chain.step(plant.measured, plant.applied, (reference[:, 0], reference[:, 1], reference[:, 2]), dt)
+            tau = chain.step(
+                plant.measured, plant.applied, (reference[:, 0], reference[:, 1], reference[:, 2]), dt
+            )
             alive &= np.all(np.isfinite(tau), axis=1) & np.all(np.isfinite(plant.state), axis=1)
             tau = np.where(alive[:, None], tau, 0.0)
             position[k] = plant.state[:, :2]

@@ -41,7 +41,9 @@ class BatchPlant:
             raise ValueError(f"every run of a batch needs the same substeps, got {sorted(substeps)!r}")
         self.substeps = substeps.pop()
         true = [c.true_params for c in configs]
-        self.inertias = tuple(np.array([getattr(p, name) for p in true]) for name in ("I11", "I22", "I44", "I55"))
+        self.inertias = tuple(
+            np.array([getattr(p, name) for p in true]) for name in ("I11", "I22", "I44", "I55")
+        )
         self.gravity = np.array([-p.gravity_sign * p.mass_lever * p.gravity for p in true])
         self.friction = pairs(true, lambda p: p.viscous_friction)
         self.coulomb = pairs(true, lambda p: p.coulomb_friction)
@@ -79,8 +81,11 @@ class BatchPlant:
         if np.any(quantum > 0.0):
             safe = np.where(quantum > 0.0, quantum, 1.0)[:, None]
             counts = measured / safe
-            measured = np.where(quantum[:, None] > 0.0, np.copysign(np.round(counts), counts) * safe, measured)
-        return measured
+            measured = np.where(
+                quantum[:, None] > 0.0, np.copysign(np.round(counts), counts) * safe, measured
+            )
+        result: FloatArray = measured
+        return result
 
     def _valve_substep(self, target: FloatArray, h: float) -> FloatArray:
         start = self.valve
@@ -101,7 +106,9 @@ class BatchPlant:
         # The generated step subtracts the offset from the load, then f_v q' (and G) per stage.
         offset_a, offset_b = load[:, 0] - oa, load[:, 1] - ob
 
-        def accel(a: FloatArray, b: FloatArray, ad: FloatArray, bd: FloatArray) -> tuple[FloatArray, FloatArray]:
+        def accel(
+            a: FloatArray, b: FloatArray, ad: FloatArray, bd: FloatArray
+        ) -> tuple[FloatArray, FloatArray]:
             sb = np.sin(b)
             torque_a = offset_a - ad * fa
             torque_b = offset_b - bd * fb - gravity * sb

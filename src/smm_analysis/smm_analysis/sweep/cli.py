@@ -1,5 +1,8 @@
-"""``smm-sweep SPEC.yaml [--out DIR] [--workers N] [--scheduler ADDRESS] [--rerun ID]``: parses, then calls
-:func:`smm_analysis.sweep.command.sweep` or :func:`~smm_analysis.sweep.command.rerun` (docs/SWEEPS.md)."""
+"""``smm-sweep SPEC.yaml [--out DIR] [--workers N] [--scheduler ADDRESS] [--rerun ID]`` (docs/SWEEPS.md).
+
+This module parses, then calls :func:`smm_analysis.sweep.command.sweep` or
+:func:`~smm_analysis.sweep.command.rerun`.
+"""
 
 from __future__ import annotations
 
@@ -44,7 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("spec", type=Path, help="sweep spec (YAML; docs/SWEEPS.md)")
     parser.add_argument("--out", type=Path, default=None, help="output folder (default out/sweeps/<name>)")
-    parser.add_argument("--workers", type=_positive, default=None, help="local processes (default: the cores)")
+    parser.add_argument(
+        "--workers", type=_positive, default=None, help="local processes (default: the cores)"
+    )
     parser.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://HOST:8786")
     parser.add_argument("--rerun", type=_run_id, default=None, help="re-run this run id with the scalar loop")
     return parser

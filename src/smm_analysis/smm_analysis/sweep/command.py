@@ -71,9 +71,15 @@ def sweep(options: SweepOptions, stdout: TextIO | None = None, stderr: TextIO | 
     try:
         spec = load_spec(options.spec)
         out = _out(options, spec.name)
-        where = f"Dask scheduler {options.scheduler}" if options.scheduler else f"{options.workers} local process(es)"
+        where = (
+            f"Dask scheduler {options.scheduler}"
+            if options.scheduler
+            else f"{options.workers} local process(es)"
+        )
         out_stream.write(f"smm-sweep {spec.name}: {spec.run_count} runs on {where} -> {out}\n")
-        ran = run_sweep(spec, out, workers=options.workers, scheduler=options.scheduler, progress=_Bar(err_stream))
+        ran = run_sweep(
+            spec, out, workers=options.workers, scheduler=options.scheduler, progress=_Bar(err_stream)
+        )
         indices = read_parts(out)
         result = analyse(spec, indices)
         files = write_outputs(spec, result, indices, out)
@@ -88,7 +94,7 @@ def sweep(options: SweepOptions, stdout: TextIO | None = None, stderr: TextIO | 
 
 
 def rerun(options: SweepOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
-    """Re-runs one run of a finished sweep with the scalar loop and compares its indices; returns the exit code."""
+    """Re-runs one run of a finished sweep with the scalar loop and compares; returns the exit code."""
     out_stream = stdout if stdout is not None else sys.stdout
     err_stream = stderr if stderr is not None else sys.stderr
     assert options.rerun is not None
@@ -107,7 +113,10 @@ def rerun(options: SweepOptions, stdout: TextIO | None = None, stderr: TextIO | 
         path = write_parameters_file(
             out / f"rerun-{options.rerun}.yaml",
             parameters_sections(settings),
-            comment=f"smm-sweep {spec.name}: run {options.rerun} (scenario {settings.scenario.name}, seed {settings.plant.seed})",
+            comment=(
+                f"smm-sweep {spec.name}: run {options.rerun} "
+                f"(scenario {settings.scenario.name}, seed {settings.plant.seed})"
+            ),
         )
     except AnalysisError as error:
         err_stream.write(f"smm-sweep: error: {error}\n")

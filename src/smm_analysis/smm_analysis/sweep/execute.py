@@ -8,6 +8,7 @@ started again on the same folder with the same spec runs only the batches withou
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -73,7 +74,9 @@ def _part_path(out: Path, index: int) -> Path:
 
 
 def _write_part(out: Path, index: int, rows: Sequence[dict[str, float]]) -> None:
-    table = pa.table({"run_id": [int(r["run_id"]) for r in rows], **{k: [float(r[k]) for r in rows] for k in INDEX_NAMES}})
+    table = pa.table(
+        {"run_id": [int(r["run_id"]) for r in rows], **{k: [float(r[k]) for r in rows] for k in INDEX_NAMES}}
+    )
     path = _part_path(out, index)
     temporary = path.with_suffix(".tmp")
     pq.write_table(table, temporary)
@@ -92,7 +95,8 @@ def prepare_folder(spec: SweepSpec, out: Path) -> None:
             recorded = json.loads(state.read_text(encoding="utf-8"))
             if recorded.get("digest") != spec.digest:
                 raise SweepFolderError(
-                    f"{out} holds the results of another sweep spec ({recorded.get('name')!r}); use another --out"
+                    f"{out} holds the results of another sweep spec ({recorded.get('name')!r}); "
+                    "use another --out"
                 )
             return
         (out / _PARTS).mkdir(parents=True, exist_ok=True)
@@ -127,7 +131,9 @@ def read_parts(out: Path) -> pa.Table:
     """Every written run (run_id and indices), in run id order."""
     paths = sorted((out / _PARTS).glob("batch-*.parquet"))
     if not paths:
-        return pa.table({"run_id": pa.array([], pa.int64()), **{k: pa.array([], pa.float64()) for k in INDEX_NAMES}})
+        return pa.table(
+            {"run_id": pa.array([], pa.int64()), **{k: pa.array([], pa.float64()) for k in INDEX_NAMES}}
+        )
     table = pa.concat_tables([pq.read_table(path) for path in paths])
     return table.sort_by("run_id")
 
@@ -135,7 +141,9 @@ def read_parts(out: Path) -> pa.Table:
 Progress = Callable[[int, int], None]
 
 
-def _local(todo: Sequence[tuple[Batch, list[RunSettings]]], workers: int) -> Iterator[tuple[Batch, list[dict[str, float]]]]:
+def _local(
+    todo: Sequence[tuple[Batch, list[RunSettings]]], workers: int
+) -> Iterator[tuple[Batch, list[dict[str, float]]]]:
     if workers <= 1:
         for batch, runs in todo:
             yield batch, run_task(batch.run_ids, runs)
@@ -155,33 +163,34 @@ def _local(todo: Sequence[tuple[Batch, list[RunSettings]]], workers: int) -> Ite
 def _dask(
     todo: Sequence[tuple[Batch, list[RunSettings]]], address: str, digest: str
 ) -> Iterator[tuple[Batch, list[dict[str, float]]]]:
-    from distributed import Client, as_completed
+    from distributed import Client, as_completed  # noqa: PLC0415 (dask loads only for --scheduler)
 
     try:
-        client = Client(address, timeout="10s", set_as_default=False)
+        client = Client(address, timeout="10s", set_as_default=False)  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError, ValueError) as error:
         raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {error}") from None
     try:
         futures = {
-            client.submit(run_task, batch.run_ids, runs, key=f"smm-sweep-{digest}-{batch.index}", retries=2): batch
+            client.submit(
+                run_task, batch.run_ids, runs, key=f"smm-sweep-{digest}-{batch.index}", retries=2
+            ): batch
             for batch, runs in todo
         }
         with client.as_current():
-            finished = as_completed(list(futures))
+            finished = as_completed(list(futures))  # type: ignore[no-untyped-call]
         for future in finished:
             try:
                 result = future.result()
-            except Exception as error:  # noqa: BLE001 (any failure of the cluster ends the sweep, with the address)
+            except Exception as error:
                 raise SchedulerError(
-                    f"the Dask cluster at {address} failed during the sweep ({type(error).__name__}: {error}); "
-                    "finished batches are kept: run the same command again to resume"
+                    f"the Dask cluster at {address} failed during the sweep "
+                    f"({type(error).__name__}: {error}); finished batches are kept: run the same command "
+                    "again to resume"
                 ) from None
             yield futures[future], result
     finally:
-        try:
-            client.close(timeout=5)
-        except Exception:  # noqa: BLE001, S110 (a dead scheduler cannot be closed cleanly)
-            pass
+        with contextlib.suppress(Exception):  # a dead scheduler cannot be closed cleanly
+            client.close(timeout=5)  # type: ignore[no-untyped-call]
 
 
 def run_sweep(
@@ -201,7 +210,11 @@ def run_sweep(
     prepare_folder(spec, out)
     all_batches = batches(spec)
     done = finished_batches(out)
-    todo = [(batch, [spec.settings(run_id) for run_id in batch.run_ids]) for batch in all_batches if batch.index not in done]
+    todo = [
+        (batch, [spec.settings(run_id) for run_id in batch.run_ids])
+        for batch in all_batches
+        if batch.index not in done
+    ]
     total = len(all_batches)
     finished = len(done)
     if progress is not None:

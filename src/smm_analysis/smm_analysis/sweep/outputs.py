@@ -15,16 +15,16 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pyarrow as pa  # noqa: E402
-import pyarrow.parquet as pq  # noqa: E402
-from smm_node_runtime.parameters import config_to_parameters  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+from smm_node_runtime.parameters import config_to_parameters
 
-from smm_analysis.batch.loop import RunSettings  # noqa: E402
-from smm_analysis.parameters_file import write_parameters_file  # noqa: E402
-from smm_analysis.sweep.results import SweepResult, gain_set_table, numeric_gains, runs_table  # noqa: E402
-from smm_analysis.sweep.spec import SweepSpec  # noqa: E402
+from smm_analysis.batch.loop import RunSettings
+from smm_analysis.parameters_file import write_parameters_file
+from smm_analysis.sweep.results import SweepResult, gain_set_table, numeric_gains, runs_table
+from smm_analysis.sweep.spec import SweepSpec
 
 __all__ = ["parameters_sections", "write_outputs"]
 
@@ -114,17 +114,19 @@ def _report(spec: SweepSpec, result: SweepResult, table: pa.Table, files: list[s
         f"# Sweep {spec.name}",
         "",
         f"Law {spec.controller}; scenarios {', '.join(s.name for s in spec.scenarios)}; "
-        f"{len(spec.gain_sets)} gain sets x {len(spec.plant_draws)} plant draws x {len(spec.scenarios)} scenarios "
-        f"= {spec.run_count} runs ({len(table)} finished, {diverged} diverged).",
+        f"{len(spec.gain_sets)} gain sets x {len(spec.plant_draws)} plant draws x "
+        f"{len(spec.scenarios)} scenarios = {spec.run_count} runs "
+        f"({len(table)} finished, {diverged} diverged).",
         f"Objectives (minimised, {spec.statistic} over the plant draws): {', '.join(spec.objectives)}.",
-        f"Varied: {', '.join(spec.varied) or 'nothing'}. Fixed: {_value(spec.fixed) if spec.fixed else 'nothing'}.",
+        f"Varied: {', '.join(spec.varied) or 'nothing'}. "
+        f"Fixed: {_value(spec.fixed) if spec.fixed else 'nothing'}.",
         "",
         "## Pareto front",
         "",
         "| gain set | " + " | ".join(spec.varied) + " | " + " | ".join(spec.objectives) + " |",
         "|---" * (1 + len(spec.varied) + len(spec.objectives)) + "|",
     ]
-    for g in np.flatnonzero(result.pareto):
+    for g in np.flatnonzero(result.pareto).tolist():
         gains = [_value(spec.gain_sets[g][name]) for name in spec.varied]
         values = [f"{result.value(spec.statistic, int(g), c):.4g}" for c in spec.objectives]
         lines.append(f"| {g} | " + " | ".join(gains) + " | " + " | ".join(values) + " |")
@@ -132,7 +134,9 @@ def _report(spec: SweepSpec, result: SweepResult, table: pa.Table, files: list[s
         lines += ["", "## Robustness over the plant draws (front and chosen set)", ""]
         lines.append("| gain set | objective | P50 | P95 | worst |")
         lines.append("|---|---|---|---|---|")
-        shown = sorted({*np.flatnonzero(result.pareto).tolist(), *([result.chosen] if result.chosen is not None else [])})
+        shown = sorted(
+            {*np.flatnonzero(result.pareto).tolist(), *([result.chosen] if result.chosen is not None else [])}
+        )
         for g in shown:
             for c in spec.objectives:
                 stats = [f"{result.value(s, g, c):.4g}" for s in ("p50", "p95", "worst")]
@@ -142,7 +146,11 @@ def _report(spec: SweepSpec, result: SweepResult, table: pa.Table, files: list[s
         lines.append("No gain set has finite indices.")
     else:
         g = result.chosen
-        verdict = "meets every constraint" if result.chosen_meets_all else "meets NOT every constraint: the closest set"
+        verdict = (
+            "meets every constraint"
+            if result.chosen_meets_all
+            else "meets NOT every constraint: the closest set"
+        )
         lines.append(f"Gain set {g} ({verdict}; least {spec.select} ({spec.statistic}) among those that do).")
         lines.append("")
         for name in spec.varied:
@@ -151,7 +159,10 @@ def _report(spec: SweepSpec, result: SweepResult, table: pa.Table, files: list[s
             lines += ["", "| constraint | bound | value | met | miss |", "|---|---|---|---|---|"]
             for r in result.constraint_results[g]:
                 miss = "" if r.passed else f"{100 * r.miss:.2f} %"
-                lines.append(f"| {r.constraint.text()} | {r.bound:.4g} | {r.value:.4g} | {'yes' if r.passed else 'NO'} | {miss} |")
+                lines.append(
+                    f"| {r.constraint.text()} | {r.bound:.4g} | {r.value:.4g} | "
+                    f"{'yes' if r.passed else 'NO'} | {miss} |"
+                )
         lines += ["", "Its ROS parameters: `chosen.yaml` (`smm-launch --params-file chosen.yaml`)."]
     lines += ["", "Files: " + ", ".join(f"`{f}`" for f in files), ""]
     return "\n".join(lines)

@@ -16,13 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
-from smm_controller import FLESOConfig, TrackingDifferentiatorConfig
 from smm_controller.limits import OutputLimitConfig
-from smm_dynamics import SMMParameters
 
 from smm_analysis.batch.loop import _CONFIG_TYPES, INDEX_NAMES, RunSettings, run_batch
 from smm_analysis.closed_loop import scenario_plant_config
 from smm_analysis.sweep.spec import Constraint, SweepSpec
+from smm_controller import FLESOConfig, TrackingDifferentiatorConfig
+from smm_dynamics import SMMParameters
 
 __all__ = ["ConstraintResult", "SweepResult", "analyse", "pareto_mask", "runs_table"]
 
@@ -44,7 +44,13 @@ def _flat(prefix: str, values: Mapping[str, object]) -> dict[str, object]:
 def runs_table(spec: SweepSpec, indices: pa.Table) -> pa.Table:
     """Every run's settings (varied gains, plant draw values, seed) and indices, one row per run id."""
     run_ids = indices.column("run_id").to_pylist()
-    rows: dict[str, list[object]] = {"run_id": [], "gain_set": [], "plant_draw": [], "scenario": [], "seed": []}
+    rows: dict[str, list[object]] = {
+        "run_id": [],
+        "gain_set": [],
+        "plant_draw": [],
+        "scenario": [],
+        "seed": [],
+    }
     settings_columns: dict[str, list[object]] = {}
     for position, run_id in enumerate(run_ids):
         gain_set, draw, scenario = spec.locate(run_id)
@@ -70,7 +76,8 @@ def pareto_mask(points: FloatArray) -> NDArray[np.bool_]:
         others = points[finite]
         dominated = np.any(np.all(others <= points[i], axis=1) & np.any(others < points[i], axis=1))
         keep[i] = not dominated
-    return keep
+    result: NDArray[np.bool_] = keep
+    return result
 
 
 @dataclass(frozen=True)
@@ -127,7 +134,11 @@ def _grid(spec: SweepSpec, table: pa.Table) -> tuple[FloatArray, NDArray[np.int6
     values = np.full((sets, draws, scenarios, len(INDEX_NAMES)), np.nan)
     present = np.zeros((sets, draws, scenarios), dtype=bool)
     run_ids = np.asarray(table.column("run_id").to_numpy(), dtype=np.int64)
-    indices = np.stack([table.column(name).to_numpy() for name in INDEX_NAMES], axis=-1) if len(table) else np.zeros((0, len(INDEX_NAMES)))
+    indices = (
+        np.stack([table.column(name).to_numpy() for name in INDEX_NAMES], axis=-1)
+        if len(table)
+        else np.zeros((0, len(INDEX_NAMES)))
+    )
     scenario = run_ids % scenarios
     rest = run_ids // scenarios
     gain_set, draw = rest // draws, rest % draws
@@ -141,7 +152,9 @@ def _statistics(values: FloatArray) -> dict[str, FloatArray]:
     """P50, P95 and worst over the draws (axis 1); a diverged run (NaN) counts as +inf."""
     worst_case = np.where(np.isnan(values), np.inf, values)
     with np.errstate(invalid="ignore"):  # inf - inf between two diverged draws: the percentile is inf
-        result = {name: np.percentile(worst_case, q, axis=1, method="linear") for name, q in _STATISTICS.items()}
+        result = {
+            name: np.percentile(worst_case, q, axis=1, method="linear") for name, q in _STATISTICS.items()
+        }
     result = {name: np.where(np.isnan(stat), np.inf, stat) for name, stat in result.items()}
     result["worst"] = worst_case.max(axis=1)
     # An index that is NaN for every draw (a step metric of a sine) stays NaN.
@@ -184,7 +197,12 @@ def _check(constraint: Constraint, bound: float, value: float) -> ConstraintResu
     op = constraint.op
     passed = bool(
         math.isfinite(value)
-        and ((op == "<" and value < bound) or (op == "<=" and value <= bound) or (op == ">" and value > bound) or (op == ">=" and value >= bound))
+        and (
+            (op == "<" and value < bound)
+            or (op == "<=" and value <= bound)
+            or (op == ">" and value > bound)
+            or (op == ">=" and value >= bound)
+        )
     )
     if passed:
         miss = 0.0
@@ -207,7 +225,8 @@ def analyse(spec: SweepSpec, table: pa.Table, bounds: Mapping[str, float] | None
         bounds = reference_bounds(spec)
     results = tuple(
         tuple(
-            _check(c, bounds[c.text()], float(chosen_stat[g, columns.index(c.column)])) for c in spec.constraints
+            _check(c, bounds[c.text()], float(chosen_stat[g, columns.index(c.column)]))
+            for c in spec.constraints
         )
         for g in range(len(spec.gain_sets))
     )
@@ -251,7 +270,7 @@ def gain_set_table(spec: SweepSpec, result: SweepResult) -> pa.Table:
 
 def numeric_gains(spec: SweepSpec) -> list[tuple[str, Sequence[float]]]:
     """Each varied gain (joints as separate entries) with its value per gain set, numbers only."""
-    result = []
+    result: list[tuple[str, Sequence[float]]] = []
     for name in spec.varied:
         values = [spec.gain_sets[g][name] for g in range(len(spec.gain_sets))]
         first = values[0]

@@ -24,16 +24,17 @@ from typing import Any
 import numpy as np
 import yaml
 from scipy.stats import qmc
-from smm_controller import CONTROLLER_NAMES, FLESOConfig, TrackingDifferentiatorConfig
 from smm_controller.limits import OutputLimitConfig
-from smm_dynamics import SMMParameters
-from smm_node_runtime.parameters import FieldKind, config_fields, config_from_parameters
+from smm_node_runtime.parameters import config_fields, config_from_parameters, config_to_parameters
 from smm_sim.sim_node import PlantParameters
 
 from smm_analysis.batch.loop import _CONFIG_TYPES, INDEX_NAMES, RunSettings
 from smm_analysis.closed_loop import scenario_plant_config
 from smm_analysis.errors import AnalysisError, UnknownScenarioError
+from smm_analysis.reproduction import CASE2_RMS_REDUCTION, STEP_OVERSHOOT_LIMIT, STEP_RISE_TIME_RANGE
 from smm_analysis.scenarios import Scenario, get_scenario
+from smm_controller import CONTROLLER_NAMES, FLESOConfig, TrackingDifferentiatorConfig
+from smm_dynamics import SMMParameters
 
 __all__ = ["ParameterValues", "SpecError", "SweepSpec", "load_spec", "parse_spec"]
 
@@ -44,7 +45,10 @@ STATISTICS = ("p50", "p95", "worst")
 _OPERATORS = ("<", "<=", ">", ">=")
 _SAMPLING = ("random", "lhs")
 _INDEXED = re.compile(r"^(?P<name>[A-Za-z_][\w.]*)(\[(?P<joint>[01])\])?$")
-_PLANT_REFUSED = {"control_period": "the sweep's control period is the controller's", "initial_position": "the offline loop starts at rest at q = 0"}
+_PLANT_REFUSED = {
+    "control_period": "the sweep's control period is the controller's",
+    "initial_position": "the offline loop starts at rest at q = 0",
+}
 
 
 class SpecError(AnalysisError):
@@ -112,7 +116,9 @@ class SweepSpec:
     select: str
     batch_size: int
     source: Mapping[str, Any]
-    _built: dict[tuple[int, int, int], RunSettings] = dataclasses.field(default_factory=dict, repr=False, compare=False)
+    _built: dict[tuple[int, int, int], RunSettings] = dataclasses.field(
+        default_factory=dict, repr=False, compare=False
+    )
 
     @property
     def run_count(self) -> int:
@@ -142,10 +148,14 @@ class SweepSpec:
         plant_key = (-1, draw, scenario)
         if law_key not in self._built:
             controller = {**self.fixed, **self.gain_sets[gain_set]}
-            self._built[law_key] = build_settings(self.controller, self.scenarios[0], controller, self.plant_fixed, "run")
+            self._built[law_key] = build_settings(
+                self.controller, self.scenarios[0], controller, self.plant_fixed, "run"
+            )
         if plant_key not in self._built:
             plant = {**self.plant_fixed, **self.plant_draws[draw]}
-            self._built[plant_key] = build_settings(self.controller, self.scenarios[scenario], self.fixed, plant, "run")
+            self._built[plant_key] = build_settings(
+                self.controller, self.scenarios[scenario], self.fixed, plant, "run"
+            )
         return dataclasses.replace(
             self._built[law_key], scenario=self.scenarios[scenario], plant=self._built[plant_key].plant
         )
@@ -176,7 +186,9 @@ def _fields(config_cls: type, prefix: str) -> dict[str, Any]:
 def _split(where: str, name: str) -> tuple[str, int | None]:
     match = _INDEXED.match(name) if isinstance(name, str) else None
     if match is None:
-        raise SpecError(f"{where}: {name!r} is not a parameter name (e.g. fpdeso.fuzzy.kd0 or fpdeso.fuzzy.kd0[1])")
+        raise SpecError(
+            f"{where}: {name!r} is not a parameter name (e.g. fpdeso.fuzzy.kd0 or fpdeso.fuzzy.kd0[1])"
+        )
     joint = match.group("joint")
     return match.group("name"), None if joint is None else int(joint)
 
@@ -191,15 +203,17 @@ def _check_name(where: str, name: str, known: Mapping[str, Any], hint: str) -> N
 
 
 def _merged(where: str, values: Mapping[str, Any], current: Mapping[str, Any]) -> dict[str, Any]:
-    """Flat values with ``name[j]`` entries folded into their pair (taken from ``current``); one number
-    for a per-joint parameter is given to both joints."""
+    """Flat values with ``name[j]`` entries folded into their pair (taken from ``current``).
+
+    One number for a per-joint parameter is given to both joints.
+    """
     result: dict[str, Any] = {}
     for name, value in values.items():
         base, joint = _split(where, name)
         if joint is None:
-            pair = isinstance(current.get(base), list) and len(current[base]) == 2
+            per_joint = isinstance(current.get(base), list) and len(current[base]) == 2
             number = isinstance(value, (int, float)) and not isinstance(value, bool)
-            result[base] = [value, value] if pair and number else value
+            result[base] = [value, value] if per_joint and number else value
             continue
         pair = list(result.get(base, current[base]))
         pair[joint] = value
@@ -208,8 +222,6 @@ def _merged(where: str, values: Mapping[str, Any], current: Mapping[str, Any]) -
 
 
 def _build(config_cls: type, default: Any, prefix: str, values: Mapping[str, Any], where: str) -> Any:
-    from smm_node_runtime.parameters import config_to_parameters
-
     current = config_to_parameters(default, prefix)
     merged = _merged(where, values, current)
     try:
@@ -232,7 +244,10 @@ def build_settings(
         built[prefix] = _build(config_cls, default, prefix, mine, where)
     base = scenario_plant_config(scenario)
     plant_default = PlantParameters(
-        params=base.params, inertia_scale=base.inertia_scale, noise_std=base.noise_std, disturbance=base.disturbance
+        params=base.params,
+        inertia_scale=base.inertia_scale,
+        noise_std=base.noise_std,
+        disturbance=base.disturbance,
     )
     plant_values = dict(plant)
     if any(isinstance(v, bool) for v in plant_values.values()):
@@ -288,9 +303,11 @@ def _gain_values(spec: Mapping[str, Any], controller: str) -> tuple[tuple[str, .
     for name, entry in gains.items():
         where = f"gains.{name}"
         _check_name(where, name, known, hint)
-        entry = _mapping(where, entry)
+        entry = _mapping(where, entry)  # noqa: PLW2901 (the same entry, checked to be a mapping)
         if set(entry) - {"grid", "range", "log"} or ("grid" in entry) == ("range" in entry):
-            raise SpecError(f"{where} needs exactly one of 'grid' (a list) or 'range' ([low, high]), got {dict(entry)!r}")
+            raise SpecError(
+                f"{where} needs exactly one of 'grid' (a list) or 'range' ([low, high]), got {dict(entry)!r}"
+            )
         if "grid" in entry:
             values = entry["grid"]
             if not isinstance(values, list) or not values:
@@ -323,7 +340,11 @@ def _gain_values(spec: Mapping[str, Any], controller: str) -> tuple[tuple[str, .
         for row in unit:
             draw = {}
             for (name, (low, high, log)), u in zip(ranges.items(), row, strict=True):
-                draw[name] = float(math.exp(math.log(low) + u * (math.log(high) - math.log(low))) if log else low + u * (high - low))
+                draw[name] = float(
+                    math.exp(math.log(low) + u * (math.log(high) - math.log(low)))
+                    if log
+                    else low + u * (high - low)
+                )
             draws.append(draw)
     elif sampling:
         raise SpecError("sampling is given but no gain has a 'range'")
@@ -350,11 +371,17 @@ def _distribution(where: str, entry: object, rng: np.random.Generator, base: obj
     entry = _mapping(where, entry)
     kinds = [kind for kind in ("uniform", "normal", "integers", "choice") if kind in entry]
     if len(kinds) != 1 or set(entry) - {*kinds, "relative"}:
-        raise SpecError(f"{where} needs one of uniform: [low, high], normal: [mean, std], integers: [low, high], choice: [...]")
+        raise SpecError(
+            f"{where} needs one of uniform: [low, high], normal: [mean, std], integers: [low, high], "
+            "choice: [...]"
+        )
     kind = kinds[0]
     args = entry[kind]
     if not isinstance(args, list) or not args or (kind != "choice" and len(args) != 2):
-        raise SpecError(f"{where}.{kind} must be a list of {'values' if kind == 'choice' else 'two numbers'}, got {args!r}")
+        raise SpecError(
+            f"{where}.{kind} must be a list of {'values' if kind == 'choice' else 'two numbers'}, "
+            f"got {args!r}"
+        )
     if kind == "uniform":
         low, high = (_number(f"{where}.uniform", v) for v in args)
         values: list[Any] = rng.uniform(low, high, count).tolist()
@@ -375,9 +402,9 @@ def _distribution(where: str, entry: object, rng: np.random.Generator, base: obj
     return values
 
 
-def _plant_values(spec: Mapping[str, Any], scenario: Scenario) -> tuple[ParameterValues, list[ParameterValues]]:
-    from smm_node_runtime.parameters import config_to_parameters
-
+def _plant_values(
+    spec: Mapping[str, Any], scenario: Scenario
+) -> tuple[ParameterValues, list[ParameterValues]]:
     known = _fields(PlantParameters, "")
     known.pop("plant_config", None)
     hint = "plant parameters are smm_sim_node's: params.*, inertia_scale, noise_std, seed, disturbance, ..."
@@ -388,7 +415,9 @@ def _plant_values(spec: Mapping[str, Any], scenario: Scenario) -> tuple[Paramete
     parameters = _mapping("plant_draws.parameters", draws_spec.get("parameters"))
     if not parameters:
         if draws_spec and set(draws_spec) - {"count", "seed"}:
-            raise SpecError(f"plant_draws has unknown keys {sorted(set(draws_spec) - {'count', 'seed', 'parameters'})}")
+            raise SpecError(
+                f"plant_draws has unknown keys {sorted(set(draws_spec) - {'count', 'seed', 'parameters'})}"
+            )
         return fixed, [{}]
     count = _count("plant_draws.count", draws_spec.get("count"))
     rng = np.random.default_rng(_count("plant_draws.seed", draws_spec.get("seed", 0), 0))
@@ -443,8 +472,14 @@ def _constraints(spec: Mapping[str, Any], scenarios: Sequence[Scenario]) -> tupl
             laws = _mapping(f"{where}.{op}", bound) if isinstance(bound, Mapping) else {"controllers": bound}
             controllers = laws.get("controllers")
             controllers = [controllers] if isinstance(controllers, str) else controllers
-            if not isinstance(controllers, list) or not controllers or any(c not in CONTROLLER_NAMES for c in controllers):
-                raise SpecError(f"{where}.{op}: a bound is a number or laws among {CONTROLLER_NAMES}, got {bound!r}")
+            if (
+                not isinstance(controllers, list)
+                or not controllers
+                or any(c not in CONTROLLER_NAMES for c in controllers)
+            ):
+                raise SpecError(
+                    f"{where}.{op}: a bound is a number or laws among {CONTROLLER_NAMES}, got {bound!r}"
+                )
             factor = _number(f"{where}.{op}.factor", laws.get("factor", 1.0))
             result.append(Constraint(column, op, None, tuple(controllers), factor))
     return tuple(result)
@@ -452,8 +487,6 @@ def _constraints(spec: Mapping[str, Any], scenarios: Sequence[Scenario]) -> tupl
 
 def _claims(scenarios: Sequence[Scenario]) -> tuple[Constraint, ...]:
     """The reproduction's claims (``smm_analysis.reproduction``) as constraints on step, case1 and case2."""
-    from smm_analysis.reproduction import CASE2_RMS_REDUCTION, STEP_OVERSHOOT_LIMIT, STEP_RISE_TIME_RANGE
-
     names = {s.name for s in scenarios}
     if not {"step", "case1", "case2"} <= names:
         raise SpecError(f"reproduction_claims needs the scenarios step, case1 and case2, got {sorted(names)}")
@@ -473,8 +506,21 @@ def _claims(scenarios: Sequence[Scenario]) -> tuple[Constraint, ...]:
 
 
 _KEYS = {
-    "name", "scenarios", "controller", "duration", "fixed", "gains", "sampling", "plant", "plant_draws",
-    "objectives", "statistic", "constraints", "reproduction_claims", "select", "batch_size",
+    "name",
+    "scenarios",
+    "controller",
+    "duration",
+    "fixed",
+    "gains",
+    "sampling",
+    "plant",
+    "plant_draws",
+    "objectives",
+    "statistic",
+    "constraints",
+    "reproduction_claims",
+    "select",
+    "batch_size",
 }
 
 
@@ -537,7 +583,8 @@ def parse_spec(spec: Mapping[str, Any]) -> SweepSpec:
         plant_draws=tuple(draws),
         objectives=objectives,
         statistic=statistic,
-        constraints=_constraints(spec, scenarios) + (_claims(scenarios) if spec.get("reproduction_claims") else ()),
+        constraints=_constraints(spec, scenarios)
+        + (_claims(scenarios) if spec.get("reproduction_claims") else ()),
         select=select,
         batch_size=_count("batch_size", spec.get("batch_size", 250)),
         source=dict(spec),
