@@ -49,7 +49,7 @@ typecheck: $(STAMP)
 
 # A gain study on the batched closed loop: make sweep SPEC=examples/sweeps/case2_td_tradeoff.yaml [OUT=dir]
 sweep: $(STAMP)
-	$(PY) -m smm_analysis.sweep.cli $(SPEC) $(if $(OUT),--out $(OUT))
+	$(PY) -m smm_bringup.sweep.cli $(SPEC) $(if $(OUT),--out $(OUT))
 
 reproduce: $(STAMP)
 	$(PY) -m smm_analysis.cli --out out/reproduce

@@ -15,8 +15,8 @@ from pathlib import Path
 from smm_analysis.batch.loop import run_batch
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.scenarios import get_scenario
-from smm_analysis.sweep.execute import default_workers, run_sweep
-from smm_analysis.sweep.spec import parse_spec
+from smm_bringup.sweep.execute import default_workers, run_sweep
+from smm_bringup.sweep.spec import parse_spec
 
 RUNS = 1000
 SPEC = {

@@ -26,7 +26,6 @@ setup(
     entry_points={
         "console_scripts": [
             "smm-reproduce = smm_analysis.cli:main",
-            "smm-sweep = smm_analysis.sweep.cli:main",
         ],
     },
 )

@@ -27,6 +27,7 @@ setup(
         "console_scripts": [
             "smm-launch = smm_bringup.launcher:main",
             "smm-demo = smm_bringup.demo:main",
+            "smm-sweep = smm_bringup.sweep.cli:main",
         ],
     },
 )

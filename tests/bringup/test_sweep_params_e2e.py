@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import yaml
 from smm_analysis.batch import run_scalar
-from smm_analysis.sweep.command import SweepOptions, sweep
-from smm_analysis.sweep.spec import parse_spec
+from smm_bringup.sweep.command import SweepOptions, sweep
+from smm_bringup.sweep.spec import parse_spec
 
 pytestmark = pytest.mark.ros
 

@@ -19,12 +19,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
-from smm_node_runtime.parameters import config_to_parameters
-
 from smm_analysis.batch.loop import RunSettings
 from smm_analysis.parameters_file import write_parameters_file
-from smm_analysis.sweep.results import SweepResult, gain_set_table, numeric_gains, runs_table
-from smm_analysis.sweep.spec import SweepSpec
+from smm_node_runtime.parameters import config_to_parameters
+
+from smm_bringup.sweep.results import SweepResult, gain_set_table, numeric_gains, runs_table
+from smm_bringup.sweep.spec import SweepSpec
 
 __all__ = ["parameters_sections", "write_outputs"]
 

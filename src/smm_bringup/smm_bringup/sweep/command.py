@@ -15,10 +15,11 @@ from typing import TextIO
 from smm_analysis.batch.loop import INDEX_NAMES, agreement_tolerance, scalar_indices
 from smm_analysis.errors import AnalysisError
 from smm_analysis.parameters_file import write_parameters_file
-from smm_analysis.sweep.execute import prepare_folder, read_parts, run_sweep
-from smm_analysis.sweep.outputs import parameters_sections, write_outputs
-from smm_analysis.sweep.results import analyse
-from smm_analysis.sweep.spec import load_spec
+
+from smm_bringup.sweep.execute import prepare_folder, read_parts, run_sweep
+from smm_bringup.sweep.outputs import parameters_sections, write_outputs
+from smm_bringup.sweep.results import analyse
+from smm_bringup.sweep.spec import load_spec
 
 __all__ = ["EXIT_DISAGREES", "EXIT_ERROR", "EXIT_OK", "SweepOptions", "rerun", "sweep"]
 

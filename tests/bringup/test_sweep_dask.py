@@ -15,8 +15,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from smm_analysis.batch import INDEX_NAMES
-from smm_analysis.sweep.execute import SchedulerError, batches, finished_batches, read_parts, run_sweep
-from smm_analysis.sweep.spec import parse_spec
+from smm_bringup.sweep.execute import SchedulerError, batches, finished_batches, read_parts, run_sweep
+from smm_bringup.sweep.spec import parse_spec
 
 DASK = str(Path(sys.executable).with_name("dask"))
 

@@ -12,11 +12,11 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 from smm_analysis.batch import INDEX_NAMES, scalar_indices
-from smm_analysis.sweep.cli import main
-from smm_analysis.sweep.command import EXIT_ERROR, EXIT_OK, SweepOptions, rerun, sweep
-from smm_analysis.sweep.execute import SchedulerError, SweepFolderError, batches, finished_batches, run_sweep
-from smm_analysis.sweep.results import pareto_mask
-from smm_analysis.sweep.spec import SpecError, parse_spec
+from smm_bringup.sweep.cli import main
+from smm_bringup.sweep.command import EXIT_ERROR, EXIT_OK, SweepOptions, rerun, sweep
+from smm_bringup.sweep.execute import SchedulerError, SweepFolderError, batches, finished_batches, run_sweep
+from smm_bringup.sweep.results import pareto_mask
+from smm_bringup.sweep.spec import SpecError, parse_spec
 
 BASE: dict[str, Any] = {
     "name": "test",

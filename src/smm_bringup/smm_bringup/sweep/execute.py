@@ -20,10 +20,10 @@ from typing import Any
 
 import pyarrow as pa
 import pyarrow.parquet as pq
-
 from smm_analysis.batch.loop import INDEX_NAMES, RunSettings, run_batch
 from smm_analysis.errors import AnalysisError
-from smm_analysis.sweep.spec import SweepSpec
+
+from smm_bringup.sweep.spec import SweepSpec
 
 __all__ = ["Batch", "SchedulerError", "SweepFolderError", "batches", "finished_batches", "run_sweep"]
 

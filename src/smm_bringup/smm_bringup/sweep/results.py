@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
-from smm_controller.limits import OutputLimitConfig
-
 from smm_analysis.batch.loop import _CONFIG_TYPES, INDEX_NAMES, RunSettings, run_batch
 from smm_analysis.closed_loop import scenario_plant_config
-from smm_analysis.sweep.spec import Constraint, SweepSpec
+from smm_controller.limits import OutputLimitConfig
+
+from smm_bringup.sweep.spec import Constraint, SweepSpec
 from smm_controller import FLESOConfig, TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
 

@@ -1,7 +1,7 @@
 """``smm-sweep SPEC.yaml [--out DIR] [--workers N] [--scheduler ADDRESS] [--rerun ID]`` (docs/SWEEPS.md).
 
-This module parses, then calls :func:`smm_analysis.sweep.command.sweep` or
-:func:`~smm_analysis.sweep.command.rerun`.
+This module parses, then calls :func:`smm_bringup.sweep.command.sweep` or
+:func:`~smm_bringup.sweep.command.rerun`.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from smm_analysis.sweep.command import SweepOptions, rerun, sweep
-from smm_analysis.sweep.execute import default_workers
+from smm_bringup.sweep.command import SweepOptions, rerun, sweep
+from smm_bringup.sweep.execute import default_workers
 
 __all__ = ["build_parser", "main"]
 

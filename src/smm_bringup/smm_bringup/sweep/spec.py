@@ -24,15 +24,15 @@ from typing import Any
 import numpy as np
 import yaml
 from scipy.stats import qmc
-from smm_controller.limits import OutputLimitConfig
-from smm_node_runtime.parameters import config_fields, config_from_parameters, config_to_parameters
-from smm_sim.sim_node import PlantParameters
-
 from smm_analysis.batch.loop import _CONFIG_TYPES, INDEX_NAMES, RunSettings
 from smm_analysis.closed_loop import scenario_plant_config
 from smm_analysis.errors import AnalysisError, UnknownScenarioError
 from smm_analysis.reproduction import CASE2_RMS_REDUCTION, STEP_OVERSHOOT_LIMIT, STEP_RISE_TIME_RANGE
 from smm_analysis.scenarios import Scenario, get_scenario
+from smm_controller.limits import OutputLimitConfig
+from smm_node_runtime.parameters import config_fields, config_from_parameters, config_to_parameters
+from smm_sim.sim_node import PlantParameters
+
 from smm_controller import CONTROLLER_NAMES, FLESOConfig, TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
 
