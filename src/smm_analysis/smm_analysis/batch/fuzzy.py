@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from smm_controller.fuzzy import GaussianMF, MamdaniSystem, centroid_weights
+from smm_controller.fuzzy import MamdaniBatch, MamdaniSystem, centroid_weights
 from smm_controller.rules import TABLE_1, TABLE_7, fleso_bandwidth_system, pd_gain_system
 
 __all__ = ["BandwidthFuzzy", "LabelSetCentroids", "PDGainFuzzy"]
@@ -71,18 +71,19 @@ class LabelSetCentroids:
         moment = np.take(self._below_moment, index) + level * np.take(self._above_moment, index)
         return area, moment
 
-    def centroid(self, labels: IntArray, levels: FloatArray) -> FloatArray:
+    def centroid(self, labels: IntArray, levels: FloatArray, order: IntArray | None = None) -> FloatArray:
         """Centroid of ``max_r min(levels[..., r], S[labels[..., r]])``, shape levels.shape[:-1].
 
         Args:
             labels: Output label of each rule, shape (..., m).
             levels: Firing strength of each rule, >= 0, shape (..., m); at least one > 0 per row.
+            order: ``argsort(-levels, axis=-1, kind="stable")`` if already known.
         """
-        order = np.argsort(-levels, axis=-1, kind="stable")
+        if order is None:
+            order = np.argsort(-levels, axis=-1, kind="stable")
         upper = np.take_along_axis(levels, order, axis=-1)
-        masks = np.bitwise_or.accumulate(
-            np.left_shift(1, np.take_along_axis(labels, order, axis=-1)), axis=-1
-        )
+        sorted_labels = np.take_along_axis(labels, order, axis=-1)
+        masks = np.bitwise_or.accumulate(np.left_shift(1, sorted_labels), axis=-1)
         # F_K(0) = 0: the last layer has no lower term.
         area, moment = self._clipped(masks, upper)
         lower_area, lower_moment = self._clipped(masks[..., :-1], upper[..., 1:])
@@ -169,32 +170,54 @@ class PDGainFuzzy:
             label = self._labels[joint][cells]
             labels += [label[..., 0], label[..., 1]]
             levels += [level, level]
-        # Both outputs have the same MFs: one table, all four (joint, output) pairs at once.
-        crisp = self._table.centroid(np.stack(labels), np.stack(levels))
+        # Both outputs have the same MFs: one table, all four (joint, output) pairs at once; the two
+        # outputs of a joint share their levels, so one sort serves both.
+        stacked = np.stack(levels)
+        order = np.argsort(-stacked[::2], axis=-1, kind="stable").repeat(2, axis=0)
+        crisp = self._table.centroid(np.stack(labels), stacked, order)
         return np.stack((crisp[0], crisp[2]), axis=-1), np.stack((crisp[1], crisp[3]), axis=-1)
 
 
 class BandwidthFuzzy:
     """The FLESO bandwidth rule base (one Gaussian input, Section III.C) for arrays of s per joint.
 
+    The scalar engine's own piecewise tables (``SingleInputCentroids``: per interval between breakpoints of
+    the input, a constant plus a coefficient per input label) evaluated on arrays: one search for the
+    interval, the same sums in the same order.
+
     Args:
         grid_points: Defuzzification grid size.
     """
 
     def __init__(self, grid_points: int) -> None:
-        system = fleso_bandwidth_system(grid_points)
-        gaussians = [mf for mf in system.inputs[0].mfs if isinstance(mf, GaussianMF)]
-        self._means = np.array([mf.mean for mf in gaussians])
-        self._widths = np.array([2.0 * mf.sigma * mf.sigma for mf in gaussians])
-        rule_labels = _rule_labels(system)[:, 0]
-        # Rules concluding the same label clip it at the largest of their strengths: one level per label.
-        self._labels = np.unique(rule_labels)
-        self._groups = [np.flatnonzero(rule_labels == label) for label in self._labels]
-        self._table = _output_tables(system)[0]
+        plan = MamdaniBatch([fleso_bandwidth_system(grid_points)])._single_input_plan
+        if plan is None:
+            raise ValueError("the FLESO bandwidth rule base has no single-input tables")
+        table = plan[0]
+        self._means = np.array([mean for mean, _ in table.gaussians])
+        self._widths = np.array([width for _, width in table.gaussians])
+        self._breakpoints = np.array(table.breakpoints)
+        intervals = table._coefficients
+        n_inputs = len(table.gaussians)
+        self._constant = np.array([[interval[0][0], interval[0][1]] for interval in intervals])
+        self._area = np.zeros((len(intervals), n_inputs))
+        self._moment = np.zeros((len(intervals), n_inputs))
+        for k, interval in enumerate(intervals):
+            for a, area, moment in interval[0][2]:
+                self._area[k, a] = area
+                self._moment[k, a] = moment
 
     def evaluate(self, s: FloatArray) -> FloatArray:
         """f(w) for s in [-1, 1], any shape."""
-        strengths = np.exp(-((s[..., None] - self._means) ** 2) / self._widths)
-        levels = np.stack([strengths[..., group].max(axis=-1) for group in self._groups], axis=-1)
-        labels = np.broadcast_to(self._labels, levels.shape)
-        return self._table.centroid(labels, levels)
+        interval = np.searchsorted(self._breakpoints, s, side="right")
+        memberships = np.exp(-((s[..., None] - self._means) ** 2) / self._widths)
+        area = self._constant[interval, 0]
+        moment = self._constant[interval, 1]
+        coefficients_area = self._area[interval]
+        coefficients_moment = self._moment[interval]
+        for a in range(self._means.size):
+            area = area + memberships[..., a] * coefficients_area[..., a]
+            moment = moment + memberships[..., a] * coefficients_moment[..., a]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            crisp: FloatArray = np.where(area > 0.0, moment / area, 0.0)
+        return crisp
