@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from smm_bringup.sweep.command import SweepOptions, rerun, sweep
@@ -17,24 +17,19 @@ from smm_bringup.sweep.execute import default_workers
 __all__ = ["build_parser", "main"]
 
 
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a number >= 1, got {value}")
-    return value
+def _whole(minimum: int) -> Callable[[str], int]:
+    """An argparse type: a whole number >= ``minimum``."""
 
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected a number >= {minimum}, got {value}")
+        return value
 
-def _run_id(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a run id (whole number >= 0), got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a run id >= 0, got {value}")
-    return value
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -48,10 +43,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("spec", type=Path, help="sweep spec (YAML; docs/SWEEPS.md)")
     parser.add_argument("--out", type=Path, default=None, help="output folder (default out/sweeps/<name>)")
     parser.add_argument(
-        "--workers", type=_positive, default=None, help="local processes (default: the cores)"
+        "--workers", type=_whole(1), default=None, help="local processes (default: the cores)"
     )
     parser.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://HOST:8786")
-    parser.add_argument("--rerun", type=_run_id, default=None, help="re-run this run id with the scalar loop")
+    parser.add_argument("--rerun", type=_whole(0), default=None, help="re-run this run with the scalar loop")
     return parser
 
 
