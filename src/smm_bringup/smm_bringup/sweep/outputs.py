@@ -67,7 +67,9 @@ def _plots(spec: SweepSpec, result: SweepResult, out: Path) -> list[str]:
         axis.scatter(x, y, s=10, color="0.6", label="gain sets")
         front = result.pareto
         order = np.argsort(x[front])
-        axis.plot(x[front][order], y[front][order], "o-", color="C3", label="Pareto front")
+        # A front of two objectives is a line; of more, its points seen in this plane are not.
+        style = "o-" if len(objectives) == 2 else "o"
+        axis.plot(x[front][order], y[front][order], style, color="C3", markersize=4, label="Pareto front")
         if result.chosen is not None:
             axis.plot(x[result.chosen], y[result.chosen], "*", markersize=14, color="C2", label="chosen")
         axis.set_xlabel(f"{x_name} ({spec.statistic})")
