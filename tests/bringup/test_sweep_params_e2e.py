@@ -1,5 +1,5 @@
-"""End to end: the gains smm-sweep chooses run on the real graph (smm-launch --clock-mode lockstep
---params-file chosen.yaml) and give the run the sweep computed for them."""
+"""End to end: a sweep's run, re-run alone (``--rerun``), gives the sweep's indices, and its parameters file
+runs on the real graph (smm-launch --clock-mode lockstep --params-file) and gives that run."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import yaml
 from smm_analysis.batch import run_scalar
-from smm_bringup.sweep.command import SweepOptions, sweep
+from smm_bringup.sweep.command import EXIT_OK, SweepOptions, rerun, sweep
 from smm_bringup.sweep.spec import parse_spec
 
 pytestmark = pytest.mark.ros
@@ -41,6 +41,11 @@ def test_the_chosen_parameters_file_runs_on_the_graph_and_reproduces_the_sweeps_
             line for line in (out / "report.md").read_text().splitlines() if line.startswith("Gain set ")
         ).split()[2]
     )
+    # One gain set, one plant draw and one scenario per run: the chosen set's run id is the set's index.
+    assert rerun(SweepOptions(spec_path, out, 1, None, chosen), io.StringIO(), io.StringIO()) == EXIT_OK
+    assert (out / "chosen.yaml").read_text().split("\n", 1)[1] == (
+        out / f"rerun-{chosen}.yaml"
+    ).read_text().split("\n", 1)[1]
     record = tmp_path / "record.npz"
     extra = tmp_path / "record.yaml"
     extra.write_text(f'/**/smm_sim_node:\n  ros__parameters:\n    record_file: "{record}"\n')
@@ -59,7 +64,7 @@ def test_the_chosen_parameters_file_runs_on_the_graph_and_reproduces_the_sweeps_
             "--seed",
             "0",
             "--params-file",
-            str(out / "chosen.yaml"),
+            str(out / f"rerun-{chosen}.yaml"),
             "--params-file",
             str(extra),
         ],
