@@ -17,7 +17,7 @@ PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg sr
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export PYTHONDONTWRITEBYTECODE := 1
 
-.PHONY: setup test test-other-cpu demo bench lint typecheck reproduce colcon clean mutation
+.PHONY: setup test test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
 
 setup: $(STAMP)
 
@@ -52,6 +52,10 @@ lint: $(STAMP)
 
 typecheck: $(STAMP)
 	$(VENV)/bin/mypy
+
+# A gain study on the batched closed loop: make sweep SPEC=examples/sweeps/case2_td_tradeoff.yaml [OUT=dir]
+sweep: $(STAMP)
+	$(VENV)/bin/smm-sweep $(SPEC) $(if $(OUT),--out $(OUT))
 
 reproduce: $(STAMP)
 	$(PY) -m smm_analysis.cli --out out/reproduce

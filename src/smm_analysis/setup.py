@@ -28,10 +28,11 @@ setup(
     maintainer_email="smm-maintainers@example.org",
     description="Offline closed loop, paper reproduction, metrics, and analysis and re-run of recorded bags.",
     license="Apache-2.0",
-    cmdclass=command_classes("smm-reproduce"),  # user-facing: also in <prefix>/bin
+    cmdclass=command_classes("smm-reproduce", "smm-sweep"),  # user-facing: also in <prefix>/bin
     entry_points={
         "console_scripts": [
             "smm-reproduce = smm_analysis.cli:main",
+            "smm-sweep = smm_analysis.sweep.cli:main",
         ],
         "smm_bag.commands": [
             "analyze = smm_analysis.runs.cli:add_analyze",

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from smm_controller.limits import OutputLimitConfig, OutputLimiter
 from smm_sim.plant import PlantConfig, SimulatedPlant, disturbance_torque
 
 from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError, UnknownControllerError
@@ -156,6 +157,7 @@ def build_chain(
     td_config: TrackingDifferentiatorConfig | None = None,
     fleso_config: FLESOConfig | None = None,
     controller: JointController | None = None,
+    output_limits: OutputLimitConfig | None = None,
 ) -> ControlChain:
     """TD -> (FLESO for FPDESO) -> controller.
 
@@ -166,6 +168,7 @@ def build_chain(
         fleso_config: FLESO parameters for FPDESO (default: the paper's).
         controller: A controller instance to use instead of the paper's default gains (for a clearly
             labelled retuned set).
+        output_limits: Torque and rate limits after the law (default: ``OutputLimitConfig()``).
 
     Returns:
         The chain.
@@ -179,7 +182,7 @@ def build_chain(
         )
     law = controller if controller is not None else make_controller(controller_name, model_params)
     fleso = FLESO(fleso_config, model_params) if controller_name == "fpdeso" else None
-    return ControlChain(TrackingDifferentiator(td_config), fleso, law)
+    return ControlChain(TrackingDifferentiator(td_config), fleso, law, OutputLimiter(output_limits))
 
 
 def run_closed_loop(
@@ -195,6 +198,7 @@ def run_closed_loop(
     plant_config: PlantConfig | None = None,
     substeps: int = DEFAULT_SUBSTEPS,
     record_internals: bool = True,
+    output_limits: OutputLimitConfig | None = None,
 ) -> Trajectory:
     """Runs one scenario with one controller in closed loop.
 
@@ -213,6 +217,7 @@ def run_closed_loop(
         substeps: RK4 sub-steps per period when the plant is derived from the scenario.
         record_internals: Record every chain internal at every step (costs about a third of the
             run time; off for benchmarks of the loop itself).
+        output_limits: Torque and rate limits after the law (default: ``OutputLimitConfig()``).
 
     Returns:
         The sampled run.
@@ -243,7 +248,12 @@ def run_closed_loop(
     )
     plant = SimulatedPlant(config)
     chain = build_chain(
-        controller_name, nominal, td_config=td_config, fleso_config=fleso_config, controller=controller
+        controller_name,
+        nominal,
+        td_config=td_config,
+        fleso_config=fleso_config,
+        controller=controller,
+        output_limits=output_limits,
     )
     dt = period_ns / _NS_PER_S
 

@@ -18,7 +18,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-from smm_dynamics.validation import above, at_least, bounds, check_bounds
+from smm_dynamics.validation import above, at_least, bounds, check_bounds, no_range
 
 __all__ = ["TABLE2_BODIES", "BodyData", "SMMParameters"]
 
@@ -86,6 +86,10 @@ class SMMParameters:
             -1.0: the end effector hangs down (V = -m_c g l_c cos(beta)).
         viscous_friction: Viscous friction coefficients (alpha, beta) (N m s/rad), >= 0.
         link_length: Distance L from the sphere centre to the end effector (m), > 0.
+        coulomb_friction: Coulomb friction levels (alpha, beta) (N m), >= 0; F gains f_c sign(q').
+        torque_offset: Constant torque offsets (alpha, beta) (N m), finite; F gains them as they are.
+
+    The friction torque is F(q') = f_v q' + f_c sign(q') + offset per joint, sign(0) = 0.
     """
 
     I11: float = field(default=_DEFAULT_TRANSVERSE_INERTIA, metadata=above(0.0))
@@ -97,6 +101,8 @@ class SMMParameters:
     gravity_sign: float = field(default=1.0, metadata=bounds(-1.0, 1.0))
     viscous_friction: tuple[float, float] = field(default=(0.1, 0.1), metadata=at_least(0.0))
     link_length: float = field(default=0.1, metadata=above(0.0))
+    coulomb_friction: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
+    torque_offset: tuple[float, float] = field(default=(0.0, 0.0), metadata=no_range())
 
     def __post_init__(self) -> None:
         check_bounds(self)

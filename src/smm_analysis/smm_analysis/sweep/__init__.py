@@ -1,0 +1,1 @@
+"""``smm-sweep``: gain studies on the batched closed loop (spec, execution, analysis, outputs)."""
