@@ -34,7 +34,7 @@ DYNAMICS_TESTS = ("tests/dynamics",)
 #: The fuzzy engine is called by nearly every controller test; its own tests judge it (and keep it fast).
 FUZZY_TESTS = tuple(
     f"tests/controller/test_{name}.py"
-    for name in ("fuzzy_tables", "fuzzy", "fuzzy_fast_path", "fuzzy_pd", "rules")
+    for name in ("fuzzy_tables", "fuzzy", "fuzzy_batch", "fuzzy_pd", "rules")
 )
 
 
