@@ -69,6 +69,8 @@ MODULES: tuple[Module, ...] = (
     Module("smm_controller/td.py", CONTROLLER_TESTS),
     Module("smm_controller/fleso.py", CONTROLLER_TESTS),
     Module("smm_controller/fuzzy.py", FUZZY_TESTS),
+    Module("smm_controller/fuzzy_tables.py", FUZZY_TESTS),
+    Module("smm_controller/fuzzy_batch.py", FUZZY_TESTS),
     Module("smm_controller/fuzzy_pd.py", CONTROLLER_TESTS),
     Module("smm_controller/rules.py", FUZZY_TESTS),
     Module("smm_controller/fpdeso.py", CONTROLLER_TESTS),
