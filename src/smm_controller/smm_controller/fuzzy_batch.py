@@ -26,7 +26,7 @@ _UNIT_SUM_TOLERANCE = 1e-9
 
 @lru_cache(maxsize=16)
 def _label_pair_centroids(samples: bytes, labels: int, weights: bytes) -> LabelPairCentroids:
-    """One table set per output MF family and grid in the process (tens of ms to build)."""
+    """The tables of one output MF family and grid, built once per process."""
     return LabelPairCentroids(
         np.frombuffer(samples, dtype=np.float64).reshape(labels, -1),
         np.frombuffer(weights, dtype=np.float64).reshape(-1, 2),
@@ -41,7 +41,7 @@ def _single_input_centroids(
     shape: tuple[int, int, int],
     weights: bytes,
 ) -> SingleInputCentroids:
-    """One table per rule base and grid in the process (building one takes a few tens of ms)."""
+    """The table of one rule base and grid, built once per process."""
     return SingleInputCentroids(
         gaussians,
         consequents,
