@@ -29,7 +29,8 @@ import time
 from typing import Any
 
 import numpy as np
-from smm_controller.fuzzy import MamdaniBatch, MamdaniSystem
+from smm_controller.fuzzy import MamdaniSystem
+from smm_controller.fuzzy_batch import MamdaniBatch
 from smm_controller.rules import PD_LABELS, TABLE_1, pd_gain_system, pd_output_variable
 
 N_INPUTS = 10_000

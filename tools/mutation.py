@@ -34,7 +34,7 @@ DYNAMICS_TESTS = ("tests/dynamics",)
 #: The fuzzy engine is called by nearly every controller test; its own tests judge it (and keep it fast).
 FUZZY_TESTS = tuple(
     f"tests/controller/test_{name}.py"
-    for name in ("fuzzy_tables", "fuzzy", "fuzzy_fast_path", "fuzzy_pd", "rules")
+    for name in ("fuzzy_tables", "fuzzy", "fuzzy_batch", "fuzzy_pd", "rules")
 )
 
 
@@ -69,6 +69,8 @@ MODULES: tuple[Module, ...] = (
     Module("smm_controller/td.py", CONTROLLER_TESTS),
     Module("smm_controller/fleso.py", CONTROLLER_TESTS),
     Module("smm_controller/fuzzy.py", FUZZY_TESTS),
+    Module("smm_controller/fuzzy_tables.py", FUZZY_TESTS),
+    Module("smm_controller/fuzzy_batch.py", FUZZY_TESTS),
     Module("smm_controller/fuzzy_pd.py", CONTROLLER_TESTS),
     Module("smm_controller/rules.py", FUZZY_TESTS),
     Module("smm_controller/fpdeso.py", CONTROLLER_TESTS),

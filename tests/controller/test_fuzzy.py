@@ -15,7 +15,6 @@ from smm_controller.fuzzy import (
     ZERO_AREA_FALLBACK,
     FuzzyVariable,
     GaussianMF,
-    MamdaniBatch,
     MamdaniSystem,
     TriangularMF,
     centroid,
@@ -24,6 +23,7 @@ from smm_controller.fuzzy import (
     triangular_mf,
     uniform_grid,
 )
+from smm_controller.fuzzy_batch import MamdaniBatch
 from smm_controller.rules import (
     TABLE_1,
     fleso_bandwidth_system,

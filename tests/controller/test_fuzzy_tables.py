@@ -22,14 +22,13 @@ from smm_controller.fuzzy import (
     ZERO_AREA_FALLBACK,
     FuzzyVariable,
     GaussianMF,
-    LabelPairCentroids,
-    MamdaniBatch,
     MamdaniSystem,
-    SingleInputCentroids,
     TriangularMF,
     centroid_weights,
     uniform_grid,
 )
+from smm_controller.fuzzy_batch import MamdaniBatch
+from smm_controller.fuzzy_tables import LabelPairCentroids, SingleInputCentroids
 from smm_controller.rules import (
     fleso_bandwidth_system,
     fleso_input_variable,

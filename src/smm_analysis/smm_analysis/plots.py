@@ -1,13 +1,9 @@
 """PNG figures like the paper's Figs 12-17 and 19-20 (matplotlib, Agg backend, no display needed).
 
-* ``step_<joint>.png``: step responses of every controller (Figs 12-13), with the clearly labelled
-  retuned FPDESO set beside the paper's (the other figures show the paper's gains only: there the two
-  FPDESO curves would lie on top of each other);
-* ``case1_tracking_<joint>.png`` and ``case1_error_<joint>.png``: case 1 tracking and error
-  (Figs 14-17);
-* ``case2_tracking_<joint>.png``: case 2 tracking (Figs 19-20);
-* ``case2_disturbance_<joint>.png``: FLESO estimate xi~ next to the eq. 46 disturbance (no figure of
-  the paper; shows what the observer compensates).
+``step_<joint>.png`` (Figs 12-13, the retuned FPDESO set beside the paper's; the other figures show the
+paper's gains only), ``case1_tracking_<joint>.png`` and ``case1_error_<joint>.png`` (Figs 14-17),
+``case2_tracking_<joint>.png`` (Figs 19-20) and ``case2_disturbance_<joint>.png`` (FLESO estimate xi~
+next to the eq. 46 disturbance; no figure of the paper).
 """
 
 from __future__ import annotations

@@ -26,7 +26,6 @@ from smm_controller.fuzzy import (
     ZERO_AREA_FALLBACK,
     FuzzyVariable,
     GaussianMF,
-    MamdaniBatch,
     MamdaniSystem,
     TriangularMF,
     centroid,
@@ -34,6 +33,7 @@ from smm_controller.fuzzy import (
     gaussian_mf,
     triangular_mf,
 )
+from smm_controller.fuzzy_batch import MamdaniBatch
 from smm_controller.fuzzy_pd import (
     PAPER_FPD_FUZZY,
     PAPER_FPDESO_FUZZY,

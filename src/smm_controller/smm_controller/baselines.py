@@ -1,17 +1,8 @@
 """Baseline controllers of the paper (Section V.A): PID, NPD (eq. 38-40) and FPD.
 
-All three output joint torque directly (N m) and use no model. They share the FPDESO step signature;
-the disturbance estimate is accepted and ignored. e = q_d - q, e' = q_d' - q' with q, q' from the TD.
-
-PID discretisation (backward Euler, chosen because it is stable and free of ringing for any N dt; the
-paper's beta filter has N dt = 1.456 at 1 ms, where Tustin's filter pole would already be 0.16):
-
-    I_k = clamp(I_{k-1} + k_i e_k dt, -I_max, I_max)         (anti-windup clamp, N m)
-    D_k = (D_{k-1} + k_d N (e_k - e_{k-1})) / (1 + N dt)     (D(s) = k_d N s / (s + N) on e)
-    tau = clamp(k_p e_k + I_k + D_k, -tau_max, tau_max)
-
-Conditional integration: when the unclamped output exceeds tau_max and e_k pushes it further out, I is
-held at I_{k-1}. On the first step after reset e_{k-1} = e_k, so the derivative starts at 0 (no kick).
+All three output joint torque directly (N m), use no model, and share the FPDESO step signature (the
+disturbance estimate is accepted and ignored). PID's discretisation and anti-windup: docs/DESIGN.md,
+"PID discretisation".
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ from smm_controller._validation import (
     check_instance,
     readonly_copies,
 )
-from smm_controller.fuzzy import MamdaniBatch
+from smm_controller.fuzzy_batch import MamdaniBatch
 from smm_controller.model import NominalModel
 from smm_controller.rules import fleso_bandwidth_system
 from smm_dynamics import SMMParameters

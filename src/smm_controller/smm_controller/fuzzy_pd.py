@@ -1,14 +1,8 @@
 """Fuzzy PD gain schedule (paper eq. 12, Tables 1 and 7; SPEC section 4).
 
-Per joint j (alpha uses Table 1, beta Table 7):
-
-    e~ = clip(k_e e, -1, 1),  ce~ = clip(k_de e', -1, 1)
-    (f(k_e), f(k_de)) = Mamdani(e~, ce~)                 (see smm_controller.fuzzy / rules)
-    k_p = k_p0 + k1 f(k_e),   k_d = k_d0 + k2 f(k_de)
-
-The gains are in the units of the law that uses them: 1/s^2 and 1/s for FPDESO (u is an acceleration),
-N m/rad and N m s/rad for the FPD baseline (u is a torque). All four evaluations of a step (two joints,
-two outputs) are aggregated and defuzzified in one vectorised pass.
+Per joint: k_p = k_p0 + k1 f(k_e), k_d = k_d0 + k2 f(k_de), the f from the Mamdani rule base of
+:mod:`rules` on the clipped, scaled error and error rate; both joints and outputs in one batched
+evaluation (docs/DESIGN.md, "Fuzzy PD gain schedule").
 """
 
 from __future__ import annotations
@@ -26,7 +20,7 @@ from smm_controller._validation import (
     check_instance,
     internals_view,
 )
-from smm_controller.fuzzy import MamdaniBatch
+from smm_controller.fuzzy_batch import MamdaniBatch
 from smm_controller.rules import TABLE_1, TABLE_7, RuleTable, pd_gain_system
 
 __all__ = [

@@ -1,16 +1,7 @@
-r"""Fuzzy variables and rule bases of the paper, as data (SPEC section 4, Tables 1 and 7, Figs 5, 9).
+"""Fuzzy variables and rule bases of the paper, as data (SPEC section 4, Tables 1 and 7, Figs 5, 9).
 
-Fuzzy PD gain schedule (eq. 12): inputs e~ (columns of the tables) and ce~ (rows), each with seven
-triangular labels NB..PB centred at -1, -2/3, ..., 1 with half-width 1/3 (adjacent labels cross at
-0.5); two outputs f(k_e) and f(k_de), seven Gaussian labels with the same centres, sigma =
-(1/6)/sqrt(2 ln 2), so adjacent labels cross at 0.5 midway between centres.
-
-ROWS ARE ce, COLUMNS ARE e: the only orientation consistent with the worked example R1..R4 of Section
-III.B (e = 0.51, ce = 0.20 fires PS/PM x ZE/PS, giving PM\NS, NM\NS, PM\NS, NM\NS).
-
-FLESO bandwidth (Section III.C): one input k_s1 E + k_s2 E' with Gaussian labels NB NS ZE PS PB at
--1, -0.5, 0, 0.5, 1 (sigma = 0.25/sqrt(2 ln 2)), one output f(w) with Gaussian labels S M B at -1, 0, 1
-(sigma = 0.5/sqrt(2 ln 2)); rules NB->S, NS->M, ZE->B, PS->M, PB->S.
+The fuzzy PD gain schedule (two inputs e~, ce~; rows of the tables are ce, columns e) and the FLESO
+bandwidth (one input); labels, centres and widths: docs/DESIGN.md, "Rule bases".
 """
 
 from __future__ import annotations

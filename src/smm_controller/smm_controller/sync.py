@@ -1,13 +1,7 @@
 """Exact-time synchroniser of stamped inputs (pure Python, no ROS; ``message_filters`` is not available).
 
-A node that needs several inputs for one step (the controller: filtered state, reference, disturbance
-estimate) adds each parsed input with the stamp of the measurement it answers. When every input of a stamp
-is present, :meth:`ExactTimeSynchronizer.add` returns them together. Since outputs must go out in stamp
-order, completing a stamp drops every older incomplete stamp (it can never be answered any more), and at
-most ``max_pending`` incomplete stamps are held (the oldest is dropped beyond that). Dropped stamps are
-counted in :attr:`ExactTimeSynchronizer.dropped`; inputs for a stamp not newer than the last completed one
-are ignored and counted in :attr:`ExactTimeSynchronizer.late` (the node's stamp policy normally catches
-them first). A second input of the same name for a pending stamp replaces the first (the newest wins).
+:class:`ExactTimeSynchronizer` returns the inputs of one stamp together once all are present, in stamp
+order; what it drops and counts: docs/NODES.md, "Inputs of one stamp".
 """
 
 from __future__ import annotations

@@ -1,31 +1,8 @@
 """Tracking differentiator (TD, paper eq. 24-25), one per joint, applied to the measured position.
 
-Discrete form (eq. 24), with step t = dt (s), input v(k) (rad):
-
-    x1(k+1) = x1(k) + t x2(k)
-    x2(k+1) = x2(k) + t fst(x1(k) - v(k), x2(k), sigma, h)
-
-x1 tracks v (rad), x2 is its derivative (rad/s). ``step`` returns the updated states x1(k+1), x2(k+1).
-
-fst (eq. 25) is implemented as printed in its use of the step t inside ``y = e + t x2``, while the
-linear zone, the saturation width delta = h sigma and delta1 = h delta use the filter factor h. Two
-misprints of eq. 25 are corrected as in Han's original function (ref. [35] of the paper), of which eq.
-25 is a transcription:
-
-* the nonlinear branch reads ``x2 + sign(y) (sqrt(8 sigma |y| + delta^2) - delta) / 2`` (printed: the
-  sign multiplies only the square root, which makes g discontinuous at y = -delta1 and fst not odd);
-* the saturation is sat(g, delta) (printed once as sat(g, sigma), then defined with delta).
-
-With h = t, fst equals Han's ``fhan(e, x2, sigma, h)`` (:func:`fhan`, which uses y = e + h x2); a test
-pins both the agreement for h = t and the difference for h != t.
-
-Validation: h >= t is required (the paper: "generally, h > t"); ``step`` raises ValueError if a filter
-factor is smaller than dt, since dt is only known at run time.
-
-Initialisation: on the first step after construction or ``reset()``, x1 = v and x2 = 0 (the plant
-starts at rest). Starting from x1 = 0 instead would make the TD chase the first sample with its full
-acceleration sigma, i.e. a velocity spike of up to sqrt(2 sigma |v|) that the D-term and the observer
-would act on; starting at the sample gives no start-up transient.
+x1 tracks the input v (rad), x2 is its derivative (rad/s); ``step`` returns x1(k+1), x2(k+1). fst is
+eq. 25 with two misprints corrected as in Han's ``fhan`` (:func:`fhan`); the filter factor h must be
+>= dt; the first step starts at x1 = v, x2 = 0 (docs/DESIGN.md, "Tracking differentiator").
 """
 
 from __future__ import annotations

@@ -1,24 +1,8 @@
 #!/usr/bin/env python3
 """Generates ``smm_dynamics/_generated.py`` from the inertia matrix printed in the paper's Appendix A.
 
-The Coriolis matrix of the paper is cut off after C21, so it is derived here, exactly, from the printed
-M(q) by Christoffel symbols of the first kind (SPEC section 1):
-
-    C_kj = sum_i c_ijk qdot_i,  c_ijk = 0.5 (dM_kj/dq_i + dM_ki/dq_j - dM_ij/dq_k),
-
-which makes dM/dt - 2C skew-symmetric. All derivatives are symbolic (sympy). The emitted functions
-take sin/cos of alpha and beta instead of the angles, contain arithmetic only, and so work unchanged
-on Python floats (fast single-sample path) and on numpy arrays (batch path).
-
-The ``*_spin_form`` functions evaluate the same M, C q' and q'' = M^-1 (tau - C q') far more cheaply,
-from the kinetic energy written with the spin angle theta (its gradient g = (theta_a, theta_b)):
-
-    T = 0.5 I44 alpha'^2 + 0.5 I22 beta'^2 + 0.5 I55 theta'^2 - 0.5 I11 cos(beta) alpha' theta',
-    theta' = g . q',
-
-so M = diag(I44, I22) + I55 g g^T - 0.5 I11 cos(beta) (e1 g^T + g e1^T), and Lagrange's equations give
-C q' in terms of theta', g and the spin curvature s = q'^T H q' (H the Hessian of theta). The generator
-proves both identities symbolically against the printed M and the Christoffel C before emitting code.
+Derives the Coriolis matrix by Christoffel symbols and the cheaper spin-angle forms with sympy, proves them
+against the printed M, and emits arithmetic-only functions of sin/cos (docs/DYNAMICS.md, "Coriolis matrix").
 
 Usage: ``python tools/generate_dynamics.py [--output PATH]`` (default: the package's ``_generated.py``).
 """

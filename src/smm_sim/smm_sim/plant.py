@@ -1,44 +1,9 @@
 """Pure simulated SMM plant (SPEC sections 1-3): no ROS, no clock, deterministic for a seed.
 
-What happens to a torque command in :meth:`SimulatedPlant.step` (in this order):
-
-1. **Validation.** A command that is not shape (2,) or holds NaN/Inf raises ``ValueError`` before
-   anything else happens, so a bad command never reaches the integrator.
-2. **Saturation** (``torque_limit``): the command is clipped element-wise to ``+-torque_limit``
-   (the D/A and valve range). ``inf`` switches it off. With ``torque_quantum`` (an option, off by
-   default) it is then rounded to the nearest multiple of the quantum (half to even), as a D/A converter
-   of that resolution does (the bench emulator's 16-bit D/A: full-scale torque / 32767).
-3. **Servo-valve lag** (``valve_time_constants``): a first-order lag ``tau_a' = (tau_s - tau_a) / T``
-   with two time constants, ``T = T_rise`` while ``|tau_a|`` grows (the valve opens: the lag output
-   moves away from zero) and ``T = T_fall`` while it shrinks (it moves back towards zero). The paper's
-   valve (Table 5) is specified by its response time for a +-100 % step: 50 ms rise, 25 ms fall. A
-   first-order lag reaches 90 % of a step after ``T ln 10``; reading the catalogue response time as
-   that 90 % time gives ``T_rise = 0.050 / ln 10 = 21.7 ms`` and ``T_fall = 0.025 / ln 10 = 10.9 ms``
-   (:func:`valve_time_constants_from_response_times`). The lag is integrated exactly over each RK4
-   sub-step, and the torque held over that sub-step is the lag's exact mean over it. The time constant
-   is chosen at the start of each sub-step, so a reversal switches from T_fall to T_rise at the first
-   sub-step boundary after the output crosses zero.
-4. **RK4 integration** of eq. 2 with the true parameters (``params`` with inertias scaled by
-   ``inertia_scale``) and the external disturbance ``tau_dist`` (eq. 46 or none), in ``substeps``
-   equal sub-steps per call; the disturbance is evaluated at each sub-step's midpoint. The state is
-   kept as plain floats and integrated with ``smm_dynamics.rk4_step_floats`` (equal to ``rk4_step``
-   up to rounding, several times faster).
-5. **Mechanical stops** (``joint_limits``), an inelastic stop: after each sub-step a joint beyond
-   ``+-limit`` is put back on the limit and the velocity component that points further into the stop
-   is set to zero (no bounce, no penetration). A velocity leaving the stop is kept, so the joint can
-   come off the stop as soon as the net torque pulls it away.
-
-The reported applied torque (``Measurement.applied_torque``, the ``effort`` of the raw JointState) is
-the mean torque that acted on the mechanism over the last control interval: after saturation and lag,
-before the external disturbance (which the plant does not know it receives).
-
-Sensing (SPEC section 2): :meth:`SimulatedPlant.measure` returns the true position plus zero-mean
-Gaussian noise (``noise_std`` per joint, drawn once per sample from a ``numpy.random.Generator``
-seeded with ``seed``, so repeated ``measure()`` calls at one instant return the same sample; the
-normal variates are drawn in blocks, which gives the same sequence as drawing two per sample), then
-quantised to the encoder resolution ``2 pi / encoder_counts_per_rev`` by rounding to the nearest
-count (0 counts = no quantisation). Time is kept as integer nanoseconds: after ``k`` steps of
-``dt`` the stamp is exactly ``k * round(dt * 1e9)``.
+:meth:`SimulatedPlant.step` takes a torque command through validation, saturation (and optional D/A
+quantisation), the servo-valve lag, RK4 integration of eq. 2 and the mechanical stops;
+:meth:`SimulatedPlant.measure` adds encoder noise and quantisation. Each stage, in order, and what the
+applied torque reports: docs/DYNAMICS.md, "The simulated plant".
 """
 
 from __future__ import annotations

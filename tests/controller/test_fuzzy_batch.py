@@ -19,16 +19,15 @@ from numpy.testing import assert_allclose
 from smm_controller.fuzzy import (
     ZERO_AREA_FALLBACK,
     FuzzyVariable,
-    LabelPairCentroids,
-    MamdaniBatch,
     MamdaniSystem,
-    SingleInputCentroids,
     TriangularMF,
     centroid,
     centroid_weights,
     uniform_grid,
 )
+from smm_controller.fuzzy_batch import MamdaniBatch
 from smm_controller.fuzzy_pd import FuzzyPDGainSchedule
+from smm_controller.fuzzy_tables import LabelPairCentroids, SingleInputCentroids
 from smm_controller.rules import (
     PD_LABELS,
     TABLE_1,
