@@ -20,7 +20,7 @@ from smm_analysis.batch import (
 from smm_analysis.batch.fuzzy import BandwidthFuzzy, PDGainFuzzy
 from smm_analysis.errors import AnalysisError
 from smm_analysis.scenarios import get_scenario
-from smm_controller.fuzzy import MamdaniBatch
+from smm_controller.fuzzy_batch import MamdaniBatch
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, FuzzyPDConfig
 from smm_controller.limits import OutputLimitConfig
 from smm_controller.rules import TABLE_1, TABLE_7, fleso_bandwidth_system, pd_gain_system

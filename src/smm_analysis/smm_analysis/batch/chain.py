@@ -1,11 +1,7 @@
 """The control chain of ``smm_controller`` (TD -> FLESO -> law -> output limits) for N runs at once.
 
-Each class is the array form of its scalar class in ``smm_controller``, with the same expressions in the
-same order, one row per run (joint arrays shape (N, 2), per-run gains as (N, 2) arrays built from the
-runs' config dataclasses). The scalar classes stay the reference: tests run every law against
-``smm_analysis.closed_loop.run_closed_loop`` on random settings. Differences are rounding only (numpy's
-vectorised sin, cos and exp may differ from ``math``'s in the last bit, and the fuzzy centroids are
-summed in another order, see ``smm_analysis.batch.fuzzy``).
+Each class is the array form of its scalar class, same expressions in the same order, one row per run
+(joint arrays (N, 2)); the scalar classes stay the reference the tests hold these against.
 """
 
 from __future__ import annotations

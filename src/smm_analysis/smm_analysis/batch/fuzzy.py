@@ -1,18 +1,7 @@
 """The fuzzy systems of the chain for N runs at once: exact centroids without a grid per evaluation.
 
-The aggregate of Mamdani rules with levels lambda_r concluding output labels l_r is
-``agg(g) = max_r min(lambda_r, S_{l_r}(g))`` on the grid. With the levels sorted, lambda_(1) >= ... >=
-lambda_(m) >= lambda_(m+1) = 0, and K_k the set of the first k labels, the layer-cake identity gives
-
-    agg(g) = sum_k [min(lambda_(k), M_K_k(g)) - min(lambda_(k+1), M_K_k(g))],   M_K(g) = max_{l in K} S_l(g),
-
-so area and moment (``centroid_weights``) are sums of F_K(lambda) = sum_g w_g min(lambda, M_K(g)), which
-is piecewise linear in lambda: with M_K's samples sorted, F_K(lambda) = (sum of w M below lambda) +
-lambda (sum of w above). One table per label set (127 for seven labels) and a binary search per
-evaluation replace the (rules x grid) min/max of the scalar engine (``smm_controller.fuzzy``); the result
-equals its dense evaluation up to rounding (tests: 1e-12). The lattice lookup of the two-input PD rule
-bases is ``MamdaniBatch``'s, on arrays. Everything is row-wise: a run's outputs do not depend on the
-other rows of the batch.
+Row-wise (a run's outputs do not depend on the other rows); equal to the scalar engine's dense evaluation
+up to rounding. The layer-cake method: docs/SWEEPS.md, "The batched fuzzy engine".
 """
 
 from __future__ import annotations
@@ -21,7 +10,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from smm_controller.fuzzy import MamdaniBatch, MamdaniSystem, centroid_weights
+from smm_controller.fuzzy import MamdaniSystem, centroid_weights
+from smm_controller.fuzzy_batch import MamdaniBatch
 from smm_controller.rules import TABLE_1, TABLE_7, fleso_bandwidth_system, pd_gain_system
 
 __all__ = ["BandwidthFuzzy", "LabelSetCentroids", "PDGainFuzzy"]

@@ -1,11 +1,8 @@
 """The offline closed loop of ``smm_analysis.closed_loop`` for N runs at once, and each run's indices.
 
-One :class:`RunSettings` holds everything ``run_closed_loop`` takes; :func:`run_batch` steps N of them
-(one law, equal durations and control periods) as the scalar loop steps one, and :func:`run_scalar`
-runs one with the scalar loop, the reference the batch is tested against. A run whose torque becomes
-non-finite is marked diverged (where the scalar loop raises) and its indices are NaN; the other runs
-carry on. A run whose plant state overflows under a finite torque (the scalar loop does not stop
-there) is diverged too.
+:func:`run_batch` steps N :class:`RunSettings` (one law, equal durations and periods); :func:`run_scalar`
+runs one with the scalar loop. A diverged run (non-finite torque or state) gets NaN indices; the others
+carry on.
 """
 
 from __future__ import annotations

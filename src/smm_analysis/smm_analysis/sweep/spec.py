@@ -1,11 +1,7 @@
-"""A sweep specification (YAML) and the runs it stands for.
+"""A sweep specification (YAML, format in docs/SWEEPS.md) and the runs it stands for.
 
-A spec names the scenario(s), the law, the gains to vary in ``controller_node``'s parameter names (grids,
-and ranges drawn at random or by Latin hypercube), the plant draws in ``smm_sim_node``'s parameter names,
-the objectives, and optionally constraints and the objective to select by (docs/SWEEPS.md has the
-format). Every value is validated by building the config dataclass it belongs to, so a sweep refuses
-what a node would refuse, naming the spec field. The runs are numbered: run id = (gain set x plant draws
-+ plant draw) x scenarios + scenario.
+Every value is validated by building the config it belongs to, naming the spec field. Run id = (gain set
+x plant draws + plant draw) x scenarios + scenario.
 """
 
 from __future__ import annotations
