@@ -375,8 +375,31 @@ def gravity_vector(q: ArrayLike, params: SMMParameters) -> FloatArray:
     return _pack_vector(0.0, _gravity_beta(math.sin(beta), params), batch)
 
 
+def _sign(value: _Real) -> _Real:
+    """sign(value) with sign(0) = 0: -1.0, 0.0 or +1.0 (a float, or an array for an array)."""
+    if type(value) is float:
+        return 1.0 if value > 0.0 else (-1.0 if value < 0.0 else 0.0)
+    return np.sign(value)
+
+
+def _has_coulomb_or_offset(params: SMMParameters) -> bool:
+    return params.coulomb_friction != (0.0, 0.0) or params.torque_offset != (0.0, 0.0)
+
+
+def _friction_components(alpha_dot: _Real, beta_dot: _Real, params: SMMParameters) -> tuple[_Real, _Real]:
+    """F(q') = f_v q' + f_c sign(q') + offset per joint (N m); the last two only when not zero."""
+    friction_alpha = params.viscous_friction[0] * alpha_dot
+    friction_beta = params.viscous_friction[1] * beta_dot
+    if _has_coulomb_or_offset(params):
+        coulomb_alpha, coulomb_beta = params.coulomb_friction
+        offset_alpha, offset_beta = params.torque_offset
+        friction_alpha = friction_alpha + coulomb_alpha * _sign(alpha_dot) + offset_alpha
+        friction_beta = friction_beta + coulomb_beta * _sign(beta_dot) + offset_beta
+    return friction_alpha, friction_beta
+
+
 def friction_torque(qd: ArrayLike, params: SMMParameters) -> FloatArray:
-    """Viscous friction F(qd) = diag(f_v) qd.
+    """Friction F(qd) = diag(f_v) qd + diag(f_c) sign(qd) + offset, sign(0) = 0.
 
     Args:
         qd: Joint velocities (rad/s), shape (..., 2).
@@ -386,7 +409,11 @@ def friction_torque(qd: ArrayLike, params: SMMParameters) -> FloatArray:
         F (N m), shape (..., 2).
     """
     qd = _joint_array(qd, "qd")
-    return np.asarray(qd * np.asarray(params.viscous_friction), dtype=np.float64)
+    friction = qd * np.asarray(params.viscous_friction)
+    if _has_coulomb_or_offset(params):
+        coulomb = np.asarray(params.coulomb_friction) * np.sign(qd)
+        friction = friction + coulomb + np.asarray(params.torque_offset)
+    return np.asarray(friction, dtype=np.float64)
 
 
 def kinetic_energy(q: ArrayLike, qd: ArrayLike, params: SMMParameters) -> FloatArray:
@@ -431,8 +458,9 @@ def _acceleration(
     rhs_alpha = tau[0] - coriolis_alpha
     rhs_beta = tau[1] - coriolis_beta - _gravity_beta(trig[2], params)
     if friction:
-        rhs_alpha = rhs_alpha - params.viscous_friction[0] * alpha_dot
-        rhs_beta = rhs_beta - params.viscous_friction[1] * beta_dot
+        friction_alpha, friction_beta = _friction_components(alpha_dot, beta_dot, params)
+        rhs_alpha = rhs_alpha - friction_alpha
+        rhs_beta = rhs_beta - friction_beta
     if tau_dist is not None:
         rhs_alpha = rhs_alpha - tau_dist[0]
         rhs_beta = rhs_beta - tau_dist[1]
@@ -457,7 +485,7 @@ def forward_dynamics(
         tau: Applied torque (N m), shape (..., 2).
         params: Plant parameters.
         tau_dist: External disturbance torque xi_edis (N m), shape (..., 2); None for zero.
-        friction: Whether to include the viscous friction F(qd).
+        friction: Whether to include the friction F(qd) (viscous, Coulomb and offset).
 
     Returns:
         qdd (rad/s^2), shape (..., 2).
@@ -500,7 +528,7 @@ def inverse_dynamics(
         qdd: Joint accelerations (rad/s^2), shape (..., 2).
         params: Plant parameters.
         tau_dist: External disturbance torque (N m), shape (..., 2); None for zero.
-        friction: Whether to include the viscous friction F(qd).
+        friction: Whether to include the friction F(qd) (viscous, Coulomb and offset).
 
     Returns:
         tau (N m), shape (..., 2).
@@ -518,8 +546,9 @@ def inverse_dynamics(
     tau_alpha = m11 * alpha_ddot + m12 * beta_ddot + coriolis_alpha
     tau_beta = m12 * alpha_ddot + m22 * beta_ddot + coriolis_beta + _gravity_beta(trig[2], params)
     if friction:
-        tau_alpha = tau_alpha + params.viscous_friction[0] * alpha_dot
-        tau_beta = tau_beta + params.viscous_friction[1] * beta_dot
+        friction_alpha, friction_beta = _friction_components(alpha_dot, beta_dot, params)
+        tau_alpha = tau_alpha + friction_alpha
+        tau_beta = tau_beta + friction_beta
     if dist is not None:
         dist_alpha, dist_beta = _components(dist, batch)
         tau_alpha = tau_alpha + dist_alpha
@@ -567,7 +596,7 @@ def rk4_step(
         dt: Step length (s), > 0.
         params: Plant parameters.
         tau_dist: External disturbance torque (N m), shape (..., 2), constant over the step; None for zero.
-        friction: Whether to include the viscous friction F(qd).
+        friction: Whether to include the friction F(qd) (viscous, Coulomb and offset).
 
     Returns:
         (q_next, qd_next), each shape (..., 2) (rad, rad/s).
@@ -644,13 +673,15 @@ def forward_dynamics_floats(
         torque: Applied torque (tau_alpha, tau_beta) (N m).
         params: Plant parameters.
         disturbance: External disturbance torque (alpha, beta) (N m).
-        friction: Whether to include the viscous friction F(qd).
+        friction: Whether to include the friction F(qd) (viscous, Coulomb and offset).
 
     Returns:
         (alpha'', beta'') (rad/s^2).
     """
     alpha, beta, alpha_dot, beta_dot = state
-    friction_alpha, friction_beta = params.viscous_friction if friction else (0.0, 0.0)
+    friction_alpha, friction_beta = (
+        _friction_components(alpha_dot, beta_dot, params) if friction else (0.0 * alpha_dot, 0.0 * beta_dot)
+    )
     sb = math.sin(beta)
     return forward_dynamics_entries_spin_form(
         math.sin(alpha),
@@ -659,8 +690,8 @@ def forward_dynamics_floats(
         math.cos(beta),
         alpha_dot,
         beta_dot,
-        torque[0] - disturbance[0] - friction_alpha * alpha_dot,
-        torque[1] - disturbance[1] - _gravity_coefficient(params) * sb - friction_beta * beta_dot,
+        torque[0] - disturbance[0] - friction_alpha,
+        torque[1] - disturbance[1] - _gravity_coefficient(params) * sb - friction_beta,
         params.I11,
         params.I22,
         params.I44,
@@ -689,21 +720,28 @@ def rk4_step_floats(
         dt: Step length (s), > 0.
         params: Plant parameters.
         disturbance: External disturbance torque (alpha, beta) (N m).
-        friction: Whether to include the viscous friction F(qd).
+        friction: Whether to include the friction F(qd) (viscous, Coulomb and offset).
 
     Returns:
         (alpha, beta, alpha', beta') after the step (rad, rad/s).
     """
     _check_step(dt)
+    if friction and params.coulomb_friction != (0.0, 0.0):
+        # sign(q') is not in the generated step: the same stages on the float forward dynamics.
+        def accel(a: _Real, b: _Real, ad: _Real, bd: _Real) -> tuple[_Real, _Real]:
+            return forward_dynamics_floats((a, b, ad, bd), torque, params, disturbance=disturbance)
+
+        return _rk4_stages(accel, state, dt)
     alpha, beta, alpha_dot, beta_dot = state
     friction_alpha, friction_beta = params.viscous_friction if friction else (0.0, 0.0)
+    offset_alpha, offset_beta = params.torque_offset if friction else (0.0, 0.0)
     return rk4_step_spin_form(  # type: ignore[return-value]
         alpha,
         beta,
         alpha_dot,
         beta_dot,
-        torque[0] - disturbance[0],
-        torque[1] - disturbance[1],
+        torque[0] - disturbance[0] - offset_alpha,
+        torque[1] - disturbance[1] - offset_beta,
         friction_alpha,
         friction_beta,
         _gravity_coefficient(params),

@@ -86,6 +86,10 @@ class SMMParameters:
             -1.0: the end effector hangs down (V = -m_c g l_c cos(beta)).
         viscous_friction: Viscous friction coefficients (alpha, beta) (N m s/rad), >= 0.
         link_length: Distance L from the sphere centre to the end effector (m), > 0.
+        coulomb_friction: Coulomb friction levels (alpha, beta) (N m), >= 0; F gains f_c sign(q').
+        torque_offset: Constant torque offsets (alpha, beta) (N m), finite; F gains them as they are.
+
+    The friction torque is F(q') = f_v q' + f_c sign(q') + offset per joint, sign(0) = 0.
     """
 
     I11: float = _DEFAULT_TRANSVERSE_INERTIA
@@ -97,6 +101,8 @@ class SMMParameters:
     gravity_sign: float = 1.0
     viscous_friction: tuple[float, float] = (0.1, 0.1)
     link_length: float = 0.1
+    coulomb_friction: tuple[float, float] = (0.0, 0.0)
+    torque_offset: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         for name in ("I11", "I22", "I44", "I55"):
@@ -118,6 +124,8 @@ class SMMParameters:
         _require_finite("link_length", self.link_length)
         if self.link_length <= 0.0:
             raise ValueError(f"link_length must be > 0 m, got {self.link_length!r}")
+        check_pair("coulomb_friction", self.coulomb_friction, non_negative=True)
+        check_pair("torque_offset", self.torque_offset)
 
     @classmethod
     def from_table2(cls, bodies: tuple[BodyData, ...] = TABLE2_BODIES, **overrides: float) -> SMMParameters:
