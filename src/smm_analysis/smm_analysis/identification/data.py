@@ -85,8 +85,8 @@ class FilterSettings:
         return (
             f"Savitzky-Golay states (scipy.signal.savgol_filter), window {self.savgol_window:g} s, order "
             f"{self.savgol_order}; zero-phase Butterworth low-pass (scipy.signal.filtfilt), order "
-            f"{self.order}, cutoff {self.cutoff:g} Hz, on the regressor and the torques alike; {self.edge:g} s left out at "
-            f"each end of a stretch; a joint's rows left out below |q'| = {self.rest_velocity:g} rad/s and "
+            f"{self.order}, cutoff {self.cutoff:g} Hz, on the regressor and the torques alike; "
+            f"{self.edge:g} s left out at each end of a stretch; a joint's rows left out below |q'| = {self.rest_velocity:g} rad/s and "
             f"{self.rest_guard:g} s around"
         )
 
