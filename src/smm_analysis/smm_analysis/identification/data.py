@@ -82,12 +82,14 @@ class FilterSettings:
 
     def describe(self) -> str:
         """One line for reports."""
-        return (
-            f"Savitzky-Golay states (scipy.signal.savgol_filter), window {self.savgol_window:g} s, order "
-            f"{self.savgol_order}; zero-phase Butterworth low-pass (scipy.signal.filtfilt), order "
-            f"{self.order}, cutoff {self.cutoff:g} Hz, on the regressor and the torques alike; "
-            f"{self.edge:g} s left out at each end of a stretch; a joint's rows left out below |q'| = {self.rest_velocity:g} rad/s and "
-            f"{self.rest_guard:g} s around"
+        return " ".join(
+            (
+                f"Savitzky-Golay states (scipy.signal.savgol_filter), window {self.savgol_window:g} s,",
+                f"order {self.savgol_order}; zero-phase Butterworth low-pass (scipy.signal.filtfilt),",
+                f"order {self.order}, cutoff {self.cutoff:g} Hz, on the regressor and the torques alike;",
+                f"{self.edge:g} s left out at each end of a stretch; a joint's rows left out below",
+                f"|q'| = {self.rest_velocity:g} rad/s and {self.rest_guard:g} s around",
+            )
         )
 
 
