@@ -1,4 +1,4 @@
-"""``smm-bag``: info, analyze, play, rerun and repair on rosbag2 MCAP bags."""
+"""``smm-bag``: info, analyze, play, rerun, repair and identify on rosbag2 MCAP bags."""
 
 from __future__ import annotations
 
@@ -6,6 +6,8 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+
+from smm_analysis.identify_command import add_identify_parser, identify_command
 
 from smm_bag import commands
 from smm_bag.lockstep import LockstepOptions
@@ -74,6 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     repair = sub.add_parser("repair", help="rebuild summaries, indexes and metadata.yaml after a crash")
     repair.add_argument("bag", type=Path)
     repair.add_argument("--no-backup", action="store_true", help="do not keep damaged files as *.damaged")
+    add_identify_parser(sub)
     return parser
 
 
@@ -129,6 +132,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"smm-bag: error: {error}", file=sys.stderr)
             return commands.EXIT_USAGE
         return commands.play_command(options.bag, play_options)
+    if options.command == "identify":
+        return identify_command(options)
     return commands.repair(options.bag, backup=not options.no_backup)
 
 
