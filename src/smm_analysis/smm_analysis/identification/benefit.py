@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,6 +102,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Prints the comparison table of docs/IDENTIFICATION.md."""
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, help="write lumped_disturbance.png here")
     args = parser.parse_args(argv)
     identified = identified_case2_model(args.seed)
     runs = compare_models(identified, seed=args.seed)
@@ -116,6 +118,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{run.estimate_rms[0]:.3f} | {run.estimate_rms[1]:.3f} | {run.model_error_rms[0]:.3f} | "
             f"{run.model_error_rms[1]:.3f} |"
         )
+    if args.out is not None:
+        from smm_analysis.identification.plots import lumped_figure  # noqa: PLC0415  (matplotlib)
+
+        args.out.mkdir(parents=True, exist_ok=True)
+        chosen = [
+            (run.label, run.run, trajectory_lumped_disturbance(run.run, compensate_friction=index == 2))
+            for index, run in enumerate(runs)
+        ]
+        print(f"wrote {lumped_figure(chosen, args.out / 'lumped_disturbance.png')}")
     return 0
 
 

@@ -381,6 +381,7 @@ def _exclusion_warnings(
             warnings.append(f"{name}: left out {seconds:.3g} s with {label}")
     if counts["rest"]:
         warnings.append(
-            f"{name}: left out {counts['rest']} joint rows at rest (|q'| < {settings.rest_velocity:g} rad/s)"
+            f"{name}: left out {counts['rest']} joint rows at rest or turning round "
+            f"(|q'| < {settings.rest_velocity:g} rad/s and {settings.rest_guard:g} s around)"
         )
     return warnings

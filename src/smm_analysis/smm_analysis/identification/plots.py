@@ -10,10 +10,12 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt
 
+from smm_analysis.closed_loop import Trajectory
 from smm_analysis.identification.data import PreparedRun
 from smm_analysis.identification.estimate import RunFit
+from smm_analysis.lumped import LumpedDisturbance
 
-__all__ = ["write_identification_plots"]
+__all__ = ["lumped_figure", "write_identification_plots"]
 
 _JOINTS = ("alpha", "beta")
 
@@ -79,3 +81,25 @@ def write_identification_plots(
         written.append(_torque_figure(fit, directory / f"torque_{slug}.png", f"validation run {run.name}"))
         written.append(_excitation_figure(run, directory / f"excitation_{slug}.png"))
     return written
+
+
+def lumped_figure(runs: list[tuple[str, Trajectory, LumpedDisturbance]], path: Path) -> Path:
+    """The FLESO's estimate beside the true lumped disturbance and its model-error part, one row per run."""
+    figure, axes = plt.subplots(len(runs), 2, figsize=(11, 3.2 * len(runs)), sharex=True, squeeze=False)
+    for row, (label, run, parts) in enumerate(runs):
+        for joint, name in enumerate(_JOINTS):
+            axis = axes[row, joint]
+            axis.plot(run.time, parts.total[:, joint], lw=0.8, label="true lumped (model error + external)")
+            axis.plot(run.time, run.disturbance_estimate[:, joint], lw=0.8, label="FLESO estimate")
+            axis.plot(run.time, parts.model_error[:, joint], lw=0.8, ls=":", label="model-error part")
+            axis.plot(run.time, parts.external[:, joint], lw=0.8, ls="--", label="external part (eq. 46)")
+            axis.set_title(f"{label}: {name}")
+            axis.set_ylabel("N m")
+            axis.grid(True, alpha=0.3)
+        axes[row, 0].legend(fontsize="x-small")
+    for joint in (0, 1):
+        axes[-1, joint].set_xlabel("time (s)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
+    return path
