@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -35,6 +36,7 @@ from smm_dynamics import SMMParameters
 
 __all__ = [
     "MODEL_NODES",
+    "BagAccess",
     "add_identify_parser",
     "identify_command",
     "model_sections",
@@ -190,15 +192,26 @@ def render_identification(
     return "\n".join(lines) + "\n"
 
 
+@dataclass(frozen=True)
+class BagAccess:
+    """How the command reads bags (smm_bag's reader: smm_analysis does not import smm_bag).
+
+    Attributes:
+        load_run: Bag folder -> recorded run (``t_ns``, ``measured_position``, ``applied_torque``,
+            ``manifest.parameters``), as ``smm_bag.recorded.load_run``.
+        errors: The exception types ``load_run`` raises for a bad bag.
+        exit_code: The exit code of one of them.
+    """
+
+    load_run: Callable[[Path], Any]
+    errors: tuple[type[Exception], ...]
+    exit_code: Callable[[Any], int]
+
+
 def identify_command(
-    args: argparse.Namespace, stdout: TextIO | None = None, stderr: TextIO | None = None
+    args: argparse.Namespace, bags: BagAccess, stdout: TextIO | None = None, stderr: TextIO | None = None
 ) -> int:
     """``smm-bag identify``: prints the estimates; with ``--out`` writes model.yaml, REPORT.md, figures."""
-    # smm_bag depends on smm_analysis: its bag reader is imported when the command runs.
-    from smm_bag.commands import exit_code  # noqa: PLC0415
-    from smm_bag.errors import BagError  # noqa: PLC0415
-    from smm_bag.recorded import load_run  # noqa: PLC0415
-
     out, err = stdout or sys.stdout, stderr or sys.stderr
     try:
         settings = FilterSettings(cutoff=args.cutoff)
@@ -215,14 +228,14 @@ def identify_command(
             *((bag, validation_runs) for bag in args.validate),
         ]:
             err.write(f"reading {bag}\n")
-            recorded = load_run(bag)
+            recorded = bags.load_run(bag)
             base = base if base is not None else _base_model(recorded.manifest.parameters)
             role.append(_prepare_bag(bag, recorded, settings, base))
         err.write(f"estimating ({estimation.bootstrap} bootstrap replicates)\n")
         result = identify(runs, base, estimation)
-    except BagError as error:
+    except bags.errors as error:
         err.write(f"smm-bag: error: {error}\n")
-        return exit_code(error)
+        return bags.exit_code(error)
     except MissingSignalsError as error:
         err.write(f"smm-bag: error: {error}\n")
         return EXIT_MISSING_TOPICS

@@ -7,11 +7,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from smm_analysis.identify_command import add_identify_parser, identify_command
+from smm_analysis.identify_command import BagAccess, add_identify_parser, identify_command
 
 from smm_bag import commands
+from smm_bag.errors import BagError
 from smm_bag.lockstep import LockstepOptions
 from smm_bag.player import PlayOptions, parse_remaps
+from smm_bag.recorded import load_run
 
 __all__ = ["build_parser", "main"]
 
@@ -133,7 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return commands.EXIT_USAGE
         return commands.play_command(options.bag, play_options)
     if options.command == "identify":
-        return identify_command(options)
+        return identify_command(options, BagAccess(load_run, (BagError,), commands.exit_code))
     return commands.repair(options.bag, backup=not options.no_backup)
 
 
