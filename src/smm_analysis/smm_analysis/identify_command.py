@@ -194,7 +194,7 @@ def render_identification(
 
 @dataclass(frozen=True)
 class BagAccess:
-    """How the command reads bags (smm_bag's reader: smm_analysis does not import smm_bag).
+    """How the command reads bags: smm_bag's reader, passed in by smm_bag's cli (it depends on this package).
 
     Attributes:
         load_run: Bag folder -> recorded run (``t_ns``, ``measured_position``, ``applied_torque``,
