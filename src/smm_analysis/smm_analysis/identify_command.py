@@ -101,6 +101,7 @@ def _prepare_bag(bag: Path, run: Any, settings: FilterSettings, base: SMMParamet
         settings,
         gravity=base.gravity,
         gravity_sign=base.gravity_sign,
+        command=run.command_torque,
     )
 
 

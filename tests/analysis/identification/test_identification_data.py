@@ -95,6 +95,13 @@ def test_a_saturated_run_is_refused_naming_saturation() -> None:
         prepare_trajectory("saturated", run)  # type: ignore[arg-type]
 
 
+def test_saturation_behind_a_valve_lag_is_found_from_the_command() -> None:
+    """The lag keeps the applied torque below its limit; the command beyond it gives saturation away."""
+    run = _excite(PlantConfig(torque_limit=(0.3, 0.3), valve_time_constants=(0.02, 0.02)))
+    with pytest.raises(SaturatedRunError, match=r"commanded beyond it"):
+        prepare_trajectory("lagged", run)  # type: ignore[arg-type]
+
+
 def test_a_run_against_the_stops_is_refused_naming_the_stops() -> None:
     run = _excite(PlantConfig(joint_limits=(0.35, 0.3)))
     with pytest.raises(StopsRunError, match=r"mechanical stop .* max_excluded"):

@@ -235,6 +235,7 @@ def prepare_run(
     *,
     gravity: float = 9.81,
     gravity_sign: float = 1.0,
+    command: ArrayLike | None = None,
 ) -> PreparedRun:
     """Filters and differentiates one run and picks its usable rows.
 
@@ -246,6 +247,9 @@ def prepare_run(
         settings: Filter settings (default :class:`FilterSettings`).
         gravity: g of the regressor's gravity column (m/s^2).
         gravity_sign: Its sign, as ``SMMParameters.gravity_sign``.
+        command: The commanded torque at each stamp (N m), shape (N, 2), if known: a command beyond the
+            largest torque ever applied (for 50 ms or more) is saturation too, also when a valve's lag
+            keeps the applied torque from sitting exactly at its limit.
 
     Returns:
         The prepared run, with a warning per kind of rows left out.
@@ -290,6 +294,11 @@ def prepare_run(
         if np.ptp(tau[:, joint]) <= 1e-9 * max(peak, 1e-12):
             continue  # a constant torque (a joint not driven) is not a clipped one; the rank check names it
         saturated[:, joint] = _plateaus(magnitude, peak, min_plateau, 1e-9 * max(peak, 1e-12))
+    if command is not None:
+        commanded = np.abs(_as_series("command", command, stamps.size))
+        beyond = (commanded > 1.01 * np.abs(tau).max(axis=0)).astype(np.float64)
+        for joint in (0, 1):
+            saturated[:, joint] |= _plateaus(beyond[:, joint], 1.0, min_plateau, 0.0)
     stopped = _at_stops(q, period, window, settings.savgol_order)
     segments: list[Segment] = []
     counts = {"edges": 0, "rest": 0}
@@ -363,7 +372,11 @@ def _exclusion_warnings(
     warnings = []
     rows = saturated.shape[0]
     for label, flags, error in (
-        ("the torque saturated (at its largest magnitude)", saturated, SaturatedRunError),
+        (
+            "the torque saturated (at its largest magnitude, or commanded beyond it)",
+            saturated,
+            SaturatedRunError,
+        ),
         ("a joint at a mechanical stop (position held at its extreme)", stopped, StopsRunError),
     ):
         fractions = flags.sum(axis=0) / rows

@@ -83,7 +83,7 @@ def simulate_excitation(
 def prepare_trajectory(name: str, run: Trajectory, settings: FilterSettings | None = None) -> PreparedRun:
     """A closed-loop run as a bag holds it: measured positions, effort = torque before each stamp."""
     effort = np.vstack([np.zeros((1, 2)), run.applied_torque[:-1]])
-    return prepare_run(name, run.t_ns, run.measured_position, effort, settings)
+    return prepare_run(name, run.t_ns, run.measured_position, effort, settings, command=run.command_torque)
 
 
 @dataclass(frozen=True)
