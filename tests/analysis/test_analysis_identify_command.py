@@ -134,3 +134,15 @@ def test_not_a_bag_is_reported(tmp_path: Path, capsys: pytest.CaptureFixture[str
 def test_invalid_options_are_usage_errors(bags: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["identify", str(bags["excite"]), "--bootstrap", "3"]) == 2
     assert "bootstrap" in capsys.readouterr().err
+
+
+def test_the_recorded_excitation_is_found_in_the_node_parameters() -> None:
+    from smm_analysis.identify_command import recorded_excitation
+    from smm_controller.excitation import ExcitationReference
+
+    internal = {"/smm/controller_node": {"reference.kind": "excite", "reference.excite.period": 4.0}}
+    assert recorded_excitation(internal) == ExcitationReference(period=4.0)
+    node = {"/smm/reference_node": {"kind": "excite", "excite.start": [0.1, 0.0]}}
+    assert recorded_excitation(node) == ExcitationReference(start=(0.1, 0.0))
+    assert recorded_excitation({"/smm/reference_node": {"kind": "sine"}}) is None
+    assert recorded_excitation({"/smm/reference_node": {"kind": "excite", "excite.harmonics": 1}}) is None

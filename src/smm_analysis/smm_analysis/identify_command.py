@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
+from smm_controller.excitation import ExcitationReference
 
 from smm_analysis.errors import IdentificationError, MissingSignalsError
 from smm_analysis.identification import (
@@ -30,6 +31,7 @@ from smm_analysis.identification import (
     parameter_vector,
     prepare_run,
 )
+from smm_analysis.identification.excitation import excitation_quality
 from smm_analysis.identification.plots import write_identification_plots
 from smm_analysis.parameters_file import write_parameters_file
 from smm_dynamics import SMMParameters
@@ -84,6 +86,39 @@ def _base_model(parameters: Mapping[str, Mapping[str, Any]]) -> SMMParameters:
             except ValueError:
                 break
     return SMMParameters()
+
+
+def recorded_excitation(parameters: Mapping[str, Mapping[str, Any]]) -> ExcitationReference | None:
+    """The ``excite`` reference a run followed, from the recorded node parameters, or None."""
+    for node, values in parameters.items():
+        for prefix, kind_key in (("reference.", "reference.kind"), ("", "kind")):
+            if not node.rstrip("/").endswith(("controller_node", "reference_node")):
+                continue
+            if values.get(kind_key) != "excite":
+                continue
+            start = f"{prefix}excite."
+            fields: dict[str, Any] = {
+                key[len(start) :]: tuple(value) if isinstance(value, list) else value
+                for key, value in values.items()
+                if key.startswith(start)
+            }
+            try:
+                return ExcitationReference(**fields)
+            except (TypeError, ValueError):
+                return None
+    return None
+
+
+def _excitation_lines(reference: ExcitationReference | None) -> list[str]:
+    if reference is None:
+        return []
+    quality = excitation_quality(reference)
+    return [
+        "",
+        f"Excitation (the recorded `excite` reference): crest factor of q_d' {quality.crest_factor[0]:.3g} "
+        f"(alpha), {quality.crest_factor[1]:.3g} (beta); condition number of the column-scaled regressor "
+        f"over q_d {quality.condition_number:.3g}.",
+    ]
 
 
 def _prepare_bag(bag: Path, run: Any, settings: FilterSettings, base: SMMParameters) -> PreparedRun:
@@ -148,8 +183,9 @@ def render_identification(
     runs: Sequence[PreparedRun],
     validation: Sequence[RunFit],
     figures: Sequence[Path] = (),
+    excitation: ExcitationReference | None = None,
 ) -> str:
-    """The Markdown report of an identification."""
+    """The Markdown report of an identification (``excitation``: the recorded reference, if known)."""
     lines = [
         "# Identification report",
         "",
@@ -169,6 +205,7 @@ def render_identification(
         "",
         f"Identifiability: rank {result.rank} of {len(PARAMETER_NAMES)}, condition number of the "
         f"column-scaled regressor {result.condition_number:.3g}; every parameter is separated by these data.",
+        *_excitation_lines(excitation),
         "",
         f"Physical: smallest eigenvalue of M(q) on |alpha|, |beta| <= {result.settings.workspace} rad: "
         f"{result.min_mass_eigenvalue:.4g} kg m^2 (positive definite).",
@@ -224,13 +261,16 @@ def identify_command(
         runs: list[PreparedRun] = []
         validation_runs: list[PreparedRun] = []
         base: SMMParameters | None = None
+        excitation: ExcitationReference | None = None
         for bag, role in [
             *((bag, runs) for bag in args.bags),
             *((bag, validation_runs) for bag in args.validate),
         ]:
             err.write(f"reading {bag}\n")
             recorded = bags.load_run(bag)
-            base = base if base is not None else _base_model(recorded.manifest.parameters)
+            if base is None:
+                base = _base_model(recorded.manifest.parameters)
+                excitation = recorded_excitation(recorded.manifest.parameters)
             role.append(_prepare_bag(bag, recorded, settings, base))
         err.write(f"estimating ({estimation.bootstrap} bootstrap replicates)\n")
         result = identify(runs, base, estimation)
@@ -261,7 +301,9 @@ def identify_command(
             "Use with --params-file (controller_node, fleso_node); see REPORT.md.",
         )
         report = args.out / "REPORT.md"
-        report.write_text(render_identification(result, runs, validation, figures), encoding="utf-8")
+        report.write_text(
+            render_identification(result, runs, validation, figures, excitation), encoding="utf-8"
+        )
         err.write(f"wrote {model}, {report} and {len(figures)} figures\n")
     out.write("\n".join(_estimate_lines(result)) + "\n")
     out.write(
