@@ -37,6 +37,7 @@ setup(
         "smm_bag.commands": [
             "analyze = smm_analysis.runs.cli:add_analyze",
             "rerun = smm_analysis.runs.cli:add_rerun",
+            "identify = smm_analysis.identify_command:add_identify",
         ],
     },
 )

@@ -3,8 +3,16 @@
 __all__ = [
     "AnalysisError",
     "ClosedLoopDivergedError",
+    "IdentificationError",
+    "IdentificationInputError",
     "MetricsInputError",
+    "MissingSignalsError",
+    "NotEnoughDataError",
+    "NotExcitingError",
+    "NotPhysicalError",
     "ParamsFileError",
+    "SaturatedRunError",
+    "StopsRunError",
     "UnknownControllerError",
     "UnknownScenarioError",
 ]
@@ -32,3 +40,35 @@ class ClosedLoopDivergedError(AnalysisError):
 
 class ParamsFileError(AnalysisError):
     """A parameters file for ``smm-bag rerun`` is unreadable or holds invalid gains."""
+
+
+class IdentificationError(AnalysisError):
+    """Base class of the errors of ``smm_analysis.identification``: the data cannot give a sound model."""
+
+
+class IdentificationInputError(IdentificationError):
+    """Arrays given to the identification are malformed: shapes, NaN/Inf, stamps not increasing."""
+
+
+class MissingSignalsError(IdentificationError):
+    """A run lacks a signal the identification needs (positions, or the applied torque: the effort)."""
+
+
+class NotEnoughDataError(IdentificationError):
+    """Too little usable motion (too short, or too much left out) for an estimate."""
+
+
+class SaturatedRunError(IdentificationError):
+    """The applied torque sat at its limit for too long: the model's torque is not what acted."""
+
+
+class StopsRunError(IdentificationError):
+    """A joint sat at a mechanical stop for too long: the stop's torque is not in the model."""
+
+
+class NotExcitingError(IdentificationError):
+    """The data do not separate every parameter (rank deficient regressor); the message names them."""
+
+
+class NotPhysicalError(IdentificationError):
+    """The estimate is not a physical model (M(q) not positive definite over the workspace)."""

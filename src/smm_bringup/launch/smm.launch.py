@@ -5,7 +5,8 @@ so the two cannot drift apart. Arguments:
 
 * ``plant:=sim|hardware`` (hardware: hw_bridge_node, configured and activated, after smm_bench_emulator
   unless ``board:=ADDRESS:PORT`` names the I/O board; real time only),
-* ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``, ``scenario:=step|case1|case2|none``,
+* ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``,
+  ``scenario:=step|case1|case2|excite|none``,
 * ``chain:=fused|split`` (fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too),
 * ``reference:=controller|node`` (controller: controller_node samples the reference, no reference_node;
   node: reference_node publishes it),

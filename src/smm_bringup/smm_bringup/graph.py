@@ -103,7 +103,7 @@ REFERENCE_PLACEMENTS: Final[tuple[str, ...]] = ("node", "controller")
 ``controller``: ``controller_node`` samples it itself (``reference_source: internal``), from the parameters
 that the parameter files give ``reference_node``, and no ``reference_node`` runs."""
 ALGORITHMS: Final[tuple[str, ...]] = ("fpdeso", "fpd", "pid", "npd")
-SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2")
+SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2", "excite")
 
 
 SIM_NODE: Final[str] = "smm_sim_node"

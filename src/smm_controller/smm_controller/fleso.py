@@ -70,6 +70,8 @@ class FLESOConfig:
         k_s2: Weight of its rate E' in the fuzzy input (s/rad), >= 0.
         w_min: Floor of the bandwidth (rad/s), > 0.
         grid_points: Defuzzification grid size over [-1, 1], integer >= 3.
+        compensate_friction: The observer's model holds the model's friction F(x2^), so xi~ leaves it
+            out; set it with FPDESO's ``compensate_friction`` (False: the paper's observer).
     """
 
     w0: tuple[float, float] = field(default=(20.0, 28.0), metadata=above(0.0))
@@ -78,9 +80,12 @@ class FLESOConfig:
     k_s2: tuple[float, float] = field(default=(1.15, 0.98), metadata=at_least(0.0))
     w_min: tuple[float, float] = field(default=DEFAULT_FLESO_W_MIN, metadata=above(0.0))
     grid_points: int = field(default=201, metadata=at_least(3))
+    compensate_friction: bool = False
 
     def __post_init__(self) -> None:
         check_bounds(self)
+        if not isinstance(self.compensate_friction, bool):
+            raise ValueError(f"compensate_friction must be a bool, got {self.compensate_friction!r}")
 
 
 def _clip_unit(x: float) -> float:
@@ -183,6 +188,10 @@ class FLESO:
         m11, m12, m22, c0, c1, g0, g1 = model.bias(x1[0], x1[1], x2[0], x2[1])
         r0 = tau0 - c0 - g0
         r1 = tau1 - c1 - g1
+        if self.config.compensate_friction:
+            friction0, friction1 = model.friction(x2[0], x2[1])
+            r0 -= friction0
+            r1 -= friction1
         det = m11 * m22 - m12 * m12
         acc0 = (m22 * r0 - m12 * r1) / det
         acc1 = (m11 * r1 - m12 * r0) / det

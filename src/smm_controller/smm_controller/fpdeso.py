@@ -10,6 +10,11 @@ Split as in the paper: feedforward tau_c1 = M q_d'' + C q' + G (eq. 28), feedbac
 sat(x / phi) (phi in the units of M^-1 e', rad/(kg m^2 s)); phi = 0 is the paper's pure sign, with
 sign(0) = 0. On the exact model with xi~ = 0 and b_d = 0 the closed loop is q'' = q_d'' + u (eq. 10).
 
+``compensate_friction`` adds the model's friction F(q') (``model.viscous_friction``,
+``coulomb_friction``, ``torque_offset``) to the feedforward: tau_c1 = M q_d'' + C q' + G + F(q'). Off by
+default (the paper's law). Set it together with the FLESO's ``compensate_friction``, so that the observer's
+model holds the same F and its estimate xi~ leaves it out (otherwise F is compensated twice).
+
 ``velocity_source`` says which q' the chain feeds the law: ``"td"`` (the paper: the TD's x2) or
 ``"observer"`` (the FLESO's x2^, the usual ADRC choice; default, see docs/REPRODUCTION.md, "Torque noise").
 """
@@ -47,12 +52,14 @@ class FPDESOConfig:
         robust_gain: b_d, bound of the disturbance estimation error (N m), >= 0.
         boundary_layer: phi, width of the boundary layer of the robust term, >= 0 (0 = pure sign).
         velocity_source: q' of the law: "td" (paper, eq. 26: the TD's x2) or "observer" (the FLESO's x2^).
+        compensate_friction: Add the model's friction F(q') to the feedforward (False: the paper's law).
     """
 
     fuzzy: FuzzyPDConfig = PAPER_FPDESO_FUZZY
     robust_gain: tuple[float, float] = field(default=(0.03 * math.pi, 0.02 * math.pi), metadata=at_least(0.0))
     boundary_layer: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
     velocity_source: str = "observer"
+    compensate_friction: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.fuzzy, FuzzyPDConfig):
@@ -62,6 +69,8 @@ class FPDESOConfig:
             raise ValueError(
                 f"velocity_source must be one of {VELOCITY_SOURCES}, got {self.velocity_source!r}"
             )
+        if not isinstance(self.compensate_friction, bool):
+            raise ValueError(f"compensate_friction must be a bool, got {self.compensate_friction!r}")
 
 
 def robust_switch(x: float, phi: float) -> float:
@@ -138,13 +147,17 @@ class FPDESOController(TorqueLaw):
         m11, m12, m22, c0, c1, g0, g1 = self.model.bias(q0, q1, qd0, qd1)
         ff0 = m11 * acceleration[0] + m12 * acceleration[1] + c0 + g0
         ff1 = m12 * acceleration[0] + m22 * acceleration[1] + c1 + g1
+        config = self.config
+        if config.compensate_friction:
+            friction0, friction1 = self.model.friction(qd0, qd1)
+            ff0 += friction0
+            ff1 += friction1
         fb0 = m11 * u0 + m12 * u1
         fb1 = m12 * u0 + m22 * u1
         # sign(M^-1 e') = sign(adj(M) e') since det M > 0.
         z0 = m22 * ed0 - m12 * ed1
         z1 = m11 * ed1 - m12 * ed0
         det = m11 * m22 - m12 * m12
-        config = self.config
         b_d = config.robust_gain
         phi = config.boundary_layer
         v0 = -b_d[0] * robust_switch(z0 / det, phi[0])
@@ -158,8 +171,9 @@ class FPDESOController(TorqueLaw):
     def internals(self) -> Mapping[str, FloatArray]:
         """Read-only copies, shape (2,), of the terms of the last step.
 
-        Keys: kp, kd, u (rad/s^2), feedforward (tau_c1), feedback (M u), disturbance (xi~),
-        robust (v), tau; torques in N m, tau = feedforward + feedback + disturbance - robust.
+        Keys: kp, kd, u (rad/s^2), feedforward (tau_c1, with F(q') if compensated), feedback (M u),
+        disturbance (xi~), robust (v), tau; torques in N m,
+        tau = feedforward + feedback + disturbance - robust.
         """
         return internals_view(
             ("kp", "kd", "u", "feedforward", "feedback", "disturbance", "robust", "tau"), self._last

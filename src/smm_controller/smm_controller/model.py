@@ -1,4 +1,4 @@
-"""The controller's nominal model on plain floats: M(q), C(q, q') q', G(q) (no friction).
+"""The controller's nominal model on plain floats: M(q), C(q, q') q', G(q) and, when asked, F(q').
 
 The model-based algorithms (FLESO, FPDESO) need these terms several times per control step. The array
 functions of ``smm_dynamics`` cost a few microseconds of call overhead each; here the plain-float fast
@@ -16,7 +16,7 @@ import math
 import weakref
 from typing import ClassVar
 
-from smm_dynamics import SMMParameters, mass_matrix_floats, rigid_body_floats
+from smm_dynamics import SMMParameters, friction_floats, mass_matrix_floats, rigid_body_floats
 
 __all__ = ["NominalModel"]
 
@@ -25,7 +25,8 @@ class NominalModel:
     """Rigid-body terms of the controller's model (its parameters, not the plant's).
 
     Args:
-        params: Nominal SMM parameters. Friction is never used: no controller knows it (SPEC 1).
+        params: Nominal SMM parameters. Friction is used only by laws whose ``compensate_friction``
+            is set (off by default: the paper's laws know no friction, SPEC 1).
     """
 
     _shared: ClassVar[weakref.WeakValueDictionary[SMMParameters, NominalModel]] = (
@@ -69,3 +70,7 @@ class NominalModel:
             M is bit-identical to :meth:`mass` at the same position.
         """
         return rigid_body_floats(alpha, beta, alpha_dot, beta_dot, self.params)
+
+    def friction(self, alpha_dot: float, beta_dot: float) -> tuple[float, float]:
+        """Model friction F(q') = f_v q' + f_c sign(q') + offset (N m) at q' (rad/s)."""
+        return friction_floats(alpha_dot, beta_dot, self.params)

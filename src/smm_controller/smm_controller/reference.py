@@ -8,16 +8,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 from smm_dynamics.validation import above, at_least, check_bounds, no_range
 
-from smm_controller._validation import FloatArray, check_scalar
+from smm_controller._sampled import Reference, Rows, _Sampled
+from smm_controller.excitation import ExcitationReference
 
 __all__ = [
     "REFERENCE_KINDS",
+    "ExcitationReference",
     "RampHoldReference",
     "Reference",
     "ReferenceGenerator",
@@ -26,58 +27,6 @@ __all__ = [
     "StepReference",
     "make_reference",
 ]
-
-
-Rows = tuple[tuple[float, float], tuple[float, float], tuple[float, float]]
-"""A reference at one time as floats: (position, velocity, acceleration), each (alpha, beta)."""
-
-
-class Reference(Protocol):
-    """A reference generator: ``rows(t)`` (floats), ``evaluate(t)`` (3, 2), ``sample(times)`` (n, 3, 2)."""
-
-    def rows(self, t: float) -> Rows:
-        """Position (rad), velocity (rad/s), acceleration (rad/s^2) at time t (s), as float pairs."""
-        ...
-
-    def evaluate(self, t: float) -> FloatArray:
-        """Position, velocity and acceleration at time t (s), shape (3, 2)."""
-        ...
-
-    def sample(self, times: npt.ArrayLike) -> FloatArray:
-        """The same at every time of ``times`` (s), shape (n, 3, 2)."""
-        ...
-
-
-class _Sampled:
-    """evaluate(t) and sample(times) in terms of each generator's scalar rows(t).
-
-    One formula per generator, in plain floats: the offline loop (``sample`` over a run) and the nodes
-    (``rows`` or ``evaluate`` at each stamp) compute the same values bit for bit, and a node's step costs
-    no array set-up.
-    """
-
-    def rows(self, t: float) -> Rows:
-        """Position (rad), velocity (rad/s), acceleration (rad/s^2) at time t (s), as float pairs."""
-        raise NotImplementedError
-
-    def evaluate(self, t: float) -> FloatArray:
-        """Position, velocity and acceleration at time t (s), shape (3, 2)."""
-        check_scalar("t", t)
-        return np.array(self.rows(float(t)))
-
-    def sample(self, times: npt.ArrayLike) -> FloatArray:
-        """References at every time of ``times`` (s), shape (n, 3, 2)."""
-        array = np.asarray(times, dtype=np.float64)
-        if array.ndim != 1 or not np.all(np.isfinite(array)):
-            raise ValueError(f"times must be a finite 1-D array (s), got shape {array.shape}")
-        sampled: FloatArray = np.array([self.rows(t) for t in array.tolist()], dtype=np.float64).reshape(
-            array.size, 3, 2
-        )
-        return sampled
-
-    def __call__(self, t: float) -> FloatArray:
-        """Same as :meth:`evaluate`."""
-        return self.evaluate(t)
 
 
 @dataclass(frozen=True)
@@ -180,14 +129,17 @@ class RampHoldReference(_Sampled):
         )
 
 
-ReferenceGenerator = StepReference | SineReference | RampHoldReference
+ReferenceGenerator = StepReference | SineReference | RampHoldReference | ExcitationReference
 """Any of the reference generators (each a frozen config dataclass with ``rows``/``evaluate``/``sample``)."""
 
 #: Names accepted by :func:`make_reference`.
-REFERENCE_KINDS: dict[str, type[StepReference] | type[SineReference] | type[RampHoldReference]] = {
+REFERENCE_KINDS: dict[
+    str, type[StepReference] | type[SineReference] | type[RampHoldReference] | type[ExcitationReference]
+] = {
     "step": StepReference,
     "sine": SineReference,
     "ramp_hold": RampHoldReference,
+    "excite": ExcitationReference,
 }
 
 
@@ -200,7 +152,7 @@ def make_reference(kind: str, **params: Any) -> ReferenceGenerator:
     """Builds a reference generator by name.
 
     Args:
-        kind: "step", "sine" or "ramp_hold".
+        kind: "step", "sine", "ramp_hold" or "excite".
         **params: Fields of the generator's dataclass (lists are accepted for per-joint fields).
 
     Returns:

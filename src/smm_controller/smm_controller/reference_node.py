@@ -67,7 +67,7 @@ class ReferenceSelection:
     """Which reference generator the node samples.
 
     Attributes:
-        kind: "step", "sine" or "ramp_hold"; its fields are the parameters ``<kind>.<field>``.
+        kind: "step", "sine", "ramp_hold" or "excite"; its fields are the parameters ``<kind>.<field>``.
     """
 
     kind: str = "sine"

@@ -42,6 +42,7 @@ __all__ = [
     "end_effector_position",
     "forward_dynamics",
     "forward_dynamics_floats",
+    "friction_floats",
     "friction_torque",
     "gravity_vector",
     "inverse_dynamics",
@@ -396,6 +397,11 @@ def _friction_components(alpha_dot: _Real, beta_dot: _Real, params: SMMParameter
         friction_alpha = friction_alpha + coulomb_alpha * _sign(alpha_dot) + offset_alpha
         friction_beta = friction_beta + coulomb_beta * _sign(beta_dot) + offset_beta
     return friction_alpha, friction_beta
+
+
+def friction_floats(alpha_dot: float, beta_dot: float, params: SMMParameters) -> tuple[float, float]:
+    """F(q') for one sample on plain floats: f_v q' + f_c sign(q') + offset per joint (N m)."""
+    return _friction_components(alpha_dot, beta_dot, params)
 
 
 def friction_torque(qd: ArrayLike, params: SMMParameters) -> FloatArray:

@@ -19,6 +19,7 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 from smm_sim.plant import disturbance_torque
 
+from smm_analysis.lumped import LumpedDisturbance, recorded_lumped_disturbance
 from smm_analysis.runs.latency import latency_cdf, summarize_latency
 from smm_analysis.runs.recorded import JOINTS, RecordedRun
 from smm_analysis.scenarios import get_scenario
@@ -45,6 +46,13 @@ def true_disturbance(run: RecordedRun) -> FloatArray | None:
     except ValueError:  # a scenario this version does not know
         return None
     return np.array([disturbance_torque(model, float(t)) for t in run.time_s])
+
+
+def _lumped(run: RecordedRun) -> LumpedDisturbance | None:
+    """The true lumped disturbance and its parts (smm_analysis.lumped): simulator runs with ground truth."""
+    if run.manifest.plant != "sim" or run.position_source != "ground truth" or run.applied_torque is None:
+        return None
+    return recorded_lumped_disturbance(run.manifest.parameters, run.time_s, run.position, run.applied_torque)
 
 
 def _thin(run: RecordedRun) -> slice:
@@ -121,6 +129,7 @@ def write_plots(runs: Sequence[RecordedRun], out: Path) -> dict[str, str]:
     """Writes the figures into ``out``; returns ``{name: file or reason it was not drawn}``."""
     out.mkdir(parents=True, exist_ok=True)
     truths = {id(run): true_disturbance(run) for run in runs}
+    lumped = {id(run): _lumped(run) for run in runs}
 
     def tracking(run: RecordedRun, j: int) -> list[tuple[str, FloatArray, str]]:
         return [
@@ -143,7 +152,11 @@ def write_plots(runs: Sequence[RecordedRun], out: Path) -> dict[str, str]:
             lines.append((f"{run.label} estimate xi~", run.disturbance_estimate[:, j], "-"))
         truth = truths[id(run)]
         if truth is not None:
-            lines.append((f"{run.label} true (scenario {run.manifest.scenario})", truth[:, j], "--"))
+            lines.append((f"{run.label} true external (scenario {run.manifest.scenario})", truth[:, j], "--"))
+        parts = lumped[id(run)]
+        if parts is not None:
+            lines.append((f"{run.label} true lumped (model error + external)", parts.total[:, j], "-."))
+            lines.append((f"{run.label} model-error part", parts.model_error[:, j], ":"))
         return lines
 
     def bandwidth(run: RecordedRun, j: int) -> list[tuple[str, FloatArray, str]]:

@@ -1,0 +1,306 @@
+"""Bounded least squares of the SMM's parameters, with identifiability, bootstrap intervals and fit.
+
+Method (``scipy.optimize.lsq_linear``, block bootstrap): docs/IDENTIFICATION.md, "How it estimates".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import lsq_linear
+
+from smm_analysis.errors import NotExcitingError, NotPhysicalError
+from smm_analysis.identification.data import PreparedRun
+from smm_analysis.identification.regressor import (
+    PARAMETER_NAMES,
+    parameter_vector,
+    parameters_from_vector,
+)
+from smm_dynamics import SMMParameters, mass_matrix
+
+__all__ = ["EstimationSettings", "Identification", "RunFit", "fit_of", "identify"]
+
+FloatArray = NDArray[np.float64]
+_LOWER = np.array([1e-9] * 4 + [0.0] * 5 + [-np.inf] * 2)
+
+
+@dataclass(frozen=True)
+class EstimationSettings:
+    """Settings of the estimate (reported with it).
+
+    Attributes:
+        bootstrap: Bootstrap replicates, integer >= 20.
+        block: Length of a bootstrap block (s), > 0.
+        seed: Seed of the bootstrap's generator, >= 0.
+        rank_tolerance: A singular value of the column-scaled regressor below this times the largest counts
+            as zero (rank deficient), in (0, 1).
+        workspace: M(q) is checked positive definite on |alpha|, |beta| <= workspace (rad), each in (0, pi/2).
+    """
+
+    bootstrap: int = 200
+    block: float = 1.0
+    seed: int = 0
+    rank_tolerance: float = 1e-4
+    workspace: tuple[float, float] = (1.3, 1.3)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.bootstrap, bool) or not isinstance(self.bootstrap, int) or self.bootstrap < 20:
+            raise ValueError(f"bootstrap must be an integer >= 20, got {self.bootstrap!r}")
+        if not (math.isfinite(self.block) and self.block > 0.0):
+            raise ValueError(f"block must be a finite number > 0 s, got {self.block!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if not 0.0 < self.rank_tolerance < 1.0:
+            raise ValueError(f"rank_tolerance must be in (0, 1), got {self.rank_tolerance!r}")
+        if len(self.workspace) != 2 or not all(0.0 < value < 0.5 * math.pi for value in self.workspace):
+            raise ValueError(f"workspace must be 2 values in (0, pi/2) rad, got {self.workspace!r}")
+
+
+@dataclass(frozen=True)
+class RunFit:
+    """Torque prediction of a model on one prepared run.
+
+    Attributes:
+        name: The run.
+        time: Times of the used samples (s), shape (n,).
+        measured: Filtered applied torque (N m), shape (n, 2).
+        predicted: The model's torque (N m), shape (n, 2).
+        use: Rows used, shape (n, 2).
+        nrmse: RMS(measured - predicted) / RMS(measured) per joint over the used rows.
+    """
+
+    name: str
+    time: FloatArray
+    measured: FloatArray
+    predicted: FloatArray
+    use: NDArray[np.bool_]
+    nrmse: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Identification:
+    """An estimate and what it rests on.
+
+    Attributes:
+        params: The identified SMMParameters (gravity, its sign and L from the base).
+        theta: Estimates in :data:`PARAMETER_NAMES` order, shape (11,).
+        standard_error: Bootstrap standard deviations, shape (11,).
+        interval: 95 % percentile intervals, shape (11, 2).
+        at_bound: Names of the parameters the bounds hold at their limit.
+        rank: Rank of the column-scaled regressor.
+        condition_number: Its condition number (largest over smallest singular value).
+        singular_values: Its singular values, largest first.
+        min_mass_eigenvalue: Smallest eigenvalue of M(q) over the workspace grid (kg m^2).
+        fits: Fit on each identification run.
+        rows: Joint rows used.
+        settings: The estimation settings.
+        largest_torque: Largest |applied torque| over the used rows (N m).
+    """
+
+    params: SMMParameters
+    theta: FloatArray
+    standard_error: FloatArray
+    interval: FloatArray
+    at_bound: tuple[str, ...]
+    rank: int
+    condition_number: float
+    singular_values: FloatArray
+    min_mass_eigenvalue: float
+    fits: tuple[RunFit, ...]
+    rows: int
+    settings: EstimationSettings
+    largest_torque: float
+
+
+@dataclass(frozen=True)
+class _Rows:
+    matrix: FloatArray  # (R, 11)
+    torque: FloatArray  # (R,)
+    joint: NDArray[np.int64]  # (R,)
+    block: NDArray[np.int64]  # (R,)
+
+
+def _rows(runs: Sequence[PreparedRun], block: float) -> _Rows:
+    matrices, torques, joints, blocks = [], [], [], []
+    next_block = 0
+    for run in runs:
+        for segment in run.segments:
+            y = segment.columns
+            ids = next_block + ((segment.time - segment.time[0]) // block).astype(np.int64)
+            next_block = int(ids.max()) + 1
+            for joint in (0, 1):
+                use = segment.use[:, joint]
+                matrices.append(y[use, joint, :])
+                torques.append(segment.torque[use, joint])
+                joints.append(np.full(int(use.sum()), joint, dtype=np.int64))
+                blocks.append(ids[use])
+    return _Rows(
+        matrix=np.concatenate(matrices),
+        torque=np.concatenate(torques),
+        joint=np.concatenate(joints),
+        block=np.concatenate(blocks),
+    )
+
+
+def _solve_normal(gram: FloatArray, moment: FloatArray, scale: FloatArray) -> FloatArray:
+    """Bounded least squares from A^T A and A^T b: lsq_linear on the Cholesky factor (same minimiser)."""
+    scaled_gram = gram / np.outer(scale, scale)
+    factor = np.linalg.cholesky(scaled_gram).T  # R with R^T R = A_s^T A_s
+    target = np.linalg.solve(factor.T, moment / scale)
+    result = lsq_linear(factor, target, bounds=(_LOWER * scale, np.inf), method="bvls")
+    solution: FloatArray = result.x / scale
+    return solution
+
+
+def _solve(matrix: FloatArray, torque: FloatArray, scale: FloatArray) -> FloatArray:
+    return _solve_normal(matrix.T @ matrix, matrix.T @ torque, scale)
+
+
+def _weights(rows: _Rows, theta: FloatArray) -> FloatArray:
+    residual = rows.torque - rows.matrix @ theta
+    weights = np.ones_like(residual)
+    for joint in (0, 1):
+        mine = rows.joint == joint
+        rms = float(np.sqrt(np.mean(residual[mine] ** 2))) if mine.any() else 1.0
+        weights[mine] = 1.0 / max(rms, 1e-12)
+    return weights
+
+
+def _inseparable(scaled: FloatArray, tolerance: float) -> tuple[int, FloatArray, list[str]]:
+    singular: FloatArray = np.linalg.svd(scaled, compute_uv=False).astype(np.float64)
+    rank = int(np.sum(singular > tolerance * singular[0]))
+    if rank == scaled.shape[1]:
+        return rank, singular, []
+    _, _, vt = np.linalg.svd(scaled, full_matrices=False)
+    null = vt[rank:]
+    involved = np.sqrt(np.sum(null**2, axis=0)) > 0.1
+    return rank, singular, [name for name, flag in zip(PARAMETER_NAMES, involved, strict=True) if flag]
+
+
+def _min_mass_eigenvalue(params: SMMParameters, workspace: tuple[float, float]) -> float:
+    alpha = np.linspace(-workspace[0], workspace[0], 61)
+    beta = np.linspace(-workspace[1], workspace[1], 61)
+    grid = np.stack(np.meshgrid(alpha, beta, indexing="ij"), axis=-1).reshape(-1, 2)
+    return float(np.linalg.eigvalsh(mass_matrix(grid, params)).min())
+
+
+def fit_of(run: PreparedRun, params: SMMParameters) -> RunFit:
+    """The torque ``params`` predict on ``run`` and its NRMSE per joint over the used rows."""
+    times, measured, predicted, use = [], [], [], []
+    for segment in run.segments:
+        y = segment.columns
+        times.append(segment.time)
+        measured.append(segment.torque)
+        predicted.append(y @ parameter_vector(params))
+        use.append(segment.use)
+    time, meas, pred = (np.concatenate(parts).astype(np.float64) for parts in (times, measured, predicted))
+    used = np.concatenate(use).astype(bool)
+    nrmse = tuple(
+        float(
+            np.sqrt(np.mean((meas[used[:, j], j] - pred[used[:, j], j]) ** 2))
+            / np.sqrt(np.mean(meas[used[:, j], j] ** 2))
+        )
+        if used[:, j].any()
+        else math.nan
+        for j in (0, 1)
+    )
+    return RunFit(run.name, time, meas, pred, used, (nrmse[0], nrmse[1]))
+
+
+def identify(
+    runs: Sequence[PreparedRun], base: SMMParameters | None = None, settings: EstimationSettings | None = None
+) -> Identification:
+    """Estimates the 11 parameters from prepared runs.
+
+    Args:
+        runs: Prepared identification runs (at least one).
+        base: Supplies gravity, its sign and L (default ``SMMParameters()``); its other values are not used.
+        settings: Estimation settings (default :class:`EstimationSettings`).
+
+    Returns:
+        The estimate with intervals, identifiability and fit.
+
+    Raises:
+        NotExcitingError: The regressor is rank deficient; names the parameters the data cannot separate.
+        NotPhysicalError: M(q) of the estimate is not positive definite over the workspace.
+    """
+    if not runs:
+        raise ValueError("identify needs at least one prepared run")
+    base = base if base is not None else SMMParameters()
+    settings = settings if settings is not None else EstimationSettings()
+    rows = _rows(runs, settings.block)
+    scale = np.sqrt(np.sum(rows.matrix**2, axis=0))
+    dead = [name for name, value in zip(PARAMETER_NAMES, scale, strict=True) if value == 0.0]
+    if dead:
+        raise NotExcitingError(
+            f"the data do not excite {', '.join(dead)} at all (rank < {len(PARAMETER_NAMES)}): "
+            "record a run in which every joint moves both ways (the excite scenario)"
+        )
+    first = _solve(rows.matrix, rows.torque, scale)
+    weights = _weights(rows, first)
+    weighted, target = rows.matrix * weights[:, None], rows.torque * weights
+    scale = np.sqrt(np.sum(weighted**2, axis=0))
+    rank, singular, inseparable = _inseparable(weighted / scale, settings.rank_tolerance)
+    if inseparable:
+        raise NotExcitingError(
+            f"the data cannot separate {', '.join(inseparable)} (rank {rank} of {len(PARAMETER_NAMES)}, "
+            f"condition number {singular[0] / singular[-1]:.3g}): record a richer excitation "
+            "(the excite scenario) instead of inventing values for them"
+        )
+    theta = _solve(weighted, target, scale)
+    params = parameters_from_vector(theta, base)
+    min_eigenvalue = _min_mass_eigenvalue(params, settings.workspace)
+    if not min_eigenvalue > 0.0:
+        raise NotPhysicalError(
+            f"M(q) of the estimate is not positive definite on |q| <= {settings.workspace} rad "
+            f"(smallest eigenvalue {min_eigenvalue:.3g} kg m^2): the data do not pin the inertias down"
+        )
+    replicates = _bootstrap(weighted, target, scale, rows.block, settings)
+    at_bound = tuple(
+        name
+        for name, value, low in zip(PARAMETER_NAMES, theta, _LOWER, strict=True)
+        if value <= low * (1 + 1e-9) + 1e-15
+    )
+    return Identification(
+        params=params,
+        theta=theta,
+        standard_error=replicates.std(axis=0, ddof=1),
+        interval=np.percentile(replicates, [2.5, 97.5], axis=0).T,
+        at_bound=at_bound,
+        rank=rank,
+        condition_number=float(singular[0] / singular[-1]),
+        singular_values=singular,
+        min_mass_eigenvalue=min_eigenvalue,
+        fits=tuple(fit_of(run, params) for run in runs),
+        rows=int(rows.torque.size),
+        settings=settings,
+        largest_torque=float(np.abs(rows.torque).max()),
+    )
+
+
+def _bootstrap(
+    matrix: FloatArray,
+    torque: FloatArray,
+    scale: FloatArray,
+    block: NDArray[np.int64],
+    settings: EstimationSettings,
+) -> FloatArray:
+    generator = np.random.default_rng(settings.seed)
+    blocks = np.unique(block)
+    grams = np.empty((blocks.size, matrix.shape[1], matrix.shape[1]))
+    moments = np.empty((blocks.size, matrix.shape[1]))
+    for index, value in enumerate(blocks):
+        mine = block == value
+        grams[index] = matrix[mine].T @ matrix[mine]
+        moments[index] = matrix[mine].T @ torque[mine]
+    replicates = np.empty((settings.bootstrap, matrix.shape[1]))
+    for index in range(settings.bootstrap):
+        counts = np.bincount(generator.integers(0, blocks.size, blocks.size), minlength=blocks.size)
+        replicates[index] = _solve_normal(
+            np.tensordot(counts, grams, axes=1), np.tensordot(counts, moments, axes=1), scale
+        )
+    return replicates
