@@ -52,9 +52,11 @@ __all__ = [
     "CHAIN_LAYOUTS",
     "CLOCK_MODES",
     "CONTROLLER_NODE",
+    "DIRECT_LOOP",
     "EMULATOR_NODE",
     "FLESO_NODE",
     "HW_NODE",
+    "LOOPS",
     "NAMESPACE",
     "PLANTS",
     "PLANT_ALIASES",
@@ -95,6 +97,10 @@ EMULATOR_BOARD: Final[str] = "127.0.0.1:50101"
 EMULATOR_HOST: Final[str] = "127.0.0.1:50100"
 """Loopback addresses of the emulated board and of the bridge when no board address is given."""
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
+LOOPS: Final[tuple[str, ...]] = ("topics", "direct")
+"""``topics``: the plant and ``controller_node`` are separate processes joined by topics (the product's
+shape); ``direct`` (hardware only): one process, ``direct_loop``, steps the chain of ``controller_node`` in
+the bridge's receiving thread and publishes the same topics for observation (docs/LAUNCH.md)."""
 CHAIN_LAYOUTS: Final[tuple[str, ...]] = ("fused", "split")
 """``fused``: TD, FLESO and law in ``controller_node`` (``chain: internal``), two hops per step; ``split``:
 ``td_node`` and ``fleso_node`` as their own nodes (``chain: external``), four hops per step."""
@@ -114,6 +120,8 @@ FLESO_NODE: Final[str] = "fleso_node"
 REFERENCE_NODE: Final[str] = "reference_node"
 CONTROLLER_NODE: Final[str] = "controller_node"
 RECORDER_NODE: Final[str] = "recorder_node"
+DIRECT_LOOP: Final[str] = "direct_loop"
+"""The direct loop's process (console script of ``smm_direct_loop``), hosting HW_NODE and CONTROLLER_NODE."""
 
 PLANT_NODE_NAMES: Final[frozenset[str]] = frozenset((SIM_NODE, HW_NODE, EMULATOR_NODE))
 """Names of the plant processes: when one of them exits 0 the run is complete (see ``docs/LAUNCH.md``);
@@ -133,6 +141,7 @@ _PUBLISHED: Final[dict[str, tuple[str, ...]]] = {
     TD_NODE: (topics.JOINT_STATES_FILTERED,),
     FLESO_NODE: (topics.DISTURBANCE_ESTIMATE, topics.OBSERVER_STATE),
     REFERENCE_NODE: (topics.REFERENCE,),
+    DIRECT_LOOP: (topics.TORQUE_COMMAND, topics.CONTROLLER_INTERNALS, topics.JOINT_STATES, topics.HW_BRIDGE_INTERNALS),
 }
 """The recorded stack topics each controller-side node publishes (besides ``/diagnostics``)."""
 
@@ -178,6 +187,8 @@ class GraphOptions:
             ``smm_bench_emulator`` on loopback instead.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
+        loop: ``"topics"`` (default) or ``"direct"`` (``plant="hardware"``, fused chain, reference sampled
+            by the controller): see :data:`LOOPS`.
         rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
             nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` (as ros2_control's
             controller manager), 0 with the simulator. The bench emulator, standing for the hard real-time
@@ -199,6 +210,7 @@ class GraphOptions:
     board: str | None = None
     record: str | None = None
     rt_priority: int | None = None
+    loop: Literal["topics", "direct"] = "topics"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "plant", PLANT_ALIASES.get(self.plant, self.plant))
@@ -241,6 +253,15 @@ class GraphOptions:
             raise ValueError(
                 f"rt_priority must be an int in [0, {MAX_PRIORITY - 1}] or None, got {priority!r}"
             )
+        if self.loop not in LOOPS:
+            raise ValueError(f"loop must be one of {LOOPS}, got {self.loop!r}")
+        if self.loop == "direct" and (
+            self.plant != "hardware" or self.chain != "fused" or self.reference != "controller"
+        ):
+            raise ValueError(
+                "loop 'direct' runs the whole chain in the bridge's process: it needs plant 'hardware', "
+                "chain 'fused' and reference 'controller'"
+            )
         if self.board is not None:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
@@ -277,6 +298,9 @@ class NodeSpec:
         parameters: Parameter overrides ``(name, value)``, applied after the files.
         remappings: Topic remappings ``(from, to)``.
         rt_priority: SCHED_FIFO priority of the process (1-99); 0: normal scheduling.
+        hosts: Names of the nodes a process hosts when it hosts several (the direct loop): they keep their
+            own names (no ``__node`` remapping), the parameter files apply to each by its name, and every
+            node takes from :attr:`parameters` the names it declares.
     """
 
     package: str
@@ -288,6 +312,7 @@ class NodeSpec:
     parameters: tuple[tuple[str, ParameterValue], ...] = ()
     remappings: tuple[tuple[str, str], ...] = ()
     rt_priority: int = 0
+    hosts: tuple[str, ...] = ()
 
     @property
     def fully_qualified_name(self) -> str:
@@ -302,7 +327,9 @@ class NodeSpec:
             "-p", "key:=value", ..., "-r", "from:=to", ...]``.
         """
         namespace = f"/{self.namespace}" if self.namespace else "/"
-        arguments = ["--ros-args", "-r", f"__ns:={namespace}", "-r", f"__node:={self.name}"]
+        arguments = ["--ros-args", "-r", f"__ns:={namespace}"]
+        if not self.hosts:
+            arguments += ["-r", f"__node:={self.name}"]
         for path in self.parameter_files:
             arguments += ["--params-file", path]
         for name, value in self.parameters:
@@ -431,6 +458,17 @@ def _reference_parameters(files: Sequence[str]) -> tuple[tuple[str, ParameterVal
     )
 
 
+def _controller_parameters(
+    options: GraphOptions, files: Sequence[str]
+) -> tuple[tuple[str, ParameterValue], ...]:
+    """``controller_node``'s overrides: algorithm, chain placement, reference source, control period."""
+    chain = "internal" if options.chain == "fused" else "external"
+    parameters = (("algorithm", options.algorithm), ("chain", chain), *_period_parameters(options))
+    if options.reference == "controller":
+        parameters = (("reference_source", "internal"), *_reference_parameters(files), *parameters)
+    return parameters
+
+
 def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
     """Describe the graph for ``options``: the plant node first, then the controller-side nodes.
 
@@ -479,16 +517,13 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
             continue  # their algorithms run inside controller_node
         if reference_in_controller and name == REFERENCE_NODE:
             continue  # sampled inside controller_node
-        parameters = _period_parameters(options)
-        if name == CONTROLLER_NODE:
-            chain = "internal" if fused else "external"
-            parameters = (("algorithm", options.algorithm), ("chain", chain), *parameters)
-            if reference_in_controller:
-                parameters = (
-                    ("reference_source", "internal"),
-                    *_reference_parameters(shared_files),
-                    *parameters,
-                )
+        if options.loop == "direct" and name == CONTROLLER_NODE:
+            continue  # hosted by direct_loop
+        parameters = (
+            _controller_parameters(options, shared_files)
+            if name == CONTROLLER_NODE
+            else _period_parameters(options)
+        )
         controller_side.append(
             NodeSpec(
                 package="smm_controller",
@@ -560,6 +595,16 @@ def _hardware_specs(options: GraphOptions, files: Sequence[str]) -> tuple[NodeSp
         node_class="smm_hw_bridge.bridge_node:HwBridgeNode",
         parameters=tuple(bridge_parameters),
     )
+    if options.loop == "direct":
+        bridge = NodeSpec(
+            package="smm_direct_loop",
+            executable=DIRECT_LOOP,
+            name=DIRECT_LOOP,
+            node_class="",  # two nodes in one process, a thread of its own: a process, never composed
+            parameter_files=tuple(files),
+            parameters=(*bridge_parameters, *_controller_parameters(options, files)),
+            hosts=(CONTROLLER_NODE, HW_NODE),
+        )
     if options.board is not None:
         return (bridge,)
     emulator_parameters: list[tuple[str, ParameterValue]] = [("bind", board), ("host", EMULATOR_HOST)]
@@ -616,8 +661,9 @@ def expected_publishers(specs: Sequence[NodeSpec]) -> dict[str, int]:
         published = _PUBLISHED[spec.name]
         if ("reference_source", "internal") in spec.parameters:
             published = (*published, topics.REFERENCE)
-        for topic in (*(topics.fully_qualified(name, spec.namespace) for name in published), "/diagnostics"):
+        for topic in (topics.fully_qualified(name, spec.namespace) for name in published):
             counts[topic] = counts.get(topic, 0) + 1
+        counts["/diagnostics"] = counts.get("/diagnostics", 0) + max(1, len(spec.hosts))
     return counts
 
 

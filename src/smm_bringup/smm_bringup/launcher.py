@@ -25,11 +25,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
+import json
 import os
 import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Mapping, Sequence
@@ -48,6 +51,8 @@ from smm_bringup.graph import (
     ALGORITHMS,
     CHAIN_LAYOUTS,
     CLOCK_MODES,
+    EMULATOR_NODE,
+    LOOPS,
     NAMESPACE,
     PLANT_ALIASES,
     PLANT_NODE_NAMES,
@@ -500,6 +505,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="controller: controller_node samples the reference itself (one process and one input less per "
         "step); node: reference_node publishes it",
     )
+    parser.add_argument(
+        "--loop",
+        choices=LOOPS,
+        default=GraphOptions.loop,
+        help="hardware: topics (the bridge and controller_node as processes joined by topics) or direct "
+        "(one process steps the chain in the bridge's receiving thread; topics for observation only)",
+    )
     parser.add_argument("--algorithm", choices=ALGORITHMS, default="fpdeso", help="controller algorithm")
     parser.add_argument(
         "--scenario",
@@ -575,6 +587,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         board=arguments.board,
         record=arguments.record,
         rt_priority=arguments.rt_priority,
+        loop=arguments.loop,
     )
 
 
@@ -597,6 +610,8 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--record", options.record]
     if options.rt_priority is not None:
         arguments += ["--rt-priority", str(options.rt_priority)]
+    if options.loop != GraphOptions.loop:
+        arguments += ["--loop", options.loop]
     return arguments
 
 
@@ -612,10 +627,49 @@ def run(argv: Sequence[str]) -> int:
             return EXIT_OK
         if arguments.composed:
             return launch_composed(specs)
-        return launch_processes(specs, stop_grace_s=arguments.stop_grace)
+        if options.plant != "hardware":
+            return launch_processes(specs, stop_grace_s=arguments.stop_grace)
+        with tempfile.TemporaryDirectory(prefix="smm-launch-") as folder:
+            status = Path(folder) / "board.json"
+            code = launch_processes(with_board_status(specs, status), stop_grace_s=arguments.stop_grace)
+            _say(board_line(status, real_board=options.board is not None))
+            return code
     except (GraphError, ValueError) as error:
         _say(f"error: {error}", sys.stderr)
         return EXIT_CONFIGURATION_ERROR
+
+
+def with_board_status(specs: Sequence[NodeSpec], path: Path) -> tuple[NodeSpec, ...]:
+    """``specs`` with the bench emulator writing its end-of-run status to ``path``."""
+    return tuple(
+        dataclasses.replace(spec, parameters=(*spec.parameters, ("status-file", str(path))))
+        if spec.name == EMULATOR_NODE
+        else spec
+        for spec in specs
+    )
+
+
+def board_line(path: Path, *, real_board: bool) -> str:
+    """The closing line of a hardware run, from the emulator's status at ``path`` (docs/LAUNCH.md).
+
+    ``board: late L of N enabled ticks (P %), feedback->command p50 A us, p99 B us``; with a real board,
+    what the host can know instead, and where.
+    """
+    if real_board:
+        return (
+            "board: a real board's tick counters are not read by smm-launch; the host's view (the board's "
+            "late count from its feedback frames, receive->send) is in hw_bridge_node's /diagnostics and, "
+            "with --loop direct, in direct_loop's closing 'host:' line"
+        )
+    try:
+        status = json.loads(path.read_text())
+        late, enabled = int(status["late_commands"]), int(status["enabled_ticks"])
+        p50, p99 = status["latency_p50_us"], status["latency_p99_us"]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        return f"board: no end-of-run status from the emulator ({type(error).__name__}: {error})"
+    percent = 100.0 * late / enabled if enabled else 0.0
+    figures = "no enabled command" if p50 is None else f"p50 {p50:.0f} us, p99 {p99:.0f} us"
+    return f"board: late {late} of {enabled} enabled ticks ({percent:.2f} %), feedback->command {figures}"
 
 
 def main() -> int:
