@@ -431,6 +431,7 @@ def graph_options(draw: st.DrawFn) -> GraphOptions:
             board=draw(st.none() | st.just("192.168.0.9:50101")),
             record=draw(st.none() | st.just("bags/run 1")),
             rt_priority=draw(st.none() | st.integers(min_value=0, max_value=98)),
+            loop=draw(st.sampled_from(graph.LOOPS)),
         )
     except ValueError:
         assume(False)
