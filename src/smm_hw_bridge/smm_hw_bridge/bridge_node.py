@@ -367,7 +367,7 @@ class HwBridgeNode(LifecycleNode):
                 return
             publish = core.state in (BridgeState.ARMING, BridgeState.ARMED)
             sample = JointSample(core.stamp_ns, core.position, effort=core.applied_torque)
-            answered = frame is not None and publish and self.answer_in_place(core, sample, now)
+            answered = publish and self.answer_in_place(core, sample, now)
             if not answered and core.needs_frame(now):
                 out = core.next_frame(now)
                 if out is not None:
@@ -379,7 +379,8 @@ class HwBridgeNode(LifecycleNode):
     def answer_in_place(self, core: BridgeCore, sample: JointSample, rx_ns: int) -> bool:
         """Hook of a host that computes the command in the receiving thread (lock held, nothing sent yet).
 
-        Called for every admitted measurement while arming or armed. The topics loop answers on
+        Called for every admitted measurement while arming or armed (and, in lockstep, for the board's
+        re-sent unanswered one). The topics loop answers on
         ``torque_command`` instead, so here: False (nothing sent).
         """
         return False
