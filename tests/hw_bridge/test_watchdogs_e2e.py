@@ -8,6 +8,7 @@ the board guarantees on its own clock: the valves are at null by the end of the 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -53,7 +54,7 @@ def start(ros_processes: Any, loop: str = "topics") -> tuple[Any, Any, int]:
     Returns:
         (the bridge's process, the controller's process (the same with ``direct``), emulator control port).
     """
-    from smm_bringup.graph import CONTROLLER_NODE, GraphOptions, build_graph
+    from smm_bringup.graph import CONTROLLER_NODE, HW_NODE, GraphOptions, build_graph
 
     host, board, control = free_port(), free_port(), free_port()
     ros_processes.start(
@@ -91,9 +92,10 @@ def start(ros_processes: Any, loop: str = "topics") -> tuple[Any, Any, int]:
     ]
     if loop == "direct":
         # one process: controller_node's arguments (no __node remapping: it hosts two nodes), then the bridge's
+        hosted = dataclasses.replace(spec, hosts=(CONTROLLER_NODE, HW_NODE))
         direct = ros_processes.start(
             "direct_loop",
-            [sys.executable, "-m", "smm_direct_loop.host", *_without_node_name(spec.ros_arguments()), *bridge_arguments],
+            [sys.executable, "-m", "smm_direct_loop.host", *hosted.ros_arguments(), *bridge_arguments],
         )
         wait_for(lambda: status(control).get("applied", 0) > 500, 60.0, "the output to go live", ros_processes)
         return direct, direct, control
@@ -106,17 +108,6 @@ def start(ros_processes: Any, loop: str = "topics") -> tuple[Any, Any, int]:
     )
     wait_for(lambda: status(control).get("applied", 0) > 500, 60.0, "the output to go live", ros_processes)
     return bridge, controller, control
-
-
-def _without_node_name(arguments: list[str]) -> list[str]:
-    """``--ros-args`` arguments without the ``-r __node:=...`` pair."""
-    out: list[str] = []
-    for index, argument in enumerate(arguments):
-        following = arguments[index + 1] if index + 1 < len(arguments) else ""
-        if argument.startswith("__node:=") or (argument == "-r" and following.startswith("__node:=")):
-            continue
-        out.append(argument)
-    return out
 
 
 def settled(control: int) -> dict[str, Any]:
