@@ -40,7 +40,9 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
-SECONDS = 30.0
+SECONDS = float(os.environ.get("SMM_BENCH_HIL_SECONDS", "30"))
+"""Armed seconds per run; ``SMM_BENCH_HIL_SECONDS=6`` for a short run that shows it works (not the
+acceptance's figures)."""
 FULL_SCALE = 20.0
 COUNTS = 1 << 20
 RMS_RATIO_TARGET = 1.5
@@ -231,7 +233,8 @@ def realtime_hil(
         # one process hosting both nodes: controller_node's arguments without its __node remapping
         controller = dataclasses.replace(spec, hosts=(CONTROLLER_NODE, HW_NODE)).ros_arguments()
         controller_log = "direct_loop"
-        start("direct_loop", [sys.executable, "-m", "smm_direct_loop.host", *controller, *arguments], host_priority)
+        direct_argv = [sys.executable, "-m", "smm_direct_loop.host", *controller, *arguments]
+        start("direct_loop", direct_argv, host_priority)
     else:
         bridge_argv = [sys.executable, "-m", "smm_hw_bridge.bridge_node", "--ros-args", "-r", "__ns:=/smm"]
         start("hw_bridge_node", [*bridge_argv, *arguments], host_priority)
@@ -326,7 +329,8 @@ def compare(workdir: Path, period: float) -> bool:
         met = bool(np.all(ratio <= RMS_RATIO_TARGET))
         diverged = not np.all(np.isfinite(hil["rms"]))
         if diverged:
-            print(f"{rate} real-time HIL, {loop} loop: the tracking diverged at t = {hil['diverged_s']:.3f} s")
+            at = hil["diverged_s"]
+            print(f"{rate} real-time HIL, {loop} loop: the tracking diverged at t = {at:.3f} s")
         print(
             f"{rate} real-time HIL, {loop} loop, board-clocked, host at "
             f"{'SCHED_FIFO' if host_fifo else 'normal priority'}"
@@ -350,9 +354,6 @@ def main(argv: list[str]) -> int:
     sys.path.insert(0, str(HERE))
     from bench_graph import timer_floor, udp_ping_pong
 
-    global SECONDS
-    if "--seconds" in argv:  # a short run to see that it works (figures then are not the acceptance's)
-        SECONDS = float(argv[argv.index("--seconds") + 1])
     timer = timer_floor(10.0)
     udp = udp_ping_pong(5.0)  # its echo process runs 5 s
     print(

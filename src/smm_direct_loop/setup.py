@@ -17,7 +17,7 @@ setup(
     zip_safe=True,
     maintainer="SMM control stack maintainers",
     maintainer_email="smm-maintainers@example.org",
-    description="The bench's direct loop: the bridge's I/O and the control chain in one thread of one process.",
+    description="The bench's direct loop: the bridge's I/O and the control chain in one thread.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": ["direct_loop = smm_direct_loop.host:main"],

@@ -57,7 +57,11 @@ def _launch(ros_processes: Any, tmp_path: Path, loop: str, bag: Path) -> str:
 
 def _smm_bag(*arguments: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "smm_bag.cli", *arguments], capture_output=True, text=True, check=False, timeout=300
+        [sys.executable, "-m", "smm_bag.cli", *arguments],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=300,
     )
 
 

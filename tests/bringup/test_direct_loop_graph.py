@@ -48,7 +48,9 @@ def test_the_hosted_nodes_get_what_the_topics_loop_gives_them() -> None:
         hosted: dict[str, Any] = {}
         for path in host.parameter_files:  # rcl applies each file's sections by the hosted node's own name
             hosted.update(load_parameter_file(path, f"/smm/{name}"))
-        hosted.update({key: list(value) if isinstance(value, tuple) else value for key, value in host.parameters})
+        hosted.update(
+            {key: list(value) if isinstance(value, tuple) else value for key, value in host.parameters}
+        )
         assert parameter_overrides(topics[name]).items() <= hosted.items(), name
     bridge_names = {name for name, _ in topics[HW_NODE].parameters}
     controller_names = {name for name, _ in topics[CONTROLLER_NODE].parameters}
@@ -67,9 +69,15 @@ def test_the_direct_loop_needs_hardware_a_fused_chain_and_the_reference_in_the_c
 
 def test_recording_waits_for_the_direct_loop_publishers_before_the_board_starts(tmp_path: Path) -> None:
     specs = build_graph(GraphOptions(**{**DIRECT.__dict__, "record": str(tmp_path / "bag")}))
-    assert [spec.name for spec in specs][0] == RECORDER_NODE
+    assert specs[0].name == RECORDER_NODE
     expected = expected_publishers(specs)
-    for topic in ("torque_command", "controller_internals", "reference", "joint_states", "hw_bridge_internals"):
+    for topic in (
+        "torque_command",
+        "controller_internals",
+        "reference",
+        "joint_states",
+        "hw_bridge_internals",
+    ):
         assert expected[f"/smm/{topic}"] == 1
     assert expected["/diagnostics"] == 2  # two nodes in the one process
 
@@ -94,7 +102,9 @@ def test_the_emulator_writes_its_status_where_the_launcher_reads_it(tmp_path: Pa
 def test_the_closing_line_is_the_emulator_counters(tmp_path: Path) -> None:
     status = tmp_path / "board.json"
     status.write_text(
-        json.dumps({"late_commands": 3, "enabled_ticks": 400, "latency_p50_us": 120.4, "latency_p99_us": 280.6})
+        json.dumps(
+            {"late_commands": 3, "enabled_ticks": 400, "latency_p50_us": 120.4, "latency_p99_us": 280.6}
+        )
     )
     assert board_line(status, real_board=False) == (
         "board: late 3 of 400 enabled ticks (0.75 %), feedback->command p50 120 us, p99 281 us"
@@ -103,7 +113,9 @@ def test_the_closing_line_is_the_emulator_counters(tmp_path: Path) -> None:
     assert "host" in board_line(status, real_board=True)  # a real board: what the host knows, and where
 
 
-def test_the_launch_file_starts_the_direct_loop_without_renaming_its_nodes(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_launch_file_starts_the_direct_loop_without_renaming_its_nodes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     sys.path.insert(0, str(Path(__file__).parent))
     try:
         from test_graph_description import _launched_nodes

@@ -20,7 +20,9 @@ pytestmark = pytest.mark.ros
 
 @pytest.fixture
 def direct(ros_context: Any) -> Iterator[Bench]:
-    harness = Bench(ros_context, loop="direct", **{"bridge.validity_ticks": 5000})  # safe frames, not the board
+    harness = Bench(
+        ros_context, loop="direct", **{"bridge.validity_ticks": 5000}
+    )  # safe frames, not the board
     try:
         yield harness
     finally:
@@ -65,7 +67,9 @@ def test_parameters_change_between_ticks_only_and_are_validated(direct: Bench) -
     results: list[Any] = []
     with direct.controller.tick_lock:  # as a tick holds it
         setter = threading.Thread(
-            target=lambda: results.extend(direct.controller.set_parameters([Parameter("pid.kp", value=[50.0, 50.0])]))
+            target=lambda: results.extend(
+                direct.controller.set_parameters([Parameter("pid.kp", value=[50.0, 50.0])])
+            )
         )
         setter.start()
         setter.join(0.3)
@@ -88,7 +92,10 @@ def test_the_topics_loop_topics_are_published_with_the_measurement_stamps(direct
     received: dict[str, list[int]] = {name: [] for name in ("joint_states", "torque_command", "reference")}
     internals: list[Any] = []
     direct.peer.create_subscription(
-        JointState, topics.JOINT_STATES, lambda m: received["joint_states"].append(stamp_to_ns(m.header.stamp)), 1000
+        JointState,
+        topics.JOINT_STATES,
+        lambda m: received["joint_states"].append(stamp_to_ns(m.header.stamp)),
+        1000,
     )
     for name, parse in (("torque_command", msg_to_torque), ("reference", msg_to_reference)):
         direct.peer.create_subscription(

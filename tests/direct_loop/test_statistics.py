@@ -22,10 +22,10 @@ def test_running_figures_equal_numpy(values: list[float]) -> None:
     assert math.isclose(figures.std, expected_std, rel_tol=1e-6, abs_tol=1e-6)
 
 
-@given(
-    st.lists(st.tuples(st.integers(1, 5_000_000), st.integers(0, 2_000_000)), min_size=2, max_size=300)
-)
-def test_periods_are_between_receptions_and_execution_is_receive_to_send(steps: list[tuple[int, int]]) -> None:
+@given(st.lists(st.tuples(st.integers(1, 5_000_000), st.integers(0, 2_000_000)), min_size=2, max_size=300))
+def test_periods_are_between_receptions_and_execution_is_receive_to_send(
+    steps: list[tuple[int, int]],
+) -> None:
     statistics = LoopStatistics()
     rx = 0
     receptions, executions = [], []

@@ -77,31 +77,41 @@ def start(ros_processes: Any, loop: str = "topics") -> tuple[Any, Any, int]:
         if s.name == CONTROLLER_NODE
     )
     bridge_arguments = [
-            "-p",
-            "autostart:=true",
-            "-p",
-            f"link.bind_port:={host}",
-            "-p",
-            f"link.board_port:={board}",
-            "-p",
-            "link.configure_timeout:=10.0",
-            "-p",
-            f"bridge.validity_ticks:={VALIDITY}",
-            "-p",
-            f"bridge.host_watchdog_ns:={int(HOST_WATCHDOG_MS * 1e6)}",
+        "-p",
+        "autostart:=true",
+        "-p",
+        f"link.bind_port:={host}",
+        "-p",
+        f"link.board_port:={board}",
+        "-p",
+        "link.configure_timeout:=10.0",
+        "-p",
+        f"bridge.validity_ticks:={VALIDITY}",
+        "-p",
+        f"bridge.host_watchdog_ns:={int(HOST_WATCHDOG_MS * 1e6)}",
     ]
     if loop == "direct":
-        # one process: controller_node's arguments (no __node remapping: it hosts two nodes), then the bridge's
+        # one process: controller_node's arguments (no __node remapping: it hosts two), then the bridge's
         hosted = dataclasses.replace(spec, hosts=(CONTROLLER_NODE, HW_NODE))
         direct = ros_processes.start(
             "direct_loop",
             [sys.executable, "-m", "smm_direct_loop.host", *hosted.ros_arguments(), *bridge_arguments],
         )
-        wait_for(lambda: status(control).get("applied", 0) > 500, 60.0, "the output to go live", ros_processes)
+        wait_for(
+            lambda: status(control).get("applied", 0) > 500, 60.0, "the output to go live", ros_processes
+        )
         return direct, direct, control
     bridge = ros_processes.start(
         "hw_bridge_node",
-        [sys.executable, "-m", "smm_hw_bridge.bridge_node", "--ros-args", "-r", "__ns:=/smm", *bridge_arguments],
+        [
+            sys.executable,
+            "-m",
+            "smm_hw_bridge.bridge_node",
+            "--ros-args",
+            "-r",
+            "__ns:=/smm",
+            *bridge_arguments,
+        ],
     )
     controller = ros_processes.start(
         "controller_node", [sys.executable, "-m", "smm_controller.controller_node", *spec.ros_arguments()]

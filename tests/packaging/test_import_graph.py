@@ -159,9 +159,8 @@ class ImportGraph:
                 if other != package and self.edges[name] & modules
             }
             if len(used) >= 2:
-                found.append(
-                    f"{package} imports the nodes of {sorted(used)}: only {', '.join(sorted(COMPOSITIONS))} may"
-                )
+                allowed = ", ".join(sorted(COMPOSITIONS))
+                found.append(f"{package} imports the nodes of {sorted(used)}: only {allowed} may")
         for name, module in sorted(self.modules.items()):
             imported_packages = {self.modules[target].package for target in self.edges[name]}
             if module.package == "smm_controller" and "smm_sim" in imported_packages:

@@ -141,7 +141,12 @@ _PUBLISHED: Final[dict[str, tuple[str, ...]]] = {
     TD_NODE: (topics.JOINT_STATES_FILTERED,),
     FLESO_NODE: (topics.DISTURBANCE_ESTIMATE, topics.OBSERVER_STATE),
     REFERENCE_NODE: (topics.REFERENCE,),
-    DIRECT_LOOP: (topics.TORQUE_COMMAND, topics.CONTROLLER_INTERNALS, topics.JOINT_STATES, topics.HW_BRIDGE_INTERNALS),
+    DIRECT_LOOP: (
+        topics.TORQUE_COMMAND,
+        topics.CONTROLLER_INTERNALS,
+        topics.JOINT_STATES,
+        topics.HW_BRIDGE_INTERNALS,
+    ),
 }
 """The recorded stack topics each controller-side node publishes (besides ``/diagnostics``)."""
 

@@ -1,4 +1,4 @@
-"""``direct_loop``: ``hw_bridge_node`` and ``controller_node`` in one process, the chain stepped in the I/O thread.
+"""``direct_loop``: ``hw_bridge_node`` and ``controller_node`` in one process, the chain in the I/O thread.
 
 For each admitted feedback frame the bridge's reader thread decodes it, steps the control chain of
 ``controller_node`` (the same class, parameters and parameter files as in the topics loop), hands the torque
@@ -20,27 +20,27 @@ from typing import Any, Final, Unpack
 
 import numpy as np
 import numpy.typing as npt
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.context import Context
 from rclpy.exceptions import ParameterException
 from rclpy.parameter import Parameter
-from rcl_interfaces.msg import SetParametersResult
 from smm_controller.controller_node import ControllerNode
 from smm_hw_bridge.bridge_node import HwBridgeNode
 from smm_hw_bridge.core import BridgeCore
 from smm_msgs_py.conversions import JointSample
-from smm_msgs_py import topics
-from smm_node_runtime import ConfigParameters, Health, NodeOptions, run_nodes
 from smm_node_runtime.parameters import bounds
 
 from smm_direct_loop.statistics import LoopStatistics, RunningFigures
+from smm_msgs_py import topics
+from smm_node_runtime import ConfigParameters, Health, NodeOptions, run_nodes
 
-__all__ = ["ChainFailure", "DirectBridgeNode", "DirectControllerNode", "LoopSettings", "main"]
+__all__ = ["ChainFailureError", "DirectBridgeNode", "DirectControllerNode", "LoopSettings", "main"]
 
 DEFAULT_SWITCH_INTERVAL: Final[float] = 0.0005
 """Default ``sys.setswitchinterval`` of the direct loop's process (s); docs/LAUNCH.md says why."""
 
 
-class ChainFailure(RuntimeError):
+class ChainFailureError(RuntimeError):
     """The control chain gave no valid torque for a measurement (it raised or its output was not finite)."""
 
 
@@ -74,7 +74,7 @@ class DirectControllerNode(ControllerNode):
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
         if not self.internal_chain or not self.internal_reference:
-            self.destroy_node()
+            self.destroy_node()  # type: ignore[no-untyped-call]
             raise ValueError(
                 "the direct loop steps the whole chain itself: chain and reference_source must be 'internal'"
             )
@@ -90,14 +90,14 @@ class DirectControllerNode(ControllerNode):
             The torque (N m), shape (2,); None when the stamp policy or the plausibility check refused it.
 
         Raises:
-            ChainFailure: The chain gave no valid torque (counted as an invalid output).
+            ChainFailureError: The chain gave no valid torque (counted as an invalid output).
             Exception: Whatever else the chain raised.
         """
         self._held.message = None
         failures = self.counters.invalid_outputs
         self._on_input(topics.JOINT_STATES, sample, _same)
         if self.counters.invalid_outputs != failures:
-            raise ChainFailure(self.last_error)
+            raise ChainFailureError(self.last_error)
         if self._held.message is None:
             return None
         return self._last_command.copy()
@@ -170,7 +170,7 @@ class DirectBridgeNode(HwBridgeNode):
         self._answered_stamp = None
         try:
             torque = self.controller.command_for(sample)
-        except Exception as error:  # noqa: BLE001 -- whatever the chain raised, the valves go to null
+        except Exception as error:
             self.fail(f"control chain failed at stamp {sample.stamp_ns} ns: {type(error).__name__}: {error}")
             return True
         if torque is None or not self.take_command(core, torque, sample.stamp_ns, rx_ns):
@@ -214,8 +214,8 @@ class DirectBridgeNode(HwBridgeNode):
         return (
             f"host: late {late} (the board's count, from its feedback frames; its enabled ticks are not on "
             f"the wire), receive->send p50 {self.statistics.execution_percentile_us(50):.0f} us, "
-            f"p99 {self.statistics.execution_percentile_us(99):.0f} us over {self.statistics.execution_us.count} "
-            "commands"
+            f"p99 {self.statistics.execution_percentile_us(99):.0f} us over "
+            f"{self.statistics.execution_us.count} commands"
         )
 
     def destroy_node(self) -> None:
@@ -226,7 +226,7 @@ class DirectBridgeNode(HwBridgeNode):
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Console script ``direct_loop``: ``controller_node`` and ``hw_bridge_node`` in one process and executor."""
+    """Console script ``direct_loop``: ``controller_node`` and ``hw_bridge_node`` in one executor."""
     made: list[DirectControllerNode] = []
 
     def controller(context: Context) -> DirectControllerNode:

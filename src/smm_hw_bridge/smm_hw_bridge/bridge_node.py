@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from typing import Final, Literal, Unpack
 
 import numpy.typing as npt
-
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
