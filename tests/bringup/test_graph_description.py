@@ -27,7 +27,7 @@ from smm_bringup.launcher import (
 from smm_bringup.launcher import build_parser as launcher_parser
 from smm_bringup.realtime import fifo_allowed, fifo_preexec
 
-from smm_bringup import graph
+from smm_bringup import graph, parameter_files
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH_DIR = REPO / "src" / "smm_bringup" / "launch"
@@ -346,7 +346,7 @@ def test_unrepresentable_parameter_values_are_refused(value: Any) -> None:
     ],
 )
 def test_node_keys_match_like_rcl(key: str, matches: bool) -> None:
-    assert graph._node_key_matches(key, "/smm/smm_sim_node") is matches
+    assert parameter_files._node_key_matches(key, "/smm/smm_sim_node") is matches
 
 
 def test_parameter_file_sections_apply_with_wildcards_first(tmp_path: Path) -> None:
