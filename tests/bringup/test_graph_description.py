@@ -227,12 +227,12 @@ def test_invalid_rt_priority_is_refused_with_its_name(bad: Any) -> None:
 def test_children_run_under_sched_fifo_when_the_system_allows_it(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    from smm_bringup import launcher
+    from smm_bringup import supervisor
 
     probe = "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, end='')"
     spec = NodeSpec("p", "python", "probe", "", rt_priority=7)
     allowed = fifo_allowed(7)
-    priorities = launcher._fifo_priorities([spec, NodeSpec("p", "python", "other", "")])
+    priorities = supervisor._fifo_priorities([spec, NodeSpec("p", "python", "other", "")])
     policy = subprocess.run(
         [sys.executable, "-c", probe],
         preexec_fn=fifo_preexec(7) if priorities.get("probe") else None,  # as GraphProcesses starts it
