@@ -5,9 +5,13 @@ start on a full ROS 2 install:
 
 * by default each node is its own OS process, like ``ros2 launch``: the installed console script with
   ``--ros-args -r __ns:=/smm -r __node:=<name> --params-file F ... -p key:=value ...``, in a process group
-  of its own;
+  of its own (:mod:`smm_bringup.supervisor`); with ``--loop direct`` one of them, ``direct_loop``, hosts
+  ``hw_bridge_node`` and ``controller_node`` (no ``__node`` remapping);
 * with ``--composed`` all nodes run in this process, in one executor (the EventsExecutor when available),
-  built from the node classes with the same parameter values.
+  built from the node classes with the same parameter values (:mod:`smm_bringup.composed`).
+
+A hardware run with the emulator ends with the board's line, ``board: late L of N enabled ticks (P %),
+feedback->command p50 A us, p99 B us``, from the emulator's end-of-run status.
 
 Shutdown and exit codes (see ``docs/LAUNCH.md``):
 
