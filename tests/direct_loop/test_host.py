@@ -126,3 +126,13 @@ def test_periodicity_and_execution_time_are_on_diagnostics(direct: Bench) -> Non
             assert float(values[f"{figure}.{label}"]) >= 0.0
     assert float(values["execution_time.p99_us"]) >= float(values["execution_time.p50_us"]) > 0.0
     assert "host: late" in direct.node.closing_line()
+
+
+def test_a_chain_that_stops_answering_is_caught_by_the_host_watchdog(direct: Bench) -> None:
+    """Refused measurements (no command) are not a fault: the board holds, then the host watchdog nulls."""
+    direct.start()
+    trips = direct.node.core.watchdog_trips
+    direct.controller.command_for = lambda _sample: None
+    assert_safe_now(direct)
+    assert direct.node.core.watchdog_trips > trips
+    assert direct.node.lifecycle_state == "active"  # no error transition: the loop runs on, with safe output
