@@ -379,8 +379,8 @@ class HwBridgeNode(LifecycleNode):
         """Hook of a host that computes the command in the receiving thread (lock held, nothing sent yet).
 
         Called for every admitted measurement while arming or armed (and, in lockstep, for the board's
-        re-sent unanswered one). The topics loop answers on
-        ``torque_command`` instead, so here: False (nothing sent).
+        re-sent unanswered one). The topics loop answers on ``torque_command`` instead, so here: False
+        (nothing sent).
         """
         return False
 
@@ -401,7 +401,9 @@ class HwBridgeNode(LifecycleNode):
 
     def publish_internals(self, core: BridgeCore, stamp_ns: int) -> None:
         """Publishes ``hw_bridge_internals`` of the last command, stamped ``stamp_ns``."""
-        self._internals.publish(internals_to_msg(core.internals, stamp_ns))
+        with self._lock:
+            message = internals_to_msg(core.internals, stamp_ns)
+        self._internals.publish(message)
 
     def fail(self, reason: str) -> None:
         """A host-side fault (the loop cannot go on): safe frame now, then the error transition.
