@@ -106,11 +106,18 @@ class DirectControllerNode(ControllerNode):
         return []  # built by publish_answer, after the command frame went out
 
     def publish_answer(self, stamp_ns: int) -> None:
-        """Publishes ``torque_command``, then ``controller_internals`` and ``reference`` of the last step."""
+        """Publishes ``torque_command``, then ``controller_internals`` and ``reference`` of the last step.
+
+        The last two only while someone subscribes (a recorder, a plot), as in the topics loop.
+        """
         message, self._held.message = self._held.message, None
         if message is None:
             return
         self._held.publisher.publish(message)
+        if self._internals_publisher.get_subscription_count() == 0 and (
+            self._reference_publisher.get_subscription_count() == 0
+        ):
+            return
         for publisher, output in ControllerNode._diagnostics(self, stamp_ns):
             publisher.publish(output)
 
