@@ -1,6 +1,7 @@
 # SMM control stack: every target sets itself up on a fresh machine (Python >= 3.11 and make are all it needs).
 #   make demo   full closed-loop run on the simulator (the main job)
 #   make test   the whole test suite (unit, bag, node, end-to-end in a private network namespace)
+#   make test-other-cpu  the tests against data made on another machine, under other numeric paths
 #   make bench  benchmarks: figures and ratios, never pass/fail on a shared machine's timing
 # Re-running a target is quick: the virtual environment is rebuilt only when a requirements file or a
 # package's setup.py/package.xml changes.
@@ -9,14 +10,14 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.smm-installed
-PACKAGES := smm_msgs_py smm_node_runtime smm_dynamics smm_controller smm_sim smm_hw_bridge smm_bench_emulator smm_analysis smm_direct_loop smm_bringup smm_bag
-PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg src/$(p)/package.xml)
+PACKAGES := smm_msgs_py smm_node_runtime smm_dynamics smm_controller smm_sim smm_hw_bridge smm_bench_emulator smm_bag smm_analysis smm_direct_loop smm_bringup
+PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg src/$(p)/package.xml) src/user_commands.py
 
 # Keep DDS discovery on this machine unless the caller chose otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export PYTHONDONTWRITEBYTECODE := 1
 
-.PHONY: setup test demo bench lint typecheck reproduce colcon clean mutation
+.PHONY: setup test test-other-cpu demo bench lint typecheck reproduce colcon clean mutation
 
 setup: $(STAMP)
 
@@ -29,6 +30,11 @@ $(STAMP): requirements.txt requirements-dev.txt $(PACKAGE_FILES)
 
 test: $(STAMP)
 	$(PY) -m pytest tests
+
+# The cross_machine tests (data made on another machine) once per forced numeric path (OpenBLAS kernel,
+# numpy SIMD, libm), after a table of the sample-bag rerun under each: see docs/TESTING.md.
+test-other-cpu: $(STAMP)
+	$(PY) tests/numeric_paths.py tests -m cross_machine -q
 
 demo: $(STAMP)
 	$(PY) -m smm_bringup.demo

@@ -170,10 +170,10 @@ def graph_recordings(runs: int, seconds: float, workdir: Path) -> None:
 
 def analysis_time(minutes: float, workdir: Path) -> None:
     from smm_analysis.closed_loop import run_closed_loop
+    from smm_analysis.runs.from_trajectory import write_trajectory_bag
+    from smm_analysis.runs.indices import evaluate
+    from smm_analysis.runs.recorded import load_run
     from smm_analysis.scenarios import get_scenario
-    from smm_bag.analysis import evaluate
-    from smm_bag.from_trajectory import write_trajectory_bag
-    from smm_bag.recorded import load_run
 
     start = time.perf_counter()
     trajectory = run_closed_loop(get_scenario("case2").with_duration(60.0 * minutes), "fpdeso", seed=0)

@@ -69,7 +69,12 @@ def _why_no_private_netns() -> str | None:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Re-execute the session inside a fresh network namespace, once."""
+    """Registers the ``cross_machine`` marker; re-executes the session in a fresh network namespace, once."""
+    config.addinivalue_line(
+        "markers",
+        "cross_machine: compares numbers computed here with data made on another machine (the committed "
+        "sample bag); `make test-other-cpu` runs these under other numeric paths (docs/TESTING.md)",
+    )
     if os.environ.get(_NETNS_MARKER) == "1" or _NETNS_FAILURE in os.environ:
         return
     reason = _why_no_private_netns()

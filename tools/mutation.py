@@ -82,7 +82,7 @@ MODULES: tuple[Module, ...] = (
     Module("smm_analysis/metrics.py", ("tests/analysis/test_analysis_metrics.py",)),
     Module("smm_msgs_py/conversions.py", ("tests/msgs",)),
     Module("smm_hw_bridge/protocol.py", ("tests/hw_bridge/test_protocol.py",)),
-    Module("smm_bag/analysis.py", ("tests/bag/test_bag_analysis_indices.py",)),
+    Module("smm_analysis/runs/indices.py", ("tests/analysis/runs/test_indices.py",)),
 )
 
 #: mutmut exit codes (mutmut.stats.status_by_exit_code), grouped for the score.

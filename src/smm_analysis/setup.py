@@ -1,8 +1,13 @@
 """Packaging of smm_analysis (ament_python: colcon build and pip install -e both work)."""
 
+import sys
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # src/user_commands.py
+from user_commands import command_classes
 
 PACKAGE = "smm_analysis"
 
@@ -17,15 +22,20 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
     ],
-    install_requires=["setuptools", "numpy"],
+    install_requires=["setuptools", "numpy", "PyYAML", "matplotlib"],
     zip_safe=True,
     maintainer="SMM control stack maintainers",
     maintainer_email="smm-maintainers@example.org",
-    description="Offline closed-loop reproduction of the FPDESO paper, metrics and bag analysis.",
+    description="Offline closed loop, paper reproduction, metrics, and analysis and re-run of recorded bags.",
     license="Apache-2.0",
+    cmdclass=command_classes("smm-reproduce"),  # user-facing: also in <prefix>/bin
     entry_points={
         "console_scripts": [
             "smm-reproduce = smm_analysis.cli:main",
+        ],
+        "smm_bag.commands": [
+            "analyze = smm_analysis.runs.cli:add_analyze",
+            "rerun = smm_analysis.runs.cli:add_rerun",
         ],
     },
 )

@@ -1,8 +1,13 @@
 """Packaging of smm_bringup (ament_python: colcon build and pip install -e both work)."""
 
+import sys
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # src/user_commands.py
+from user_commands import command_classes
 
 PACKAGE = "smm_bringup"
 
@@ -23,6 +28,7 @@ setup(
     maintainer_email="smm-maintainers@example.org",
     description="The whole SMM graph: its description, smm-launch, launch files, scenarios, the demo.",
     license="Apache-2.0",
+    cmdclass=command_classes("smm-launch", "smm-demo"),  # user-facing: also in <prefix>/bin
     entry_points={
         "console_scripts": [
             "smm-launch = smm_bringup.launcher:main",

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from smm_analysis import cli, reproduction
+from smm_analysis import acceptance, cli
 
 
 def test_writes_metrics_report_and_plots(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -92,10 +92,10 @@ def test_argparse_rejects_negative_seed(capsys: pytest.CaptureFixture[str]) -> N
 
 def test_check_flag_sets_the_exit_code(monkeypatch: pytest.MonkeyPatch) -> None:
     args = ["--scenarios", "step", "--controllers", "fpdeso", "--duration", "0.2", "--quiet", "--check"]
-    monkeypatch.setattr(reproduction, "STEP_RISE_TIME_RANGE", (0.0, 1.0))
-    monkeypatch.setattr(reproduction, "STEP_OVERSHOOT_LIMIT", 1.0)
+    monkeypatch.setattr(acceptance, "STEP_RISE_TIME_RANGE", (0.0, 1.0))
+    monkeypatch.setattr(acceptance, "STEP_OVERSHOOT_LIMIT", 1.0)
     assert cli.main(args) == 0
-    monkeypatch.setattr(reproduction, "STEP_OVERSHOOT_LIMIT", 0.0)
+    monkeypatch.setattr(acceptance, "STEP_OVERSHOOT_LIMIT", 0.0)
     assert cli.main(args) == 1
     assert cli.main(args[:-1]) == 0  # without --check a failed claim is reported, not an error
     both = [*args[:2], "--controllers", "fpdeso,fpdeso_retuned", *args[4:]]
@@ -106,7 +106,7 @@ def test_check_accepts_a_paper_step_miss_only_if_the_retuned_set_meets_it(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     # Between the two sets' beta overshoots (paper about 5.3 %, retuned about 0.5 %).
-    monkeypatch.setattr(reproduction, "STEP_OVERSHOOT_LIMIT", 0.03)
+    monkeypatch.setattr(acceptance, "STEP_OVERSHOOT_LIMIT", 0.03)
     args = ["--scenarios", "step", "--duration", "0.2", "--check", "--no-plots"]
     assert cli.main([*args, "--controllers", "fpdeso"]) == 1
     capsys.readouterr()

@@ -8,21 +8,21 @@ import math
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from smm_analysis.acceptance import acceptance_checks
 from smm_analysis.errors import AnalysisError, UnknownControllerError, UnknownScenarioError
 from smm_analysis.metrics import step_metrics
+from smm_analysis.metrics_json import metrics_document
 from smm_analysis.reproduction import (
     JOINTS,
     ReproductionResult,
-    acceptance_checks,
     ideal_step_response,
-    metrics_document,
     resolve_controllers,
     resolve_scenarios,
     run_reproduction,
 )
 from smm_analysis.tune_td import TDSweepPoint, best_point, chosen_point, format_table, sweep_td
 
-from smm_analysis import reproduction
+from smm_analysis import acceptance
 
 SHORT = 0.2
 
@@ -112,10 +112,10 @@ def test_acceptance_checks_follow_the_metrics(short_result: ReproductionResult) 
 def test_acceptance_thresholds_are_applied(
     short_result: ReproductionResult, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(reproduction, "STEP_OVERSHOOT_LIMIT", 0.0)
+    monkeypatch.setattr(acceptance, "STEP_OVERSHOOT_LIMIT", 0.0)
     strict = [check for check in acceptance_checks(short_result) if "overshoot" in check.claim]
     assert strict and not any(check.passed for check in strict)
-    monkeypatch.setattr(reproduction, "STEP_OVERSHOOT_LIMIT", 1.0)
+    monkeypatch.setattr(acceptance, "STEP_OVERSHOOT_LIMIT", 1.0)
     loose = [check for check in acceptance_checks(short_result) if "overshoot" in check.claim]
     assert all(check.passed for check in loose)
 

@@ -8,11 +8,10 @@ from typing import Any
 
 import pytest
 from numpy.testing import assert_array_equal
+from smm_analysis.acceptance import AcceptanceCheck, acceptance_verdict
 from smm_analysis.reproduction import (
     REPRODUCTION_CONTROLLERS,
-    AcceptanceCheck,
     ReproductionResult,
-    acceptance_verdict,
     resolve_controllers,
     resolve_scenarios,
     run_controller,

@@ -2,16 +2,22 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from smm_bag.cdr import encode_float64_multi_array, encode_joint_state
+from smm_bag.exit_codes import EXIT_CORRUPT, EXIT_NOT_A_BAG, EXIT_TRUNCATED
+from smm_bag.reader import BagMessage, BagReader
+from smm_bag.writer import BagWriter, WriterOptions
+
+from smm_bag import CorruptBagError, NotABagError, TruncatedBagError
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 T0 = 1_700_000_000_000_000_000
@@ -123,3 +129,93 @@ def reference(k: int) -> bytes:
     return encode_float64_multi_array(
         [*dims, (f"stamp_ns:{k * 1_000_000}", 1, 1)], [0.01 * k, 0.0, 0, 0, 0, 0]
     )
+
+
+# ----------------------------------------------------------------- damaged bags (a good bag, then one damage)
+
+
+MAKERS = {"/smm/joint_states": joint_state, "/smm/reference": reference, "/smm/torque_command": torque}
+
+
+def good_bag(path: Path, topics: tuple[str, ...] = tuple(MAKERS)) -> Path:
+    with BagWriter(path, WriterOptions(chunk_size=4096)) as writer:
+        for topic in topics:
+            kind = "sensor_msgs/msg/JointState" if "joint" in topic else "std_msgs/msg/Float64MultiArray"
+            writer.create_topic(topic, kind)
+        for k in range(200):
+            for topic in topics:
+                writer.write(topic, MAKERS[topic](k), T0 + k * 1_000_000)
+    return path
+
+
+def truncate(bag: Path) -> None:
+    path = bag / f"{bag.name}_0.mcap"
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) * 2 // 3])
+
+
+def bad_magic(bag: Path) -> None:
+    path = bag / f"{bag.name}_0.mcap"
+    path.write_bytes(b"NOTMCAP!" + path.read_bytes()[8:])
+
+
+def flip_chunk_byte(bag: Path) -> None:
+    path = bag / f"{bag.name}_0.mcap"
+    data = bytearray(path.read_bytes())
+    data[len(data) // 3] ^= 0xFF  # inside a chunk's messages: the chunk CRC no longer matches
+    path.write_bytes(bytes(data))
+
+
+def wrong_count(bag: Path) -> None:
+    path = bag / "metadata.yaml"
+    document = yaml.safe_load(path.read_text())
+    document["rosbag2_bagfile_information"]["topics_with_message_count"][0]["message_count"] += 1
+    path.write_text(yaml.safe_dump(document))
+
+
+def garbage_metadata(bag: Path) -> None:
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: [1, 2\n")
+
+
+def metadata_without_version(bag: Path) -> None:
+    path = bag / "metadata.yaml"
+    document = yaml.safe_load(path.read_text())
+    del document["rosbag2_bagfile_information"]["version"]
+    path.write_text(yaml.safe_dump(document))
+
+
+def missing_file(bag: Path) -> None:
+    (bag / f"{bag.name}_0.mcap").unlink()
+
+
+def no_metadata(bag: Path) -> None:
+    (bag / "metadata.yaml").unlink()
+
+
+DAMAGES: list[tuple[str, Callable[[Path], None], type[Exception], int]] = [
+    ("no metadata.yaml", no_metadata, NotABagError, EXIT_NOT_A_BAG),
+    ("truncated file", truncate, TruncatedBagError, EXIT_TRUNCATED),
+    ("bad magic", bad_magic, CorruptBagError, EXIT_CORRUPT),
+    ("counts disagree", wrong_count, CorruptBagError, EXIT_CORRUPT),
+    ("metadata not YAML", garbage_metadata, CorruptBagError, EXIT_CORRUPT),
+    ("metadata without version", metadata_without_version, CorruptBagError, EXIT_CORRUPT),
+    ("storage file missing", missing_file, CorruptBagError, EXIT_CORRUPT),
+]
+
+
+def rewrite_bag(source: Path, target: Path, change: Callable[[BagMessage], bytes | None]) -> None:
+    """Copies ``source`` into a new bag ``target`` with the project's writer; ``change`` gives each
+    message's new CDR bytes, or None to drop it (a topic whose every message is dropped is dropped too)."""
+    with BagReader(source) as reader:
+        kept = [(message, change(message)) for message in reader.messages()]
+        emptied = {message.topic for message, _ in kept}
+        emptied -= {message.topic for message, data in kept if data is not None}
+        with BagWriter(target) as writer:
+            for topic in reader.metadata.topics:
+                if topic.name not in emptied:
+                    writer.create_topic(topic.name, topic.type, topic.offered_qos_profiles)
+            for key, value in reader.metadata.custom_data.items():
+                writer.set_custom_data(key, value)
+            for message, data in kept:
+                if data is not None:
+                    writer.write(message.topic, data, message.log_time_ns, message.publish_time_ns)

@@ -65,7 +65,7 @@ def test_demo_runs_the_graph_and_matches_the_offline_loop(
         assert graph == pytest.approx(offline, rel=1e-9)
     bag = Path(run["bag"])
     assert bag.parent == tmp_path / "bags" and (bag / "metadata.yaml").is_file()
-    from smm_bag.recorded import stamps_per_topic
+    from smm_analysis.runs.recorded import stamps_per_topic
 
     stamps = stamps_per_topic(bag)
     assert set(stamps) == set(expected)  # no stepped topic is left out of the count

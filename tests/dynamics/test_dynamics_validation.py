@@ -14,11 +14,12 @@ from smm_dynamics.validation import check_pair, check_scalar, is_real
     [
         ((1.0,), {}, "must be a tuple (alpha, beta) of 2 numbers"),
         ([1.0, 2.0], {}, "must be a tuple (alpha, beta) of 2 numbers"),
-        ((1.0, "2"), {}, "must be a real number for both joints"),
-        ((True, 1.0), {}, "must be a real number for both joints"),
-        ((math.nan, 1.0), {}, "must be a real number for both joints"),
-        ((1.0, math.inf), {}, "must be finite for both joints"),
-        ((-math.inf, 1.0), {"allow_inf": True}, "must be finite for both joints"),
+        ((1.0, "2"), {}, "must be a finite number for both joints"),
+        ((True, 1.0), {}, "must be a finite number for both joints"),
+        ((math.nan, 1.0), {}, "must be a finite number for both joints"),
+        ((math.nan, 1.0), {"allow_inf": True}, "must be a real number for both joints"),
+        ((1.0, math.inf), {}, "must be a finite number for both joints"),
+        ((-math.inf, 1.0), {"allow_inf": True}, "must be a number other than -inf for both joints"),
         ((0.0, 1.0), {"positive": True}, "must be > 0 for both joints"),
         ((1.0, -0.5), {"non_negative": True}, "must be >= 0 for both joints"),
     ],
@@ -44,9 +45,10 @@ def test_check_pair_accepts_valid_pairs(value: Any, flags: dict[str, bool]) -> N
 @pytest.mark.parametrize(
     ("value", "flags", "message"),
     [
-        ("1", {}, "must be a real number"),
-        (math.nan, {}, "must be a real number"),
-        (math.inf, {}, "must be finite"),
+        ("1", {}, "must be a finite number"),
+        (math.nan, {}, "must be a finite number"),
+        (math.nan, {"allow_inf": True}, "must be a real number"),
+        (math.inf, {}, "must be a finite number"),
         (0.0, {"positive": True}, "must be > 0"),
         (-1e-12, {"non_negative": True}, "must be >= 0"),
     ],
@@ -59,7 +61,7 @@ def test_check_scalar_rejects_with_the_field_name(value: Any, flags: dict[str, b
 
 def test_check_scalar_accepts_inf_only_when_allowed_and_positive() -> None:
     check_scalar("limit", math.inf, allow_inf=True)
-    with pytest.raises(ValueError, match="finite"):
+    with pytest.raises(ValueError, match="must be a number other than -inf"):
         check_scalar("limit", -math.inf, allow_inf=True)
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import signal
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +15,7 @@ from rcl_interfaces.msg import ParameterType
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from ros_harness import spin_until
-from smm_node_runtime.parameters import ConfigParameters
+from smm_node_runtime.parameters import ConfigParameters, above, bounds, check_bounds
 
 from smm_node_runtime import SPIN_POLL_S, as_parameter_list, make_executor
 
@@ -32,15 +32,12 @@ class Gains:
         mode: "a" or "b".
     """
 
-    k: tuple[float, float] = (1.0, 2.0)
-    limit: float = 5.0
+    k: tuple[float, float] = field(default=(1.0, 2.0), metadata=above(0.0))
+    limit: float = field(default=5.0, metadata=bounds(0.0, 100.0, low_open=True))
     mode: str = "a"
 
     def __post_init__(self) -> None:
-        if min(self.k) <= 0.0:
-            raise ValueError(f"k must be > 0 for both joints, got {self.k!r}")
-        if self.limit <= 0.0:
-            raise ValueError(f"limit must be > 0, got {self.limit!r}")
+        check_bounds(self)
         if self.mode not in ("a", "b"):
             raise ValueError(f"mode must be 'a' or 'b', got {self.mode!r}")
 
@@ -53,14 +50,16 @@ def node(ros_context: Any) -> Any:
 
 
 def test_parameters_are_declared_with_types_and_docstring_descriptions(node: Any) -> None:
-    binding = ConfigParameters(node, "gains", Gains(), ranges={"limit": (0.0, 100.0)})
+    binding = ConfigParameters(node, "gains", Gains())
     assert binding.parameter_names == {"gains.k", "gains.limit", "gains.mode"}
     k, limit, mode = node.describe_parameters(["gains.k", "gains.limit", "gains.mode"])
     assert k.type == ParameterType.PARAMETER_DOUBLE_ARRAY
     assert k.description == "Per-joint gain (1/s), > 0."
-    assert "alpha, beta" in k.additional_constraints
+    assert k.additional_constraints == "2 values, per joint (alpha, beta), each > 0"
+    assert not k.floating_point_range  # ROS ranges are for scalars: the config checks the elements
     assert limit.type == ParameterType.PARAMETER_DOUBLE
-    assert limit.floating_point_range[0].to_value == 100.0
+    assert (limit.floating_point_range[0].from_value, limit.floating_point_range[0].to_value) == (0.0, 100.0)
+    assert limit.additional_constraints == "in (0, 100]"  # the open end ROS cannot state
     assert mode.type == ParameterType.PARAMETER_STRING
     assert list(node.get_parameter("gains.k").value) == [1.0, 2.0]
 
@@ -92,6 +91,7 @@ def test_invalid_initial_values_refuse_to_build(ros_context: Any) -> None:
         ("gains.k", [1.0, 2.0, 3.0], "gains.k must have 2 values (alpha, beta), got 3: [1.0, 2.0, 3.0]"),
         ("gains.mode", "c", "mode must be 'a' or 'b', got 'c'"),
         ("gains.limit", 500.0, "out of range"),  # the ROS range of the scalar
+        ("gains.limit", 0.0, "limit must be in (0, 100], got 0.0"),  # its open end: the config's check
         ("gains.limit", "x", "Wrong parameter type"),  # ROS's own type check
     ],
 )
@@ -99,9 +99,7 @@ def test_rejected_changes_report_the_reason_and_keep_the_config(
     node: Any, name: str, value: Any, reason: str
 ) -> None:
     changes: list[Gains] = []
-    binding = ConfigParameters(
-        node, "gains", Gains(), ranges={"limit": (0.0, 100.0)}, on_change=changes.append
-    )
+    binding = ConfigParameters(node, "gains", Gains(), on_change=changes.append)
     (result,) = node.set_parameters([Parameter(name, value=value)])
     assert not result.successful
     assert reason in result.reason

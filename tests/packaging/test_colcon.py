@@ -105,6 +105,18 @@ def test_smm_launch_is_installed_by_smm_bringup_alone(colcon_install: Path) -> N
     assert (colcon_install / "smm_bringup" / "share" / "smm_bringup" / "launch" / "smm.launch.py").is_file()
 
 
+@pytest.mark.parametrize(
+    ("package", "command"),
+    [("smm_bag", "smm-bag"), ("smm_analysis", "smm-reproduce"), ("smm_bringup", "smm-launch")],
+)
+def test_user_commands_are_also_in_the_packages_bin(colcon_install: Path, package: str, command: str) -> None:
+    """``install/<pkg>/bin`` is on PATH once ``install/setup.bash`` is sourced; node executables are not."""
+    link = colcon_install / package / "bin" / command
+    assert link.resolve() == (colcon_install / package / "lib" / package / command).resolve()
+    assert not (colcon_install / "smm_bag" / "bin" / "recorder_node").exists()
+    assert not (colcon_install / "smm_controller" / "bin").exists()
+
+
 def test_an_installed_executable_starts_from_the_install_tree(colcon_install: Path) -> None:
     executable = colcon_install / "smm_analysis" / "lib" / "smm_analysis" / "smm-reproduce"
     site_dirs = sorted(str(p) for p in colcon_install.glob("*/lib/python3*/site-packages"))

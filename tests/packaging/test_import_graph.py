@@ -5,6 +5,8 @@ Rules (docs/DESIGN.md, "Packages and their roles"):
   node packages;
 - ``smm_hw_bridge`` imports nothing of ``smm_controller`` (the bridge never knows the control law);
 - ``smm_controller`` imports nothing of ``smm_sim``;
+- ``smm_bag`` (bag storage and ROS I/O) imports nothing of the stack but ``smm_msgs_py`` and
+  ``smm_node_runtime``;
 - ``smm_msgs_py`` defines no ``Node`` subclass and imports no node runtime (executor, parameters);
 - an algorithm module (every module of an algorithm package but its node modules) reaches no ``rclpy``,
   directly or through the modules it imports.
@@ -13,6 +15,8 @@ Rules (docs/DESIGN.md, "Packages and their roles"):
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +34,9 @@ ROS_BASE_CLASSES = frozenset({"Node", "LifecycleNode"})
 ROS_ROOTS = ("rclpy",)
 ALGORITHM_PACKAGES = ("smm_dynamics", "smm_controller", "smm_sim", "smm_analysis", "smm_hw_bridge")
 """Packages whose modules are algorithms (pure numpy), except their node modules."""
+BAG_STORAGE = "smm_bag"
+BAG_STORAGE_MAY_IMPORT = frozenset({MESSAGE_CONTRACT, NODE_RUNTIME})
+"""The only packages of the stack that the bag storage layer imports (analysis sits on top of it)."""
 
 
 @dataclass
@@ -167,6 +174,9 @@ class ImportGraph:
                 found.append(f"{name} imports smm_sim")
             if module.package == BRIDGE and "smm_controller" in imported_packages:
                 found.append(f"{name} imports smm_controller")
+            above_storage = imported_packages - BAG_STORAGE_MAY_IMPORT - {BAG_STORAGE}
+            if module.package == BAG_STORAGE and above_storage:
+                found.append(f"{name} imports {', '.join(sorted(above_storage))}: bag storage is below them")
             if module.package == MESSAGE_CONTRACT:
                 if self.defines_node(name):
                     found.append(f"{name} defines a Node subclass")
@@ -284,6 +294,33 @@ def test_the_controller_importing_the_simulator_is_refused(tmp_path: Path) -> No
     files = dict(NODES)
     files["smm_controller/chain.py"] = "def f():\n    from smm_sim.plant import y\n"
     assert "smm_controller.chain imports smm_sim" in _tree(tmp_path, files).violations()
+
+
+def test_bag_storage_importing_the_analysis_is_refused(tmp_path: Path) -> None:
+    files = dict(NODES)
+    files["smm_bag/__init__.py"] = ""
+    files["smm_bag/recorder_node.py"] = (
+        "from smm_msgs_py.conversions import x\nfrom smm_node_runtime import SmmNode\n"
+        "class RecorderNode(SmmNode): ...\n"
+    )
+    assert _tree(tmp_path, files).violations() == []
+    files["smm_bag/plots.py"] = "def f():\n    from smm_analysis.scenarios import g\n    import smm_sim\n"
+    files["smm_analysis/__init__.py"] = ""
+    files["smm_analysis/scenarios.py"] = "import numpy\n"
+    assert _tree(tmp_path, files).violations() == [
+        "smm_bag.plots imports smm_analysis, smm_sim: bag storage is below them"
+    ]
+
+
+def test_pure_modules_import_without_rclpy() -> None:
+    """At run time too: ``smm_node_runtime`` loads its names lazily, so its pure modules pull in no rclpy."""
+    modules = ("smm_node_runtime.schema", "smm_analysis.runs.rerun", "smm_analysis.runs.commands")
+    code = (
+        f"import sys\nfor m in {modules!r}: __import__(m)\n"
+        "print(sorted(k for k in sys.modules if k.startswith('rclpy')))"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout.strip() == "[]", result.stdout
 
 
 def test_a_node_in_the_message_contract_is_refused(tmp_path: Path) -> None:

@@ -1,22 +1,8 @@
-r"""``smm-reproduce``: runs the paper's scenarios with every controller and reports the metrics.
+"""``smm-reproduce``: the paper's scenarios with every controller, their metrics and report.
 
-Three layers: :func:`main` parses the command line (argparse), :func:`reproduce` is the command (it
-prints, writes files and returns the exit code), and the library (:mod:`smm_analysis.reproduction`,
-:mod:`smm_analysis.report`, :mod:`smm_analysis.plots`) computes and raises typed errors.
-
-Exit codes: 0 success; 1 ``--check`` was given and an acceptance claim is not met; 2 bad arguments or
-an analysis error (unknown scenario or controller, unstable run, unwritable output).
-
-By default the clearly labelled retuned FPDESO set (``fpdeso_retuned``, :mod:`smm_analysis.retuned`)
-runs beside the paper's gains. With ``--check`` a step claim that the paper's gains miss counts as met
-only if that labelled set meets it, and the output says so; every other claim must hold with the
-paper's gains, and the retuned set's own step checks must pass.
-
-With ``--out DIR`` it writes ``DIR/metrics.json``, the report ``DIR/REPORT.md`` (or ``--report``) and
-the PNG figures into ``DIR/`` (or ``--plots-dir``). The committed docs are made with::
-
-    smm-reproduce --out out/reproduce --report docs/REPRODUCTION.md --plots-dir docs/reproduction \
-        --td-sweep --step-study --check
+:func:`main` parses, :func:`reproduce` runs the command and returns the exit code (0 success; 1 ``--check``
+and a claim not met; 2 bad arguments or an analysis error). Options and the command that makes the
+committed docs: docs/REPRODUCTION.md and README.
 """
 
 from __future__ import annotations
@@ -31,9 +17,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
+from smm_analysis.acceptance import acceptance_verdict
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD
-from smm_analysis.energy_study import EnergyStudy, run_energy_study, write_energy_plot
+from smm_analysis.energy_report import write_energy_plot
+from smm_analysis.energy_study import EnergyStudy, run_energy_study
 from smm_analysis.errors import AnalysisError
+from smm_analysis.metrics_json import metrics_document
 from smm_analysis.plots import write_plots
 from smm_analysis.report import render_report
 from smm_analysis.reproduction import (
@@ -41,14 +30,11 @@ from smm_analysis.reproduction import (
     REPRODUCTION_CONTROLLERS,
     ReproductionResult,
     RunResult,
-    acceptance_verdict,
-    controller_label,
-    metrics_document,
     resolve_controllers,
     resolve_scenarios,
     run_reproduction,
 )
-from smm_analysis.retuned import RETUNED_SETS
+from smm_analysis.retuned import RETUNED_SETS, controller_label
 from smm_analysis.scenarios import SCENARIOS
 from smm_analysis.tune_td import TDSweepPoint, sweep_td
 from smm_controller import TrackingDifferentiatorConfig

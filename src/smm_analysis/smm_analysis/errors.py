@@ -4,6 +4,7 @@ __all__ = [
     "AnalysisError",
     "ClosedLoopDivergedError",
     "MetricsInputError",
+    "ParamsFileError",
     "UnknownControllerError",
     "UnknownScenarioError",
 ]
@@ -27,3 +28,7 @@ class UnknownControllerError(AnalysisError):
 
 class ClosedLoopDivergedError(AnalysisError):
     """The control chain produced a non-finite torque: the closed loop went unstable."""
+
+
+class ParamsFileError(AnalysisError):
+    """A parameters file for ``smm-bag rerun`` is unreadable or holds invalid gains."""

@@ -1,25 +1,7 @@
-"""Performance indices of SPEC section 5 (paper eq. 42-45), step-response metrics and end-effector errors.
+"""Performance indices (SPEC section 5, paper eq. 42-45), step metrics and end-effector errors.
 
-Arrays in, floats out, so that the offline simulator and the bag analysis share one implementation.
-Times are integer nanosecond stamps (any integer dtype), strictly increasing; signals are sampled at
-those stamps. Integrals (RMS, eq. 44, and control energy, eq. 45) use the trapezoidal rule over the
-actual sample intervals, from the first to the last stamp, so ``t_f = t[-1] - t[0]``. For a uniformly
-sampled periodic signal over whole periods this is exact (e = A sin -> RMS = A / sqrt(2)).
-
-Torque smoothness (SPEC section 5 leaves the index to the project): ``du_rms``, the RMS of the torque
-increment between consecutive samples, sqrt(mean((tau_{k+1} - tau_k)^2)) in N m per control step. eps_u
-cannot tell a smooth torque from a chattering one of the same size; the increment can: white noise of
-std s on tau gives du_rms = sqrt(2) s, while a smooth torque of bandwidth w gives about w dt its size.
-It is per step, so compare runs at the same control period (docs/REPRODUCTION.md, "Torque noise").
-
-Step metrics are measured on the response normalised by the step size ``A = target - initial``:
-
-* rise time: time between the first crossings of 10 % and 90 % of ``A`` (linear interpolation between
-  samples); ``inf`` if 90 % is never reached;
-* overshoot: ``max(0, max(sign(A) (y - target)))`` in rad, and the same divided by ``|A|`` as a
-  fraction (``overshoot_fraction``; times 100 gives percent);
-* settling time: time from the step until the response enters, for good, the band ``|y - target| <=
-  0.02 |A|`` (interpolated crossing); ``inf`` if the last sample is still outside the band.
+Arrays in, floats out, shared by the offline loop and the bag analysis; stamps are integer ns, strictly
+increasing. Definitions: docs/METRICS.md.
 """
 
 from __future__ import annotations

@@ -24,8 +24,8 @@ import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
 from smm_analysis.errors import AnalysisError
-from smm_analysis.reproduction import JOINTS, ReproductionResult, RunResult, controller_label
-from smm_analysis.retuned import RETUNED_SETS
+from smm_analysis.reproduction import JOINTS, ReproductionResult, RunResult
+from smm_analysis.retuned import RETUNED_SETS, controller_label
 
 __all__ = ["DEFAULT_DPI", "write_plots"]
 

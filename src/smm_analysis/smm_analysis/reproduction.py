@@ -1,18 +1,6 @@
-"""Reproduction of the paper's simulations: every scenario x controller, metrics, acceptance checks.
+"""The paper's simulations, every scenario x controller, and their metrics (library of ``smm-reproduce``).
 
-Library layer of ``smm-reproduce``: functions take data and return data, raise the typed errors of
-:mod:`smm_analysis.errors`, and print nothing (progress goes through a callback).
-
-Acceptance claims checked (see :func:`acceptance_checks`):
-
-* step: FPDESO overshoot < 5 % and 10-90 % rise time in [0.03, 0.09] s, on both joints;
-* case1: FPDESO has the lowest RMS and the lowest M_a of all controllers run, on both joints;
-* case2: FPDESO's RMS is at least 38 % below FPD's, on both joints.
-
-The claims are checked on the paper's FPDESO gains. The clearly labelled retuned sets of
-:mod:`smm_analysis.retuned` run beside the paper's as pseudo-controllers (``fpdeso_retuned``) and get the
-step checks too; :func:`acceptance_verdict` accepts a failed step claim of the paper's gains only if the
-retuned set meets it, and says so.
+Claims: :mod:`smm_analysis.acceptance`; ``metrics.json``: :mod:`smm_analysis.metrics_json`.
 """
 
 from __future__ import annotations
@@ -22,12 +10,11 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from types import MappingProxyType
-from typing import Final
 
 import numpy as np
 from smm_controller.limits import OutputLimitConfig
 
+from smm_analysis.acceptance import AcceptanceCheck, acceptance_checks
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD, Trajectory, run_closed_loop
 from smm_analysis.errors import AnalysisError, UnknownControllerError
 from smm_analysis.metrics import (
@@ -44,47 +31,28 @@ from smm_controller import CONTROLLER_NAMES, FPDESOConfig, TrackingDifferentiato
 from smm_dynamics import SMMParameters
 
 __all__ = [
-    "CASE2_RMS_REDUCTION",
     "JOINTS",
-    "METRICS_UNITS",
     "REPRODUCTION_CONTROLLERS",
-    "STEP_OVERSHOOT_LIMIT",
-    "STEP_RISE_TIME_RANGE",
-    "AcceptanceCheck",
-    "AcceptanceVerdict",
     "ReproductionResult",
     "RunResult",
     "StepStudyPoint",
-    "acceptance_checks",
-    "acceptance_verdict",
-    "controller_label",
     "evaluate_run",
     "ideal_step_response",
-    "metrics_document",
     "paper_fpdeso_ideal_step",
     "resolve_controllers",
     "resolve_scenarios",
     "run_controller",
-    "run_entry",
     "run_reproduction",
     "step_discretisation_study",
 ]
 
 JOINTS: tuple[str, str] = ("alpha", "beta")
-STEP_OVERSHOOT_LIMIT = 0.05
-"""FPDESO step overshoot must stay below this fraction of the step."""
-STEP_RISE_TIME_RANGE: tuple[float, float] = (0.03, 0.09)
-"""FPDESO 10-90 % step rise time must lie in this range (s)."""
-CASE2_RMS_REDUCTION = 0.38
-"""case2: FPDESO's RMS must be at least this fraction below FPD's (the paper: 56 % / 38 %)."""
 REPRODUCTION_CONTROLLERS: tuple[str, ...] = (
     CONTROLLER_NAMES[0],
     *RETUNED_SETS,
     *CONTROLLER_NAMES[1:],
 )
 """Default controllers of the reproduction: the paper's, with the labelled retuned sets after FPDESO."""
-
-_PAPER_LABELS = {"fpdeso": "FPDESO", "fpd": "FPD", "pid": "PID", "npd": "NPD"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,52 +76,6 @@ class RunResult:
     end_effector: Mapping[str, AxisError]
     wall_time: float
     trajectory: Trajectory
-
-
-@dataclass(frozen=True)
-class AcceptanceCheck:
-    """One acceptance claim on one joint.
-
-    Attributes:
-        claim: What is claimed, in words.
-        scenario: Scenario name.
-        joint: ``alpha`` or ``beta``.
-        value: The measured quantity (unit in ``claim``).
-        requirement: The bound, in words.
-        passed: Whether the claim holds.
-        controller: The controller (gain set) the claim is checked on: ``"fpdeso"`` for the paper's
-            gains, or a retuned set's name.
-        quantity: What ``value`` is: ``overshoot_fraction``, ``rise_time``, ``RMS``, ``Ma``,
-            ``rms_reduction`` or ``eps_u``; matches a retuned set's check with the paper set's.
-    """
-
-    claim: str
-    scenario: str
-    joint: str
-    value: float
-    requirement: str
-    passed: bool
-    controller: str = "fpdeso"
-    quantity: str = ""
-
-
-@dataclass(frozen=True)
-class AcceptanceVerdict:
-    """The outcome of the acceptance checks, for ``--check`` and the report.
-
-    Attributes:
-        met: Every claim holds with the paper's gains, or the only failures are step claims of the
-            paper's FPDESO gains that a labelled retuned set meets.
-        failed: Checks that fail and are not met by a retuned set (their own failures included).
-        met_by_retuned: (paper check, retuned check) pairs: a step claim the paper's gains miss and the
-            labelled retuned set meets.
-        message: One line per finding, in words.
-    """
-
-    met: bool
-    failed: tuple[AcceptanceCheck, ...]
-    met_by_retuned: tuple[tuple[AcceptanceCheck, AcceptanceCheck], ...]
-    message: str
 
 
 @dataclass(frozen=True)
@@ -215,13 +137,6 @@ def resolve_scenarios(names: Sequence[str], duration: float | None = None) -> tu
     if not (math.isfinite(duration) and duration > 0.0):
         raise AnalysisError(f"duration must be a finite number > 0 s, got {duration!r}")
     return tuple(scenario.with_duration(duration) for scenario in scenarios)
-
-
-def controller_label(name: str) -> str:
-    """Human label of a controller or retuned set (``FPDESO``, ``FPDESO, retuned (...)``)."""
-    if name in RETUNED_SETS:
-        return RETUNED_SETS[name].label
-    return _PAPER_LABELS.get(name, name)
 
 
 def resolve_controllers(names: Sequence[str]) -> tuple[str, ...]:
@@ -461,176 +376,6 @@ def paper_fpdeso_ideal_step() -> dict[str, tuple[float, float]]:
     }
 
 
-def _step_checks(run: RunResult, controller: str) -> list[AcceptanceCheck]:
-    assert run.step is not None
-    label = controller_label(controller)
-    low, high = STEP_RISE_TIME_RANGE
-    checks = []
-    for joint in JOINTS:
-        metrics = run.step[joint]
-        overshoot, rise = metrics.overshoot_fraction, metrics.rise_time
-        claims = (
-            (
-                "overshoot (fraction of the step)",
-                "overshoot_fraction",
-                overshoot,
-                f"< {STEP_OVERSHOOT_LIMIT:g}",
-                overshoot < STEP_OVERSHOOT_LIMIT,
-            ),
-            ("10-90 % rise time (s)", "rise_time", rise, f"in [{low:g}, {high:g}]", low <= rise <= high),
-        )
-        for claim, quantity, value, requirement, passed in claims:
-            checks.append(
-                AcceptanceCheck(
-                    claim=f"step: {label} {claim}",
-                    scenario="step",
-                    joint=joint,
-                    value=value,
-                    requirement=requirement,
-                    passed=passed,
-                    controller=controller,
-                    quantity=quantity,
-                )
-            )
-    return checks
-
-
-def acceptance_checks(result: ReproductionResult) -> list[AcceptanceCheck]:
-    """Evaluates the acceptance claims whose runs are present in ``result``.
-
-    The step claims are checked on the paper's FPDESO gains and, separately, on every retuned FPDESO
-    set run; the case1 and case2 claims only on the paper's gains (the retuned sets are not among the
-    'other controllers' of case1).
-
-    Returns:
-        One check per claim, gain set and joint; claims whose runs are missing are left out.
-    """
-    checks: list[AcceptanceCheck] = []
-    step_sets = ["fpdeso"] + [
-        name for name in result.controllers if name in RETUNED_SETS and RETUNED_SETS[name].base == "fpdeso"
-    ]
-    for controller in step_sets:
-        step = result.run("step", controller)
-        if step is not None and step.step is not None:
-            checks += _step_checks(step, controller)
-    paper_controllers = [name for name in result.controllers if name in CONTROLLER_NAMES]
-    case1 = {name: result.run("case1", name) for name in paper_controllers}
-    if case1.get("fpdeso") is not None and len([run for run in case1.values() if run is not None]) > 1:
-        for metric in ("RMS", "Ma"):
-            for joint in JOINTS:
-                values = {
-                    name: getattr(run.joints[joint], metric) for name, run in case1.items() if run is not None
-                }
-                best_other = min(value for name, value in values.items() if name != "fpdeso")
-                checks.append(
-                    AcceptanceCheck(
-                        claim=f"case1: FPDESO has the lowest {metric} (rad)",
-                        scenario="case1",
-                        joint=joint,
-                        value=values["fpdeso"],
-                        requirement=f"< best other {best_other:.4g}",
-                        passed=values["fpdeso"] < best_other,
-                        quantity=metric,
-                    )
-                )
-    fpdeso2, fpd2 = result.run("case2", "fpdeso"), result.run("case2", "fpd")
-    if fpdeso2 is not None and fpd2 is not None:
-        for joint in JOINTS:
-            reduction = 1.0 - fpdeso2.joints[joint].RMS / fpd2.joints[joint].RMS
-            checks.append(
-                AcceptanceCheck(
-                    claim="case2: FPDESO RMS reduction versus FPD (fraction)",
-                    scenario="case2",
-                    joint=joint,
-                    value=reduction,
-                    requirement=f">= {CASE2_RMS_REDUCTION:g}",
-                    passed=reduction >= CASE2_RMS_REDUCTION,
-                    quantity="rms_reduction",
-                )
-            )
-        for joint in JOINTS:
-            energy, fpd_energy = fpdeso2.joints[joint].eps_u, fpd2.joints[joint].eps_u
-            checks.append(
-                AcceptanceCheck(
-                    claim="case2: FPDESO control energy eps_u below FPD's (N^2 m^2 s)",
-                    scenario="case2",
-                    joint=joint,
-                    value=energy,
-                    requirement=f"< FPD {fpd_energy:.4g}",
-                    passed=energy < fpd_energy,
-                    quantity="eps_u",
-                )
-            )
-    return checks
-
-
-def _check_value_text(check: AcceptanceCheck) -> str:
-    if check.quantity == "overshoot_fraction":
-        return f"{100 * check.value:.2f} %"
-    if check.quantity == "rise_time":
-        return f"{check.value:.3f} s"
-    return f"{check.value:.4g}"
-
-
-def _requirement_text(check: AcceptanceCheck) -> str:
-    if check.quantity == "overshoot_fraction":
-        return f"< {100 * STEP_OVERSHOOT_LIMIT:g} %"
-    if check.quantity == "rise_time":
-        low, high = STEP_RISE_TIME_RANGE
-        return f"in [{low:g}, {high:g}] s"
-    return check.requirement
-
-
-def acceptance_verdict(checks: Sequence[AcceptanceCheck]) -> AcceptanceVerdict:
-    """Decides whether the acceptance claims are met and says by which gain set.
-
-    Met when every check of the paper's gains passes, or when the only failures are step checks of the
-    paper's FPDESO gains that the same check (quantity and joint) of a labelled retuned FPDESO set
-    passes. A failing check of a retuned set, or of a case1/case2 claim, is never excused.
-
-    Args:
-        checks: The checks (:func:`acceptance_checks`).
-
-    Returns:
-        The verdict with a message naming which set met what.
-    """
-    retuned_checks = {
-        (check.scenario, check.quantity, check.joint): check
-        for check in checks
-        if check.controller in RETUNED_SETS and RETUNED_SETS[check.controller].base == "fpdeso"
-    }
-    failed: list[AcceptanceCheck] = []
-    met_by_retuned: list[tuple[AcceptanceCheck, AcceptanceCheck]] = []
-    for check in checks:
-        if check.passed:
-            continue
-        rescue = retuned_checks.get((check.scenario, check.quantity, check.joint))
-        if check.controller == "fpdeso" and check.scenario == "step" and rescue is not None and rescue.passed:
-            met_by_retuned.append((check, rescue))
-        else:
-            failed.append(check)
-    lines = []
-    for paper, retuned in met_by_retuned:
-        lines.append(
-            f"step claim ({paper.quantity.replace('_', ' ')}, {paper.joint}) met only with the labelled "
-            f"retuned set '{controller_label(retuned.controller)}' ({_check_value_text(retuned)}); the "
-            f"paper's gains give {_check_value_text(paper)} (requirement {_requirement_text(paper)})"
-        )
-    for check in failed:
-        lines.append(
-            f"FAILED: {check.claim}, {check.joint}: {_check_value_text(check)} "
-            f"(requirement {_requirement_text(check)})"
-        )
-    if not lines:
-        lines.append("every acceptance claim holds with the paper's gains" if checks else "no claim checked")
-    return AcceptanceVerdict(
-        met=not failed,
-        failed=tuple(failed),
-        met_by_retuned=tuple(met_by_retuned),
-        message="\n".join(lines),
-    )
-
-
 def torque_limit_note(result: ReproductionResult) -> tuple[tuple[float, float], float]:
     """``(torque limit (N m) the chains ran with, largest |command| of every run (N m))``."""
     limit = OutputLimitConfig().torque_limit
@@ -638,121 +383,3 @@ def torque_limit_note(result: ReproductionResult) -> tuple[tuple[float, float], 
         (float(np.max(np.abs(run.trajectory.command_torque))) for run in result.runs.values()), default=0.0
     )
     return limit, peak
-
-
-def _finite_or_none(value: float) -> float | None:
-    return value if math.isfinite(value) else None
-
-
-METRICS_UNITS: Final[Mapping[str, str]] = MappingProxyType(
-    {
-        "Ma": "rad",
-        "Ave": "rad",
-        "RMS": "rad",
-        "eps_u": "N^2 m^2 s (integral of the commanded torque squared)",
-        "du_rms": "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
-        "rise_time": "s (10-90 %)",
-        "overshoot": "rad",
-        "overshoot_fraction": "fraction of the step (x100 = %)",
-        "settling_time": "s (2 % band; null = not settled)",
-        "end_effector": "mm",
-    }
-)
-"""Units of the quantities of :func:`run_entry` (``meta.units`` of ``metrics.json``)."""
-
-
-def run_entry(
-    joints: Mapping[str, JointIndices],
-    step: Mapping[str, StepMetrics] | None,
-    end_effector: Mapping[str, AxisError],
-) -> dict[str, object]:
-    """One run of ``metrics.json``: per joint the indices (and step metrics), and ``end_effector``."""
-    entry: dict[str, object] = {}
-    for joint in JOINTS:
-        indices = joints[joint]
-        values: dict[str, float | None] = {
-            "Ma": indices.Ma,
-            "Ave": indices.Ave,
-            "RMS": indices.RMS,
-            "eps_u": indices.eps_u,
-            "du_rms": indices.du_rms,
-        }
-        if step is not None and joint in step:
-            metrics = step[joint]
-            values.update(
-                {
-                    "rise_time": _finite_or_none(metrics.rise_time),
-                    "overshoot": metrics.overshoot,
-                    "overshoot_fraction": metrics.overshoot_fraction,
-                    "settling_time": _finite_or_none(metrics.settling_time),
-                }
-            )
-        entry[joint] = values
-    entry["end_effector"] = {
-        axis: {"max_mm": error.max_mm, "rms_mm": error.rms_mm} for axis, error in end_effector.items()
-    }
-    return entry
-
-
-def metrics_document(result: ReproductionResult) -> dict[str, object]:
-    """The JSON document written to metrics.json.
-
-    Schema: ``{scenario: {controller: {"alpha"|"beta": {...}, "end_effector": {...}}}}`` plus three
-    reserved top-level keys, ``"acceptance"`` (list of checks, each naming the gain set it was checked
-    on), ``"acceptance_verdict"`` (``{"met": bool, "message": str}``, see :func:`acceptance_verdict`) and
-    ``"meta"`` (run settings, units and the retuned sets run, with their labels and changes).
-    Controllers include the retuned sets' pseudo-names (``fpdeso_retuned``).
-    Per joint: Ma, Ave, RMS (rad), eps_u (N^2 m^2 s), du_rms (N m per step); for step scenarios also
-    rise_time (s), overshoot (rad), overshoot_fraction (of the step) and settling_time (s; null = not
-    settled by the end).
-    ``end_effector``: x, y, z each {max_mm, rms_mm}.
-    """
-    document: dict[str, object] = {}
-    for (scenario, controller), run in result.runs.items():
-        per_scenario = document.setdefault(scenario, {})
-        assert isinstance(per_scenario, dict)
-        entry = run_entry(run.joints, run.step, run.end_effector)
-        per_scenario[controller] = entry
-    document["acceptance"] = [
-        {
-            "claim": check.claim,
-            "scenario": check.scenario,
-            "joint": check.joint,
-            "value": _finite_or_none(check.value),
-            "requirement": check.requirement,
-            "passed": check.passed,
-            "controller": check.controller,
-            "quantity": check.quantity,
-        }
-        for check in result.checks
-    ]
-    verdict = acceptance_verdict(result.checks)
-    document["acceptance_verdict"] = {"met": verdict.met, "message": verdict.message}
-    limit, peak = torque_limit_note(result)
-    document["meta"] = {
-        "torque_limit_Nm": list(limit),
-        "peak_command_Nm": peak,
-        "seed": result.seed,
-        "control_period_s": result.control_period,
-        "td_speed": list(result.td_config.speed),
-        "td_filter_factor_s": list(result.td_config.filter_factor),
-        "scenarios": {
-            scenario.name: {"duration_s": scenario.duration, "description": scenario.description}
-            for scenario in result.scenarios
-        },
-        "controllers": list(result.controllers),
-        "retuned_sets": {
-            name: {
-                "label": RETUNED_SETS[name].label,
-                "base": RETUNED_SETS[name].base,
-                "change": RETUNED_SETS[name].change,
-                "reason": RETUNED_SETS[name].reason,
-                "kp0": list(RETUNED_SETS[name].config.fuzzy.kp0),
-                "kd0": list(RETUNED_SETS[name].config.fuzzy.kd0),
-            }
-            for name in result.controllers
-            if name in RETUNED_SETS
-        },
-        "units": dict(METRICS_UNITS),
-    }
-    return document

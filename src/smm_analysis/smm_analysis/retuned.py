@@ -25,6 +25,7 @@ __all__ = [
     "FPDESO_RETUNED",
     "RETUNED_SETS",
     "RetunedSet",
+    "controller_label",
     "damping_ratio",
     "matched_damping_kd0",
 ]
@@ -106,3 +107,13 @@ FPDESO_RETUNED = RetunedSet(
 
 RETUNED_SETS: Mapping[str, RetunedSet] = MappingProxyType({FPDESO_RETUNED.name: FPDESO_RETUNED})
 """Every retuned set by pseudo-controller name."""
+
+
+_PAPER_LABELS = {"fpdeso": "FPDESO", "fpd": "FPD", "pid": "PID", "npd": "NPD"}
+
+
+def controller_label(name: str) -> str:
+    """Human label of a controller or retuned set (``FPDESO``, ``FPDESO, retuned (...)``)."""
+    if name in RETUNED_SETS:
+        return RETUNED_SETS[name].label
+    return _PAPER_LABELS.get(name, name)

@@ -1,4 +1,4 @@
-"""MCAP rosbag2 bags of SMM runs: writer, reader, repair, info, analysis, offline re-run (``smm-bag``)."""
+"""MCAP rosbag2 bags of SMM runs: writer, reader, repair, info, recorder and replay (``smm-bag``)."""
 
 from smm_bag.errors import (
     BagError,
@@ -6,7 +6,6 @@ from smm_bag.errors import (
     CorruptBagError,
     MissingTopicsError,
     NotABagError,
-    ParamsFileError,
     TruncatedBagError,
     UnknownTypeError,
     WriterStateError,
@@ -27,7 +26,6 @@ __all__ = [
     "FileInfo",
     "MissingTopicsError",
     "NotABagError",
-    "ParamsFileError",
     "QosProfile",
     "TopicInfo",
     "TruncatedBagError",

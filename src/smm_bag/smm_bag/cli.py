@@ -1,17 +1,26 @@
-"""``smm-bag``: info, analyze, play, rerun and repair on rosbag2 MCAP bags."""
+"""``smm-bag``: info, play and repair; other packages add subcommands (entry points ``smm_bag.commands``).
+
+An entry point of that group names a function that takes the subparsers and adds one subcommand whose
+``handler`` default maps the parsed options to an exit code (``smm_analysis`` adds ``analyze`` and ``rerun``).
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from collections.abc import Sequence
+from importlib.metadata import entry_points
 from pathlib import Path
 
 from smm_bag import commands
+from smm_bag.exit_codes import EXIT_USAGE
 from smm_bag.lockstep import LockstepOptions
 from smm_bag.player import PlayOptions, parse_remaps
 
-__all__ = ["build_parser", "main"]
+__all__ = ["COMMAND_GROUP", "build_parser", "main"]
+
+COMMAND_GROUP = "smm_bag.commands"
+"""Entry-point group of the subcommands other packages add to ``smm-bag``."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -22,33 +31,11 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Exit codes: 0 ok, 1 check failed, 2 usage, 3 not a bag, 4 truncated (run repair), "
         "5 corrupt, 6 missing topics, 7 bad parameters file.",
     )
+    parser.set_defaults(handler=None)
     sub = parser.add_subparsers(dest="command", required=True)
 
     info = sub.add_parser("info", help="what `ros2 bag info` prints, plus the run manifest and loss report")
     info.add_argument("bag", type=Path)
-
-    analyze = sub.add_parser("analyze", help="SPEC section 5 indices per bag; several bags side by side")
-    analyze.add_argument("bags", type=Path, nargs="+", metavar="BAG")
-    analyze.add_argument("--json", action="store_true", help="print metrics.json's schema instead of a table")
-    analyze.add_argument("--out", type=Path, help="write metrics.json, REPORT.md and PNG figures here")
-    analyze.add_argument("--no-plots", action="store_true", help="with --out: no figures")
-    analyze.add_argument("--quiet", action="store_true", help="no progress bar")
-
-    rerun = sub.add_parser(
-        "rerun", help="the control chain offline on the recorded measurements, other gains"
-    )
-    rerun.add_argument("bag", type=Path)
-    rerun.add_argument(
-        "--params-file", type=Path, action="append", default=[], help="ROS parameters file (repeatable)"
-    )
-    rerun.add_argument("--json", action="store_true", help="print the comparison as JSON")
-    rerun.add_argument("--out", type=Path, help="write rerun.csv (offline and recorded, per step) here")
-    rerun.add_argument(
-        "--expect-equal",
-        action="store_true",
-        help="exit 1 if the offline commands differ from the recorded ones by more than --tolerance",
-    )
-    rerun.add_argument("--tolerance", type=float, default=0.0, help="N m (default 0: bit for bit)")
 
     play = sub.add_parser("play", help="publish the bag with its original timing and QoS (ROS 2 graph)")
     play.add_argument("bag", type=Path)
@@ -74,6 +61,12 @@ def build_parser() -> argparse.ArgumentParser:
     repair = sub.add_parser("repair", help="rebuild summaries, indexes and metadata.yaml after a crash")
     repair.add_argument("bag", type=Path)
     repair.add_argument("--no-backup", action="store_true", help="do not keep damaged files as *.damaged")
+
+    for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+        try:
+            entry.load()(sub)
+        except (ImportError, AttributeError) as error:  # a package installed in part: no such subcommand
+            print(f"smm-bag: subcommand {entry.name!r} unavailable: {error}", file=sys.stderr)
     return parser
 
 
@@ -82,27 +75,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     options = build_parser().parse_args(argv)
     if options.command == "info":
         return commands.info(options.bag)
-    if options.command == "analyze":
-        return commands.analyze(
-            commands.AnalyzeOptions(
-                bags=tuple(options.bags),
-                json=options.json,
-                out=options.out,
-                plots=not options.no_plots,
-                quiet=options.quiet or options.json,
-            )
-        )
-    if options.command == "rerun":
-        return commands.rerun_command(
-            commands.RerunOptions(
-                bag=options.bag,
-                params_files=tuple(options.params_file),
-                json=options.json,
-                out=options.out,
-                expect_equal=options.expect_equal,
-                tolerance=options.tolerance,
-            )
-        )
+    if options.handler is not None:
+        code: int = options.handler(options)
+        return code
     if options.command == "play":
         try:
             play_options: PlayOptions | LockstepOptions
@@ -127,7 +102,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 )
         except ValueError as error:
             print(f"smm-bag: error: {error}", file=sys.stderr)
-            return commands.EXIT_USAGE
+            return EXIT_USAGE
         return commands.play_command(options.bag, play_options)
     return commands.repair(options.bag, backup=not options.no_backup)
 

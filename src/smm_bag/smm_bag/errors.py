@@ -6,7 +6,6 @@ __all__ = [
     "CorruptBagError",
     "MissingTopicsError",
     "NotABagError",
-    "ParamsFileError",
     "TruncatedBagError",
     "UnknownTypeError",
     "WriterStateError",
@@ -43,7 +42,3 @@ class UnknownTypeError(BagError):
 
 class WriterStateError(BagError):
     """A writer call out of order: write before create_topic, write after close, duplicate topic."""
-
-
-class ParamsFileError(BagError):
-    """A parameters file for ``smm-bag rerun`` is unreadable or holds invalid gains."""

@@ -17,7 +17,7 @@ import importlib
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -34,7 +34,18 @@ from smm_bag.manifest import RunManifest, git_describe
 from smm_bag.qos import QosProfile, profiles_from_rclpy
 from smm_bag.writer import BagWriter, WriterOptions
 from smm_msgs_py import topics as stack
-from smm_node_runtime import ConfigParameters, DiagnosticsPublisher, Health, Level, SmmNode, node_main
+from smm_node_runtime import (
+    ConfigParameters,
+    DiagnosticsPublisher,
+    Health,
+    Level,
+    SmmNode,
+    above,
+    at_least,
+    bounds,
+    check_bounds,
+    node_main,
+)
 
 __all__ = [
     "DEFAULT_EXTRA_TOPICS",
@@ -90,27 +101,20 @@ class RecorderConfig:
     output: str = ""
     topics: str = ""
     stack_namespace: str = stack.DEFAULT_NAMESPACE
-    max_duration: float = 0.0
-    max_size: int = 0
+    max_duration: float = field(default=0.0, metadata=at_least(0.0))
+    max_size: int = field(default=0, metadata=at_least(0))
     compression: Literal["none", "zstd"] = "none"
-    flush_interval: float = 0.5
-    discovery_period: float = 0.2
+    flush_interval: float = field(default=0.5, metadata=bounds(0.0, 1.0, low_open=True))
+    discovery_period: float = field(default=0.2, metadata=above(0.0))
     scenario: str = ""
-    seed: int = -1
+    seed: int = field(default=-1, metadata=at_least(-1))
     plant: Literal["", "sim", "hardware"] = ""
     controller: str = ""
     clock_mode: str = ""
-    control_period: float = 0.001
+    control_period: float = field(default=0.001, metadata=above(0.0))
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.flush_interval <= 1.0:
-            raise ValueError(f"flush_interval must be in (0, 1] s, got {self.flush_interval!r}")
-        if self.max_duration < 0.0 or self.max_size < 0:
-            raise ValueError("max_duration and max_size must be >= 0")
-        if not self.control_period > 0.0:
-            raise ValueError(f"control_period must be > 0 s, got {self.control_period!r}")
-        if not self.discovery_period > 0.0:
-            raise ValueError(f"discovery_period must be > 0 s, got {self.discovery_period!r}")
+        check_bounds(self)
         for name in self.topic_list:
             if not name.startswith("/"):
                 raise ValueError(f"topics must be absolute names, got {name!r}")

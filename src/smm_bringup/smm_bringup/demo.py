@@ -35,13 +35,13 @@ from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.errors import AnalysisError
 from smm_analysis.metrics import JointIndices, joint_indices
 from smm_analysis.paper_values import PAPER_CASE2
+from smm_analysis.runs.commands import AnalyzeOptions, analyze
+from smm_analysis.runs.indices import evaluate
+from smm_analysis.runs.recorded import load_run, stamps_per_topic
 from smm_analysis.scenarios import get_scenario
-from smm_bag.analysis import evaluate
-from smm_bag.commands import AnalyzeOptions, analyze
 from smm_bag.errors import BagError
 from smm_bag.manifest import RunManifest
 from smm_bag.metadata import read_metadata
-from smm_bag.recorded import load_run, stamps_per_topic
 
 from smm_bringup.graph import CHAIN_LAYOUTS, NAMESPACE, REFERENCE_PLACEMENTS, SIM_NODE, GraphOptions
 from smm_bringup.launcher import arguments_from_options

@@ -16,7 +16,6 @@ __all__ = [
     "as_joint_vector",
     "as_reference",
     "check_dt",
-    "check_grid_points",
     "check_instance",
     "check_pair",
     "check_scalar",
@@ -28,12 +27,6 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 InstanceT = TypeVar("InstanceT")
-
-
-def check_grid_points(value: Any) -> None:
-    """The defuzzification grid needs at least 3 points (an integer)."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < 3:
-        raise ValueError(f"grid_points must be an integer >= 3, got {value!r}")
 
 
 def check_instance(name: str, value: object, expected: type[InstanceT]) -> InstanceT:

@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+
+from smm_dynamics.validation import above, at_least, check_bounds
 
 from smm_controller._validation import (
     FloatArray,
     check_instance,
-    check_pair,
     internals_view,
 )
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
@@ -54,20 +55,15 @@ class PIDConfig:
             clamped, integration that would push it further is suspended.
     """
 
-    kp: tuple[float, float] = (10.0, 50.0)
-    ki: tuple[float, float] = (0.9, 3.0)
-    kd: tuple[float, float] = (1.5, 0.5)
-    derivative_filter: tuple[float, float] = (500.0, 1456.0)
-    integrator_limit: tuple[float, float] = (math.inf, math.inf)
-    output_limit: tuple[float, float] = (math.inf, math.inf)
+    kp: tuple[float, float] = field(default=(10.0, 50.0), metadata=at_least(0.0))
+    ki: tuple[float, float] = field(default=(0.9, 3.0), metadata=at_least(0.0))
+    kd: tuple[float, float] = field(default=(1.5, 0.5), metadata=at_least(0.0))
+    derivative_filter: tuple[float, float] = field(default=(500.0, 1456.0), metadata=above(0.0))
+    integrator_limit: tuple[float, float] = field(default=(math.inf, math.inf), metadata=above(0.0, inf=True))
+    output_limit: tuple[float, float] = field(default=(math.inf, math.inf), metadata=above(0.0, inf=True))
 
     def __post_init__(self) -> None:
-        check_pair("kp", self.kp, non_negative=True)
-        check_pair("ki", self.ki, non_negative=True)
-        check_pair("kd", self.kd, non_negative=True)
-        check_pair("derivative_filter", self.derivative_filter, positive=True)
-        check_pair("integrator_limit", self.integrator_limit, positive=True, allow_inf=True)
-        check_pair("output_limit", self.output_limit, positive=True, allow_inf=True)
+        check_bounds(self)
 
 
 def _clamp(x: float, limit: float) -> float:
@@ -193,16 +189,15 @@ class NPDConfig:
         rho_d: Nonlinearity exponent of the D term, > 0 (1 = linear).
     """
 
-    k_np: tuple[float, float] = (29.0, 20.0)
-    k_nd: tuple[float, float] = (0.8, 0.5)
-    delta_p: tuple[float, float] = (0.1, 0.1)
-    delta_d: tuple[float, float] = (0.1, 0.2)
-    rho_p: tuple[float, float] = (1.2, 0.6)
-    rho_d: tuple[float, float] = (1.1, 0.8)
+    k_np: tuple[float, float] = field(default=(29.0, 20.0), metadata=above(0.0))
+    k_nd: tuple[float, float] = field(default=(0.8, 0.5), metadata=above(0.0))
+    delta_p: tuple[float, float] = field(default=(0.1, 0.1), metadata=above(0.0))
+    delta_d: tuple[float, float] = field(default=(0.1, 0.2), metadata=above(0.0))
+    rho_p: tuple[float, float] = field(default=(1.2, 0.6), metadata=above(0.0))
+    rho_d: tuple[float, float] = field(default=(1.1, 0.8), metadata=above(0.0))
 
     def __post_init__(self) -> None:
-        for name in ("k_np", "k_nd", "delta_p", "delta_d", "rho_p", "rho_d"):
-            check_pair(name, getattr(self, name), positive=True)
+        check_bounds(self)
 
 
 def npd_gain(x: float, coefficient: float, threshold: float, exponent: float) -> float:

@@ -35,6 +35,7 @@ __all__ = [
     "CONTROLLER_NAMES",
     "ControlChain",
     "JointController",
+    "limited_torque",
     "make_chain",
     "make_controller",
     "stage_internals",
@@ -54,6 +55,23 @@ def stage_internals(stage: str, internals: Mapping[str, FloatArray]) -> dict[str
     One labelling for the offline loop and every node layout, so a row means the same in every bag.
     """
     return {f"{stage}.{key}": value for key, value in internals.items()}
+
+
+def limited_torque(
+    controller: TorqueLaw,
+    limiter: OutputLimiter,
+    reference: Sequence[Sequence[float]],
+    q: tuple[float, float],
+    q_dot: tuple[float, float],
+    *,
+    disturbance: tuple[float, float],
+    dt: float,
+) -> tuple[float, float]:
+    """Step 4 of the chain: the law's torque (N m) through the output limits, the law told what was cut."""
+    tau = controller.step_floats(reference, q, q_dot, disturbance, dt)
+    limited = limiter.limit_floats(tau, dt)
+    track_saturation(controller, tau, limited, dt)
+    return limited
 
 
 class ControlChain:
@@ -134,10 +152,9 @@ class ControlChain:
             if self.controller.velocity_source == "observer":
                 raise ValueError("the law's velocity_source is 'observer' but the chain has no FLESO")
         self._disturbance = disturbance
-        tau = self.controller.step_floats(reference, (q0, q1), (qd0, qd1), disturbance, dt)
-        limited = self.limiter.limit_floats(tau, dt)
-        track_saturation(self.controller, tau, limited, dt)
-        return limited
+        return limited_torque(
+            self.controller, self.limiter, reference, (q0, q1), (qd0, qd1), disturbance=disturbance, dt=dt
+        )
 
     @property
     def internals(self) -> Mapping[str, FloatArray]:

@@ -38,16 +38,16 @@ command, while something (a recorder) listens. See ``docs/NODES.md``.
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, Final, Generic, TypeVar, Unpack
 
 import numpy as np
 import numpy.typing as npt
 from sensor_msgs.msg import JointState
+from smm_dynamics.validation import at_least, check_bounds
 from smm_msgs_py.conversions import (
     internals_to_msg,
     joint_state_to_sample,
@@ -70,7 +70,13 @@ from smm_controller.baselines import (
     PIDConfig,
     PIDController,
 )
-from smm_controller.chain import CONTROLLER_NAMES, ControlChain, JointController, stage_internals
+from smm_controller.chain import (
+    CONTROLLER_NAMES,
+    ControlChain,
+    JointController,
+    limited_torque,
+    stage_internals,
+)
 from smm_controller.fleso import FLESO, FLESOConfig
 from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
@@ -79,7 +85,6 @@ from smm_controller.limits import (
     OutputLimitConfig,
     OutputLimiter,
     PlausibilityCheck,
-    track_saturation,
 )
 from smm_controller.reference_node import ReferenceClock, ReferenceParameters
 from smm_controller.sync import ExactTimeSynchronizer, Matched
@@ -144,15 +149,12 @@ class ControllerSelection:
     """
 
     algorithm: str = "fpdeso"
-    switch_idle_time: float = DEFAULT_SWITCH_IDLE_TIME
+    switch_idle_time: float = field(default=DEFAULT_SWITCH_IDLE_TIME, metadata=at_least(0.0))
 
     def __post_init__(self) -> None:
         if self.algorithm not in CONTROLLER_NAMES:
             raise ValueError(f"algorithm must be one of {CONTROLLER_NAMES}, got {self.algorithm!r}")
-        if not (math.isfinite(self.switch_idle_time) and self.switch_idle_time >= 0.0):
-            raise ValueError(
-                f"switch_idle_time must be a finite number >= 0 s, got {self.switch_idle_time!r}"
-            )
+        check_bounds(self)
 
 
 @dataclass(frozen=True)
@@ -488,12 +490,16 @@ class ControllerNode(MeasurementDrivenNode):
         xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
         observer = estimate is not None and self.controller.velocity_source == "observer"
         velocity = estimate.values[1] if estimate is not None and observer else filtered.velocity
-        law_tau = self.controller.step(
-            np.array(reference), filtered.position, velocity, xi, self.control_period
+        # The conversions validated shapes and finiteness: step 4 of the chain, on floats.
+        limited = limited_torque(
+            self.controller,
+            self.limiter,
+            reference,
+            (float(filtered.position[0]), float(filtered.position[1])),
+            (float(velocity[0]), float(velocity[1])),
+            disturbance=(float(xi[0]), float(xi[1])),
+            dt=self.control_period,
         )
-        unlimited = (float(law_tau[0]), float(law_tau[1]))
-        limited = self.limiter.limit_floats(unlimited, self.control_period)
-        track_saturation(self.controller, unlimited, limited, self.control_period)
         return [(self._torque_publisher, torque_to_msg(np.array(limited), matched.stamp_ns))]
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:

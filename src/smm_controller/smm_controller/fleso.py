@@ -34,18 +34,17 @@ from __future__ import annotations
 
 import types
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from smm_dynamics.validation import above, at_least, check_bounds
 
 from smm_controller._validation import (
     FloatArray,
     as_joint_vector,
     check_dt,
-    check_grid_points,
     check_instance,
-    check_pair,
     readonly_copies,
 )
 from smm_controller.fuzzy import MamdaniBatch
@@ -73,20 +72,15 @@ class FLESOConfig:
         grid_points: Defuzzification grid size over [-1, 1], integer >= 3.
     """
 
-    w0: tuple[float, float] = (20.0, 28.0)
-    k_w: tuple[float, float] = (11.0, 20.0)
-    k_s1: tuple[float, float] = (3.0, 5.0)
-    k_s2: tuple[float, float] = (1.15, 0.98)
-    w_min: tuple[float, float] = DEFAULT_FLESO_W_MIN
-    grid_points: int = 201
+    w0: tuple[float, float] = field(default=(20.0, 28.0), metadata=above(0.0))
+    k_w: tuple[float, float] = field(default=(11.0, 20.0), metadata=at_least(0.0))
+    k_s1: tuple[float, float] = field(default=(3.0, 5.0), metadata=at_least(0.0))
+    k_s2: tuple[float, float] = field(default=(1.15, 0.98), metadata=at_least(0.0))
+    w_min: tuple[float, float] = field(default=DEFAULT_FLESO_W_MIN, metadata=above(0.0))
+    grid_points: int = field(default=201, metadata=at_least(3))
 
     def __post_init__(self) -> None:
-        check_pair("w0", self.w0, positive=True)
-        check_pair("k_w", self.k_w, non_negative=True)
-        check_pair("k_s1", self.k_s1, non_negative=True)
-        check_pair("k_s2", self.k_s2, non_negative=True)
-        check_pair("w_min", self.w_min, positive=True)
-        check_grid_points(self.grid_points)
+        check_bounds(self)
 
 
 def _clip_unit(x: float) -> float:

@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+
+from smm_dynamics.validation import at_least, check_bounds
 
 from smm_controller._validation import (
     FloatArray,
     check_instance,
-    check_pair,
     internals_view,
 )
 from smm_controller.fuzzy_pd import PAPER_FPDESO_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
@@ -49,15 +50,14 @@ class FPDESOConfig:
     """
 
     fuzzy: FuzzyPDConfig = PAPER_FPDESO_FUZZY
-    robust_gain: tuple[float, float] = (0.03 * math.pi, 0.02 * math.pi)
-    boundary_layer: tuple[float, float] = (0.0, 0.0)
+    robust_gain: tuple[float, float] = field(default=(0.03 * math.pi, 0.02 * math.pi), metadata=at_least(0.0))
+    boundary_layer: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
     velocity_source: str = "observer"
 
     def __post_init__(self) -> None:
         if not isinstance(self.fuzzy, FuzzyPDConfig):
             raise ValueError(f"fuzzy must be a FuzzyPDConfig, got {self.fuzzy!r}")
-        check_pair("robust_gain", self.robust_gain, non_negative=True)
-        check_pair("boundary_layer", self.boundary_layer, non_negative=True)
+        check_bounds(self)
         if self.velocity_source not in VELOCITY_SOURCES:
             raise ValueError(
                 f"velocity_source must be one of {VELOCITY_SOURCES}, got {self.velocity_source!r}"

@@ -14,17 +14,16 @@ two outputs) are aggregated and defuzzified in one vectorised pass.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from smm_dynamics.validation import above, at_least, check_bounds
 
 from smm_controller._validation import (
     FloatArray,
     as_joint_vector,
-    check_grid_points,
     check_instance,
-    check_pair,
     internals_view,
 )
 from smm_controller.fuzzy import MamdaniBatch
@@ -55,22 +54,16 @@ class FuzzyPDConfig:
     proof of Section IV needs positive definite K_p and K_d).
     """
 
-    k_e: tuple[float, float] = (2.0, 6.0)
-    k_de: tuple[float, float] = (5.0, 2.0)
-    k1: tuple[float, float] = (10.0, 13.0)
-    k2: tuple[float, float] = (0.5, 0.9)
-    kp0: tuple[float, float] = (4050.0, 4150.0)
-    kd0: tuple[float, float] = (110.0, 90.0)
-    grid_points: int = 201
+    k_e: tuple[float, float] = field(default=(2.0, 6.0), metadata=above(0.0))
+    k_de: tuple[float, float] = field(default=(5.0, 2.0), metadata=above(0.0))
+    k1: tuple[float, float] = field(default=(10.0, 13.0), metadata=at_least(0.0))
+    k2: tuple[float, float] = field(default=(0.5, 0.9), metadata=at_least(0.0))
+    kp0: tuple[float, float] = field(default=(4050.0, 4150.0), metadata=above(0.0))
+    kd0: tuple[float, float] = field(default=(110.0, 90.0), metadata=above(0.0))
+    grid_points: int = field(default=201, metadata=at_least(3))
 
     def __post_init__(self) -> None:
-        check_pair("k_e", self.k_e, positive=True)
-        check_pair("k_de", self.k_de, positive=True)
-        check_pair("k1", self.k1, non_negative=True)
-        check_pair("k2", self.k2, non_negative=True)
-        check_pair("kp0", self.kp0, positive=True)
-        check_pair("kd0", self.kd0, positive=True)
-        check_grid_points(self.grid_points)
+        check_bounds(self)
         for scale_name, scale, base_name, base in (
             ("k1", self.k1, "kp0", self.kp0),
             ("k2", self.k2, "kd0", self.kd0),

@@ -7,10 +7,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Final, Protocol, runtime_checkable
 
-from smm_controller._validation import FloatArray, check_instance, check_pair, internals_view
+from smm_dynamics.validation import above, check_bounds
+
+from smm_controller._validation import FloatArray, check_instance, internals_view
 
 __all__ = [
     "DEFAULT_MAX_SPEED",
@@ -54,12 +56,11 @@ class MeasurementLimits:
             move at most this times the time between their stamps (at least one control period).
     """
 
-    position_limit: tuple[float, float] = DEFAULT_POSITION_LIMIT
-    max_speed: tuple[float, float] = DEFAULT_MAX_SPEED
+    position_limit: tuple[float, float] = field(default=DEFAULT_POSITION_LIMIT, metadata=above(0.0))
+    max_speed: tuple[float, float] = field(default=DEFAULT_MAX_SPEED, metadata=above(0.0))
 
     def __post_init__(self) -> None:
-        check_pair("position_limit", self.position_limit, positive=True)
-        check_pair("max_speed", self.max_speed, positive=True)
+        check_bounds(self)
 
 
 class PlausibilityCheck:
@@ -131,12 +132,11 @@ class OutputLimitConfig:
         rate_limit: Largest change of the torque per second (alpha, beta) (N m/s), > 0; inf = none (default).
     """
 
-    torque_limit: tuple[float, float] = DEFAULT_TORQUE_LIMIT
-    rate_limit: tuple[float, float] = (math.inf, math.inf)
+    torque_limit: tuple[float, float] = field(default=DEFAULT_TORQUE_LIMIT, metadata=above(0.0, inf=True))
+    rate_limit: tuple[float, float] = field(default=(math.inf, math.inf), metadata=above(0.0, inf=True))
 
     def __post_init__(self) -> None:
-        check_pair("torque_limit", self.torque_limit, positive=True, allow_inf=True)
-        check_pair("rate_limit", self.rate_limit, positive=True, allow_inf=True)
+        check_bounds(self)
 
 
 @runtime_checkable

@@ -7,13 +7,14 @@ Every generator returns, for a time t (s), an array of shape (3, 2): rows positi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
+from smm_dynamics.validation import above, at_least, check_bounds, no_range
 
-from smm_controller._validation import FloatArray, check_pair, check_scalar
+from smm_controller._validation import FloatArray, check_scalar
 
 __all__ = [
     "REFERENCE_KINDS",
@@ -90,12 +91,11 @@ class StepReference(_Sampled):
         start_time: Time of the step (s), finite, >= 0.
     """
 
-    amplitude: tuple[float, float] = (1.0, 0.785)
-    start_time: float = 0.0
+    amplitude: tuple[float, float] = field(default=(1.0, 0.785), metadata=no_range())
+    start_time: float = field(default=0.0, metadata=at_least(0.0))
 
     def __post_init__(self) -> None:
-        check_pair("amplitude", self.amplitude)
-        check_scalar("start_time", self.start_time, non_negative=True)
+        check_bounds(self)
 
     def rows(self, t: float) -> Rows:
         """Position (rad), velocity (rad/s), acceleration (rad/s^2) at time t (s), as float pairs."""
@@ -113,14 +113,12 @@ class SineReference(_Sampled):
         phase: Per joint (rad), finite.
     """
 
-    amplitude: tuple[float, float] = (1.0, 0.785)
-    angular_frequency: float = math.pi
-    phase: tuple[float, float] = (0.0, 0.0)
+    amplitude: tuple[float, float] = field(default=(1.0, 0.785), metadata=no_range())
+    angular_frequency: float = field(default=math.pi, metadata=above(0.0))
+    phase: tuple[float, float] = field(default=(0.0, 0.0), metadata=no_range())
 
     def __post_init__(self) -> None:
-        check_pair("amplitude", self.amplitude)
-        check_scalar("angular_frequency", self.angular_frequency, positive=True)
-        check_pair("phase", self.phase)
+        check_bounds(self)
 
     def rows(self, t: float) -> Rows:
         """Position (rad), velocity (rad/s), acceleration (rad/s^2) at time t (s), as float pairs."""
@@ -152,17 +150,14 @@ class RampHoldReference(_Sampled):
         profile: "linear" or "quintic".
     """
 
-    target: tuple[float, float] = (1.0, 0.785)
-    ramp_time: float = 1.0
-    start_time: float = 0.0
-    initial: tuple[float, float] = (0.0, 0.0)
+    target: tuple[float, float] = field(default=(1.0, 0.785), metadata=no_range())
+    ramp_time: float = field(default=1.0, metadata=above(0.0))
+    start_time: float = field(default=0.0, metadata=at_least(0.0))
+    initial: tuple[float, float] = field(default=(0.0, 0.0), metadata=no_range())
     profile: str = "quintic"
 
     def __post_init__(self) -> None:
-        check_pair("target", self.target)
-        check_scalar("ramp_time", self.ramp_time, positive=True)
-        check_scalar("start_time", self.start_time, non_negative=True)
-        check_pair("initial", self.initial)
+        check_bounds(self)
         if self.profile not in ("linear", "quintic"):
             raise ValueError(f"profile must be 'linear' or 'quintic', got {self.profile!r}")
 

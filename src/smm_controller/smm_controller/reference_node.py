@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Unpack
 
 import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from smm_dynamics.validation import at_least, check_bounds
 from smm_msgs_py.conversions import (
     NANOSECONDS_PER_SECOND,
     internals_to_msg,
@@ -86,12 +87,10 @@ class ReferenceLookahead:
             controller) in every step; 1 (default) publishes it one step early.
     """
 
-    lookahead: int = DEFAULT_LOOKAHEAD
+    lookahead: int = field(default=DEFAULT_LOOKAHEAD, metadata=at_least(0))
 
     def __post_init__(self) -> None:
-        value = self.lookahead
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise ValueError(f"lookahead must be an int >= 0 control periods, got {value!r}")
+        check_bounds(self)
 
 
 class ReferenceParameters:

@@ -33,17 +33,17 @@ from __future__ import annotations
 import math
 import types
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from smm_dynamics.validation import above, check_bounds
 
 from smm_controller._validation import (
     FloatArray,
     as_joint_vector,
     check_dt,
     check_instance,
-    check_pair,
     readonly_copies,
 )
 
@@ -78,12 +78,11 @@ class TrackingDifferentiatorConfig:
         filter_factor: h, the filter factor (s), > 0; must also be >= dt at run time.
     """
 
-    speed: tuple[float, float] = DEFAULT_TD_SPEED
-    filter_factor: tuple[float, float] = DEFAULT_TD_FILTER_FACTOR
+    speed: tuple[float, float] = field(default=DEFAULT_TD_SPEED, metadata=above(0.0))
+    filter_factor: tuple[float, float] = field(default=DEFAULT_TD_FILTER_FACTOR, metadata=above(0.0))
 
     def __post_init__(self) -> None:
-        check_pair("speed", self.speed, positive=True)
-        check_pair("filter_factor", self.filter_factor, positive=True)
+        check_bounds(self)
 
 
 def fhan(x1: float, x2: float, r: float, h0: float) -> float:

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from smm_dynamics.validation import check_pair
+from smm_dynamics.validation import above, at_least, bounds, check_bounds
 
 __all__ = ["TABLE2_BODIES", "BodyData", "SMMParameters"]
 
@@ -88,36 +88,20 @@ class SMMParameters:
         link_length: Distance L from the sphere centre to the end effector (m), > 0.
     """
 
-    I11: float = _DEFAULT_TRANSVERSE_INERTIA
-    I22: float = _DEFAULT_TRANSVERSE_INERTIA
-    I44: float = _DEFAULT_TRANSVERSE_INERTIA
-    I55: float = _DEFAULT_AXIAL_INERTIA
-    mass_lever: float = _DEFAULT_MASS_LEVER
-    gravity: float = 9.81
-    gravity_sign: float = 1.0
-    viscous_friction: tuple[float, float] = (0.1, 0.1)
-    link_length: float = 0.1
+    I11: float = field(default=_DEFAULT_TRANSVERSE_INERTIA, metadata=above(0.0))
+    I22: float = field(default=_DEFAULT_TRANSVERSE_INERTIA, metadata=above(0.0))
+    I44: float = field(default=_DEFAULT_TRANSVERSE_INERTIA, metadata=above(0.0))
+    I55: float = field(default=_DEFAULT_AXIAL_INERTIA, metadata=above(0.0))
+    mass_lever: float = field(default=_DEFAULT_MASS_LEVER, metadata=at_least(0.0))
+    gravity: float = field(default=9.81, metadata=at_least(0.0))
+    gravity_sign: float = field(default=1.0, metadata=bounds(-1.0, 1.0))
+    viscous_friction: tuple[float, float] = field(default=(0.1, 0.1), metadata=at_least(0.0))
+    link_length: float = field(default=0.1, metadata=above(0.0))
 
     def __post_init__(self) -> None:
-        for name in ("I11", "I22", "I44", "I55"):
-            value = getattr(self, name)
-            _require_finite(name, value)
-            if value <= 0.0:
-                raise ValueError(f"{name} must be > 0 kg m^2, got {value!r}")
-        _require_finite("mass_lever", self.mass_lever)
-        if self.mass_lever < 0.0:
-            raise ValueError(
-                f"mass_lever must be >= 0 kg m (use gravity_sign for direction), got {self.mass_lever!r}"
-            )
-        _require_finite("gravity", self.gravity)
-        if self.gravity < 0.0:
-            raise ValueError(f"gravity must be >= 0 m/s^2, got {self.gravity!r}")
+        check_bounds(self)
         if self.gravity_sign not in (-1.0, 1.0) or isinstance(self.gravity_sign, bool):
             raise ValueError(f"gravity_sign must be +1.0 or -1.0, got {self.gravity_sign!r}")
-        check_pair("viscous_friction", self.viscous_friction, non_negative=True)
-        _require_finite("link_length", self.link_length)
-        if self.link_length <= 0.0:
-            raise ValueError(f"link_length must be > 0 m, got {self.link_length!r}")
 
     @classmethod
     def from_table2(cls, bodies: tuple[BodyData, ...] = TABLE2_BODIES, **overrides: float) -> SMMParameters:

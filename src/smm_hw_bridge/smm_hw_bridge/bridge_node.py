@@ -44,6 +44,7 @@ from smm_node_runtime import (
     Health,
     Level,
     NodeOptions,
+    bounds,
     node_arguments,
     node_main,
 )
@@ -53,26 +54,6 @@ __all__ = ["INTERNALS_TOPIC", "NODE_NAME", "HwBridgeNode", "LinkConfig", "main"]
 NODE_NAME: Final[str] = "hw_bridge_node"
 INTERNALS_TOPIC: Final[str] = topics.HW_BRIDGE_INTERNALS
 _FAULT_CHECK_S: Final[float] = 0.005
-_LINK_RANGES: Final[dict[str, tuple[float, float]]] = {
-    "bind_port": (0, 65535),
-    "board_port": (1, 65535),
-    "baudrate": (1, 100_000_000),
-    "configure_timeout": (0.001, 600.0),
-}
-_BRIDGE_RANGES: Final[dict[str, tuple[float, float]]] = {
-    "encoder.counter_bits": (8, 32),
-    "valve.deadband_blend": (1e-3, 32767.0),
-    "admission.period_ns": (1, 1_000_000_000),
-    "admission.stale_ns": (1, 60_000_000_000),
-    "admission.drift_ppm": (0.0, 1e5),
-    "host_watchdog_ns": (1, 10_000_000_000),
-    "stale_periods": (1, 65535),
-    "validity_ticks": (1, 65535),
-    "link_timeout_ns": (1, 60_000_000_000),
-    "reboot_frames": (1, 1000),
-    "supply_bar_per_code": (1e-9, 1e3),
-}
-"""ROS ranges of the scalar parameters (the config dataclasses check the rest, and these again)."""
 
 
 @dataclass(frozen=True)
@@ -92,12 +73,12 @@ class LinkConfig:
 
     transport: Literal["udp", "serial"] = "udp"
     bind_address: str = "127.0.0.1"
-    bind_port: int = 50100
+    bind_port: int = field(default=50100, metadata=bounds(0, 65535))
     board_address: str = "127.0.0.1"
-    board_port: int = 50101
+    board_port: int = field(default=50101, metadata=bounds(1, 65535))
     serial_port: str = ""
-    baudrate: int = 921_600
-    configure_timeout: float = 2.0
+    baudrate: int = field(default=921_600, metadata=bounds(1, 100_000_000))
+    configure_timeout: float = field(default=2.0, metadata=bounds(0.001, 600.0))
 
     def __post_init__(self) -> None:
         if self.transport not in ("udp", "serial"):
@@ -146,8 +127,8 @@ class HwBridgeNode(LifecycleNode):
         name, arguments = node_arguments(NODE_NAME, options)
         super().__init__(name, **arguments)
         try:
-            self._link = ConfigParameters(self, "link", LinkConfig(), ranges=_LINK_RANGES)
-            self._bridge = ConfigParameters(self, "bridge", BridgeConfig(), ranges=_BRIDGE_RANGES)
+            self._link = ConfigParameters(self, "link", LinkConfig())
+            self._bridge = ConfigParameters(self, "bridge", BridgeConfig())
         except ValueError:
             self.destroy_node()
             raise

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import check_pair, check_scalar
+from smm_dynamics.validation import above, bounds, check_pair, check_scalar
 
 from smm_hw_bridge.encoder import EncoderConfig, EncoderDecoder
 from smm_hw_bridge.link import AdmissionConfig, FeedbackAdmission, LinkStats
@@ -93,13 +93,13 @@ class BridgeConfig:
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
     valve: ValveOutputConfig = field(default_factory=ValveOutputConfig)
     admission: AdmissionConfig = field(default_factory=AdmissionConfig)
-    host_watchdog_ns: int = 10_000_000
-    stale_periods: int = 5
-    validity_ticks: int = 10
-    soft_limits: tuple[float, float] = (1.2, 1.2)
-    link_timeout_ns: int = 100_000_000
-    reboot_frames: int = 3
-    supply_bar_per_code: float = 25.0 / 4095.0
+    host_watchdog_ns: int = field(default=10_000_000, metadata=bounds(1, 10_000_000_000))
+    stale_periods: int = field(default=5, metadata=bounds(1, 65535))
+    validity_ticks: int = field(default=10, metadata=bounds(1, 65535))
+    soft_limits: tuple[float, float] = field(default=(1.2, 1.2), metadata=above(0.0))
+    link_timeout_ns: int = field(default=100_000_000, metadata=bounds(1, 60_000_000_000))
+    reboot_frames: int = field(default=3, metadata=bounds(1, 1000))
+    supply_bar_per_code: float = field(default=25.0 / 4095.0, metadata=bounds(1e-9, 1e3))
     lockstep: bool = False
 
     def __post_init__(self) -> None:

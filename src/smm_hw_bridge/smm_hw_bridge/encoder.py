@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from smm_dynamics.validation import bounds
 
 __all__ = ["EncoderConfig", "EncoderDecoder"]
 
@@ -33,10 +34,10 @@ class EncoderConfig:
         counter_bits: Width of the board's counters, in [8, 32]; they wrap modulo 2**counter_bits.
     """
 
-    counts_per_rev: tuple[int, int] = (1 << 20, 1 << 20)
-    zero_offset: tuple[int, int] = (0, 0)
-    direction: tuple[int, int] = (1, 1)
-    counter_bits: int = 32
+    counts_per_rev: tuple[int, int] = field(default=(1 << 20, 1 << 20), metadata=bounds(1, 1 << 31))
+    zero_offset: tuple[int, int] = field(default=(0, 0), metadata=bounds(0, (1 << 32) - 1))
+    direction: tuple[int, int] = field(default=(1, 1), metadata=bounds(-1, 1))
+    counter_bits: int = field(default=32, metadata=bounds(8, 32))
 
     def __post_init__(self) -> None:
         bits = self.counter_bits

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from smm_dynamics.validation import bounds
 
 from smm_hw_bridge.protocol import FeedbackFrame, Reason, u32_diff
 
@@ -29,9 +30,9 @@ class AdmissionConfig:
         drift_ppm: Allowed drift between host and board clocks (parts per million), >= 0.
     """
 
-    period_ns: int = 1_000_000
-    stale_ns: int = 20_000_000
-    drift_ppm: float = 200.0
+    period_ns: int = field(default=1_000_000, metadata=bounds(1, 1_000_000_000))
+    stale_ns: int = field(default=20_000_000, metadata=bounds(1, 60_000_000_000))
+    drift_ppm: float = field(default=200.0, metadata=bounds(0.0, 1e5, high_open=True))
 
     def __post_init__(self) -> None:
         for name in ("period_ns", "stale_ns"):

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import check_pair, check_scalar
+from smm_dynamics.validation import above, at_least, bounds, check_pair, check_scalar
 from smm_dynamics.valve import (
     PAPER_VALVE_RESPONSE_TIMES,
     valve_lag_step,
@@ -45,14 +45,16 @@ class ValveOutputConfig:
             give (the board cannot measure it). Default: the paper's valve (SPEC section 2).
     """
 
-    gain: tuple[float, float] = (CODE_MAX / 10.0, CODE_MAX / 10.0)
-    polarity: tuple[int, int] = (1, 1)
-    deadband: tuple[float, float] = (0.0, 0.0)
-    deadband_blend: float = 50.0
-    code_limit: tuple[int, int] = (CODE_MAX, CODE_MAX)
-    rate_limit: tuple[float, float] = (CODE_MAX / 0.002, CODE_MAX / 0.002)
-    time_constants: tuple[float, float] = valve_time_constants_from_response_times(
-        *PAPER_VALVE_RESPONSE_TIMES
+    gain: tuple[float, float] = field(default=(CODE_MAX / 10.0, CODE_MAX / 10.0), metadata=above(0.0))
+    polarity: tuple[int, int] = field(default=(1, 1), metadata=bounds(-1, 1))
+    deadband: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
+    deadband_blend: float = field(default=50.0, metadata=bounds(1e-3, 32767.0))
+    code_limit: tuple[int, int] = field(default=(CODE_MAX, CODE_MAX), metadata=bounds(1, CODE_MAX))
+    rate_limit: tuple[float, float] = field(
+        default=(CODE_MAX / 0.002, CODE_MAX / 0.002), metadata=above(0.0, inf=True)
+    )
+    time_constants: tuple[float, float] = field(
+        default=valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES), metadata=at_least(0.0)
     )
 
     def __post_init__(self) -> None:

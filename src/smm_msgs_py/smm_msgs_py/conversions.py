@@ -1,22 +1,8 @@
 """Message <-> numpy conversions of the SMM interface, validating both ways.
 
-Stamp rule (see ``docs/INTERFACES.md``): ``Float64MultiArray`` has no header, so every one we publish ends
-with a size-1 dimension labelled ``stamp_ns:<int>``: the integer nanoseconds since the epoch of the
-``header.stamp`` of the measurement it answers (simulation time in lockstep). The other dimensions are
-labelled ``<dimname>:<comma-separated item names>`` with ROS strides (``dim[i].stride`` = product of the
-sizes of ``dim[i:]``) and ``data_offset == 0``, so the product of the sizes equals ``len(data)`` and generic
-consumers see a plain 2-vector or (n, 2) array.
-
-Converting to a message validates (shape, NaN/Inf, stamp) so that no bad value is ever published; converting
-from a message validates everything and raises an :class:`~smm_msgs_py.errors.InterfaceError` subclass.
-
-Speed: the lockstep graph runs about 12 conversions per 1 kHz step in one process, so each must cost a few
-microseconds. The layout of every row-label set is computed and validated once (cached), finiteness is
-checked with ``math.isfinite`` over the few values as Python floats, float64 numpy inputs take a path
-without generic conversions (anything else goes through the generic checked conversion, which also builds
-the exact error), and the result dataclasses are built directly from arrays validated and frozen here
-instead of being validated and copied a second time. Message objects are never shared or reused between
-messages: subscribers and tests may mutate a message they hold.
+Layout and stamp rule (``stamp_ns:<int>`` as the last dimension): docs/INTERFACES.md. Converting to a
+message validates shape, NaN/Inf and stamp; converting from one raises an
+:class:`~smm_msgs_py.errors.InterfaceError` subclass.
 """
 
 from __future__ import annotations

@@ -1,24 +1,6 @@
-"""QoS profile of each topic, and why (docs/INTERFACES.md, QoS).
+"""QoS profile of each topic (why: docs/INTERFACES.md, "Depths and durability").
 
-All topics are RELIABLE + KEEP_LAST. Publishers offer TRANSIENT_LOCAL with a deep history, the loop's
-subscriptions request VOLATILE with a shallow one.
-
-* RELIABLE because in lockstep every node waits for the sample stamped with the current step, so a lost
-  sample would stall the step, and on the bench a node must never act on a stream with holes. VOLATILE
-  because a late joiner must not act on old measurements or commands.
-* Publishers keep 1000 samples (1 s at 1 kHz): a reader that stalls (a recorder writing to disk, or
-  descheduled on a loaded host) gets every sample re-sent instead of losing those the writer overwrote.
-  A deep writer history never makes a reader act on old data: what a reader holds is its own depth.
-  They offer TRANSIENT_LOCAL so that a TRANSIENT_LOCAL reader (the recorder) that matches a writer late
-  still gets the samples sent before (up to the depth); a VOLATILE reader (every node of the loop, the
-  rclpy time source) gets nothing old from it.
-* The loop's subscriptions to the control chain (``joint_states``, ``joint_states_filtered``,
-  ``reference``, ``torque_command``, ``disturbance_estimate``) and ``/clock`` keep 10 (10 ms at 1 kHz):
-  a burst of jitter is absorbed, but a stalled node works through at most 10 ms of backlog, never a
-  second of stale measurements or commands. Subscriptions to the diagnostics (``ground_truth``,
-  ``observer_state``, ``controller_internals``) keep 100: nothing in the loop reads them.
-* rclpy's own time source subscribes ``/clock`` BEST_EFFORT depth 1, which a RELIABLE publisher serves;
-  lockstep correctness never depends on /clock delivery because every message carries its own stamp.
+RELIABLE + KEEP_LAST everywhere; deep TRANSIENT_LOCAL publishers, shallow VOLATILE subscriptions.
 """
 
 from typing import Final

@@ -1,49 +1,126 @@
-"""What every SMM node runs on: process main, executor, node base classes, parameters, ``/diagnostics``."""
+"""What every SMM node runs on: process main, executor, node base classes, parameters, ``/diagnostics``.
 
-from smm_node_runtime.diagnostics import CountWindows, DiagnosticsPublisher, Health, Level, level_for, worst
-from smm_node_runtime.measurement import (
-    COUNTER_ROWS,
-    DEFAULT_CONTROL_PERIOD,
-    REFUSED,
-    STAMP_PREFIX,
-    WARN_COUNTERS,
-    WARN_THROTTLE_S,
-    Admission,
-    ControlPeriodConfig,
-    InputCounters,
-    MeasurementDrivenNode,
-    Output,
-    StampGate,
-    StampPolicy,
-    values_of,
-)
-from smm_node_runtime.node import (
-    NodeOptions,
-    ParameterOverrides,
-    SmmNode,
-    as_parameter_list,
-    node_arguments,
-    wait_for_delivery,
-)
-from smm_node_runtime.parameters import (
-    ConfigParameters,
-    bounds,
-    check_bounds,
-    config_fields,
-    parameter_name,
-)
-from smm_node_runtime.process import (
-    EXIT_INVALID_PARAMETER,
-    EXIT_OK,
-    SPIN_POLL_S,
-    NodeFactory,
-    ensure_localhost_discovery,
-    make_executor,
-    node_main,
-    run_node,
-    run_nodes,
-    spin_until_shutdown,
-)
+Names load on first use, so the pure modules (``schema``) import without rclpy.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from smm_node_runtime.diagnostics import (
+        CountWindows,
+        DiagnosticsPublisher,
+        Health,
+        Level,
+        level_for,
+        worst,
+    )
+    from smm_node_runtime.measurement import (
+        COUNTER_ROWS,
+        DEFAULT_CONTROL_PERIOD,
+        REFUSED,
+        STAMP_PREFIX,
+        WARN_COUNTERS,
+        WARN_THROTTLE_S,
+        Admission,
+        ControlPeriodConfig,
+        InputCounters,
+        MeasurementDrivenNode,
+        Output,
+        StampGate,
+        StampPolicy,
+        values_of,
+    )
+    from smm_node_runtime.node import (
+        NodeOptions,
+        ParameterOverrides,
+        SmmNode,
+        as_parameter_list,
+        node_arguments,
+        wait_for_delivery,
+    )
+    from smm_node_runtime.parameters import (
+        ConfigParameters,
+        above,
+        at_least,
+        bounds,
+        check_bounds,
+        config_fields,
+        no_range,
+        parameter_name,
+    )
+    from smm_node_runtime.process import (
+        EXIT_INVALID_PARAMETER,
+        EXIT_OK,
+        SPIN_POLL_S,
+        NodeFactory,
+        ensure_localhost_discovery,
+        make_executor,
+        node_main,
+        run_node,
+        run_nodes,
+        spin_until_shutdown,
+    )
+
+_SOURCES: dict[str, str] = {
+    "CountWindows": "smm_node_runtime.diagnostics",
+    "DiagnosticsPublisher": "smm_node_runtime.diagnostics",
+    "Health": "smm_node_runtime.diagnostics",
+    "Level": "smm_node_runtime.diagnostics",
+    "level_for": "smm_node_runtime.diagnostics",
+    "worst": "smm_node_runtime.diagnostics",
+    "COUNTER_ROWS": "smm_node_runtime.measurement",
+    "DEFAULT_CONTROL_PERIOD": "smm_node_runtime.measurement",
+    "REFUSED": "smm_node_runtime.measurement",
+    "STAMP_PREFIX": "smm_node_runtime.measurement",
+    "WARN_COUNTERS": "smm_node_runtime.measurement",
+    "WARN_THROTTLE_S": "smm_node_runtime.measurement",
+    "Admission": "smm_node_runtime.measurement",
+    "ControlPeriodConfig": "smm_node_runtime.measurement",
+    "InputCounters": "smm_node_runtime.measurement",
+    "MeasurementDrivenNode": "smm_node_runtime.measurement",
+    "Output": "smm_node_runtime.measurement",
+    "StampGate": "smm_node_runtime.measurement",
+    "StampPolicy": "smm_node_runtime.measurement",
+    "values_of": "smm_node_runtime.measurement",
+    "NodeOptions": "smm_node_runtime.node",
+    "ParameterOverrides": "smm_node_runtime.node",
+    "SmmNode": "smm_node_runtime.node",
+    "as_parameter_list": "smm_node_runtime.node",
+    "node_arguments": "smm_node_runtime.node",
+    "wait_for_delivery": "smm_node_runtime.node",
+    "ConfigParameters": "smm_node_runtime.parameters",
+    "above": "smm_node_runtime.parameters",
+    "at_least": "smm_node_runtime.parameters",
+    "bounds": "smm_node_runtime.parameters",
+    "check_bounds": "smm_node_runtime.parameters",
+    "config_fields": "smm_node_runtime.parameters",
+    "no_range": "smm_node_runtime.parameters",
+    "parameter_name": "smm_node_runtime.parameters",
+    "EXIT_INVALID_PARAMETER": "smm_node_runtime.process",
+    "EXIT_OK": "smm_node_runtime.process",
+    "SPIN_POLL_S": "smm_node_runtime.process",
+    "NodeFactory": "smm_node_runtime.process",
+    "ensure_localhost_discovery": "smm_node_runtime.process",
+    "make_executor": "smm_node_runtime.process",
+    "node_main": "smm_node_runtime.process",
+    "run_node": "smm_node_runtime.process",
+    "run_nodes": "smm_node_runtime.process",
+    "spin_until_shutdown": "smm_node_runtime.process",
+}
+
+
+def __getattr__(name: str) -> Any:
+    """The exported ``name``, imported from its module on first use."""
+    source = _SOURCES.get(name)
+    if source is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(source), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "COUNTER_ROWS",
@@ -71,13 +148,16 @@ __all__ = [
     "SmmNode",
     "StampGate",
     "StampPolicy",
+    "above",
     "as_parameter_list",
+    "at_least",
     "bounds",
     "check_bounds",
     "config_fields",
     "ensure_localhost_discovery",
     "level_for",
     "make_executor",
+    "no_range",
     "node_arguments",
     "node_main",
     "parameter_name",

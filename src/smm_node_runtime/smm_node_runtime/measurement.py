@@ -59,16 +59,14 @@ class ControlPeriodConfig:
     """The step size a node integrates its algorithm with (declared read-only: fixed at start-up).
 
     Attributes:
-        control_period: Control period dt (s), > 0 and finite; must equal the plant's period (the
+        control_period: Control period dt (s), in (0, 1]; must equal the plant's period (the
             simulator's ``control_period``), because nodes step once per measurement with this dt.
     """
 
-    control_period: float = field(default=DEFAULT_CONTROL_PERIOD, metadata=bounds(0.0, 1.0))
+    control_period: float = field(default=DEFAULT_CONTROL_PERIOD, metadata=bounds(0.0, 1.0, low_open=True))
 
     def __post_init__(self) -> None:
-        value = self.control_period
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 < value < float("inf"):
-            raise ValueError(f"control_period must be a finite number of seconds > 0, got {value!r}")
+        check_bounds(self)
 
 
 @dataclass(frozen=True)

@@ -1,52 +1,23 @@
-"""ROS 2 parameters <-> frozen config dataclasses, generically, for every node of the stack.
+"""Config dataclasses as ROS 2 parameters: descriptors, declaration, and one binding per node config.
 
-One algorithm config is one frozen dataclass (see ``docs/DESIGN.md``); each of its fields becomes one ROS
-parameter, named ``<prefix>.<field>`` (nested dataclasses are flattened with a dotted path, e.g.
-``fpdeso.fuzzy.k_e``). Supported field types and their parameter types:
-
-=============================  ======================  ==========================================
-field type                     ROS parameter type      value check done here
-=============================  ======================  ==========================================
-``float``                      ``double``              number (int accepted, converted)
-``int``                        ``integer``             integer, not bool
-``bool``                       ``bool``                bool
-``str`` / ``Literal["a", ..]``  ``string``              str (the dataclass checks allowed values)
-``tuple[float, float]``        ``double_array``        exactly 2 numbers (alpha, beta)
-``tuple[float, ...]``          ``double_array``        any length
-``tuple[int, int]`` / ``...``  ``integer_array``       length as for doubles
-nested frozen dataclass        flattened, dotted       recursively
-=============================  ======================  ==========================================
-
-Everything beyond that (finiteness, signs, bounds, orderings) is the dataclass's own ``__post_init__``
-validation (some fields accept infinity as "no limit"); its
-``ValueError`` message is what a rejected ``set_parameters`` call reports as ``reason``. ROS ranges
-(``FloatingPointRange``) only apply to scalars, so array bounds are always checked by the dataclass.
-
-Ranges: a scalar field's ROS range (``FloatingPointRange`` / ``IntegerRange``, closed) comes from its
-dataclass field metadata (:func:`bounds`, checked by :func:`check_bounds` in ``__post_init__``), else from
-the bound its docstring states (``> 0``, ``>= 3``, ``<= 1``: the ROS range is closed, the dataclass keeps
-refusing the open end), so every node declares the same ranges without listing them.
-
-Descriptions come from the dataclass docstring's Google-style ``Attributes:`` section (one source of truth
-for units and meaning), unless overridden by the ``descriptions`` argument.
+The schema (names, kinds, ranges, descriptions, config <-> values) is :mod:`smm_node_runtime.schema`; this
+module gives it to rclpy. A number field's range becomes the descriptor's ``FloatingPointRange`` /
+``IntegerRange`` (closed: an open end is checked by the config itself, whose ``ValueError`` message is what
+a rejected ``set_parameters`` call reports as ``reason``); an array's element range is stated in
+``additional_constraints`` and checked by the config (ROS ranges apply to scalars only).
 
 The usual way to use this is :class:`ConfigParameters`: it declares the parameters, builds the initial
 config from the declared values (parameter overrides and ``--params-file`` included), validates every later
-change as a whole new config (rejecting it with the ``ValueError`` message), and swaps the config only after
-the change succeeded, so a node's step sees either the old config or the new one, never a mix.
+change as a whole new config, and swaps the config only after the change succeeded, so a node's step sees
+either the old config or the new one, never a mix.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import enum
-import inspect
 import math
-import re
-import typing
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any, Generic, Literal, TypeVar
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, Generic, TypeVar
 
 from rcl_interfaces.msg import (
     FloatingPointRange,
@@ -58,12 +29,28 @@ from rcl_interfaces.msg import (
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from smm_dynamics.validation import RANGE_METADATA, Range, above, at_least, bounds, check_bounds, no_range
+
+from smm_node_runtime.schema import (
+    PER_JOINT_LENGTH,
+    ConfigField,
+    FieldKind,
+    config_fields,
+    config_from_parameters,
+    config_to_parameters,
+    docstring_attributes,
+    parameter_name,
+    parameter_value,
+    value_at,
+)
 
 __all__ = [
     "RANGE_METADATA",
     "ConfigField",
     "ConfigParameters",
     "FieldKind",
+    "above",
+    "at_least",
     "bounds",
     "check_bounds",
     "config_fields",
@@ -71,361 +58,73 @@ __all__ = [
     "config_to_parameters",
     "declare_config_parameters",
     "docstring_attributes",
+    "no_range",
+    "parameter_descriptor",
     "parameter_name",
 ]
 
 ConfigT = TypeVar("ConfigT")
 
-PER_JOINT_LENGTH = 2
-"""Length of a per-joint field ``tuple[float, float]`` (alpha, beta)."""
-
-RANGE_METADATA = "smm_range"
-"""Dataclass field metadata key of a scalar field's closed range ``(low, high)``."""
-
 _INT64_MAX = 2**63 - 1
 
-
-def bounds(low: float, high: float) -> dict[str, tuple[float, float]]:
-    """Field metadata: the scalar field's closed range [low, high] (ROS range and :func:`check_bounds`)."""
-    if not low <= high:
-        raise ValueError(f"empty range [{low}, {high}]")
-    return {RANGE_METADATA: (low, high)}
-
-
-def check_bounds(config: object) -> None:
-    """Check every field of ``config`` with :func:`bounds` metadata: a number (int for int fields) in range.
-
-    Raises:
-        ValueError: naming the field, its range and the value.
-    """
-    hints = typing.get_type_hints(type(config))
-    for item in dataclasses.fields(config):  # type: ignore[arg-type]
-        value_range = item.metadata.get(RANGE_METADATA)
-        if value_range is None:
-            continue
-        value = getattr(config, item.name)
-        low, high = value_range
-        integer = hints[item.name] is int
-        number = isinstance(value, int) if integer else isinstance(value, (int, float))
-        if isinstance(value, bool) or not number or not low <= value <= high:
-            kind = "an integer" if integer else "a number"
-            raise ValueError(f"{item.name} must be {kind} in [{low:g}, {high:g}], got {value!r}")
+_PARAMETER_TYPES = {
+    FieldKind.DOUBLE: ParameterType.PARAMETER_DOUBLE,
+    FieldKind.INTEGER: ParameterType.PARAMETER_INTEGER,
+    FieldKind.BOOL: ParameterType.PARAMETER_BOOL,
+    FieldKind.STRING: ParameterType.PARAMETER_STRING,
+    FieldKind.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY,
+    FieldKind.INTEGER_ARRAY: ParameterType.PARAMETER_INTEGER_ARRAY,
+}
 
 
-class FieldKind(enum.Enum):
-    """How a leaf field of a config maps onto a ROS parameter type."""
-
-    DOUBLE = ParameterType.PARAMETER_DOUBLE
-    INTEGER = ParameterType.PARAMETER_INTEGER
-    BOOL = ParameterType.PARAMETER_BOOL
-    STRING = ParameterType.PARAMETER_STRING
-    DOUBLE_ARRAY = ParameterType.PARAMETER_DOUBLE_ARRAY
-    INTEGER_ARRAY = ParameterType.PARAMETER_INTEGER_ARRAY
-
-
-@dataclass(frozen=True)
-class ConfigField:
-    """One leaf field of a (possibly nested) config dataclass, i.e. one ROS parameter.
-
-    Attributes:
-        name: Parameter name relative to the prefix, dotted for nested fields (e.g. ``fuzzy.k_e``).
-        path: Attribute path from the top-level config to the field (e.g. ``("fuzzy", "k_e")``).
-        kind: ROS parameter type of the field.
-        length: Required number of values for a fixed-length tuple field, None for scalars and
-            variable-length tuples.
-        description: Human-readable meaning and unit (from the docstring), may be empty.
-        value_range: Closed range of a scalar number field (from :func:`bounds` or the docstring), or None.
-    """
-
-    name: str
-    path: tuple[str, ...]
-    kind: FieldKind
-    length: int | None
-    description: str
-    value_range: tuple[float, float] | None = None
+def _integer_range(value_range: Range) -> IntegerRange:
+    """The closed IntegerRange of the integers in ``value_range`` (an open end moves one inward)."""
+    first, last = -_INT64_MAX - 1, _INT64_MAX
+    if math.isfinite(value_range.low):
+        first = math.floor(value_range.low) + 1 if value_range.low_open else math.ceil(value_range.low)
+    if math.isfinite(value_range.high):
+        last = math.ceil(value_range.high) - 1 if value_range.high_open else math.floor(value_range.high)
+    return IntegerRange(from_value=first, to_value=last, step=1)
 
 
-def parameter_name(prefix: str, name: str) -> str:
-    """Return the full parameter name ``<prefix>.<name>`` (just ``name`` for an empty prefix)."""
-    return f"{prefix}.{name}" if prefix else name
-
-
-# ------------------------------------------------------------------------------------- introspection
-
-_ATTRIBUTES_HEADER = re.compile(r"^(\s*)Attributes:\s*$")
-_ATTRIBUTE_ENTRY = re.compile(r"^(\w+)(?:\s*\([^)]*\))?:\s*(.*)$")
-
-
-def docstring_attributes(cls: type) -> dict[str, str]:
-    """Parse the Google-style ``Attributes:`` section of ``cls``'s docstring.
-
-    Args:
-        cls: Any class.
-
-    Returns:
-        ``{attribute name: description}`` with continuation lines joined by single spaces; empty when the
-        class has no such section.
-    """
-    doc = inspect.getdoc(cls) or ""
-    lines = doc.splitlines()
-    result: dict[str, str] = {}
-    inside = False
-    entry_indent: int | None = None
-    current: str | None = None
-    for line in lines:
-        if not inside:
-            inside = _ATTRIBUTES_HEADER.match(line) is not None
-            continue
-        if not line.strip():
-            continue
-        indent = len(line) - len(line.lstrip())
-        if entry_indent is None:
-            entry_indent = indent
-        if indent < entry_indent or (indent == 0 and line.rstrip().endswith(":")):
-            break  # the next section starts
-        match = _ATTRIBUTE_ENTRY.match(line.strip())
-        if indent == entry_indent and match is not None:
-            current = match.group(1)
-            result[current] = match.group(2).strip()
-        elif current is not None:
-            result[current] = f"{result[current]} {line.strip()}".strip()
-    return result
-
-
-def _leaf_kind(hint: Any, where: str) -> tuple[FieldKind, int | None]:
-    """Map a field's type hint to its parameter kind and required length."""
-    if hint is bool:
-        return FieldKind.BOOL, None
-    if hint is float:
-        return FieldKind.DOUBLE, None
-    if hint is int:
-        return FieldKind.INTEGER, None
-    if hint is str:
-        return FieldKind.STRING, None
-    origin = typing.get_origin(hint)
-    arguments = typing.get_args(hint)
-    if origin is Literal and arguments and all(isinstance(value, str) for value in arguments):
-        return FieldKind.STRING, None
-    if origin is tuple and arguments:
-        variable = len(arguments) == 2 and arguments[1] is Ellipsis
-        element_types = {arguments[0]} if variable else set(arguments)
-        length = None if variable else len(arguments)
-        if element_types == {float}:
-            return FieldKind.DOUBLE_ARRAY, length
-        if element_types == {int}:
-            return FieldKind.INTEGER_ARRAY, length
-    raise TypeError(f"{where}: field type {hint!r} has no ROS parameter mapping")
-
-
-def config_fields(config_cls: type) -> tuple[ConfigField, ...]:
-    """List the leaf fields of a frozen config dataclass, nested dataclasses flattened.
-
-    Args:
-        config_cls: A dataclass type (fields with ``init=False`` are skipped: they are derived).
-
-    Returns:
-        The fields in declaration order (depth-first for nested dataclasses).
-
-    Raises:
-        TypeError: ``config_cls`` is not a dataclass, or a field's type has no parameter mapping.
-    """
-    return _config_fields(config_cls, ())
-
-
-def _config_fields(config_cls: type, path: tuple[str, ...]) -> tuple[ConfigField, ...]:
-    if not (isinstance(config_cls, type) and dataclasses.is_dataclass(config_cls)):
-        raise TypeError(f"{config_cls!r} is not a dataclass type")
-    hints = typing.get_type_hints(config_cls)
-    docs = docstring_attributes(config_cls)
-    result: list[ConfigField] = []
-    for field in dataclasses.fields(config_cls):
-        if not field.init:
-            continue
-        hint = hints[field.name]
-        field_path = (*path, field.name)
-        if isinstance(hint, type) and dataclasses.is_dataclass(hint):
-            result.extend(_config_fields(hint, field_path))
-            continue
-        kind, length = _leaf_kind(hint, ".".join(field_path))
-        description = docs.get(field.name, "")
-        value_range = field.metadata.get(RANGE_METADATA)
-        if value_range is None and kind in (FieldKind.DOUBLE, FieldKind.INTEGER):
-            value_range = stated_range(description)
-        if kind not in (FieldKind.DOUBLE, FieldKind.INTEGER):
-            value_range = None
-        result.append(ConfigField(".".join(field_path), field_path, kind, length, description, value_range))
-    return tuple(result)
-
-
-_NUMBER = r"(-?\d+(?:\.\d+)?(?:[eE]-?\d+)?)"
-_NOT_A_UNIT = r"(?!\w)(?!\s*(?:ns|us|ms|s|rad|Hz|N|m|kg)\b)"  # ">= 1 ns" is no bound on a value in seconds
-_LOWER = re.compile(r"(?<![<>=-])(>=?)\s*" + _NUMBER + _NOT_A_UNIT)
-_UPPER = re.compile(r"(?<![<>=-])(<=?)\s*" + _NUMBER + _NOT_A_UNIT)
-
-
-def stated_range(description: str) -> tuple[float, float] | None:
-    """The closed range a docstring states for a scalar (``> 0`` gives [0, inf]); None if it states none."""
-    lows = [float(match.group(2)) for match in _LOWER.finditer(description)]
-    highs = [float(match.group(2)) for match in _UPPER.finditer(description)]
-    if not lows and not highs:
-        return None
-    return (max(lows) if lows else -math.inf, min(highs) if highs else math.inf)
-
-
-def _value_at(config: object, path: Sequence[str]) -> Any:
-    value = config
-    for attribute in path:
-        value = getattr(value, attribute)
-    return value
-
-
-# ------------------------------------------------------------------------------- value conversions
-
-
-def _to_parameter_value(field: ConfigField, value: Any) -> Any:
-    """Config field value -> value of the declared ROS parameter (list for arrays)."""
-    if field.kind is FieldKind.DOUBLE_ARRAY:
-        return [float(v) for v in value]
-    if field.kind is FieldKind.INTEGER_ARRAY:
-        return [int(v) for v in value]
-    if field.kind is FieldKind.DOUBLE:
-        return float(value)
-    return value
-
-
-def _as_float(value: object, name: str) -> float:
-    # Finiteness and sign are the dataclass's business: some fields accept inf ("no limit").
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    return float(value)
-
-
-def _exact_int(value: object, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ValueError(f"{name} must be an integer, got {value!r}")
-    return int(value)
-
-
-def _to_field_value(field: ConfigField, value: Any, name: str) -> Any:
-    """Parameter value -> config field value, checking type and length."""
-    kind = field.kind
-    if kind is FieldKind.DOUBLE:
-        return _as_float(value, name)
-    if kind is FieldKind.INTEGER:
-        return _exact_int(value, name)
-    if kind is FieldKind.BOOL:
-        if not isinstance(value, bool):
-            raise ValueError(f"{name} must be a bool, got {value!r}")
-        return value
-    if kind is FieldKind.STRING:
-        if not isinstance(value, str):
-            raise ValueError(f"{name} must be a string, got {value!r}")
-        return value
-    if isinstance(value, (str, bytes)) or not isinstance(value, Iterable):
-        raise ValueError(f"{name} must be an array, got {value!r}")
-    items = list(value)
-    if field.length is not None and len(items) != field.length:
-        what = " (alpha, beta)" if field.length == PER_JOINT_LENGTH else ""
-        raise ValueError(f"{name} must have {field.length} values{what}, got {len(items)}: {items}")
-    convert: Callable[[object, str], Any] = _as_float if kind is FieldKind.DOUBLE_ARRAY else _exact_int
-    return tuple(convert(item, f"{name}[{index}]") for index, item in enumerate(items))
-
-
-def config_to_parameters(config: object, prefix: str = "") -> dict[str, Any]:
-    """Flatten a config instance into ``{full parameter name: ROS parameter value}``.
-
-    Args:
-        config: A config dataclass instance.
-        prefix: Parameter name prefix (without trailing dot); ``""`` for none.
-
-    Returns:
-        Values in the types the ROS parameters are declared with (lists for arrays, floats for doubles).
-    """
-    return {
-        parameter_name(prefix, field.name): _to_parameter_value(field, _value_at(config, field.path))
-        for field in config_fields(type(config))
-    }
-
-
-def config_from_parameters(
-    config_cls: type[ConfigT], current: ConfigT, overrides: Mapping[str, Any], prefix: str = ""
-) -> ConfigT:
-    """Build a NEW config from ``current`` with some fields replaced by parameter values.
-
-    Args:
-        config_cls: The config dataclass type (``current`` must be an instance of it).
-        current: The config the unchanged fields are taken from.
-        overrides: ``{full parameter name: value}``; names not under ``prefix`` or not naming a field are
-            ignored (they belong to something else), so the whole ``set_parameters`` list can be passed.
-        prefix: Parameter name prefix of this config (without trailing dot).
-
-    Returns:
-        The new config, validated by the dataclass(es) ``__post_init__``; ``current`` when nothing applies.
-
-    Raises:
-        ValueError: a value has the wrong type or length (message names the parameter and the value), or
-            the dataclass rejected the new config (its own message).
-    """
-    if not isinstance(current, config_cls):
-        raise TypeError(f"current must be a {config_cls.__name__}, got {type(current).__name__}")
-    by_name = {parameter_name(prefix, field.name): field for field in config_fields(config_cls)}
-    changes: dict[tuple[str, ...], Any] = {}
-    for name, value in overrides.items():
-        field = by_name.get(name)
-        if field is not None:
-            changes[field.path] = _to_field_value(field, value, name)
-    if not changes:
-        return current
-    return typing.cast(ConfigT, _replaced(current, changes))
-
-
-def _replaced(config: Any, changes: Mapping[tuple[str, ...], Any]) -> Any:
-    """dataclasses.replace, recursively for nested paths (inner configs are validated first)."""
-    direct = {path[0]: value for path, value in changes.items() if len(path) == 1}
-    nested: dict[str, dict[tuple[str, ...], Any]] = {}
-    for path, value in changes.items():
-        if len(path) > 1:
-            nested.setdefault(path[0], {})[path[1:]] = value
-    for attribute, inner_changes in nested.items():
-        direct[attribute] = _replaced(getattr(config, attribute), inner_changes)
-    return dataclasses.replace(config, **direct)
-
-
-# ------------------------------------------------------------------------------------------ ROS side
-
-
-def _descriptor(
-    field: ConfigField,
-    full_name: str,
-    description: str,
-    value_range: tuple[float, float] | None,
-    read_only: bool,
-) -> ParameterDescriptor:
-    constraints = ""
+def _constraints(field: ConfigField) -> str:
+    """``additional_constraints`` text: the array length, and a range ROS cannot state exactly."""
+    parts = []
     if field.length == PER_JOINT_LENGTH:
-        constraints = "2 values, per joint (alpha, beta)"
+        parts.append("2 values, per joint (alpha, beta)")
     elif field.length is not None:
-        constraints = f"{field.length} values"
+        parts.append(f"{field.length} values")
+    value_range = field.value_range
+    if value_range is not None and not value_range.unbounded:
+        array = field.kind in (FieldKind.DOUBLE_ARRAY, FieldKind.INTEGER_ARRAY)
+        open_finite_end = (value_range.low_open and math.isfinite(value_range.low)) or (
+            value_range.high_open and math.isfinite(value_range.high)
+        )
+        if array:
+            parts.append(f"each {value_range.requirement()}")
+        elif open_finite_end and field.kind is FieldKind.DOUBLE:
+            parts.append(value_range.requirement())
+    return ", ".join(parts)
+
+
+def parameter_descriptor(field: ConfigField, full_name: str, read_only: bool = False) -> ParameterDescriptor:
+    """The ROS descriptor of the parameter mirroring ``field``: type, description, range, constraints."""
     descriptor = ParameterDescriptor(
         name=full_name,
-        type=field.kind.value,
-        description=description or field.name,
-        additional_constraints=constraints,
+        type=_PARAMETER_TYPES[field.kind],
+        description=field.description or field.name,
+        additional_constraints=_constraints(field),
         read_only=read_only,
     )
-    if value_range is not None:
-        low, high = value_range
-        if field.kind is FieldKind.INTEGER:
-            low = -_INT64_MAX - 1 if math.isinf(low) else low
-            high = _INT64_MAX if math.isinf(high) else high
-        if field.kind is FieldKind.DOUBLE:
-            descriptor.floating_point_range = [
-                FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)
-            ]
-        elif field.kind is FieldKind.INTEGER:
-            descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
-        else:
-            raise ValueError(f"{full_name}: a range applies to scalar fields only (ROS 2 limitation)")
+    value_range = field.value_range
+    if value_range is None or value_range.unbounded:
+        return descriptor
+    if field.kind is FieldKind.DOUBLE:
+        descriptor.floating_point_range = [
+            FloatingPointRange(from_value=float(value_range.low), to_value=float(value_range.high), step=0.0)
+        ]
+    elif field.kind is FieldKind.INTEGER:
+        descriptor.integer_range = [_integer_range(value_range)]
     return descriptor
 
 
@@ -435,7 +134,6 @@ def declare_config_parameters(
     config_instance: ConfigT,
     *,
     descriptions: Mapping[str, str] | None = None,
-    ranges: Mapping[str, tuple[float, float]] | None = None,
     read_only: bool = False,
 ) -> ConfigT:
     """Declare one ROS parameter per leaf field of ``config_instance`` and build the config they give.
@@ -449,7 +147,6 @@ def declare_config_parameters(
         prefix: Parameter name prefix without trailing dot (``""`` for none).
         config_instance: Default values.
         descriptions: Overrides of the docstring descriptions, keyed by relative name (``fuzzy.k_e``).
-        ranges: ``FloatingPointRange``/``IntegerRange`` bounds for scalar fields, keyed by relative name.
         read_only: Declare the parameters read-only (settable only at start-up).
 
     Returns:
@@ -460,30 +157,21 @@ def declare_config_parameters(
         rclpy.exceptions.InvalidParameterTypeException: an override has the wrong ROS type.
     """
     descriptions = descriptions or {}
-    ranges = ranges or {}
     fields = config_fields(type(config_instance))
-    unknown = (set(descriptions) | set(ranges)) - {field.name for field in fields}
+    unknown = set(descriptions) - {field.name for field in fields}
     if unknown:
-        raise ValueError(
-            f"descriptions/ranges name no field of {type(config_instance).__name__}: {sorted(unknown)}"
-        )
+        raise ValueError(f"descriptions name no field of {type(config_instance).__name__}: {sorted(unknown)}")
     declared: dict[str, Any] = {}
     for field in fields:
         full_name = parameter_name(prefix, field.name)
-        descriptor = _descriptor(
-            field,
-            full_name,
-            descriptions.get(field.name, field.description),
-            ranges.get(field.name, field.value_range),
-            read_only,
-        )
-        default = _to_parameter_value(field, _value_at(config_instance, field.path))
-        value_range = ranges.get(field.name, field.value_range)
-        if value_range is not None and not value_range[0] <= default <= value_range[1]:
-            raise ValueError(f"{full_name}: default {default!r} lies outside its range {value_range}")
+        described = field
+        if field.name in descriptions:
+            described = dataclasses.replace(field, description=descriptions[field.name])
+        descriptor = parameter_descriptor(described, full_name, read_only)
+        default = parameter_value(field, value_at(config_instance, field.path))
         try:
             declared[full_name] = node.declare_parameter(full_name, default, descriptor).value
-        except InvalidParameterValueException as error:  # an override outside the ROS range
+        except InvalidParameterValueException as error:  # a default or an override outside the ROS range
             raise ValueError(str(error)) from error
     return config_from_parameters(type(config_instance), config_instance, declared, prefix)
 
@@ -503,7 +191,6 @@ class ConfigParameters(Generic[ConfigT]):
         prefix: Parameter name prefix without trailing dot (``""`` for none).
         default: Default config (values not overridden at start-up).
         descriptions: See :func:`declare_config_parameters`.
-        ranges: See :func:`declare_config_parameters`.
         read_only: See :func:`declare_config_parameters`.
         on_change: Called with the new config after every accepted change.
         check: Extra validation of a candidate config (e.g. against another node parameter); raises
@@ -520,7 +207,6 @@ class ConfigParameters(Generic[ConfigT]):
         default: ConfigT,
         *,
         descriptions: Mapping[str, str] | None = None,
-        ranges: Mapping[str, tuple[float, float]] | None = None,
         read_only: bool = False,
         on_change: Callable[[ConfigT], None] | None = None,
         check: Callable[[ConfigT], None] | None = None,
@@ -530,7 +216,7 @@ class ConfigParameters(Generic[ConfigT]):
         self._on_change = on_change
         self._check = check
         self._config: ConfigT = declare_config_parameters(
-            node, prefix, default, descriptions=descriptions, ranges=ranges, read_only=read_only
+            node, prefix, default, descriptions=descriptions, read_only=read_only
         )
         if check is not None:
             check(self._config)

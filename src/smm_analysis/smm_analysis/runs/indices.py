@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
 from smm_analysis.metrics import (
     AxisError,
     JointIndices,
@@ -21,9 +22,9 @@ from smm_analysis.metrics import (
     joint_indices,
     step_metrics,
 )
-from smm_analysis.reproduction import METRICS_UNITS, run_entry
-
-from smm_bag.recorded import JOINTS, RecordedRun
+from smm_analysis.metrics_json import METRICS_UNITS, run_entry
+from smm_analysis.runs.latency import summarize_latency
+from smm_analysis.runs.recorded import JOINTS, RecordedRun
 from smm_dynamics import SMMParameters
 
 __all__ = ["RunMetrics", "comparison_table", "evaluate", "metrics_document", "step_target"]
@@ -115,7 +116,7 @@ def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
         entry = run_entry(result.joints, result.step, result.end_effector)
         per_scenario[controller] = entry
         run = result.run
-        latency = run.latency_ns
+        latency = None if run.latency_ns is None else summarize_latency(run.latency_ns)
         bags[str(run.bag)] = {
             "scenario": scenario,
             "controller": controller,
@@ -128,11 +129,7 @@ def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
             "version": run.manifest.version,
             "latency_ms": None
             if latency is None
-            else {
-                "median": float(np.median(latency) / 1e6),
-                "p99": float(np.percentile(latency, 99) / 1e6),
-                "max": float(np.max(latency) / 1e6),
-            },
+            else {"median": latency.p50_ms, "p99": latency.p99_ms, "max": latency.max_ms},
         }
     document["meta"] = {
         "source": "smm-bag analyze",

@@ -1,6 +1,7 @@
 """PNG figures of recorded runs, several bags overlaid, each line thinned to at most 5000 points.
 
-Tracking, error, torque, estimated vs true disturbance, observer bandwidth, fuzzy gains, loop latency.
+Tracking, error, torque, estimated vs true disturbance, observer bandwidth, fuzzy gains (one panel per
+joint); the loop latency's distribution (one panel, p50 and p99 marked).
 """
 
 from __future__ import annotations
@@ -16,8 +17,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
+from smm_sim.plant import disturbance_torque
 
-from smm_bag.recorded import JOINTS, RecordedRun
+from smm_analysis.runs.latency import latency_cdf, summarize_latency
+from smm_analysis.runs.recorded import JOINTS, RecordedRun
+from smm_analysis.scenarios import get_scenario
 
 __all__ = ["PLOTS", "true_disturbance", "write_plots"]
 
@@ -37,11 +41,8 @@ def true_disturbance(run: RecordedRun) -> FloatArray | None:
     if run.manifest.plant != "sim" or not run.manifest.scenario:
         return None
     try:
-        from smm_analysis.scenarios import get_scenario  # noqa: PLC0415
-        from smm_sim.plant import disturbance_torque  # noqa: PLC0415
-
         model = get_scenario(run.manifest.scenario).disturbance
-    except (ImportError, ValueError):
+    except ValueError:  # a scenario this version does not know
         return None
     return np.array([disturbance_torque(model, float(t)) for t in run.time_s])
 
@@ -75,6 +76,40 @@ def _figure(
     if not drawn:
         plt.close(figure)
         return None
+    return figure
+
+
+def _latency_figure(runs: Sequence[RecordedRun]) -> Figure | None:
+    """Empirical CDF of each run's loop latency, p50 dashed and p99 dotted; the axis ends at twice the p99."""
+    timed = [run for run in runs if run.latency_ns is not None]
+    if not timed:
+        return None
+    figure, axis = plt.subplots(figsize=(10.0, 3.6))
+    left, right = 0.0, 0.0
+    for run in timed:
+        assert run.latency_ns is not None
+        values, fraction = latency_cdf(run.latency_ns)
+        summary = summarize_latency(run.latency_ns)
+        (line,) = axis.step(values, fraction, where="post", linewidth=0.9, label=run.label)
+        for value, style, name in ((summary.p50_ms, "--", "p50"), (summary.p99_ms, ":", "p99")):
+            axis.axvline(
+                value,
+                color=line.get_color(),
+                linestyle=style,
+                linewidth=0.8,
+                label=f"{run.label} {name} {value:.3g} ms",
+            )
+        axis.plot([], [], " ", label=f"{run.label} max {summary.max_ms:.3g} ms")
+        left, right = min(left, float(values[0])), max(right, 2.0 * summary.p99_ms)
+    if right > left:
+        axis.set_xlim(left, right)
+    axis.set_title("loop latency: command receive time - measurement receive time")
+    axis.set_xlabel("latency (ms)")
+    axis.set_ylabel("fraction of steps at or below")
+    axis.set_ylim(0.0, 1.0)
+    axis.grid(True, alpha=0.3)
+    axis.legend(fontsize=7, loc="lower right")
+    figure.tight_layout()
     return figure
 
 
@@ -118,11 +153,6 @@ def write_plots(runs: Sequence[RecordedRun], out: Path) -> dict[str, str]:
         chosen = _internal(run, ".kp") + _internal(run, ".kd")
         return [(f"{run.label} {key}", values[:, j], "-") for key, values in chosen]
 
-    def latency(run: RecordedRun, j: int) -> list[tuple[str, FloatArray, str]]:
-        if run.latency_ns is None or j > 0:
-            return []
-        return [(f"{run.label} command - measurement receive time", run.latency_ns / 1e6, "-")]
-
     specs: dict[str, tuple[str, str, Callable[[RecordedRun, int], list[tuple[str, FloatArray, str]]]]] = {
         "tracking": ("tracking", "rad", tracking),
         "error": ("tracking error q_d - q", "rad", error),
@@ -130,11 +160,11 @@ def write_plots(runs: Sequence[RecordedRun], out: Path) -> dict[str, str]:
         "disturbance": ("disturbance", "N m", disturbance),
         "bandwidth": ("observer bandwidth", "rad/s", bandwidth),
         "fuzzy_gains": ("fuzzy gains", "gain", gains),
-        "latency": ("loop latency", "ms", latency),
     }
+    figures = {name: _figure(runs, title, unit, series) for name, (title, unit, series) in specs.items()}
+    figures["latency"] = _latency_figure(runs)
     written: dict[str, str] = {}
-    for name, (title, unit, series) in specs.items():
-        figure = _figure(runs, title, unit, series)
+    for name, figure in figures.items():
         if figure is None:
             written[name] = "not recorded in these bags"
             continue

@@ -1,4 +1,4 @@
-"""smm_bag.analysis on hand-built recorded runs (pure, no bag files): indices, step target, JSON and table."""
+"""smm_analysis.runs.indices on hand-built recorded runs (no bag files): indices, step target, JSON, table."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from smm_analysis.reproduction import METRICS_UNITS
-from smm_bag.analysis import comparison_table, evaluate, metrics_document, step_target
+from smm_analysis.metrics_json import METRICS_UNITS
+from smm_analysis.runs.indices import comparison_table, evaluate, metrics_document, step_target
+from smm_analysis.runs.recorded import RecordedRun
 from smm_bag.manifest import RunManifest
-from smm_bag.recorded import RecordedRun
 
 from smm_dynamics import SMMParameters
 
@@ -277,7 +277,7 @@ def test_comparison_table_side_by_side() -> None:
 def test_comparison_table_shows_nan_as_a_dash() -> None:
     table = comparison_table([evaluate(make_run([[0.1, 0.0], [0.2, 0.0]], [[0.0, 0.0]] * 2))])
     assert "| alpha Ma (rad) | 0.2 |" in table
-    from smm_bag import analysis
+    from smm_analysis.runs import indices as analysis
 
     assert analysis._number(math.nan) == "-"
     assert analysis._number(None) == "-"

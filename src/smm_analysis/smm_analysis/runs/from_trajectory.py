@@ -13,13 +13,13 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
-from smm_analysis.closed_loop import Trajectory
-
 from smm_bag.cdr import encode_float64_multi_array, encode_joint_state
 from smm_bag.manifest import RunManifest
 from smm_bag.metadata import BagMetadata
 from smm_bag.qos import QosProfile
 from smm_bag.writer import BagWriter, WriterOptions
+
+from smm_analysis.closed_loop import Trajectory
 
 __all__ = ["write_trajectory_bag"]
 

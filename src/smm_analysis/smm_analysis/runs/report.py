@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from smm_bag.analysis import RunMetrics, comparison_table
+from smm_analysis.runs.indices import RunMetrics, comparison_table
 
 __all__ = ["render_report"]
 

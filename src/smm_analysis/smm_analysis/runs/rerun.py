@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 import yaml
 from numpy.typing import NDArray
-from smm_node_runtime.parameters import config_from_parameters
+from smm_node_runtime.schema import config_from_parameters
 
-from smm_bag.errors import ParamsFileError
-from smm_bag.recorded import RecordedRun
+from smm_analysis.errors import ParamsFileError
+from smm_analysis.runs.recorded import RecordedRun
 from smm_controller import (
     CONTROLLER_NAMES,
     FLESO,
@@ -81,6 +81,20 @@ class ChainSettings:
             law = NPDController(self.law)
         fleso = FLESO(self.fleso, self.model) if self.algorithm == "fpdeso" else None
         return ControlChain(TrackingDifferentiator(self.td), fleso, law)
+
+    @property
+    def flip_size(self) -> tuple[float, float]:
+        """Per joint, what a last-bit flip of the robust term's sign can move one step's torque by (N m).
+
+        2 b_d for FPDESO's pure sign (boundary layer 0), 0 where the law is continuous.
+        """
+        if self.algorithm != "fpdeso":
+            return (0.0, 0.0)
+        gain, layer = self.law.robust_gain, self.law.boundary_layer
+        return (
+            2.0 * gain[0] if layer[0] == 0.0 else 0.0,
+            2.0 * gain[1] if layer[1] == 0.0 else 0.0,
+        )
 
 
 def _flatten(prefix: str, node: Any, into: dict[str, Any]) -> None:

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-
 from smm_bag.bulk import decode_arrays, decode_joint_states
 from smm_bag.cdr import stamp_of
 from smm_bag.errors import CorruptBagError, MissingTopicsError

@@ -1,0 +1,71 @@
+"""The ``analyze`` and ``rerun`` subcommands of ``smm-bag`` (entry points of group ``smm_bag.commands``)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from smm_analysis.runs.commands import AnalyzeOptions, RerunOptions, analyze, rerun_command
+
+__all__ = ["add_analyze", "add_rerun"]
+
+
+def add_analyze(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``smm-bag analyze BAG [BAG...]``."""
+    parser = subparsers.add_parser(
+        "analyze", help="SPEC section 5 indices per bag; several bags side by side"
+    )
+    parser.add_argument("bags", type=Path, nargs="+", metavar="BAG")
+    parser.add_argument("--json", action="store_true", help="print metrics.json's schema instead of a table")
+    parser.add_argument("--out", type=Path, help="write metrics.json, REPORT.md and PNG figures here")
+    parser.add_argument("--no-plots", action="store_true", help="with --out: no figures")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(
+        handler=lambda options: analyze(
+            AnalyzeOptions(
+                bags=tuple(options.bags),
+                json=options.json,
+                out=options.out,
+                plots=not options.no_plots,
+                quiet=options.quiet or options.json,
+            )
+        )
+    )
+
+
+def add_rerun(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``smm-bag rerun BAG [--params-file F ...]``."""
+    parser = subparsers.add_parser(
+        "rerun", help="the control chain offline on the recorded measurements, other gains"
+    )
+    parser.add_argument("bag", type=Path)
+    parser.add_argument(
+        "--params-file", type=Path, action="append", default=[], help="ROS parameters file (repeatable)"
+    )
+    parser.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    parser.add_argument("--out", type=Path, help="write rerun.csv (offline and recorded, per step) here")
+    parser.add_argument(
+        "--expect-equal",
+        action="store_true",
+        help="exit 1 unless the offline commands and estimates reproduce the recorded ones (--tolerance)",
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=None,
+        metavar="RELATIVE",
+        help="per-step tolerance, relative to the largest recorded |value| of each joint (default: what a "
+        "bag recorded on another machine passes, 1e-9 and isolated sign flips; 0: bit for bit)",
+    )
+    parser.set_defaults(
+        handler=lambda options: rerun_command(
+            RerunOptions(
+                bag=options.bag,
+                params_files=tuple(options.params_file),
+                json=options.json,
+                out=options.out,
+                expect_equal=options.expect_equal,
+                tolerance=options.tolerance,
+            )
+        )
+    )
