@@ -169,9 +169,11 @@ def control(bench: Bench, request: dict[str, object]) -> dict[str, object]:
 
 
 def assert_safe_now(bench: Bench) -> None:
-    """The board got a safe frame: valves at null, not by its own watchdog (validity is 5000 ticks here)."""
-    assert bench.spin_until(lambda: not bench.live(), 2.0)
-    assert not bench.board.status_enabled
+    """The board got a safe frame: valves at null, not by its own watchdog (validity is 5000 ticks here).
+
+    Null codes alone are not enough: the direct loop's PID may command codes (0, 0) while enabled.
+    """
+    assert bench.spin_until(lambda: not bench.live() and not bench.board.status_enabled, 2.0)
     assert bench.board.last_feedback is not None
     assert not bench.board.last_feedback.status & 0x0008, "nulled by the board's watchdog, not a safe frame"
 
