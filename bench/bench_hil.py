@@ -22,6 +22,7 @@ Figures, not pass/fail (``make bench``). Every process runs in a private network
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -39,7 +40,9 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
-SECONDS = 30.0
+SECONDS = float(os.environ.get("SMM_BENCH_HIL_SECONDS", "30"))
+"""Armed seconds per run; ``SMM_BENCH_HIL_SECONDS=6`` for a short run that shows it works (not the
+acceptance's figures)."""
 FULL_SCALE = 20.0
 COUNTS = 1 << 20
 RMS_RATIO_TARGET = 1.5
@@ -106,11 +109,13 @@ def lockstep_reference(workdir: Path, period: float) -> np.ndarray | None:
     return tracking_rms(data["stamp_ns"] * 1e-9, data["position"], 2.0, SECONDS - 2.0)
 
 
-def offline_with_delay(period: float, delay: int) -> np.ndarray:
+def offline_with_delay(period: float, delay: int) -> tuple[np.ndarray | None, float | None]:
     """case1 FPDESO tracking RMS (rad, per joint) of the offline loop on the bench plant with every command
-    applied ``delay`` periods late (the applied torque fed back, as the bridge reports it)."""
-    import dataclasses
+    applied ``delay`` periods late (the applied torque fed back, as the bridge reports it).
 
+    Returns:
+        (RMS, None), or (None, t in s) when the loop diverged at t (a non-finite torque or position).
+    """
     from smm_analysis.closed_loop import build_chain, scenario_plant_config
     from smm_analysis.scenarios import get_scenario
     from smm_controller.td import TrackingDifferentiatorConfig
@@ -134,19 +139,32 @@ def offline_with_delay(period: float, delay: int) -> np.ndarray:
     for k in range(steps + 1):
         y0, y1, applied0, applied1 = plant.measure_floats()
         position[k] = plant.state_floats[:2]
-        queue.append(chain.step_floats((y0, y1), (applied0, applied1), reference[k], period))
+        torque = chain.step_floats((y0, y1), (applied0, applied1), reference[k], period)
+        if not (np.all(np.isfinite(position[k])) and math.isfinite(torque[0]) and math.isfinite(torque[1])):
+            return None, float(t[k])
+        queue.append(torque)
         plant.step(queue.pop(0), period)
-        if not np.all(np.isfinite(position[k])):
-            break
-    return tracking_rms(t, position, 2.0, SECONDS - 2.0)
+    return tracking_rms(t, position, 2.0, SECONDS - 2.0), None
 
 
-def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[str, Any] | None:
-    """Emulator (own clock) + hw_bridge_node + controller_node for ``SECONDS`` of armed output.
+LOOPS: dict[str, tuple[str, float | None]] = {
+    "topics": ("topics", None),
+    "direct": ("direct", None),
+    "direct-5ms": ("direct", 0.005),
+}
+"""Loops the HIL runs: (``--loop``, the direct loop's switch interval, None = its default). ``direct-5ms``
+is the direct loop at Python's own switch interval: what the GIL costs the I/O thread (docs/LAUNCH.md)."""
 
-    ``host_fifo``: the bridge and the controller under SCHED_FIFO too (the emulator always is, if allowed).
+
+def realtime_hil(
+    workdir: Path, period: float, host_fifo: bool = False, loop: str = "topics"
+) -> dict[str, Any] | None:
+    """Emulator (own clock) + the loop (:data:`LOOPS`) for ``SECONDS`` of armed output.
+
+    Topics: hw_bridge_node + controller_node; direct: one direct_loop process. ``host_fifo``: the loop's
+    processes under SCHED_FIFO too (the emulator always is, if allowed).
     """
-    from smm_bringup.graph import CONTROLLER_NODE, GraphOptions, build_graph
+    from smm_bringup.graph import CONTROLLER_NODE, HW_NODE, GraphOptions, build_graph
     from smm_bringup.realtime import (
         BOARD_PRIORITY_OFFSET,
         DEFAULT_HARDWARE_PRIORITY,
@@ -154,7 +172,8 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
         fifo_preexec,
     )
 
-    tag = f"{period}_fifo" if host_fifo else str(period)
+    tag = f"{period}_{loop}" + ("_fifo" if host_fifo else "")
+    shape, switch_interval = LOOPS[loop]
 
     host, board, control = free_port(), free_port(), free_port()
     record = workdir / f"hil_{tag}.npz"
@@ -199,9 +218,9 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
         "bridge.host_watchdog_ns": str(10 * period_ns),
         "bridge.link_timeout_ns": str(100 * period_ns),
     }
+    if switch_interval is not None:
+        bridge["loop.switch_interval"] = repr(switch_interval)
     arguments = [text for name, value in bridge.items() for text in ("-p", f"{name}:={value}")]
-    bridge_argv = [sys.executable, "-m", "smm_hw_bridge.bridge_node", "--ros-args", "-r", "__ns:=/smm"]
-    start("hw_bridge_node", [*bridge_argv, *arguments], host_priority)
     options = GraphOptions(
         clock_mode="realtime",
         scenario="case1",
@@ -209,11 +228,21 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
         params_files=(str(td_yaml(workdir, period)),),
     )
     spec = next(s for s in build_graph(options) if s.name == CONTROLLER_NODE)
-    start(
-        "controller_node",
-        [sys.executable, "-m", "smm_controller.controller_node", *spec.ros_arguments()],
-        host_priority,
-    )
+    controller_log = "controller_node"
+    if shape == "direct":
+        # one process hosting both nodes: controller_node's arguments without its __node remapping
+        controller = dataclasses.replace(spec, hosts=(CONTROLLER_NODE, HW_NODE)).ros_arguments()
+        controller_log = "direct_loop"
+        direct_argv = [sys.executable, "-m", "smm_direct_loop.host", *controller, *arguments]
+        start("direct_loop", direct_argv, host_priority)
+    else:
+        bridge_argv = [sys.executable, "-m", "smm_hw_bridge.bridge_node", "--ros-args", "-r", "__ns:=/smm"]
+        start("hw_bridge_node", [*bridge_argv, *arguments], host_priority)
+        start(
+            "controller_node",
+            [sys.executable, "-m", "smm_controller.controller_node", *spec.ros_arguments()],
+            host_priority,
+        )
     try:
         emulator.wait(timeout=board_seconds + 120.0)
     except subprocess.TimeoutExpired:
@@ -247,14 +276,16 @@ def realtime_hil(workdir: Path, period: float, host_fifo: bool = False) -> dict[
     seconds -= seconds % 2.0  # whole periods of the 2 s reference
     # The controller's time zero: the stamp of its first measurement, which it logs; the bridge stamps
     # measurements with board tick * period, so it is a time on the board's clock.
-    controller_log = (workdir / f"controller_node_{tag}.log").read_text(errors="replace")
-    found = re.search(r"reference t = 0 s at measurement stamp (\d+) ns", controller_log)
+    logged = (workdir / f"{controller_log}_{tag}.log").read_text(errors="replace")
+    found = re.search(r"reference t = 0 s at measurement stamp (\d+) ns", logged)
     if found is None:
         print("  the controller did not log its reference origin")
         return None
     status["origin_s"] = int(found.group(1)) * 1e-9
     status["rms"] = tracking_rms(t, q, start_t, seconds, status["origin_s"])
     status["window_s"] = seconds
+    bad = np.flatnonzero(~np.all(np.isfinite(q), axis=1) | np.any(np.abs(q) > 2 * np.pi, axis=1))
+    status["diverged_s"] = float(t[bad[0]]) if bad.size else None
     return status
 
 
@@ -271,22 +302,38 @@ def compare(workdir: Path, period: float) -> bool:
         f"{rate} lockstep simulator, case1 FPDESO, same plant: tracking RMS alpha {reference[0]:.3e}, "
         f"beta {reference[1]:.3e} rad ({time.monotonic() - start:.0f} s of wall time)"
     )
-    delayed = offline_with_delay(period, 1)
-    print(
-        f"{rate} offline loop, same plant, every command one period late: tracking RMS alpha "
-        f"{delayed[0]:.3e}, beta {delayed[1]:.3e} rad = {delayed[0] / reference[0]:.2f}x / "
-        f"{delayed[1] / reference[1]:.2f}x lockstep (the controller's own delay margin)"
-    )
-    for host_fifo in (False, True) if period == PERIODS[0] else (False,):
+    delayed, diverged_at = offline_with_delay(period, 1)
+    if delayed is None:
+        print(
+            f"{rate} offline loop, same plant, every command one period late: diverged at t = "
+            f"{diverged_at:.3f} s (the controller has no delay margin at this rate)"
+        )
+    else:
+        print(
+            f"{rate} offline loop, same plant, every command one period late: tracking RMS alpha "
+            f"{delayed[0]:.3e}, beta {delayed[1]:.3e} rad = {delayed[0] / reference[0]:.2f}x / "
+            f"{delayed[1] / reference[1]:.2f}x lockstep (the controller's own delay margin)"
+        )
+    ok = True
+    for host_fifo, loop in [(fifo, loop) for fifo in (False, True) for loop in LOOPS]:
+        if loop == "direct-5ms" and (host_fifo or period != PERIODS[0]):
+            continue  # the GIL's cost is measured once: 1 kHz, normal priority
         floor = timer_floor(3.0)
-        hil = realtime_hil(workdir, period, host_fifo)
+        hil = realtime_hil(workdir, period, host_fifo, loop)
         if hil is None:
-            return False
+            print(f"{rate} real-time HIL, {loop} loop: the run failed (logs above)")
+            ok = False
+            continue
         late, enabled, applied = hil["late_commands"], hil["enabled_ticks"], hil["applied"]
         ratio = hil["rms"] / reference
         met = bool(np.all(ratio <= RMS_RATIO_TARGET))
+        diverged = not np.all(np.isfinite(hil["rms"]))
+        if diverged:
+            at = hil["diverged_s"]
+            print(f"{rate} real-time HIL, {loop} loop: the tracking diverged at t = {at:.3f} s")
         print(
-            f"{rate} real-time HIL, board-clocked, host at {'SCHED_FIFO' if host_fifo else 'normal priority'}"
+            f"{rate} real-time HIL, {loop} loop, board-clocked, host at "
+            f"{'SCHED_FIFO' if host_fifo else 'normal priority'}"
             f", {hil['window_s']:.0f} s armed: late commands {100 * late / max(enabled, 1):.2f} % of "
             f"enabled ticks ({late} of {enabled}: no answer to the last feedback yet), held without any new "
             f"command {100 * (enabled - applied) / max(enabled, 1):.2f} %; board overruns {hil['overruns']}; "
@@ -296,7 +343,7 @@ def compare(workdir: Path, period: float) -> bool:
             f"(target <= {RMS_RATIO_TARGET}x: {'met' if met else 'MISSED'}); host floor just before: "
             f"sleep-loop lateness p99 {floor['p99_us']:.0f} us, {100 * floor['late_fraction']:.2f} % late"
         )
-    return True
+    return ok
 
 
 def main(argv: list[str]) -> int:

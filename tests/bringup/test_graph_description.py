@@ -27,7 +27,7 @@ from smm_bringup.launcher import (
 from smm_bringup.launcher import build_parser as launcher_parser
 from smm_bringup.realtime import fifo_allowed, fifo_preexec
 
-from smm_bringup import graph
+from smm_bringup import graph, parameter_files
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH_DIR = REPO / "src" / "smm_bringup" / "launch"
@@ -227,12 +227,12 @@ def test_invalid_rt_priority_is_refused_with_its_name(bad: Any) -> None:
 def test_children_run_under_sched_fifo_when_the_system_allows_it(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    from smm_bringup import launcher
+    from smm_bringup import supervisor
 
     probe = "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, end='')"
     spec = NodeSpec("p", "python", "probe", "", rt_priority=7)
     allowed = fifo_allowed(7)
-    priorities = launcher._fifo_priorities([spec, NodeSpec("p", "python", "other", "")])
+    priorities = supervisor._fifo_priorities([spec, NodeSpec("p", "python", "other", "")])
     policy = subprocess.run(
         [sys.executable, "-c", probe],
         preexec_fn=fifo_preexec(7) if priorities.get("probe") else None,  # as GraphProcesses starts it
@@ -346,7 +346,7 @@ def test_unrepresentable_parameter_values_are_refused(value: Any) -> None:
     ],
 )
 def test_node_keys_match_like_rcl(key: str, matches: bool) -> None:
-    assert graph._node_key_matches(key, "/smm/smm_sim_node") is matches
+    assert parameter_files._node_key_matches(key, "/smm/smm_sim_node") is matches
 
 
 def test_parameter_file_sections_apply_with_wildcards_first(tmp_path: Path) -> None:
@@ -431,6 +431,7 @@ def graph_options(draw: st.DrawFn) -> GraphOptions:
             board=draw(st.none() | st.just("192.168.0.9:50101")),
             record=draw(st.none() | st.just("bags/run 1")),
             rt_priority=draw(st.none() | st.integers(min_value=0, max_value=98)),
+            loop=draw(st.sampled_from(graph.LOOPS)),
         )
     except ValueError:
         assume(False)

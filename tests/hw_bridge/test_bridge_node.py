@@ -23,10 +23,25 @@ pytestmark = pytest.mark.ros
 TORQUE = (0.3, -0.2)
 
 
-class Bench:
-    """Emulator thread + bridge node + a peer node answering every measurement with TORQUE."""
+LOOPS = ("topics", "direct")
+DIRECT_CONTROLLER = {"chain": "internal", "reference_source": "internal", "algorithm": "pid"}
+"""controller_node's parameters in the direct loop (the PID on the default reference: a live output)."""
 
-    def __init__(self, context: Any, mode: str = "realtime", answer: bool = True, **parameters: Any) -> None:
+
+class Bench:
+    """Emulator thread + bridge node + a peer node answering every measurement with TORQUE.
+
+    ``loop="direct"``: the direct loop's bridge and controller_node instead (the peer only counts).
+    """
+
+    def __init__(
+        self,
+        context: Any,
+        mode: str = "realtime",
+        answer: bool = True,
+        loop: str = "topics",
+        **parameters: Any,
+    ) -> None:
         import rclpy
         from sensor_msgs.msg import JointState
         from smm_bench_emulator.board import BoardConfig
@@ -65,9 +80,16 @@ class Bench:
             "bridge.lockstep": mode == "lockstep",
             **parameters,
         }
-        self.node = HwBridgeNode(context=context, parameter_overrides=overrides)
+        self.controller: Any = None
+        if loop == "direct":
+            from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode
+
+            self.controller = DirectControllerNode(context=context, parameter_overrides=DIRECT_CONTROLLER)
+            self.node: Any = DirectBridgeNode(self.controller, context=context, parameter_overrides=overrides)
+        else:
+            self.node = HwBridgeNode(context=context, parameter_overrides=overrides)
         self.peer = rclpy.create_node("test_controller", context=context)
-        self.answer = answer
+        self.answer = answer and loop == "topics"
         self.measurements = 0
         self.internals: list[Any] = []
         self.diagnostics: list[Any] = []
@@ -90,6 +112,8 @@ class Bench:
         self.executor = make_executor(context)
         self.executor.add_node(self.node)
         self.executor.add_node(self.peer)
+        if self.controller is not None:
+            self.executor.add_node(self.controller)
 
     @property
     def board(self) -> Any:
@@ -119,11 +143,17 @@ class Bench:
             self.node.trigger_shutdown()
         self.node.destroy_node()
         self.peer.destroy_node()
+        if self.controller is not None:
+            self.controller.destroy_node()
+
+    def bridge_statuses(self) -> list[Any]:
+        """The bridge's /diagnostics statuses received so far (the direct loop's controller has its own)."""
+        return [s for array in self.diagnostics for s in array.status if "hw_bridge_node" in s.name]
 
 
-@pytest.fixture
-def bench(ros_context: Any) -> Iterator[Bench]:
-    harness = Bench(ros_context)
+@pytest.fixture(params=LOOPS)
+def bench(ros_context: Any, request: pytest.FixtureRequest) -> Iterator[Bench]:
+    harness = Bench(ros_context, loop=request.param)
     try:
         yield harness
     finally:
@@ -139,9 +169,11 @@ def control(bench: Bench, request: dict[str, object]) -> dict[str, object]:
 
 
 def assert_safe_now(bench: Bench) -> None:
-    """The board got a safe frame: valves at null, not by its own watchdog (validity is 5000 ticks here)."""
-    assert bench.spin_until(lambda: not bench.live(), 2.0)
-    assert not bench.board.status_enabled
+    """The board got a safe frame: valves at null, not by its own watchdog (validity is 5000 ticks here).
+
+    Null codes alone are not enough: the direct loop's PID may command codes (0, 0) while enabled.
+    """
+    assert bench.spin_until(lambda: not bench.live() and not bench.board.status_enabled, 2.0)
     assert bench.board.last_feedback is not None
     assert not bench.board.last_feedback.status & 0x0008, "nulled by the board's watchdog, not a safe frame"
 
@@ -184,8 +216,10 @@ def test_invalid_parameters_are_rejected_with_their_reason(ros_context: Any) -> 
         node.destroy_node()
 
 
-def test_every_lifecycle_transition_sends_safe_output(ros_context: Any) -> None:
-    bench = Bench(ros_context, **{"bridge.validity_ticks": 5000})  # the board's watchdog cannot be the reason
+@pytest.mark.parametrize("loop", LOOPS)
+def test_every_lifecycle_transition_sends_safe_output(ros_context: Any, loop: str) -> None:
+    # the board's watchdog cannot be the reason
+    bench = Bench(ros_context, loop=loop, **{"bridge.validity_ticks": 5000})
     try:
         from rclpy.lifecycle import TransitionCallbackReturn
 
@@ -235,7 +269,7 @@ def test_board_fault_bits_give_safe_output_an_error_diagnostic_and_the_error_tra
     assert not bench.live()
 
     def errors() -> list[Any]:
-        return [s for array in bench.diagnostics for s in array.status if s.level == b"\x02"]
+        return [s for s in bench.bridge_statuses() if s.level == b"\x02"]
 
     assert bench.spin_until(lambda: bool(errors()), 5.0), "no ERROR diagnostic"
     assert "fault" in errors()[0].message
@@ -260,8 +294,8 @@ def test_reboot_mid_run_keeps_output_disabled_until_reactivation(bench: Bench) -
 
 def test_diagnostics_carry_the_link_figures(bench: Bench) -> None:
     bench.start()
-    assert bench.spin_until(lambda: len(bench.diagnostics) >= 2, 5.0)
-    status = bench.diagnostics[-1].status[0]
+    assert bench.spin_until(lambda: len(bench.bridge_statuses()) >= 2, 5.0)
+    status = bench.bridge_statuses()[-1]
     values = {kv.key: kv.value for kv in status.values}
     for key in (
         "link_up",
@@ -282,7 +316,8 @@ def test_diagnostics_carry_the_link_figures(bench: Bench) -> None:
     assert bench.internals, "no internals published"
 
 
-def test_fuzz_10000_frames_into_the_running_bridge_socket(ros_context: Any) -> None:
+@pytest.mark.parametrize("loop", LOOPS)
+def test_fuzz_10000_frames_into_the_running_bridge_socket(ros_context: Any, loop: str) -> None:
     # the emulator shares this process's GIL with the fuzzer: a generous link timeout keeps a starved
     # emulator thread from looking like a lost link (which would rightly disarm the bridge)
     # Lockstep emulator: a feedback frame only after the command answering the last one, so the board's own
@@ -291,6 +326,7 @@ def test_fuzz_10000_frames_into_the_running_bridge_socket(ros_context: Any) -> N
     bench = Bench(
         ros_context,
         mode="lockstep",
+        loop=loop,
         **{"bridge.link_timeout_ns": 5_000_000_000, "bridge.admission.stale_ns": 5_000_000_000},
     )
     try:

@@ -1,12 +1,14 @@
-"""kill -9 in the middle of a real-time run (separate processes, board-clocked emulator at 1 kHz).
+"""kill -9 in the middle of a real-time run (board-clocked emulator at 1 kHz), in both loops.
 
-Controller killed: the bridge's host watchdog sends safe output. Bridge killed: the board's own watchdog
+Controller killed (topics loop): the bridge's host watchdog sends safe output. The process talking to the
+board killed (hw_bridge_node in the topics loop, direct_loop in the direct loop): the board's own watchdog
 nulls the valves. Wall-clock figures are measured and printed (never asserted); what is asserted is what
 the board guarantees on its own clock: the valves are at null by the end of the last command's validity.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -46,8 +48,13 @@ def wait_for(predicate: Any, timeout_s: float, what: str, group: Any) -> None:
     raise AssertionError(f"timed out waiting for {what}")
 
 
-def start(ros_processes: Any) -> tuple[Any, Any, int]:
-    from smm_bringup.graph import CONTROLLER_NODE, GraphOptions, build_graph
+def start(ros_processes: Any, loop: str = "topics") -> tuple[Any, Any, int]:
+    """Emulator, then the loop: bridge + controller_node processes (topics) or one direct_loop (direct).
+
+    Returns:
+        (the bridge's process, the controller's process (the same with ``direct``), emulator control port).
+    """
+    from smm_bringup.graph import CONTROLLER_NODE, HW_NODE, GraphOptions, build_graph
 
     host, board, control = free_port(), free_port(), free_port()
     ros_processes.start(
@@ -64,6 +71,36 @@ def start(ros_processes: Any) -> tuple[Any, Any, int]:
             f"{LOOPBACK}:{control}",
         ],
     )
+    spec = next(
+        s
+        for s in build_graph(GraphOptions(clock_mode="realtime", scenario="case1", algorithm="pid"))
+        if s.name == CONTROLLER_NODE
+    )
+    bridge_arguments = [
+        "-p",
+        "autostart:=true",
+        "-p",
+        f"link.bind_port:={host}",
+        "-p",
+        f"link.board_port:={board}",
+        "-p",
+        "link.configure_timeout:=10.0",
+        "-p",
+        f"bridge.validity_ticks:={VALIDITY}",
+        "-p",
+        f"bridge.host_watchdog_ns:={int(HOST_WATCHDOG_MS * 1e6)}",
+    ]
+    if loop == "direct":
+        # one process: controller_node's arguments (no __node remapping: it hosts two), then the bridge's
+        hosted = dataclasses.replace(spec, hosts=(CONTROLLER_NODE, HW_NODE))
+        direct = ros_processes.start(
+            "direct_loop",
+            [sys.executable, "-m", "smm_direct_loop.host", *hosted.ros_arguments(), *bridge_arguments],
+        )
+        wait_for(
+            lambda: status(control).get("applied", 0) > 500, 60.0, "the output to go live", ros_processes
+        )
+        return direct, direct, control
     bridge = ros_processes.start(
         "hw_bridge_node",
         [
@@ -73,24 +110,8 @@ def start(ros_processes: Any) -> tuple[Any, Any, int]:
             "--ros-args",
             "-r",
             "__ns:=/smm",
-            "-p",
-            "autostart:=true",
-            "-p",
-            f"link.bind_port:={host}",
-            "-p",
-            f"link.board_port:={board}",
-            "-p",
-            "link.configure_timeout:=10.0",
-            "-p",
-            f"bridge.validity_ticks:={VALIDITY}",
-            "-p",
-            f"bridge.host_watchdog_ns:={int(HOST_WATCHDOG_MS * 1e6)}",
+            *bridge_arguments,
         ],
-    )
-    spec = next(
-        s
-        for s in build_graph(GraphOptions(clock_mode="realtime", scenario="case1", algorithm="pid"))
-        if s.name == CONTROLLER_NODE
     )
     controller = ros_processes.start(
         "controller_node", [sys.executable, "-m", "smm_controller.controller_node", *spec.ros_arguments()]
@@ -133,8 +154,12 @@ def test_kill_controller_host_watchdog_puts_safe_output(ros_processes: Any) -> N
     assert 1 <= ticks <= VALIDITY  # whatever the host does, the board's own clock bounds it
 
 
-def test_kill_bridge_board_watchdog_nulls_the_valves_within_validity(ros_processes: Any) -> None:
-    bridge, _, control = start(ros_processes)
+@pytest.mark.parametrize("loop", ["topics", "direct"])
+def test_kill_the_loop_process_board_watchdog_nulls_the_valves_within_validity(
+    ros_processes: Any, loop: str
+) -> None:
+    """kill -9 of the process that talks to the board: hw_bridge_node (topics) or direct_loop (direct)."""
+    bridge, _, control = start(ros_processes, loop)
     kill9(bridge)
     figures = settled(control)
     assert figures["output_codes"] == [0, 0]
@@ -142,7 +167,7 @@ def test_kill_bridge_board_watchdog_nulls_the_valves_within_validity(ros_process
     ticks = figures["null_since_tick"] - figures["last_applied_tick"]
     elapsed_ms = (figures["null_since_ns"] - figures["last_enabled_ns"]) / 1e6
     print(
-        f"\nkill -9 bridge: valves at null {ticks} board ticks after the last applied command "
+        f"\nkill -9 {loop} loop's process: valves at null {ticks} board ticks after the last applied command "
         f"(validity {VALIDITY} + 1 tick after the measurement it answered), {elapsed_ms:.1f} ms of wall time "
         f"after the last enabled command reached the board"
     )

@@ -69,6 +69,7 @@ def test_every_package_is_built(colcon_install: Path) -> None:
         "smm_bag",
         "smm_bringup",
         "smm_controller",
+        "smm_direct_loop",
         "smm_hw_bridge",
         "smm_msgs_py",
         "smm_node_runtime",

@@ -1,7 +1,9 @@
 """One role per package, checked on the import graph read from the source (ast), not from a list.
 
 Rules (docs/DESIGN.md, "Packages and their roles"):
-- only ``smm_bringup`` imports the ROS side (node modules) of two node packages;
+- only the compositions (``smm_bringup``, ``smm_direct_loop``) import the ROS side (node modules) of two
+  node packages;
+- ``smm_hw_bridge`` imports nothing of ``smm_controller`` (the bridge never knows the control law);
 - ``smm_controller`` imports nothing of ``smm_sim``;
 - ``smm_bag`` (bag storage and ROS I/O) imports nothing of the stack but ``smm_msgs_py`` and
   ``smm_node_runtime``;
@@ -23,6 +25,9 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 BRINGUP = "smm_bringup"
+COMPOSITIONS = frozenset({BRINGUP, "smm_direct_loop"})
+"""Packages that compose the nodes of several node packages (the graph; the direct loop's process)."""
+BRIDGE = "smm_hw_bridge"
 MESSAGE_CONTRACT = "smm_msgs_py"
 NODE_RUNTIME = "smm_node_runtime"
 ROS_BASE_CLASSES = frozenset({"Node", "LifecycleNode"})
@@ -152,7 +157,7 @@ class ImportGraph:
         found: list[str] = []
         node_packages = self.node_packages()
         node_side = {package: self.node_modules(package) for package in node_packages}
-        for package in sorted({module.package for module in self.modules.values()} - {BRINGUP}):
+        for package in sorted({module.package for module in self.modules.values()} - COMPOSITIONS):
             own = [name for name, module in self.modules.items() if module.package == package]
             used = {
                 other
@@ -161,11 +166,14 @@ class ImportGraph:
                 if other != package and self.edges[name] & modules
             }
             if len(used) >= 2:
-                found.append(f"{package} imports the nodes of {sorted(used)}: only {BRINGUP} may")
+                allowed = ", ".join(sorted(COMPOSITIONS))
+                found.append(f"{package} imports the nodes of {sorted(used)}: only {allowed} may")
         for name, module in sorted(self.modules.items()):
             imported_packages = {self.modules[target].package for target in self.edges[name]}
             if module.package == "smm_controller" and "smm_sim" in imported_packages:
                 found.append(f"{name} imports smm_sim")
+            if module.package == BRIDGE and "smm_controller" in imported_packages:
+                found.append(f"{name} imports smm_controller")
             above_storage = imported_packages - BAG_STORAGE_MAY_IMPORT - {BAG_STORAGE}
             if module.package == BAG_STORAGE and above_storage:
                 found.append(f"{name} imports {', '.join(sorted(above_storage))}: bag storage is below them")
@@ -276,6 +284,20 @@ def test_bringup_may_import_every_node_package(tmp_path: Path) -> None:
     files["smm_bringup/__init__.py"] = ""
     files["smm_bringup/graph.py"] = "import smm_controller.td_node\nimport smm_sim.sim_node\n"
     assert _tree(tmp_path, files).violations() == []
+
+
+def test_the_direct_loop_may_compose_the_bridge_and_the_controller(tmp_path: Path) -> None:
+    files = dict(NODES)
+    files["smm_direct_loop/__init__.py"] = ""
+    files["smm_direct_loop/host.py"] = "import smm_controller.td_node\nimport smm_sim.sim_node\n"
+    assert _tree(tmp_path, files).violations() == []
+
+
+def test_the_bridge_importing_the_controller_is_refused(tmp_path: Path) -> None:
+    files = dict(NODES)
+    files["smm_hw_bridge/__init__.py"] = ""
+    files["smm_hw_bridge/core.py"] = "from smm_controller.td import x\n"
+    assert "smm_hw_bridge.core imports smm_controller" in _tree(tmp_path, files).violations()
 
 
 def test_pure_algorithms_of_two_node_packages_are_libraries(tmp_path: Path) -> None:

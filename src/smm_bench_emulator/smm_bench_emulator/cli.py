@@ -8,6 +8,7 @@ import json
 import signal
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from types import FrameType
 
 import numpy as np
@@ -51,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--control-period", type=float, default=1e-3, help="board tick (s)")
     parser.add_argument("--record", default="", help="write the per-tick record (.npz) here at the end")
+    parser.add_argument("--status-file", default="", help="write the end-of-run status (JSON) here too")
     return parser
 
 
@@ -99,7 +101,10 @@ def run(args: argparse.Namespace) -> int:
     if args.record and emulator.record is not None:
         rows = np.asarray(emulator.record, dtype=np.float64).reshape(-1, 5)
         np.savez(args.record, tick=rows[:, 0].astype(np.int64), position=rows[:, 1:3], codes=rows[:, 3:5])
-    print(json.dumps(emulator.status()), flush=True)
+    summary = json.dumps(emulator.status())
+    if args.status_file:
+        Path(args.status_file).write_text(summary)
+    print(summary, flush=True)
     return 0
 
 

@@ -126,9 +126,9 @@ class Emulator:
             self._control.close()
 
     def _send(self, frame: bytes) -> None:
+        now = self._clock()  # before the send: a host may answer before this process runs again
         for data in self.faults.outgoing(frame, self.board.tick):
             self.transport.send(data)
-        now = self._clock()
         feedback = self.board.last_feedback
         if feedback is not None:
             self._sent_ns[feedback.seq] = now

@@ -7,6 +7,8 @@ so the two cannot drift apart. Arguments:
   unless ``board:=ADDRESS:PORT`` names the I/O board; real time only),
 * ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``,
   ``scenario:=step|case1|case2|excite|none``,
+* ``loop:=topics|direct`` (hardware; direct: one process, ``direct_loop``, steps the chain in the bridge's
+  receiving thread and publishes the same topics; needs chain fused and reference controller),
 * ``chain:=fused|split`` (fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too),
 * ``reference:=controller|node`` (controller: controller_node samples the reference, no reference_node;
   node: reference_node publishes it),
@@ -32,6 +34,7 @@ from smm_bringup.graph import (
     ALGORITHMS,
     CHAIN_LAYOUTS,
     CLOCK_MODES,
+    LOOPS,
     PLANTS,
     REFERENCE_PLACEMENTS,
     SCENARIO_NAMES,
@@ -43,6 +46,7 @@ from smm_bringup.graph import (
 ARGUMENTS = (
     ("plant", "sim", f"plant node: {' | '.join(PLANTS)}"),
     ("clock_mode", "lockstep", f"simulator clock: {' | '.join(CLOCK_MODES)}"),
+    ("loop", "topics", f"control loop: {' | '.join(LOOPS)}"),
     ("chain", "fused", f"chain layout: {' | '.join(CHAIN_LAYOUTS)}"),
     ("reference", "controller", f"who samples the reference: {' | '.join(REFERENCE_PLACEMENTS)}"),
     ("algorithm", "fpdeso", f"controller: {' | '.join(ALGORITHMS)}"),
@@ -74,6 +78,7 @@ def options_from_launch_arguments(values: dict[str, str]) -> GraphOptions:
         board=values["board"] or None,
         record=values["record"] or None,
         rt_priority=int(values["rt_priority"]) if values["rt_priority"] else None,
+        loop=values["loop"],  # type: ignore[arg-type]
     )
 
 
@@ -81,6 +86,19 @@ def node_action(spec: NodeSpec) -> Node:
     """One launch_ros Node for one spec of the graph (files first, then the explicit overrides)."""
     overrides = {name: list(value) if isinstance(value, tuple) else value for name, value in spec.parameters}
     prefix = f"chrt -f {spec.rt_priority}" if spec.rt_priority else None
+    if spec.hosts:  # several nodes in one process (the direct loop): each keeps its name
+        return Node(
+            package=spec.package,
+            executable=spec.executable,
+            namespace=spec.namespace,
+            parameters=[*spec.parameter_files, overrides],
+            output="screen",
+            prefix=prefix,
+            on_exit=[
+                LogInfo(msg=f"{spec.name} exited; stopping the graph"),
+                EmitEvent(event=Shutdown(reason=f"{spec.name} exited")),
+            ],
+        )
     if not spec.node_class:  # a plain process (the bench emulator): its settings are command-line options
         return Node(
             package=spec.package,

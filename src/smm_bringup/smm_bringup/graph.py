@@ -21,12 +21,9 @@ agree with :mod:`smm_analysis.scenarios`.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import fnmatch
 import importlib
 import ipaddress
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -34,11 +31,16 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Final, Literal
 
-import yaml
-from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 from smm_controller.controller_node import REFERENCE_PREFIX
 from smm_controller.reference import REFERENCE_KINDS
 
+from smm_bringup.errors import GraphError, ParameterFileError, PlantNotAvailableError
+from smm_bringup.parameter_files import (
+    ParameterValue,
+    format_parameter_value,
+    load_parameter_file,
+    package_file,
+)
 from smm_bringup.realtime import (
     BOARD_PRIORITY_OFFSET,
     DEFAULT_HARDWARE_PRIORITY,
@@ -52,9 +54,11 @@ __all__ = [
     "CHAIN_LAYOUTS",
     "CLOCK_MODES",
     "CONTROLLER_NODE",
+    "DIRECT_LOOP",
     "EMULATOR_NODE",
     "FLESO_NODE",
     "HW_NODE",
+    "LOOPS",
     "NAMESPACE",
     "PLANTS",
     "PLANT_ALIASES",
@@ -80,11 +84,6 @@ __all__ = [
     "split_endpoint",
 ]
 
-ParameterValue = (
-    bool | int | float | str | tuple[bool, ...] | tuple[int, ...] | tuple[float, ...] | tuple[str, ...]
-)
-"""A ROS parameter value as the graph description holds it (lists as tuples so specs stay hashable)."""
-
 NAMESPACE: Final[str] = "smm"
 """Namespace of every node of the graph (topics resolve to ``/smm/<topic>``)."""
 
@@ -95,6 +94,10 @@ EMULATOR_BOARD: Final[str] = "127.0.0.1:50101"
 EMULATOR_HOST: Final[str] = "127.0.0.1:50100"
 """Loopback addresses of the emulated board and of the bridge when no board address is given."""
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
+LOOPS: Final[tuple[str, ...]] = ("topics", "direct")
+"""``topics``: the plant and ``controller_node`` are separate processes joined by topics (the product's
+shape); ``direct`` (hardware only): one process, ``direct_loop``, steps the chain of ``controller_node`` in
+the bridge's receiving thread and publishes the same topics for observation (docs/LAUNCH.md)."""
 CHAIN_LAYOUTS: Final[tuple[str, ...]] = ("fused", "split")
 """``fused``: TD, FLESO and law in ``controller_node`` (``chain: internal``), two hops per step; ``split``:
 ``td_node`` and ``fleso_node`` as their own nodes (``chain: external``), four hops per step."""
@@ -114,6 +117,8 @@ FLESO_NODE: Final[str] = "fleso_node"
 REFERENCE_NODE: Final[str] = "reference_node"
 CONTROLLER_NODE: Final[str] = "controller_node"
 RECORDER_NODE: Final[str] = "recorder_node"
+DIRECT_LOOP: Final[str] = "direct_loop"
+"""The direct loop's process (console script of ``smm_direct_loop``), hosting HW_NODE and CONTROLLER_NODE."""
 
 PLANT_NODE_NAMES: Final[frozenset[str]] = frozenset((SIM_NODE, HW_NODE, EMULATOR_NODE))
 """Names of the plant processes: when one of them exits 0 the run is complete (see ``docs/LAUNCH.md``);
@@ -133,20 +138,14 @@ _PUBLISHED: Final[dict[str, tuple[str, ...]]] = {
     TD_NODE: (topics.JOINT_STATES_FILTERED,),
     FLESO_NODE: (topics.DISTURBANCE_ESTIMATE, topics.OBSERVER_STATE),
     REFERENCE_NODE: (topics.REFERENCE,),
+    DIRECT_LOOP: (
+        topics.TORQUE_COMMAND,
+        topics.CONTROLLER_INTERNALS,
+        topics.JOINT_STATES,
+        topics.HW_BRIDGE_INTERNALS,
+    ),
 }
 """The recorded stack topics each controller-side node publishes (besides ``/diagnostics``)."""
-
-
-class GraphError(Exception):
-    """Base class: the graph cannot be described or started as asked."""
-
-
-class PlantNotAvailableError(GraphError):
-    """The chosen plant cannot run as asked (``hardware`` runs on the board's clock: real time only)."""
-
-
-class ParameterFileError(GraphError):
-    """A parameter file is missing or is not a valid ROS 2 parameter file."""
 
 
 @dataclass(frozen=True)
@@ -178,6 +177,8 @@ class GraphOptions:
             ``smm_bench_emulator`` on loopback instead.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
+        loop: ``"topics"`` (default) or ``"direct"`` (``plant="hardware"``, fused chain, reference sampled
+            by the controller): see :data:`LOOPS`.
         rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
             nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` (as ros2_control's
             controller manager), 0 with the simulator. The bench emulator, standing for the hard real-time
@@ -199,6 +200,7 @@ class GraphOptions:
     board: str | None = None
     record: str | None = None
     rt_priority: int | None = None
+    loop: Literal["topics", "direct"] = "topics"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "plant", PLANT_ALIASES.get(self.plant, self.plant))
@@ -241,6 +243,15 @@ class GraphOptions:
             raise ValueError(
                 f"rt_priority must be an int in [0, {MAX_PRIORITY - 1}] or None, got {priority!r}"
             )
+        if self.loop not in LOOPS:
+            raise ValueError(f"loop must be one of {LOOPS}, got {self.loop!r}")
+        if self.loop == "direct" and (
+            self.plant != "hardware" or self.chain != "fused" or self.reference != "controller"
+        ):
+            raise ValueError(
+                "loop 'direct' runs the whole chain in the bridge's process: it needs plant 'hardware', "
+                "chain 'fused' and reference 'controller'"
+            )
         if self.board is not None:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
@@ -277,6 +288,9 @@ class NodeSpec:
         parameters: Parameter overrides ``(name, value)``, applied after the files.
         remappings: Topic remappings ``(from, to)``.
         rt_priority: SCHED_FIFO priority of the process (1-99); 0: normal scheduling.
+        hosts: Names of the nodes a process hosts when it hosts several (the direct loop): they keep their
+            own names (no ``__node`` remapping), the parameter files apply to each by its name, and every
+            node takes from :attr:`parameters` the names it declares.
     """
 
     package: str
@@ -288,6 +302,7 @@ class NodeSpec:
     parameters: tuple[tuple[str, ParameterValue], ...] = ()
     remappings: tuple[tuple[str, str], ...] = ()
     rt_priority: int = 0
+    hosts: tuple[str, ...] = ()
 
     @property
     def fully_qualified_name(self) -> str:
@@ -302,7 +317,9 @@ class NodeSpec:
             "-p", "key:=value", ..., "-r", "from:=to", ...]``.
         """
         namespace = f"/{self.namespace}" if self.namespace else "/"
-        arguments = ["--ros-args", "-r", f"__ns:={namespace}", "-r", f"__node:={self.name}"]
+        arguments = ["--ros-args", "-r", f"__ns:={namespace}"]
+        if not self.hosts:
+            arguments += ["-r", f"__node:={self.name}"]
         for path in self.parameter_files:
             arguments += ["--params-file", path]
         for name, value in self.parameters:
@@ -324,67 +341,6 @@ class NodeSpec:
         module_name, _, class_name = self.node_class.partition(":")
         node_type: type[Any] = getattr(importlib.import_module(module_name), class_name)
         return node_type
-
-
-def format_parameter_value(value: ParameterValue) -> str:
-    """Format a value for ``-p name:=value`` so that ROS parses it back with the same type.
-
-    ROS reads the value as YAML: JSON is valid YAML flow syntax, a float keeps its decimal point
-    (``1.0`` stays a double, not an integer) and a string is quoted (``"1"`` stays a string).
-
-    Raises:
-        ValueError: A non-finite float (YAML has no portable spelling that rcl accepts) or an
-            unsupported type.
-    """
-    if isinstance(value, tuple):
-        return "[" + ", ".join(format_parameter_value(item) for item in value) + "]"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if not math.isfinite(value):
-            raise ValueError(f"cannot pass a non-finite parameter value {value!r} on the command line")
-        text = repr(value)
-        # YAML 1.1 reads "5e-09" as a string; "5.0e-09" is a float to every YAML parser.
-        mantissa, exponent_mark, exponent = text.partition("e")
-        if exponent_mark and "." not in mantissa:
-            text = f"{mantissa}.0e{exponent}"
-        return text
-    if isinstance(value, str):
-        return json.dumps(value)
-    raise ValueError(f"unsupported parameter value {value!r} of type {type(value).__name__}")
-
-
-def package_file(package: str, relative: str) -> Path:
-    """Locate a data file of a package: installed share directory first, then the source tree.
-
-    A colcon install puts ``config/`` and ``launch/`` under ``share/<package>/`` (found through the
-    ament index); an editable pip install leaves them beside the package's source directory.
-
-    Args:
-        package: Package name, e.g. ``"smm_sim"``.
-        relative: Path inside the package's share directory, e.g. ``"config/scenario_case2.yaml"``.
-
-    Raises:
-        ParameterFileError: The file exists in neither place.
-    """
-    candidates: list[Path] = []
-    # OSError: no AMENT_PREFIX_PATH at all (plain virtual environment).
-    with contextlib.suppress(PackageNotFoundError, OSError):
-        candidates.append(Path(get_package_share_directory(package)) / relative)
-    try:
-        module = importlib.import_module(package)
-    except ImportError:
-        pass
-    else:
-        if module.__file__ is not None:
-            candidates.append(Path(module.__file__).resolve().parent.parent / relative)
-    for candidate in candidates:
-        if candidate.is_file():
-            return candidate
-    tried = ", ".join(str(path) for path in candidates) or "nowhere (package not importable)"
-    raise ParameterFileError(f"{package}/{relative} not found; looked in {tried}")
 
 
 def scenario_file(name: str) -> Path:
@@ -429,6 +385,17 @@ def _reference_parameters(files: Sequence[str]) -> tuple[tuple[str, ParameterVal
         for name, value in values.items()
         if name == "kind" or name.partition(".")[0] in REFERENCE_KINDS
     )
+
+
+def _controller_parameters(
+    options: GraphOptions, files: Sequence[str]
+) -> tuple[tuple[str, ParameterValue], ...]:
+    """``controller_node``'s overrides: algorithm, chain placement, reference source, control period."""
+    chain = "internal" if options.chain == "fused" else "external"
+    parameters = (("algorithm", options.algorithm), ("chain", chain), *_period_parameters(options))
+    if options.reference == "controller":
+        parameters = (("reference_source", "internal"), *_reference_parameters(files), *parameters)
+    return parameters
 
 
 def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
@@ -479,16 +446,13 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
             continue  # their algorithms run inside controller_node
         if reference_in_controller and name == REFERENCE_NODE:
             continue  # sampled inside controller_node
-        parameters = _period_parameters(options)
-        if name == CONTROLLER_NODE:
-            chain = "internal" if fused else "external"
-            parameters = (("algorithm", options.algorithm), ("chain", chain), *parameters)
-            if reference_in_controller:
-                parameters = (
-                    ("reference_source", "internal"),
-                    *_reference_parameters(shared_files),
-                    *parameters,
-                )
+        if options.loop == "direct" and name == CONTROLLER_NODE:
+            continue  # hosted by direct_loop
+        parameters = (
+            _controller_parameters(options, shared_files)
+            if name == CONTROLLER_NODE
+            else _period_parameters(options)
+        )
         controller_side.append(
             NodeSpec(
                 package="smm_controller",
@@ -560,6 +524,16 @@ def _hardware_specs(options: GraphOptions, files: Sequence[str]) -> tuple[NodeSp
         node_class="smm_hw_bridge.bridge_node:HwBridgeNode",
         parameters=tuple(bridge_parameters),
     )
+    if options.loop == "direct":
+        bridge = NodeSpec(
+            package="smm_direct_loop",
+            executable=DIRECT_LOOP,
+            name=DIRECT_LOOP,
+            node_class="",  # two nodes in one process, a thread of its own: a process, never composed
+            parameter_files=tuple(files),
+            parameters=(*bridge_parameters, *_controller_parameters(options, files)),
+            hosts=(CONTROLLER_NODE, HW_NODE),
+        )
     if options.board is not None:
         return (bridge,)
     emulator_parameters: list[tuple[str, ParameterValue]] = [("bind", board), ("host", EMULATOR_HOST)]
@@ -616,8 +590,9 @@ def expected_publishers(specs: Sequence[NodeSpec]) -> dict[str, int]:
         published = _PUBLISHED[spec.name]
         if ("reference_source", "internal") in spec.parameters:
             published = (*published, topics.REFERENCE)
-        for topic in (*(topics.fully_qualified(name, spec.namespace) for name in published), "/diagnostics"):
+        for topic in (topics.fully_qualified(name, spec.namespace) for name in published):
             counts[topic] = counts.get(topic, 0) + 1
+        counts["/diagnostics"] = counts.get("/diagnostics", 0) + max(1, len(spec.hosts))
     return counts
 
 
@@ -643,71 +618,6 @@ def _recorder_spec(options: GraphOptions) -> NodeSpec:
 
 
 # ------------------------------------------------------------------------------- composed mode support
-
-
-def _node_key_matches(key: str, fully_qualified_name: str) -> bool:
-    """Rcl's matching of a parameter-file node key: ``/**`` spans any namespaces, ``*`` one token."""
-    if key == "/**":
-        return True
-    pattern = key if key.startswith("/") else "/" + key
-    if pattern == fully_qualified_name:
-        return True
-    key_tokens = pattern.strip("/").split("/")
-    name_tokens = fully_qualified_name.strip("/").split("/")
-    return _tokens_match(key_tokens, name_tokens)
-
-
-def _tokens_match(pattern: Sequence[str], tokens: Sequence[str]) -> bool:
-    if not pattern:
-        return not tokens
-    head, rest = pattern[0], pattern[1:]
-    if head == "**":
-        return any(_tokens_match(rest, tokens[skip:]) for skip in range(len(tokens) + 1))
-    return bool(tokens) and fnmatch.fnmatchcase(tokens[0], head) and _tokens_match(rest, tokens[1:])
-
-
-def _flatten(prefix: str, values: Mapping[str, Any], out: dict[str, Any]) -> None:
-    for key, value in values.items():
-        name = f"{prefix}.{key}" if prefix else str(key)
-        if isinstance(value, Mapping):
-            _flatten(name, value, out)
-        else:
-            out[name] = value
-
-
-def load_parameter_file(path: str | Path, fully_qualified_name: str) -> dict[str, Any]:
-    """Parameters a ROS 2 parameter file sets for one node, with rcl's precedence.
-
-    Sections are applied in file order; a wildcard section (``/**``) is applied before the sections
-    that name the node, so that a node-specific value wins, as rcl does.
-
-    Args:
-        path: The YAML file.
-        fully_qualified_name: Node name, e.g. ``/smm/smm_sim_node``.
-
-    Returns:
-        ``{parameter name (dotted): value}`` (lists stay lists).
-
-    Raises:
-        ParameterFileError: The file is missing, is not YAML, or is not a ROS 2 parameter file.
-    """
-    try:
-        content = yaml.safe_load(Path(path).read_text())
-    except OSError as error:
-        raise ParameterFileError(f"cannot read parameter file {path}: {error}") from error
-    except yaml.YAMLError as error:
-        raise ParameterFileError(f"parameter file {path} is not valid YAML: {error}") from error
-    if not isinstance(content, Mapping):
-        raise ParameterFileError(f"parameter file {path} must map node names to sections")
-    wildcard: dict[str, Any] = {}
-    specific: dict[str, Any] = {}
-    for key, section in content.items():
-        if not isinstance(section, Mapping) or not isinstance(section.get("ros__parameters"), Mapping):
-            raise ParameterFileError(f"parameter file {path}: section {key!r} has no 'ros__parameters' map")
-        if not _node_key_matches(str(key), fully_qualified_name):
-            continue
-        _flatten("", section["ros__parameters"], wildcard if "*" in str(key) else specific)
-    return {**wildcard, **specific}
 
 
 def parameter_overrides(spec: NodeSpec) -> dict[str, Any]:

@@ -42,7 +42,7 @@ import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Final, Generic, TypeVar, Unpack
+from typing import Any, ClassVar, Final, Generic, TypeVar, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -230,6 +230,8 @@ class ControllerNode(MeasurementDrivenNode):
     """
 
     NODE_NAME = NODE_NAME
+    SUBSCRIBES_MEASUREMENT: ClassVar[bool] = True
+    """False for a host that hands the internal chain its measurements itself (the direct loop)."""
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
@@ -309,6 +311,8 @@ class ControllerNode(MeasurementDrivenNode):
                 subscription_qos_for_topic(topics.REFERENCE),
             )
         if self.internal_chain:
+            if not self.SUBSCRIBES_MEASUREMENT:
+                return
             self.create_subscription(
                 JointState,
                 topics.JOINT_STATES,

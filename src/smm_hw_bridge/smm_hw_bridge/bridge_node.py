@@ -24,6 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final, Literal, Unpack
 
+import numpy.typing as npt
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
@@ -138,6 +139,7 @@ class HwBridgeNode(LifecycleNode):
         self._reader: threading.Thread | None = None
         self._stop = threading.Event()
         self._fault_transition = False
+        self._host_fault = ""
         self.counters = _Counters()
         self._joint_states = self.create_publisher(
             JointState, topics.JOINT_STATES, qos_for_topic(topics.JOINT_STATES)
@@ -199,6 +201,7 @@ class HwBridgeNode(LifecycleNode):
         """Opens the transport, waits for valid feedback, locks the board with a safe frame."""
         link = self._link.config
         self._fault_transition = False
+        self._host_fault = ""
         try:
             if link.transport == "udp":
                 transport: Transport = UdpTransport(
@@ -342,14 +345,58 @@ class HwBridgeNode(LifecycleNode):
             resent = core.config.lockstep and core.last_rejection is Reason.DUPLICATE
             if frame is None and not resent:
                 return
-            if core.needs_frame(now):
+            publish = core.state in (BridgeState.ARMING, BridgeState.ARMED)
+            sample = JointSample(core.stamp_ns, core.position, effort=core.applied_torque)
+            answered = publish and self.answer_in_place(core, sample, now)
+            if not answered and core.needs_frame(now):
                 out = core.next_frame(now)
                 if out is not None:
                     self._transmit(out)
-            publish = core.state in (BridgeState.ARMING, BridgeState.ARMED)
-            sample = JointSample(core.stamp_ns, core.position, effort=core.applied_torque)
         if publish:
             self._joint_states.publish(sample_to_joint_state(sample))
+            self.after_feedback(sample)
+
+    def answer_in_place(self, core: BridgeCore, sample: JointSample, rx_ns: int) -> bool:
+        """Hook of a host that computes the command in the receiving thread (lock held, nothing sent yet).
+
+        Called for every admitted measurement while arming or armed (and, in lockstep, for the board's
+        re-sent unanswered one). The topics loop answers on ``torque_command`` instead, so here: False
+        (nothing sent).
+        """
+        return False
+
+    def after_feedback(self, sample: JointSample) -> None:
+        """Hook called in the receiving thread after ``joint_states`` went out (lock released)."""
+
+    def take_command(self, core: BridgeCore, torque: npt.ArrayLike, stamp_ns: int, rx_ns: int) -> bool:
+        """Hands one torque command to the core and sends the frame it gives (lock held); True if accepted."""
+        refusal = core.on_command(torque, stamp_ns, rx_ns)
+        if refusal is not None:
+            self.counters.refused[refusal.value] = self.counters.refused.get(refusal.value, 0) + 1
+            return False
+        self.counters.commands += 1
+        frame = core.next_frame(rx_ns)
+        if frame is not None:
+            self._transmit(frame)
+        return True
+
+    def publish_internals(self, core: BridgeCore, stamp_ns: int) -> None:
+        """Publishes ``hw_bridge_internals`` of the last command, stamped ``stamp_ns``."""
+        with self._lock:
+            message = internals_to_msg(core.internals, stamp_ns)
+        self._internals.publish(message)
+
+    def fail(self, reason: str) -> None:
+        """A host-side fault (the loop cannot go on): safe frame now, then the error transition.
+
+        Callable from any thread; the steady timer drives the lifecycle as for board fault bits.
+        """
+        with self._lock:
+            self.counters.last_error = reason
+            self._host_fault = reason
+            if self._core is not None:
+                self._core.disarm()
+                self._send_safe()
 
     def _on_command(self, msg: Float64MultiArray) -> None:
         now = time.monotonic_ns()
@@ -363,14 +410,8 @@ class HwBridgeNode(LifecycleNode):
             core = self._core
             if core is None or self._transport is None:
                 return
-            refusal = core.on_command(command.values, command.stamp_ns, now)
-            if refusal is not None:
-                self.counters.refused[refusal.value] = self.counters.refused.get(refusal.value, 0) + 1
+            if not self.take_command(core, command.values, command.stamp_ns, now):
                 return
-            self.counters.commands += 1
-            frame = core.next_frame(now)
-            if frame is not None:
-                self._transmit(frame)
             internals = internals_to_msg(core.internals, command.stamp_ns)
         self._internals.publish(internals)
 
@@ -415,12 +456,13 @@ class HwBridgeNode(LifecycleNode):
                 out = core.next_frame(now)  # host watchdog: safe output although feedback stopped
                 if out is not None:
                     self._transmit(out)
-            fault = core.state == BridgeState.FAULT
+            fault = core.state == BridgeState.FAULT or bool(self._host_fault)
         if fault and not self._fault_transition:
             self._fault_transition = True
             last = core.last_feedback
             bits = 0 if last is None else last.faults
-            self._log.error(f"board fault bits {bits:#06x}: safe output, error transition")
+            why = f"host fault ({self._host_fault})" if self._host_fault else f"board fault bits {bits:#06x}"
+            self._log.error(f"{why}: safe output, error transition")
             self.diagnostics.publish()
             if self.lifecycle_state == "active":
                 self.trigger_deactivate()  # type: ignore[no-untyped-call]
@@ -476,6 +518,8 @@ class HwBridgeNode(LifecycleNode):
             if counters.last_error:
                 values["last_error"] = counters.last_error
             state = core.state
+        if self._host_fault:
+            return Health(Level.ERROR, f"host fault: {self._host_fault}: valves at null", values)
         if state == BridgeState.FAULT:
             return Health(Level.ERROR, f"board fault bits {values['fault_bits']}: valves at null", values)
         if state == BridgeState.SESSION_LOST:

@@ -1,0 +1,250 @@
+"""``direct_loop``: ``hw_bridge_node`` and ``controller_node`` in one process, the chain in the I/O thread.
+
+Per feedback frame: decode, step the chain, send, then publish the topics loop's topics with its stamps.
+A failing chain sends a safe frame and goes to ERROR. Why and when: docs/LAUNCH.md, "The direct loop".
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Final, Unpack
+
+import numpy as np
+import numpy.typing as npt
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.context import Context
+from rclpy.exceptions import ParameterException
+from rclpy.parameter import Parameter
+from smm_controller.controller_node import ControllerNode
+from smm_hw_bridge.bridge_node import HwBridgeNode
+from smm_hw_bridge.core import BridgeCore
+from smm_msgs_py.conversions import JointSample
+from smm_node_runtime.parameters import bounds
+
+from smm_direct_loop.statistics import LoopStatistics, RunningFigures
+from smm_msgs_py import topics
+from smm_node_runtime import ConfigParameters, Health, NodeOptions, run_nodes
+
+__all__ = ["ChainFailureError", "DirectBridgeNode", "DirectControllerNode", "LoopSettings", "main"]
+
+DEFAULT_SWITCH_INTERVAL: Final[float] = 0.0005
+"""Default ``sys.setswitchinterval`` of the direct loop's process (s); docs/LAUNCH.md says why."""
+
+
+class ChainFailureError(RuntimeError):
+    """The control chain gave no valid torque for a measurement (it raised or its output was not finite)."""
+
+
+def _same(item: JointSample) -> JointSample:
+    return item
+
+
+class _Held:
+    """Stands in for the torque publisher while the chain steps: keeps the message until the frame is sent."""
+
+    def __init__(self, publisher: Any) -> None:
+        self.publisher = publisher
+        self.message: Any = None
+
+    def publish(self, message: Any) -> None:
+        self.message = message
+
+    def get_subscription_count(self) -> int:
+        return int(self.publisher.get_subscription_count())
+
+
+class DirectControllerNode(ControllerNode):
+    """``controller_node`` whose internal chain is stepped by the direct loop's bridge, not by a topic.
+
+    Raises:
+        ValueError: Invalid parameters, or ``chain`` / ``reference_source`` not ``internal``.
+    """
+
+    SUBSCRIBES_MEASUREMENT = False
+
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        super().__init__(**options)
+        if not self.internal_chain or not self.internal_reference:
+            self.destroy_node()  # type: ignore[no-untyped-call]
+            raise ValueError(
+                "the direct loop steps the whole chain itself: chain and reference_source must be 'internal'"
+            )
+        self._held = _Held(self._torque_publisher)
+        self._torque_publisher = self._held  # type: ignore[assignment]
+        self.tick_lock: threading.RLock = threading.RLock()
+        """Held for a whole tick; parameter changes wait for it (the host gives the bridge's lock)."""
+
+    def command_for(self, sample: JointSample) -> npt.NDArray[np.float64] | None:
+        """Steps the chain on one measurement (caller holds :attr:`tick_lock`).
+
+        Returns:
+            The torque (N m), shape (2,); None when the stamp policy or the plausibility check refused it.
+
+        Raises:
+            ChainFailureError: The chain gave no valid torque (counted as an invalid output).
+            Exception: Whatever else the chain raised.
+        """
+        self._held.message = None
+        failures = self.counters.invalid_outputs
+        self._on_input(topics.JOINT_STATES, sample, _same)
+        if self.counters.invalid_outputs != failures:
+            raise ChainFailureError(self.last_error)
+        if self._held.message is None:
+            return None
+        return self._last_command.copy()
+
+    def _diagnostics(self, stamp_ns: int) -> list[Any]:
+        return []  # built by publish_answer, after the command frame went out
+
+    def publish_answer(self, stamp_ns: int) -> None:
+        """Publishes ``torque_command``, then ``controller_internals`` and ``reference`` of the last step.
+
+        The last two only while someone subscribes (a recorder, a plot), as in the topics loop.
+        """
+        message, self._held.message = self._held.message, None
+        if message is None:
+            return
+        self._held.publisher.publish(message)
+        if self._internals_publisher.get_subscription_count() == 0 and (
+            self._reference_publisher.get_subscription_count() == 0
+        ):
+            return
+        for publisher, output in ControllerNode._diagnostics(self, stamp_ns):
+            publisher.publish(output)
+
+    def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
+        """As rclpy's, between two ticks."""
+        with self.tick_lock:
+            return super().set_parameters(parameter_list)
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
+        """As rclpy's, between two ticks (the parameter services call this)."""
+        with self.tick_lock:
+            return super().set_parameters_atomically(parameter_list)
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    """The direct loop's own settings (parameters of ``hw_bridge_node`` in the direct loop, read-only).
+
+    Attributes:
+        switch_interval: ``sys.setswitchinterval`` of the process (s): the longest a thread holding the GIL
+            keeps the reader thread waiting once a frame arrived, in [1e-5, 0.1].
+    """
+
+    switch_interval: float = field(default=DEFAULT_SWITCH_INTERVAL, metadata=bounds(1e-5, 0.1))
+
+    def __post_init__(self) -> None:
+        value = self.switch_interval
+        if isinstance(value, bool) or not isinstance(value, float) or not 1e-5 <= value <= 0.1:
+            raise ValueError(f"switch_interval must be a number of seconds in [1e-5, 0.1], got {value!r}")
+
+
+class DirectBridgeNode(HwBridgeNode):
+    """``hw_bridge_node`` that answers each measurement with ``controller``'s chain in its reader thread.
+
+    Args:
+        controller: The chain's node (same process, same context).
+        **options: The node options every SMM node takes.
+    """
+
+    def __init__(self, controller: DirectControllerNode, **options: Unpack[NodeOptions]) -> None:
+        super().__init__(**options)
+        try:
+            self.settings = ConfigParameters(self, "loop", LoopSettings(), read_only=True)
+        except ValueError:
+            self.destroy_node()
+            raise
+        sys.setswitchinterval(self.settings.config.switch_interval)
+        self.controller = controller
+        controller.tick_lock = self._lock
+        self.statistics = LoopStatistics()
+        self.publish_us = RunningFigures()
+        """Time the ROS side of each tick takes, after the send (us)."""
+        self._answered_stamp: int | None = None
+
+    def answer_in_place(self, core: BridgeCore, sample: JointSample, rx_ns: int) -> bool:
+        """Steps the chain and sends its command; a failing chain sends a safe frame and faults."""
+        self._answered_stamp = None
+        try:
+            torque = self.controller.command_for(sample)
+        except Exception as error:
+            self.fail(f"control chain failed at stamp {sample.stamp_ns} ns: {type(error).__name__}: {error}")
+            return True
+        if torque is None or not self.take_command(core, torque, sample.stamp_ns, rx_ns):
+            return False
+        self.statistics.on_tick(rx_ns, time.monotonic_ns())
+        self._answered_stamp = sample.stamp_ns
+        return True
+
+    def after_feedback(self, sample: JointSample) -> None:
+        """The ROS side of the tick, after the command went out: the controller's topics, the bridge's."""
+        stamp = self._answered_stamp
+        if stamp is None:
+            return
+        started = time.monotonic_ns()
+        self.controller.publish_answer(stamp)
+        core = self.core
+        if core is not None:
+            self.publish_internals(core, stamp)
+        self.publish_us.add((time.monotonic_ns() - started) / 1e3)
+
+    def on_configure(self, state: Any) -> Any:
+        """As the bridge's, and the loop statistics start anew."""
+        self.statistics.reset()
+        self.publish_us = RunningFigures()
+        return super().on_configure(state)
+
+    def health(self) -> Health:
+        """The bridge's status plus the loop's periodicity and execution time (ros2_control's figures)."""
+        health = super().health()
+        values = dict(health.values)
+        values.update(self.statistics.values())
+        values["publish_time.mean_us"] = f"{self.publish_us.mean:.1f}"
+        values["publish_time.max_us"] = f"{self.publish_us.maximum:.1f}"
+        return Health(health.level, health.message, values)
+
+    def closing_line(self) -> str:
+        """What the host knows of a run: the board's late count from its feedback, receive -> send."""
+        core = self.core
+        last = None if core is None else core.last_feedback
+        late = "unknown" if last is None else str(last.late_commands)
+        return (
+            f"host: late {late} (the board's count, from its feedback frames; its enabled ticks are not on "
+            f"the wire), receive->send p50 {self.statistics.execution_percentile_us(50):.0f} us, "
+            f"p99 {self.statistics.execution_percentile_us(99):.0f} us over "
+            f"{self.statistics.execution_us.count} commands"
+        )
+
+    def destroy_node(self) -> None:
+        """Prints :meth:`closing_line`, then as the bridge's."""
+        if getattr(self, "statistics", None) is not None and self.statistics.execution_us.count:
+            print(f"[direct_loop] {self.closing_line()}", flush=True)
+        super().destroy_node()
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``direct_loop``: ``controller_node`` and ``hw_bridge_node`` in one executor."""
+    made: list[DirectControllerNode] = []
+
+    def controller(context: Context) -> DirectControllerNode:
+        made.append(DirectControllerNode(context=context))
+        return made[0]
+
+    def bridge(context: Context) -> DirectBridgeNode:
+        return DirectBridgeNode(made[0], context=context)
+
+    try:
+        run_nodes([controller, bridge], args)
+    except (ValueError, ParameterException) as error:
+        print(f"direct_loop: invalid parameter: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,138 @@
+"""The direct loop's host against the emulator (in-process thread, loopback UDP).
+
+A chain that raises or gives a non-finite torque: safe frame and the error transition. Parameters change
+between ticks only, validated as in the topics loop. Every topic of the topics loop is published with the
+measurement's stamp. Periodicity and execution time on /diagnostics.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from hw_bridge.test_bridge_node import Bench, assert_safe_now
+
+pytestmark = pytest.mark.ros
+
+
+@pytest.fixture
+def direct(ros_context: Any) -> Iterator[Bench]:
+    harness = Bench(
+        ros_context, loop="direct", **{"bridge.validity_ticks": 5000}
+    )  # safe frames, not the board
+    try:
+        yield harness
+    finally:
+        harness.close()
+
+
+def _break_chain(bench: Bench, step: Any) -> None:
+    chain = bench.controller.chain
+    assert chain is not None
+    chain.step_floats = step
+
+
+def _assert_faulted(bench: Bench, words: str) -> None:
+    assert_safe_now(bench)
+    assert bench.spin_until(lambda: bench.node.lifecycle_state == "unconfigured", 5.0)
+    assert bench.spin_until(
+        lambda: any(s.level == b"\x02" and words in s.message for s in bench.bridge_statuses()), 5.0
+    ), [s.message for s in bench.bridge_statuses()]
+
+
+def test_a_chain_that_raises_sends_a_safe_frame_and_goes_through_the_error_transition(direct: Bench) -> None:
+    direct.start()
+
+    def raises(*_args: Any) -> tuple[float, float]:
+        raise ZeroDivisionError("a broken law")
+
+    _break_chain(direct, raises)
+    _assert_faulted(direct, "control chain failed")
+
+
+def test_a_non_finite_torque_sends_a_safe_frame_and_goes_through_the_error_transition(direct: Bench) -> None:
+    direct.start()
+    _break_chain(direct, lambda *_args: (math.nan, 0.0))
+    _assert_faulted(direct, "control chain failed")
+    assert direct.controller.counters.invalid_outputs >= 1
+
+
+def test_parameters_change_between_ticks_only_and_are_validated(direct: Bench) -> None:
+    from rclpy.parameter import Parameter
+
+    direct.start()
+    results: list[Any] = []
+    with direct.controller.tick_lock:  # as a tick holds it
+        setter = threading.Thread(
+            target=lambda: results.extend(
+                direct.controller.set_parameters([Parameter("pid.kp", value=[50.0, 50.0])])
+            )
+        )
+        setter.start()
+        setter.join(0.3)
+        assert setter.is_alive() and not results  # waits for the tick to end
+    setter.join(5.0)
+    assert results and results[0].successful
+    assert direct.controller.law_parameters["pid"].config.kp == (50.0, 50.0)
+    refused = direct.controller.set_parameters([Parameter("pid.kp", value=[-1.0, 50.0])])[0]
+    assert not refused.successful and "kp" in refused.reason
+    assert direct.spin_until(direct.live)  # the loop runs on
+
+
+def test_the_topics_loop_topics_are_published_with_the_measurement_stamps(direct: Bench) -> None:
+    from sensor_msgs.msg import JointState
+    from smm_msgs_py.conversions import msg_to_labelled, msg_to_reference, msg_to_torque, stamp_to_ns
+    from std_msgs.msg import Float64MultiArray
+
+    from smm_msgs_py import topics
+
+    received: dict[str, list[int]] = {name: [] for name in ("joint_states", "torque_command", "reference")}
+    internals: list[Any] = []
+    direct.peer.create_subscription(
+        JointState,
+        topics.JOINT_STATES,
+        lambda m: received["joint_states"].append(stamp_to_ns(m.header.stamp)),
+        1000,
+    )
+    for name, parse in (("torque_command", msg_to_torque), ("reference", msg_to_reference)):
+        direct.peer.create_subscription(
+            Float64MultiArray, name, lambda m, n=name, p=parse: received[n].append(p(m).stamp_ns), 1000
+        )
+    direct.peer.create_subscription(Float64MultiArray, topics.CONTROLLER_INTERNALS, internals.append, 1000)
+    direct.start()
+    assert direct.spin_until(lambda: len(received["torque_command"]) > 50 and len(internals) > 50, 10.0)
+    measured = set(received["joint_states"])
+    assert set(received["torque_command"]) <= measured
+    assert set(received["reference"]) <= set(received["torque_command"])
+    assert direct.internals, "no hw_bridge_internals"
+    rows = msg_to_labelled(internals[-1]).row_labels
+    from smm_node_runtime import COUNTER_ROWS
+
+    # the internal chain's rows, then the node counters, as controller_node publishes them in the topics loop
+    assert rows[0].startswith("td.") and any(label.startswith("controller.") for label in rows)
+    assert rows[-len(COUNTER_ROWS) :] == COUNTER_ROWS
+
+
+def test_periodicity_and_execution_time_are_on_diagnostics(direct: Bench) -> None:
+    direct.start()
+    assert direct.spin_until(lambda: direct.node.statistics.execution_us.count > 100, 10.0)
+    assert direct.spin_until(lambda: len(direct.bridge_statuses()) >= 2, 5.0)
+    values = {kv.key: kv.value for kv in direct.bridge_statuses()[-1].values}
+    for figure in ("periodicity", "execution_time"):
+        for label in ("mean_us", "min_us", "max_us", "std_us"):
+            assert float(values[f"{figure}.{label}"]) >= 0.0
+    assert float(values["execution_time.p99_us"]) >= float(values["execution_time.p50_us"]) > 0.0
+    assert "host: late" in direct.node.closing_line()
+
+
+def test_a_chain_that_stops_answering_is_caught_by_the_host_watchdog(direct: Bench) -> None:
+    """Refused measurements (no command) are not a fault: the board holds, then the host watchdog nulls."""
+    direct.start()
+    trips = direct.node.core.watchdog_trips
+    direct.controller.command_for = lambda _sample: None
+    assert_safe_now(direct)
+    assert direct.node.core.watchdog_trips > trips
+    assert direct.node.lifecycle_state == "active"  # no error transition: the loop runs on, with safe output
