@@ -93,6 +93,7 @@ def _fuzzy(draw: st.DrawFn, base: FuzzyPDConfig) -> FuzzyPDConfig:
 @st.composite
 def _settings(draw: st.DrawFn, controller: str, smooth: bool = True) -> RunSettings:
     scenario = draw(_SCENARIOS)
+    compensate = controller == "fpdeso" and draw(st.booleans())  # the feedforward's and observer's F together
     law: FPDESOConfig | FPDConfig | PIDConfig | NPDConfig
     if controller == "fpdeso":
         law = FPDESOConfig(
@@ -100,6 +101,7 @@ def _settings(draw: st.DrawFn, controller: str, smooth: bool = True) -> RunSetti
             robust_gain=draw(_pair(0.0, 0.5)),
             boundary_layer=draw(_pair(0.01, 1.0)) if smooth else (0.0, 0.0),
             velocity_source=draw(st.sampled_from(["td", "observer"])),
+            compensate_friction=compensate,
         )
     elif controller == "fpd":
         law = FPDConfig(fuzzy=draw(_fuzzy(PAPER_FPD_FUZZY)))
@@ -121,8 +123,14 @@ def _settings(draw: st.DrawFn, controller: str, smooth: bool = True) -> RunSetti
         law=law,
         plant=draw(_plants()),
         td=TrackingDifferentiatorConfig(filter_factor=draw(_pair(0.001, 0.005)), speed=draw(_pair(1e4, 1e6))),
-        fleso=FLESOConfig(w0=draw(_pair(10.0, 40.0)), k_w=draw(_pair(0.0, 15.0))),
-        model=SMMParameters(I11=draw(st.floats(0.05, 0.09))),
+        fleso=FLESOConfig(
+            w0=draw(_pair(10.0, 40.0)), k_w=draw(_pair(0.0, 15.0)), compensate_friction=compensate
+        ),
+        model=SMMParameters(
+            I11=draw(st.floats(0.05, 0.09)),
+            coulomb_friction=draw(st.sampled_from([(0.0, 0.0), (0.15, 0.05)])),
+            torque_offset=draw(st.sampled_from([(0.0, 0.0), (-0.02, 0.04)])),
+        ),
         output=OutputLimitConfig(
             torque_limit=draw(st.sampled_from([(300.0, 300.0), (25.0, 20.0)])),
             rate_limit=draw(st.sampled_from([(math.inf, math.inf), (20000.0, 20000.0)])),

@@ -133,9 +133,9 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
         graph.HW_NODE,
         *[s.name for s in sim[1:]],
     ]
-    # Nothing changes on the controller side but its scheduling (SCHED_FIFO 50 on the bench by default).
+    # Nothing changes on the controller side but its scheduling (SCHED_FIFO 50 on the bench; the bridge 55).
     assert [dataclasses.replace(spec, rt_priority=0) for spec in hardware[2:]] == list(sim[1:])
-    assert [spec.rt_priority for spec in hardware] == [70, 50, *[50] * len(sim[1:])]
+    assert [spec.rt_priority for spec in hardware] == [70, 55, *[50] * len(sim[1:])]
     assert {spec.rt_priority for spec in sim} == {0}
     emulator, bridge = dict(hardware[0].parameters), dict(hardware[1].parameters)
     assert emulator == {
@@ -204,7 +204,7 @@ def test_the_emulator_accepts_every_option_the_graph_passes_it() -> None:
         ),
         (
             GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=90, record="bag"),
-            {graph.RECORDER_NODE: 80, graph.EMULATOR_NODE: 99, graph.HW_NODE: 90, graph.CONTROLLER_NODE: 90},
+            {graph.RECORDER_NODE: 80, graph.EMULATOR_NODE: 99, graph.HW_NODE: 95, graph.CONTROLLER_NODE: 90},
         ),
         (
             GraphOptions(clock_mode="realtime", rt_priority=5, record="bag"),
@@ -619,7 +619,7 @@ def test_launch_file_records_and_sets_real_time_priorities(
     assert prefixes == {
         graph.RECORDER_NODE: "chrt -f 40",
         graph.EMULATOR_NODE: "chrt -f 70",
-        graph.HW_NODE: "chrt -f 50",
+        graph.HW_NODE: "chrt -f 55",
         graph.CONTROLLER_NODE: "chrt -f 50",
     }
     nodes = _launched_nodes(monkeypatch, {**arguments, "rt_priority": "0"})

@@ -18,7 +18,7 @@ so the two cannot drift apart. Arguments:
 * ``control_period:=<s>`` (empty: as configured, 1 ms), for every node,
 * ``record:=<dir>`` (empty: none): record every topic to a rosbag2 MCAP bag with smm_bag's recorder_node,
 * ``rt_priority:=<n>`` (empty: 50 with plant hardware, else 0): SCHED_FIFO priority of the loop's
-  processes (``chrt -f``; the emulator runs 20 above), 0 for normal scheduling.
+  processes (``chrt -f``; the emulator runs 20 above, hw_bridge_node 5 above), 0 for normal scheduling.
 
 Every node's exit ends the launch: the plant exits 0 when its run is complete, any other exit is a failure.
 """

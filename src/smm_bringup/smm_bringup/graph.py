@@ -43,6 +43,7 @@ from smm_bringup.parameter_files import (
 )
 from smm_bringup.realtime import (
     BOARD_PRIORITY_OFFSET,
+    BRIDGE_PRIORITY_OFFSET,
     DEFAULT_HARDWARE_PRIORITY,
     MAX_PRIORITY,
     RECORDER_PRIORITY_OFFSET,
@@ -488,6 +489,8 @@ def _with_priority(spec: NodeSpec, options: GraphOptions) -> NodeSpec:
         priority = DEFAULT_HARDWARE_PRIORITY if options.plant == "hardware" else 0
     if priority and spec.name == EMULATOR_NODE:
         priority = min(MAX_PRIORITY, priority + BOARD_PRIORITY_OFFSET)
+    elif priority and spec.name == HW_NODE:
+        priority = min(MAX_PRIORITY, priority + BRIDGE_PRIORITY_OFFSET)
     elif priority and spec.name == RECORDER_NODE:
         priority = max(1, priority - RECORDER_PRIORITY_OFFSET)
     return dataclasses.replace(spec, rt_priority=priority)

@@ -10,6 +10,9 @@ DEFAULT_HARDWARE_PRIORITY: Final[int] = 50
 """Priority of the loop processes with ``plant hardware`` (ros2_control's controller manager uses 50)."""
 BOARD_PRIORITY_OFFSET: Final[int] = 20
 """The bench emulator stands for the hard real-time board: it runs this much above the loop (at most 99)."""
+BRIDGE_PRIORITY_OFFSET: Final[int] = 5
+"""``hw_bridge_node`` (the I/O, as ros2_control's read/write thread) runs this much above the controller, so a
+controller busy at start-up cannot starve the bridge's reader into a link loss (seen: 326 frames missed)."""
 RECORDER_PRIORITY_OFFSET: Final[int] = 10
 """The recorder runs this much below the loop (at least 1): above the host's ordinary processes, which
 otherwise starve it of the CPU the loop leaves (measured: half of a 1 kHz run lost at normal priority)."""

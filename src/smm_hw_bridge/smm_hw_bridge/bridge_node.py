@@ -54,6 +54,8 @@ __all__ = ["INTERNALS_TOPIC", "NODE_NAME", "HwBridgeNode", "LinkConfig", "main"]
 NODE_NAME: Final[str] = "hw_bridge_node"
 INTERNALS_TOPIC: Final[str] = topics.HW_BRIDGE_INTERNALS
 _FAULT_CHECK_S: Final[float] = 0.005
+_AUTOSTART_POLL_S: Final[float] = 0.01
+"""How often ``autostart`` looks for a ``torque_command`` publisher (s)."""
 
 
 @dataclass(frozen=True)
@@ -161,13 +163,22 @@ class HwBridgeNode(LifecycleNode):
         self._started = False
         self.declare_parameter("autostart", False)
         if self.get_parameter("autostart").value is True:
-            self._autostart = self.create_timer(0.0, self._start, clock=steady)
+            self._autostart = self.create_timer(_AUTOSTART_POLL_S, self._start, clock=steady)
+        self._waiting_logged = False
 
     def _start(self) -> None:
-        """``autostart``: configure, then activate, once (a failure is logged by the transition)."""
-        self._autostart.cancel()  # type: ignore[no-untyped-call]
+        """``autostart``: once a controller publishes ``torque_command``, configure, then activate, once.
+
+        Arming before the controller is up would let its start-up starve the loop into a link loss.
+        """
         if self._started:
             return
+        if self.count_publishers(topics.TORQUE_COMMAND) == 0:
+            if not self._waiting_logged:
+                self._log.info("autostart: waiting for a torque_command publisher (the controller)")
+                self._waiting_logged = True
+            return
+        self._autostart.cancel()  # type: ignore[no-untyped-call]
         self._started = True
         if self.trigger_configure() == TransitionCallbackReturn.SUCCESS:  # type: ignore[no-untyped-call]
             self.trigger_activate()  # type: ignore[no-untyped-call]

@@ -76,6 +76,15 @@ class BatchModel:
             np.array([getattr(p, name) for p in params]) for name in ("I11", "I22", "I44", "I55")
         )
         self.gravity = np.array([-p.gravity_sign * p.mass_lever * p.gravity for p in params])
+        self.viscous = pairs(params, lambda p: p.viscous_friction)
+        self.coulomb = pairs(params, lambda p: p.coulomb_friction)
+        self.offset = pairs(params, lambda p: p.torque_offset)
+        self.signed = np.any((self.coulomb != 0.0) | (self.offset != 0.0), axis=1, keepdims=True)
+
+    def friction(self, qd: FloatArray) -> FloatArray:
+        """F(q') = f_v q' + f_c sign(q') + offset (N m), (N, 2), as ``smm_dynamics.friction_floats``."""
+        viscous = self.viscous * qd
+        return np.where(self.signed, viscous + self.coulomb * np.sign(qd) + self.offset, viscous)
 
     def mass(self, alpha: FloatArray, beta: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(M11, M12, M22) (kg m^2), each (N,)."""
@@ -138,6 +147,7 @@ class BatchFLESO:
         self.k_s2 = pairs(configs, lambda c: c.k_s2)
         self.w_min = pairs(configs, lambda c: c.w_min)
         self.fuzzy = BandwidthFuzzy(_same(configs, lambda c: c.grid_points, "fleso grid_points"))
+        self.compensate = np.array([[c.compensate_friction] for c in configs])
         self.x1 = np.zeros_like(self.w0)
         self.x2 = np.zeros_like(self.w0)
         self.x3 = np.zeros_like(self.w0)
@@ -153,6 +163,9 @@ class BatchFLESO:
         m11, m12, m22, c0, c1, g0, g1 = self.model.bias(self.x1, self.x2)
         r0 = tau[:, 0] - c0 - g0
         r1 = tau[:, 1] - c1 - g1
+        if self.compensate.any():
+            friction = np.where(self.compensate, self.model.friction(self.x2), 0.0)
+            r0, r1 = r0 - friction[:, 0], r1 - friction[:, 1]
         det = m11 * m22 - m12 * m12
         acc = np.stack(((m22 * r0 - m12 * r1) / det, (m11 * r1 - m12 * r0) / det), axis=-1)
         p1 = self.x1 + dt * self.x2
@@ -213,6 +226,7 @@ class BatchFPDESO(BatchLaw):
         self.b_d = pairs(configs, lambda c: c.robust_gain)
         self.phi = pairs(configs, lambda c: c.boundary_layer)
         self.uses_observer = np.array([c.velocity_source == "observer" for c in configs])
+        self.compensate = np.array([[c.compensate_friction] for c in configs])
 
     def step(
         self, reference: Reference, q: FloatArray, qd: FloatArray, xi: FloatArray, dt: float
@@ -226,6 +240,8 @@ class BatchFPDESO(BatchLaw):
         a0, a1 = acceleration[:, 0], acceleration[:, 1]
         u0, u1, ed0, ed1 = u[:, 0], u[:, 1], ed[:, 0], ed[:, 1]
         ff = np.stack((m11 * a0 + m12 * a1 + c0 + g0, m12 * a0 + m22 * a1 + c1 + g1), axis=-1)
+        if self.compensate.any():
+            ff = np.where(self.compensate, ff + self.model.friction(qd), ff)
         fb = np.stack((m11 * u0 + m12 * u1, m12 * u0 + m22 * u1), axis=-1)
         det = m11 * m22 - m12 * m12
         z = np.stack(((m22 * ed0 - m12 * ed1) / det, (m11 * ed1 - m12 * ed0) / det), axis=-1)
