@@ -230,6 +230,23 @@ def test_link_loss_while_armed_needs_reactivation() -> None:
     assert core.state == BridgeState.ARMING
 
 
+def test_link_gap_while_arming_keeps_arming_and_the_output_goes_live_on_feedback_after_it() -> None:
+    core = BridgeCore(CONFIG, HOST)
+    board = Board(core)
+    board.step()
+    core.arm()
+    before_gap = board.stamp
+    assert core.next_frame(board.now + 101 * MS).flags == 0  # type: ignore[union-attr]
+    assert core.state == BridgeState.ARMING  # nothing was live: a start-up stall is no lost session
+    board.tick += 101  # the board ticked on; none of it reached the host
+    board.now += 101 * MS
+    assert board.step() is not None
+    assert core.on_command([1.0, 1.0], before_gap, board.now) is not None  # answers feedback before the gap
+    assert core.on_command([0.5, -0.25], board.stamp, board.now) is None
+    assert core.state == BridgeState.ARMED
+    assert core.next_frame(board.now).flags == CommandFlag.ENABLE  # type: ignore[union-attr]
+
+
 def test_estop_latches_until_rearm_and_the_board_confirms() -> None:
     core, board = armed_core()
     core.estop()

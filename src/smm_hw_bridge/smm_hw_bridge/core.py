@@ -409,10 +409,11 @@ class BridgeCore:
     def check_link(self, now_ns: int) -> bool:
         """True if feedback was admitted within ``link_timeout_ns``.
 
-        A link loss while active loses the session: output disabled until :meth:`arm`.
+        A link loss while the output is armed loses the session: output disabled until :meth:`arm`. While
+        arming (the output never went live) it does not: arming completes on feedback after the gap.
         """
         up = self.link_up(now_ns)
-        if not up and self._active and self.state in (BridgeState.ARMING, BridgeState.ARMED):
+        if not up and self._active and self.state == BridgeState.ARMED:
             self._lose_session()
         return up
 
