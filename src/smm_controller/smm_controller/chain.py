@@ -23,9 +23,16 @@ import numpy as np
 import numpy.typing as npt
 
 from smm_controller._validation import FloatArray, as_joint_vector, as_reference, check_dt
-from smm_controller.baselines import FPDController, NPDController, PIDController
+from smm_controller.baselines import (
+    FPDConfig,
+    FPDController,
+    NPDConfig,
+    NPDController,
+    PIDConfig,
+    PIDController,
+)
 from smm_controller.fleso import FLESO
-from smm_controller.fpdeso import FPDESOController
+from smm_controller.fpdeso import FPDESOConfig, FPDESOController
 from smm_controller.limits import OutputLimiter, track_saturation
 from smm_controller.td import TrackingDifferentiator
 from smm_controller.torque_law import TorqueLaw
@@ -33,11 +40,14 @@ from smm_dynamics import SMMParameters
 
 __all__ = [
     "CONTROLLER_NAMES",
+    "LAW_CONFIGS",
     "ControlChain",
     "JointController",
+    "LawConfig",
     "limited_torque",
     "make_chain",
     "make_controller",
+    "make_law",
     "stage_internals",
 ]
 
@@ -47,6 +57,25 @@ CONTROLLER_NAMES: tuple[str, ...] = ("fpdeso", "fpd", "pid", "npd")
 
 JointController = TorqueLaw
 """The interface shared by FPDESO and the baselines (see :class:`smm_controller.torque_law.TorqueLaw`)."""
+
+LawConfig = FPDESOConfig | FPDConfig | PIDConfig | NPDConfig
+"""The config of one of the laws."""
+
+LAW_CONFIGS: Mapping[str, type[LawConfig]] = types.MappingProxyType(
+    {"fpdeso": FPDESOConfig, "fpd": FPDConfig, "pid": PIDConfig, "npd": NPDConfig}
+)
+"""The config type of each law, by the names of :data:`CONTROLLER_NAMES`."""
+
+
+def make_law(config: LawConfig, params: SMMParameters) -> JointController:
+    """The law ``config`` configures (its type says which); ``params``: FPDESO's nominal model."""
+    if isinstance(config, FPDESOConfig):
+        return FPDESOController(config, params)
+    if isinstance(config, FPDConfig):
+        return FPDController(config)
+    if isinstance(config, PIDConfig):
+        return PIDController(config)
+    return NPDController(config)
 
 
 def stage_internals(stage: str, internals: Mapping[str, FloatArray]) -> dict[str, FloatArray]:
@@ -180,15 +209,9 @@ def make_controller(name: str, params: SMMParameters) -> JointController:
     Returns:
         The controller.
     """
-    if name == "fpdeso":
-        return FPDESOController(None, params)
-    if name == "fpd":
-        return FPDController()
-    if name == "pid":
-        return PIDController()
-    if name == "npd":
-        return NPDController()
-    raise ValueError(f"controller name must be one of {CONTROLLER_NAMES}, got {name!r}")
+    if name not in LAW_CONFIGS:
+        raise ValueError(f"controller name must be one of {CONTROLLER_NAMES}, got {name!r}")
+    return make_law(LAW_CONFIGS[name](), params)
 
 
 def make_chain(name: str, params: SMMParameters) -> ControlChain:

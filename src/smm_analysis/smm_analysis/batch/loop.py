@@ -8,11 +8,12 @@ carry on.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from smm_controller.chain import LAW_CONFIGS, LawConfig, make_law
 from smm_controller.limits import OutputLimitConfig
 from smm_sim.plant import PlantConfig
 
@@ -24,15 +25,8 @@ from smm_analysis.metrics import joint_indices, step_metrics
 from smm_analysis.scenarios import Scenario
 from smm_controller import (
     FLESOConfig,
-    FPDConfig,
-    FPDController,
     FPDESOConfig,
-    FPDESOController,
     JointController,
-    NPDConfig,
-    NPDController,
-    PIDConfig,
-    PIDController,
     TrackingDifferentiatorConfig,
 )
 from smm_dynamics import SMMParameters
@@ -41,7 +35,6 @@ __all__ = [
     "INDEX_NAMES",
     "SIGN_TOLERANCE",
     "SMOOTH_TOLERANCE",
-    "LawConfig",
     "RunSettings",
     "agreement_tolerance",
     "indices_of",
@@ -51,7 +44,6 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
-LawConfig = FPDESOConfig | FPDConfig | PIDConfig | NPDConfig
 _NS_PER_S = 1_000_000_000
 _JOINTS = ("alpha", "beta")
 _JOINT_INDICES = ("RMS", "Ma", "Ave", "eps_u", "du_rms")
@@ -60,13 +52,6 @@ INDEX_NAMES: tuple[str, ...] = tuple(
     f"{name}_{joint}" for name in (*_JOINT_INDICES, *_STEP_INDICES) for joint in _JOINTS
 )
 """Index columns of a run: ``RMS_alpha`` ... (rad, N^2 m^2 s, N m); step ones NaN for a sine."""
-
-_CONFIG_TYPES: Mapping[str, type] = {
-    "fpdeso": FPDESOConfig,
-    "fpd": FPDConfig,
-    "pid": PIDConfig,
-    "npd": NPDConfig,
-}
 
 
 @dataclass(frozen=True)
@@ -96,9 +81,9 @@ class RunSettings:
     control_period: float = DEFAULT_CONTROL_PERIOD
 
     def __post_init__(self) -> None:
-        expected = _CONFIG_TYPES.get(self.controller)
+        expected = LAW_CONFIGS.get(self.controller)
         if expected is None:
-            raise AnalysisError(f"unknown controller {self.controller!r}; known: {', '.join(_CONFIG_TYPES)}")
+            raise AnalysisError(f"unknown controller {self.controller!r}; known: {', '.join(LAW_CONFIGS)}")
         if not isinstance(self.law, expected):
             raise AnalysisError(
                 f"{self.controller} needs a {expected.__name__}, got {type(self.law).__name__}"
@@ -106,14 +91,7 @@ class RunSettings:
 
     def make_law(self) -> JointController:
         """The scalar law of these settings."""
-        law = self.law
-        if isinstance(law, FPDESOConfig):
-            return FPDESOController(law, self.model)
-        if isinstance(law, FPDConfig):
-            return FPDController(law)
-        if isinstance(law, PIDConfig):
-            return PIDController(law)
-        return NPDController(law)
+        return make_law(self.law, self.model)
 
 
 def indices_of(

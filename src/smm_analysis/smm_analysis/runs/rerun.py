@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import yaml
 from numpy.typing import NDArray
+from smm_controller.chain import LAW_CONFIGS, make_law
 from smm_node_runtime.schema import config_from_parameters
 
 from smm_analysis.errors import ParamsFileError
@@ -27,15 +28,6 @@ from smm_controller import (
     FLESO,
     ControlChain,
     FLESOConfig,
-    FPDConfig,
-    FPDController,
-    FPDESOConfig,
-    FPDESOController,
-    JointController,
-    NPDConfig,
-    NPDController,
-    PIDConfig,
-    PIDController,
     TrackingDifferentiator,
     TrackingDifferentiatorConfig,
 )
@@ -50,12 +42,6 @@ TD_PREFIX = "td"
 FLESO_PREFIX = "fleso"
 MODEL_PREFIX = "model"
 _NODES = ("controller_node", "fleso_node", "td_node", "**")
-_LAW_CONFIGS: Mapping[str, type] = {
-    "fpdeso": FPDESOConfig,
-    "fpd": FPDConfig,
-    "pid": PIDConfig,
-    "npd": NPDConfig,
-}
 
 
 @dataclass(frozen=True)
@@ -70,15 +56,7 @@ class ChainSettings:
 
     def build(self) -> ControlChain:
         """A fresh chain (FLESO only for FPDESO, as in the graph)."""
-        law: JointController
-        if self.algorithm == "fpdeso":
-            law = FPDESOController(self.law, self.model)
-        elif self.algorithm == "fpd":
-            law = FPDController(self.law)
-        elif self.algorithm == "pid":
-            law = PIDController(self.law)
-        else:
-            law = NPDController(self.law)
+        law = make_law(self.law, self.model)
         fleso = FLESO(self.fleso, self.model) if self.algorithm == "fpdeso" else None
         return ControlChain(TrackingDifferentiator(self.td), fleso, law)
 
@@ -146,7 +124,7 @@ def chain_settings(parameters: Mapping[str, Any], algorithm: str = "fpdeso") -> 
     if name not in CONTROLLER_NAMES:
         raise ParamsFileError(f"algorithm must be one of {', '.join(CONTROLLER_NAMES)}, got {name!r}")
     try:
-        law_type = _LAW_CONFIGS[name]
+        law_type = LAW_CONFIGS[name]
         return ChainSettings(
             algorithm=name,
             law=config_from_parameters(law_type, law_type(), parameters, name),

@@ -16,9 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
+from smm_controller.chain import LAW_CONFIGS
 from smm_controller.limits import OutputLimitConfig
 
-from smm_analysis.batch.loop import _CONFIG_TYPES, INDEX_NAMES, RunSettings, run_batch
+from smm_analysis.batch.loop import INDEX_NAMES, RunSettings, run_batch
 from smm_analysis.closed_loop import scenario_plant_config
 from smm_analysis.sweep.spec import Constraint, SweepSpec
 from smm_controller import FLESOConfig, TrackingDifferentiatorConfig
@@ -179,7 +180,7 @@ def reference_bounds(spec: SweepSpec) -> dict[str, float]:
                 settings = RunSettings(
                     scenario=scenario,
                     controller=controller,
-                    law=_CONFIG_TYPES[controller](),
+                    law=LAW_CONFIGS[controller](),
                     plant=scenario_plant_config(scenario),
                     td=TrackingDifferentiatorConfig(),
                     fleso=FLESOConfig(),

@@ -20,11 +20,12 @@ from typing import Any
 import numpy as np
 import yaml
 from scipy.stats import qmc
+from smm_controller.chain import LAW_CONFIGS
 from smm_controller.limits import OutputLimitConfig
 from smm_node_runtime.schema import config_fields, config_from_parameters, config_to_parameters
 
 from smm_analysis.acceptance import CASE2_RMS_REDUCTION, STEP_OVERSHOOT_LIMIT, STEP_RISE_TIME_RANGE
-from smm_analysis.batch.loop import _CONFIG_TYPES, INDEX_NAMES, RunSettings
+from smm_analysis.batch.loop import INDEX_NAMES, RunSettings
 from smm_analysis.closed_loop import scenario_plant_config
 from smm_analysis.errors import AnalysisError, UnknownScenarioError
 from smm_analysis.scenarios import Scenario, get_scenario
@@ -165,7 +166,7 @@ class SweepSpec:
 
 
 def _controller_sections(controller: str) -> dict[str, tuple[type, Any]]:
-    law = _CONFIG_TYPES[controller]
+    law = LAW_CONFIGS[controller]
     return {
         controller: (law, law()),
         "td": (TrackingDifferentiatorConfig, TrackingDifferentiatorConfig()),
