@@ -65,10 +65,10 @@ def _clip_unit(x: FloatArray) -> FloatArray:
 
 
 class BatchModel:
-    """The controllers' nominal models M(q), C(q, q') q', G(q) (``smm_controller.model``) per run.
+    """Per run, a model's M(q), C(q, q') q', G(q), F(q'): the controllers' nominal ones, or the true plants'.
 
     Args:
-        params: One nominal parameter set per run.
+        params: One parameter set per run.
     """
 
     def __init__(self, params: Sequence[SMMParameters]) -> None:

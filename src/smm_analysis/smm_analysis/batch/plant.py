@@ -18,7 +18,7 @@ from smm_dynamics._generated import forward_dynamics_entries_spin_form
 from smm_dynamics.model import _rk4_stages
 from smm_sim.plant import PlantConfig, eq46_disturbance
 
-from smm_analysis.batch.chain import pairs
+from smm_analysis.batch.chain import BatchModel, pairs
 
 __all__ = ["BatchPlant"]
 
@@ -40,16 +40,10 @@ class BatchPlant:
         if len(substeps) != 1:
             raise ValueError(f"every run of a batch needs the same substeps, got {sorted(substeps)!r}")
         self.substeps = substeps.pop()
-        true = [c.true_params for c in configs]
-        self.inertias = tuple(
-            np.array([getattr(p, name) for p in true]) for name in ("I11", "I22", "I44", "I55")
-        )
-        self.gravity = np.array([-p.gravity_sign * p.mass_lever * p.gravity for p in true])
-        self.friction = pairs(true, lambda p: p.viscous_friction)
-        self.coulomb = pairs(true, lambda p: p.coulomb_friction)
-        self.offset = pairs(true, lambda p: p.torque_offset)
+        self.true = BatchModel([c.true_params for c in configs])
+        """The true plants' parameters, as arrays of N."""
         # Rows with Coulomb friction take smm_dynamics' float path (sign(q') is not in the generated step).
-        self.signed = np.any(self.coulomb != 0.0, axis=1)
+        self.signed = np.any(self.true.coulomb != 0.0, axis=1)
         self.limits = pairs(configs, lambda c: c.joint_limits)
         self.saturation = pairs(configs, lambda c: c.torque_limit)
         self.quantum = pairs(configs, lambda c: c.torque_quantum)
@@ -98,10 +92,11 @@ class BatchPlant:
 
     def _rk4(self, load: FloatArray, h: float) -> FloatArray:
         """One RK4 step under ``load`` = applied - disturbance torque (N m), as ``rk4_step_floats``."""
-        inertias, gravity = self.inertias, self.gravity
-        fa, fb = self.friction[:, 0], self.friction[:, 1]
-        ca, cb = self.coulomb[:, 0], self.coulomb[:, 1]
-        oa, ob = self.offset[:, 0], self.offset[:, 1]
+        true = self.true
+        inertias, gravity = true.inertias, true.gravity
+        fa, fb = true.viscous[:, 0], true.viscous[:, 1]
+        ca, cb = true.coulomb[:, 0], true.coulomb[:, 1]
+        oa, ob = true.offset[:, 0], true.offset[:, 1]
         signed = self.signed if np.any(self.signed) else None
         # The generated step subtracts the offset from the load, then f_v q' (and G) per stage.
         offset_a, offset_b = load[:, 0] - oa, load[:, 1] - ob
