@@ -17,7 +17,7 @@ from smm_bag.cdr import encode_joint_state
 from smm_bag.cli import main
 from smm_bag.reader import BagReader
 from smm_bag.writer import BagWriter
-from smm_bringup.graph import load_parameter_file
+from smm_bringup.parameter_files import load_parameter_file
 from smm_sim.plant import PlantConfig
 
 from smm_dynamics import SMMParameters

@@ -11,7 +11,7 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 from smm_analysis.parameters_file import ParametersFileError, parameters_document, write_parameters_file
-from smm_bringup.graph import load_parameter_file
+from smm_bringup.parameter_files import load_parameter_file
 
 _NAMES = st.lists(st.from_regex(r"[a-z][a-z0-9_]{0,6}", fullmatch=True), min_size=1, max_size=3).map(".".join)
 _VALUES = st.one_of(

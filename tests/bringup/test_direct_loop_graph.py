@@ -17,10 +17,10 @@ from smm_bringup.graph import (
     GraphOptions,
     build_graph,
     expected_publishers,
-    load_parameter_file,
     parameter_overrides,
 )
 from smm_bringup.launcher import board_line, with_board_status
+from smm_bringup.parameter_files import load_parameter_file
 
 DIRECT = GraphOptions(plant="hardware", clock_mode="realtime", loop="direct", scenario="case1")
 

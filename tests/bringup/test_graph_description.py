@@ -16,16 +16,17 @@ import pytest
 import yaml
 from hypothesis import assume, given
 from hypothesis import strategies as st
+from smm_bringup.errors import ParameterFileError, PlantNotAvailableError
 from smm_bringup.graph import GraphOptions, NodeSpec, build_graph
 from smm_bringup.launcher import (
-    EXIT_CONFIGURATION_ERROR,
-    EXIT_OK,
     arguments_from_options,
     options_from_arguments,
     run,
 )
 from smm_bringup.launcher import build_parser as launcher_parser
+from smm_bringup.parameter_files import format_parameter_value, load_parameter_file
 from smm_bringup.realtime import fifo_allowed, fifo_preexec
+from smm_bringup.supervisor import EXIT_CONFIGURATION_ERROR, EXIT_OK
 
 from smm_bringup import graph, parameter_files
 
@@ -114,12 +115,12 @@ def test_scenario_and_extra_files_are_passed_in_order(tmp_path: Path) -> None:
 
 
 def test_missing_extra_file_is_a_graph_error(tmp_path: Path) -> None:
-    with pytest.raises(graph.ParameterFileError, match=r"nope\.yaml"):
+    with pytest.raises(ParameterFileError, match=r"nope\.yaml"):
         build_graph(GraphOptions(params_files=(str(tmp_path / "nope.yaml"),)))
 
 
 def test_hardware_plant_in_lockstep_is_refused_clearly() -> None:
-    with pytest.raises(graph.PlantNotAvailableError, match="realtime"):
+    with pytest.raises(PlantNotAvailableError, match="realtime"):
         build_graph(GraphOptions(plant="hardware", clock_mode="lockstep"))
 
 
@@ -170,7 +171,7 @@ def test_the_emulator_runs_the_scenario_plant_the_simulator_would(tmp_path: Path
     )
     assert dict(specs[0].parameters)["noise-std"] == 0.002  # a later file wins, as for the simulator
     extra.write_text("/**/smm_sim_node:\n  ros__parameters:\n    noise_std: [0.002, 0.001]\n")
-    with pytest.raises(graph.ParameterFileError, match=r"noise_std.*one noise std"):
+    with pytest.raises(ParameterFileError, match=r"noise_std.*one noise std"):
         build_graph(GraphOptions(plant="hardware", clock_mode="realtime", params_files=(str(extra),)))
 
 
@@ -316,7 +317,7 @@ def test_ros_arguments_are_those_of_ros2_launch() -> None:
     [True, False, 0, 7, -3, 1.0, 0.001, 5e-9, "lockstep", "1", "true", "", (1.0, 2.5), (1, 2), ("a", "b")],
 )
 def test_parameter_values_survive_the_yaml_round_trip_with_their_type(value: Any) -> None:
-    parsed = yaml.safe_load(graph.format_parameter_value(value))
+    parsed = yaml.safe_load(format_parameter_value(value))
     expected = list(value) if isinstance(value, tuple) else value
     assert parsed == expected
     assert type(parsed) is type(expected)
@@ -327,7 +328,7 @@ def test_parameter_values_survive_the_yaml_round_trip_with_their_type(value: Any
 @pytest.mark.parametrize("value", [float("inf"), float("nan"), None, 1j])
 def test_unrepresentable_parameter_values_are_refused(value: Any) -> None:
     with pytest.raises(ValueError):
-        graph.format_parameter_value(value)
+        format_parameter_value(value)
 
 
 @pytest.mark.parametrize(
@@ -356,20 +357,20 @@ def test_parameter_file_sections_apply_with_wildcards_first(tmp_path: Path) -> N
         "/**:\n  ros__parameters:\n    seed: 1\n    duration: 2.0\n    nested:\n      a: [1.0, 2.0]\n"
         "/**/td_node:\n  ros__parameters:\n    seed: 9\n"
     )
-    assert graph.load_parameter_file(path, "/smm/smm_sim_node") == {
+    assert load_parameter_file(path, "/smm/smm_sim_node") == {
         "seed": 3,
         "duration": 2.0,
         "nested.a": [1.0, 2.0],
     }
-    assert graph.load_parameter_file(path, "/smm/td_node")["seed"] == 9
+    assert load_parameter_file(path, "/smm/td_node")["seed"] == 9
 
 
 @pytest.mark.parametrize("content", ["- 1\n- 2\n", "/**:\n  params:\n    a: 1\n", "a: [1,\n"])
 def test_invalid_parameter_files_are_refused(tmp_path: Path, content: str) -> None:
     path = tmp_path / "bad.yaml"
     path.write_text(content)
-    with pytest.raises(graph.ParameterFileError):
-        graph.load_parameter_file(path, "/smm/smm_sim_node")
+    with pytest.raises(ParameterFileError):
+        load_parameter_file(path, "/smm/smm_sim_node")
 
 
 def test_parameter_overrides_put_explicit_values_after_files(tmp_path: Path) -> None:
@@ -579,7 +580,7 @@ def test_launch_file_starts_the_graph_the_launcher_starts(
 
 
 def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) -> None:
-    with pytest.raises(graph.PlantNotAvailableError):
+    with pytest.raises(PlantNotAvailableError):
         _launched_nodes(monkeypatch, {"plant": "hardware"})
     nodes = _launched_nodes(monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "duration": "2"})
     specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", duration=2.0))
@@ -630,7 +631,7 @@ def test_launch_file_records_and_sets_real_time_priorities(
 
 
 def test_every_node_executable_is_installed() -> None:
-    from smm_bringup.launcher import resolve_executable
+    from smm_bringup.supervisor import resolve_executable
 
     for spec in build_graph(GraphOptions(scenario=None)):
         assert Path(resolve_executable(spec)).is_file(), spec.executable
@@ -682,7 +683,7 @@ def test_scenario_files_agree_with_smm_analysis(name: str) -> None:
 
     scenario = get_scenario(name)
     path = graph.scenario_file(name)
-    sim = graph.load_parameter_file(path, "/smm/smm_sim_node")
+    sim = load_parameter_file(path, "/smm/smm_sim_node")
     assert sim == {
         "noise_std": list(scenario.noise_std),
         "disturbance": scenario.disturbance,
@@ -690,7 +691,7 @@ def test_scenario_files_agree_with_smm_analysis(name: str) -> None:
         "duration": scenario.duration,
     }
     assert all(type(value) is float for value in (sim["inertia_scale"], sim["duration"], *sim["noise_std"]))
-    reference = graph.load_parameter_file(path, "/smm/reference_node")
+    reference = load_parameter_file(path, "/smm/reference_node")
     kind = reference.pop("kind")
     assert kind == scenario.reference_kind
     fields = {key.split(".", 1)[1]: value for key, value in reference.items() if key.startswith(f"{kind}.")}
@@ -698,11 +699,11 @@ def test_scenario_files_agree_with_smm_analysis(name: str) -> None:
     times = np.linspace(0.0, scenario.duration, 501)
     expected = scenario.reference().sample(times)
     np.testing.assert_array_equal(make_reference(kind, **fields).sample(times), expected)
-    assert graph.load_parameter_file(path, "/smm/td_node") == {}
+    assert load_parameter_file(path, "/smm/td_node") == {}
 
 
 def test_a_missing_executable_is_reported_before_anything_starts() -> None:
-    from smm_bringup.launcher import ExecutableNotFoundError, launch_processes, resolve_executable
+    from smm_bringup.supervisor import ExecutableNotFoundError, launch_processes, resolve_executable
 
     missing = NodeSpec("smm_sim", "no_such_node", "ghost", "m:C")
     with pytest.raises(ExecutableNotFoundError, match="no_such_node"):

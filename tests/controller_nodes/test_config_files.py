@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 import yaml
-from smm_bringup.graph import load_parameter_file, package_file
+from smm_bringup.parameter_files import load_parameter_file, package_file
 from smm_controller.baselines import FPDConfig, NPDConfig, PIDConfig
 from smm_controller.controller_node import ControllerNode
 from smm_controller.fleso import FLESOConfig

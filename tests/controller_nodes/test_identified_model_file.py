@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from smm_analysis.identify_command import model_sections
 from smm_analysis.parameters_file import write_parameters_file
-from smm_bringup.graph import load_parameter_file
+from smm_bringup.parameter_files import load_parameter_file
 from smm_controller.controller_node import ControllerNode
 from smm_controller.fleso_node import FlesoNode
 

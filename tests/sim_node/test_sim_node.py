@@ -247,7 +247,7 @@ def test_live_parameter_changes_are_validated(make_harness: Any) -> None:
 
 def test_console_script_exits_2_on_an_invalid_parameter(ros_domain_id: int) -> None:
     from smm_bringup.graph import NodeSpec
-    from smm_bringup.launcher import resolve_executable
+    from smm_bringup.supervisor import resolve_executable
 
     spec = NodeSpec(
         "smm_sim", "smm_sim_node", "smm_sim_node", "smm_sim.sim_node:SimNode", parameters=(("substeps", 0),)

@@ -12,13 +12,8 @@ from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
-from smm_bringup.graph import (
-    NAMESPACE,
-    PLANT_NODE_NAMES,
-    GraphError,
-    NodeSpec,
-    parameter_overrides,
-)
+from smm_bringup.errors import GraphError
+from smm_bringup.graph import NAMESPACE, PLANT_NODE_NAMES, NodeSpec, parameter_overrides
 from smm_bringup.supervisor import (
     _POLL_S,
     EXIT_NODE_FAILED,

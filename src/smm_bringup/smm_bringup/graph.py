@@ -34,7 +34,7 @@ from typing import Any, Final, Literal
 from smm_controller.controller_node import REFERENCE_PREFIX
 from smm_controller.reference import REFERENCE_KINDS
 
-from smm_bringup.errors import GraphError, ParameterFileError, PlantNotAvailableError
+from smm_bringup.errors import ParameterFileError, PlantNotAvailableError
 from smm_bringup.parameter_files import (
     ParameterValue,
     format_parameter_value,
@@ -70,16 +70,9 @@ __all__ = [
     "SCENARIO_NAMES",
     "SIM_NODE",
     "TD_NODE",
-    "GraphError",
     "GraphOptions",
     "NodeSpec",
-    "ParameterFileError",
-    "ParameterValue",
-    "PlantNotAvailableError",
     "build_graph",
-    "format_parameter_value",
-    "load_parameter_file",
-    "package_file",
     "parameter_overrides",
     "scenario_file",
     "split_endpoint",

@@ -36,6 +36,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from smm_bringup.composed import launch_composed
+from smm_bringup.errors import GraphError
 from smm_bringup.graph import (
     ALGORITHMS,
     CHAIN_LAYOUTS,
@@ -46,35 +47,22 @@ from smm_bringup.graph import (
     PLANTS,
     REFERENCE_PLACEMENTS,
     SCENARIO_NAMES,
-    GraphError,
     GraphOptions,
     NodeSpec,
     build_graph,
 )
 from smm_bringup.supervisor import (
     EXIT_CONFIGURATION_ERROR,
-    EXIT_NODE_FAILED,
     EXIT_OK,
     STOP_GRACE_S,
-    ExecutableNotFoundError,
-    GraphProcesses,
     _say,
     launch_processes,
-    resolve_executable,
 )
 
 __all__ = [
-    "EXIT_CONFIGURATION_ERROR",
-    "EXIT_NODE_FAILED",
-    "EXIT_OK",
-    "ExecutableNotFoundError",
-    "GraphProcesses",
     "build_parser",
-    "launch_composed",
-    "launch_processes",
     "main",
     "options_from_arguments",
-    "resolve_executable",
     "run",
 ]
 
