@@ -444,7 +444,11 @@ class ControllerNode(MeasurementDrivenNode):
         except InterfaceError as error:
             self.reject(topic, error)
             return
-        if not self.admit(topic, item.stamp_ns, values_of(item)):
+        self.take_input(topic, item, values_of(item))
+
+    def take_input(self, topic: str, item: Any, values: object) -> None:
+        """Admits a parsed input (``values`` as :func:`values_of` gives them); steps once it is matched."""
+        if not self.admit(topic, item.stamp_ns, values):
             return
         if self.plausibility is not None and topic == topics.JOINT_STATES:
             position = (float(item.position[0]), float(item.position[1]))
@@ -481,10 +485,9 @@ class ControllerNode(MeasurementDrivenNode):
                 reference,
                 self.control_period,
             )
-            tau = np.array(torque)
-            command = torque_to_msg(tau, matched.stamp_ns)  # raises for a non-finite torque: not sent
-            self._last_command = tau
-            return [(self._torque_publisher, command)]
+            output = self.torque_output(torque, matched.stamp_ns)  # raises for a non-finite torque
+            self._last_command = np.array(torque)
+            return [output]
         filtered = matched.items[topics.JOINT_STATES_FILTERED]
         estimate = matched.items.get(topics.DISTURBANCE_ESTIMATE)
         xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
@@ -500,7 +503,15 @@ class ControllerNode(MeasurementDrivenNode):
             disturbance=(float(xi[0]), float(xi[1])),
             dt=self.control_period,
         )
-        return [(self._torque_publisher, torque_to_msg(np.array(limited), matched.stamp_ns))]
+        return [self.torque_output(limited, matched.stamp_ns)]
+
+    def torque_output(self, torque: tuple[float, float], stamp_ns: int) -> Output:
+        """The ``torque_command`` output of a step (N m, shape (2,)).
+
+        Raises:
+            InterfaceError: The torque is not finite (the step then gives no output).
+        """
+        return (self._torque_publisher, torque_to_msg(np.array(torque), stamp_ns))
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
         internals = (

@@ -6,15 +6,15 @@ A failing chain sends a safe frame and goes to ERROR. Why and when: docs/LAUNCH.
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Final, Unpack
+from typing import Any, Final, NamedTuple, Unpack
 
 import numpy as np
-import numpy.typing as npt
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.context import Context
 from rclpy.exceptions import ParameterException
@@ -22,12 +22,13 @@ from rclpy.parameter import Parameter
 from smm_controller.controller_node import ControllerNode
 from smm_hw_bridge.bridge_node import HwBridgeNode
 from smm_hw_bridge.core import BridgeCore
-from smm_msgs_py.conversions import JointSample
+from smm_msgs_py.conversions import JointSample, torque_to_msg
+from smm_msgs_py.errors import NonFiniteError
 from smm_node_runtime.parameters import bounds
 
 from smm_direct_loop.statistics import LoopStatistics, RunningFigures
 from smm_msgs_py import topics
-from smm_node_runtime import ConfigParameters, Health, NodeOptions, run_nodes
+from smm_node_runtime import ConfigParameters, Health, NodeOptions, Output, run_nodes
 
 __all__ = ["ChainFailureError", "DirectBridgeNode", "DirectControllerNode", "LoopSettings", "main"]
 
@@ -39,18 +40,22 @@ class ChainFailureError(RuntimeError):
     """The control chain gave no valid torque for a measurement (it raised or its output was not finite)."""
 
 
-def _same(item: JointSample) -> JointSample:
-    return item
+class _Measurement(NamedTuple):
+    """A measurement as the bridge's core has it, before any message is built."""
+
+    stamp_ns: int
+    position: tuple[float, float]
+    effort: tuple[float, float]
 
 
 class _Held:
-    """Stands in for the torque publisher while the chain steps: keeps the message until the frame is sent."""
+    """Stands in for the torque publisher while the chain steps: keeps (torque, stamp) until the send."""
 
     def __init__(self, publisher: Any) -> None:
         self.publisher = publisher
-        self.message: Any = None
+        self.message: tuple[tuple[float, float], int] | None = None
 
-    def publish(self, message: Any) -> None:
+    def publish(self, message: tuple[tuple[float, float], int]) -> None:
         self.message = message
 
     def get_subscription_count(self) -> int:
@@ -74,15 +79,18 @@ class DirectControllerNode(ControllerNode):
                 "the direct loop steps the whole chain itself: chain and reference_source must be 'internal'"
             )
         self._held = _Held(self._torque_publisher)
-        self._torque_publisher = self._held  # type: ignore[assignment]
         self.tick_lock: threading.RLock = threading.RLock()
         """Held for a whole tick; parameter changes wait for it (the host gives the bridge's lock)."""
 
-    def command_for(self, sample: JointSample) -> npt.NDArray[np.float64] | None:
-        """Steps the chain on one measurement (caller holds :attr:`tick_lock`).
+    def command_for(
+        self, stamp_ns: int, position: tuple[float, float], effort: tuple[float, float]
+    ) -> tuple[float, float] | None:
+        """Steps the chain on one measurement (rad, N m applied; caller holds :attr:`tick_lock`).
+
+        The ``torque_command`` message is built later, by :meth:`publish_answer`, after the frame is sent.
 
         Returns:
-            The torque (N m), shape (2,); None when the stamp policy or the plausibility check refused it.
+            The torque (N m); None when the stamp policy or the plausibility check refused the measurement.
 
         Raises:
             ChainFailureError: The chain gave no valid torque (counted as an invalid output).
@@ -90,12 +98,22 @@ class DirectControllerNode(ControllerNode):
         """
         self._held.message = None
         failures = self.counters.invalid_outputs
-        self._on_input(topics.JOINT_STATES, sample, _same)
+        self._last_input_time = time.monotonic()
+        self.take_input(topics.JOINT_STATES, _Measurement(stamp_ns, position, effort), (position, effort))
         if self.counters.invalid_outputs != failures:
             raise ChainFailureError(self.last_error)
-        if self._held.message is None:
-            return None
-        return self._last_command.copy()
+        held = self._held.message
+        return None if held is None else held[0]
+
+    def torque_output(self, torque: tuple[float, float], stamp_ns: int) -> Output:
+        """The torque, held as floats until the frame is sent.
+
+        Raises:
+            NonFiniteError: The torque is not finite.
+        """
+        if not (math.isfinite(torque[0]) and math.isfinite(torque[1])):
+            raise NonFiniteError(f"torque must be finite, got {torque!r}")
+        return (self._held, (torque, stamp_ns))
 
     def _diagnostics(self, stamp_ns: int) -> list[Any]:
         return []  # built by publish_answer, after the command frame went out
@@ -105,10 +123,10 @@ class DirectControllerNode(ControllerNode):
 
         The last two only while someone subscribes (a recorder, a plot), as in the topics loop.
         """
-        message, self._held.message = self._held.message, None
-        if message is None:
+        held, self._held.message = self._held.message, None
+        if held is None:
             return
-        self._held.publisher.publish(message)
+        self._held.publisher.publish(torque_to_msg(np.array(held[0]), held[1]))
         if self._internals_publisher.get_subscription_count() == 0 and (
             self._reference_publisher.get_subscription_count() == 0
         ):
@@ -167,18 +185,21 @@ class DirectBridgeNode(HwBridgeNode):
         """Time the ROS side of each tick takes, after the send (us)."""
         self._answered_stamp: int | None = None
 
-    def answer_in_place(self, core: BridgeCore, sample: JointSample, rx_ns: int) -> bool:
-        """Steps the chain and sends its command; a failing chain sends a safe frame and faults."""
+    def answer_in_place(self, core: BridgeCore, rx_ns: int) -> bool:
+        """Steps the chain on the core's measurement and sends its command; a failing chain faults."""
         self._answered_stamp = None
+        stamp_ns = core.stamp_ns
         try:
-            torque = self.controller.command_for(sample)
+            torque = self.controller.command_for(
+                stamp_ns, tuple(core.position.tolist()), tuple(core.applied_torque.tolist())
+            )
         except Exception as error:
-            self.fail(f"control chain failed at stamp {sample.stamp_ns} ns: {type(error).__name__}: {error}")
+            self.fail(f"control chain failed at stamp {stamp_ns} ns: {type(error).__name__}: {error}")
             return True
-        if torque is None or not self.take_command(core, torque, sample.stamp_ns, rx_ns):
+        if torque is None or not self.take_command(core, torque, stamp_ns, rx_ns):
             return False
         self.statistics.on_tick(rx_ns, time.monotonic_ns())
-        self._answered_stamp = sample.stamp_ns
+        self._answered_stamp = stamp_ns
         return True
 
     def after_feedback(self, sample: JointSample) -> None:

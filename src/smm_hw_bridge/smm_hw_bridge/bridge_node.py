@@ -357,18 +357,19 @@ class HwBridgeNode(LifecycleNode):
             if frame is None and not resent:
                 return
             publish = core.state in (BridgeState.ARMING, BridgeState.ARMED)
-            sample = JointSample(core.stamp_ns, core.position, effort=core.applied_torque)
-            answered = publish and self.answer_in_place(core, sample, now)
+            answered = publish and self.answer_in_place(core, now)
             if not answered and core.needs_frame(now):
                 out = core.next_frame(now)
                 if out is not None:
                     self._transmit(out)
-        if publish:
-            self._joint_states.publish(sample_to_joint_state(sample))
-            self.after_feedback(sample)
+            if not publish:
+                return
+            sample = JointSample(core.stamp_ns, core.position, effort=core.applied_torque)
+        self._joint_states.publish(sample_to_joint_state(sample))
+        self.after_feedback(sample)
 
-    def answer_in_place(self, core: BridgeCore, sample: JointSample, rx_ns: int) -> bool:
-        """Hook of a host that computes the command in the receiving thread (lock held, nothing sent yet).
+    def answer_in_place(self, core: BridgeCore, rx_ns: int) -> bool:
+        """Hook of a host that answers the core's measurement in its receiving thread (lock held, none sent).
 
         Called for every admitted measurement while arming or armed (and, in lockstep, for the board's
         re-sent unanswered one). The topics loop answers on ``torque_command`` instead, so here: False
