@@ -12,6 +12,7 @@ import threading
 from collections.abc import Iterator
 from typing import Any
 
+import numpy as np
 import pytest
 from hw_bridge.test_bridge_node import Bench, assert_safe_now
 
@@ -136,3 +137,27 @@ def test_a_chain_that_stops_answering_is_caught_by_the_host_watchdog(direct: Ben
     assert_safe_now(direct)
     assert direct.node.core.watchdog_trips > trips
     assert direct.node.lifecycle_state == "active"  # no error transition: the loop runs on, with safe output
+
+
+def test_each_answered_measurement_gets_one_command_and_torque_command_is_only_an_output(
+    direct: Bench,
+) -> None:
+    """The hosted chain's own torque_command, or another publisher's, is never taken as a second command."""
+    from smm_msgs_py.conversions import torque_to_msg
+    from std_msgs.msg import Float64MultiArray
+
+    from smm_msgs_py import topics
+
+    outside = direct.peer.create_publisher(Float64MultiArray, topics.TORQUE_COMMAND, 10)
+    direct.start()
+    core = direct.node.core
+
+    def push_outside() -> bool:
+        outside.publish(torque_to_msg(np.zeros(2), core.stamp_ns))
+        return direct.node.statistics.execution_us.count > 300
+
+    assert direct.spin_until(push_outside, 10.0)
+    with direct.node._lock:  # between two ticks
+        answered = direct.node.statistics.execution_us.count
+        assert direct.node.counters.commands == answered
+    assert direct.node.counters.bad_commands == 0 and not direct.node.counters.refused

@@ -170,6 +170,8 @@ class DirectBridgeNode(HwBridgeNode):
         **options: The node options every SMM node takes.
     """
 
+    SUBSCRIBES_COMMAND = False
+
     def __init__(self, controller: DirectControllerNode, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
         try:

@@ -22,7 +22,7 @@ import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Final, Literal, Unpack
+from typing import ClassVar, Final, Literal, Unpack
 
 import numpy.typing as npt
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
@@ -124,6 +124,9 @@ class HwBridgeNode(LifecycleNode):
     """
 
     NODE_NAME = NODE_NAME
+    SUBSCRIBES_COMMAND: ClassVar[bool] = True
+    """False for a host that answers each measurement itself (the direct loop): ``torque_command`` is then
+    an output for observation, and a command on it, its own or another publisher's, is not taken."""
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         name, arguments = node_arguments(NODE_NAME, options)
@@ -149,12 +152,13 @@ class HwBridgeNode(LifecycleNode):
         self._internals = self.create_publisher(
             Float64MultiArray, INTERNALS_TOPIC, qos_for_topic(topics.HW_BRIDGE_INTERNALS)
         )
-        self.create_subscription(
-            Float64MultiArray,
-            topics.TORQUE_COMMAND,
-            self._on_command,
-            subscription_qos_for_topic(topics.TORQUE_COMMAND),
-        )
+        if self.SUBSCRIBES_COMMAND:
+            self.create_subscription(
+                Float64MultiArray,
+                topics.TORQUE_COMMAND,
+                self._on_command,
+                subscription_qos_for_topic(topics.TORQUE_COMMAND),
+            )
         self.create_service(Trigger, "~/estop", self._on_estop)
         self.create_service(Trigger, "~/rearm", self._on_rearm)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
