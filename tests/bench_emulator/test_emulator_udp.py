@@ -172,3 +172,41 @@ def test_cli_runs_for_its_duration_and_prints_a_summary(capsys: pytest.CaptureFi
     assert code == 0
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["ticks"] == 50 and summary["output_codes"] == [0, 0]
+
+
+def test_latency_runs_from_the_feedback_leaving_to_the_command_arriving_not_to_the_end_of_its_parse() -> None:
+    """The emulator's own (Python) parse time is not the host's: the arrival is timed before it."""
+    from smm_hw_bridge.protocol import CommandFlag, CommandFrame
+
+    now = [1_000_000]
+    host = UdpTransport((LOOPBACK, 0), (LOOPBACK, 9))
+    config = EmulatorConfig(
+        board=BoardConfig(plant=PlantConfig(encoder_counts_per_rev=CPR), adc_noise=0.0),
+        bind=(LOOPBACK, 0),
+        host=host.local_address,
+        mode="realtime",
+    )
+    emu = Emulator(config, clock_ns=lambda: now[0])
+    try:
+        emu._send(emu.board.start())  # the feedback leaves at 1 ms
+        feedback = emu.board.last_feedback
+        assert feedback is not None
+        command = CommandFrame(
+            7, 1, feedback.session, feedback.seq, feedback.tick, CommandFlag.ENABLE, 10, (5, 5)
+        )
+        arrival = 1_250_000
+        received = iter([encode(command)])
+        emu.transport.receive = lambda timeout_s=0.0: next(received, None)  # type: ignore[method-assign]
+
+        def slow_parse(data: bytes) -> CommandFrame:
+            now[0] += 400_000  # the board's parse takes 0.4 ms
+            return command
+
+        emu.board.receive = slow_parse  # type: ignore[method-assign]
+        now[0] = arrival
+        emu._drain()
+        assert emu.latencies_ns == [arrival - 1_000_000]
+        assert emu.last_command_ns == arrival
+    finally:
+        emu.close()
+        host.close()

@@ -148,11 +148,12 @@ class Emulator:
 
     def _drain(self) -> None:
         while (data := self.transport.receive(0.0)) is not None:
+            arrived = self._clock()  # before the board parses it: a real board's parse takes microseconds
             passed = self.faults.incoming(data)
             if passed is not None:
                 command = self.board.receive(passed)
                 if command is not None:
-                    self.last_command_ns = self._clock()
+                    self.last_command_ns = arrived
                     sent = self._sent_ns.pop(command.answers_seq, None)
                     if sent is not None and command.enabled:
                         self.latencies_ns.append(self.last_command_ns - sent)
