@@ -280,14 +280,10 @@ _COMMAND_FIELDS: Final[tuple[str, ...]] = tuple(item.name for item in fields(Com
 _FEEDBACK_FIELDS: Final[tuple[str, ...]] = tuple(item.name for item in fields(FeedbackFrame))
 
 
-_set_attribute = object.__setattr__
-
-
 def _unchecked(cls: type[_Frame], names: tuple[str, ...], values: tuple[Any, ...]) -> _Frame:
     """A frame of ``cls`` without ``__post_init__``: for values its checks are known to pass."""
     frame = object.__new__(cls)
-    for name, value in zip(names, values, strict=True):
-        _set_attribute(frame, name, value)  # as the dataclass's __init__ does: attribute reads stay fast
+    frame.__dict__.update(zip(names, values, strict=True))
     return frame
 
 
@@ -365,9 +361,9 @@ def decode(data: bytes | bytearray | memoryview) -> CommandFrame | FeedbackFrame
         raise ProtocolError(Reason.CRC, f"CRC {crc:#010x}, computed {computed:#010x}")
     if version != VERSION:
         raise ProtocolError(Reason.VERSION, f"protocol version {version}, this side speaks {VERSION}")
-    if frame_type == FrameType.COMMAND:
+    if frame_type == _COMMAND_TYPE:
         expected = COMMAND_SIZE
-    elif frame_type == FrameType.FEEDBACK:
+    elif frame_type == _FEEDBACK_TYPE:
         expected = FEEDBACK_SIZE
     else:
         raise ProtocolError(Reason.TYPE, f"frame type {frame_type}")
@@ -375,7 +371,7 @@ def decode(data: bytes | bytearray | memoryview) -> CommandFrame | FeedbackFrame
         raise ProtocolError(
             Reason.LENGTH, f"{FrameType(frame_type).name} frame of {length} bytes, expected {expected}"
         )
-    if frame_type == FrameType.COMMAND:
+    if frame_type == _COMMAND_TYPE:
         board_session, answers_seq, answers_tick, flags, validity, code_a, code_b = _COMMAND_BODY.unpack_from(
             raw, HEADER_SIZE
         )
