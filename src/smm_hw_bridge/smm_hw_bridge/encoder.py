@@ -1,4 +1,4 @@
-"""Encoder counts -> joint angle: counts per revolution, zero offset, direction, counter wrap. Pure, no ROS."""
+"""Encoder counts -> joint angle: counts per revolution, zero offset, direction, counter wrap. No ROS."""
 
 from __future__ import annotations
 
