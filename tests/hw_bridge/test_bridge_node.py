@@ -242,6 +242,34 @@ def test_every_lifecycle_transition_sends_safe_output(ros_context: Any, loop: st
         bench.close()
 
 
+def test_take_command_takes_a_tuple_of_two_floats_and_the_board_applies_its_codes(ros_context: Any) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from smm_hw_bridge.valve_output import ValveOutput
+
+    # no peer answers; a long host watchdog and validity keep the one command on the valves
+    overrides = {"bridge.host_watchdog_ns": 5_000_000_000, "bridge.validity_ticks": 5000}
+    bench = Bench(ros_context, answer=False, **overrides)
+    try:
+        node = bench.node
+        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        core = node.core
+        taken: list[bool] = []
+
+        def take() -> bool:
+            with node._lock:
+                if core.last_feedback.host_session == core.host_session and core.stamp_ns > 0:
+                    taken.append(node.take_command(core, TORQUE, core.stamp_ns, time.monotonic_ns()))
+                return bool(taken) and taken[-1] and core.output_live
+
+        assert bench.spin_until(take), f"never taken in {len(taken)} tries, refused: {node.counters.refused}"
+        expected = ValveOutput(core.config.valve).step(TORQUE, core.config.period_ns * 1e-9).codes
+        assert tuple(int(code) for code in core.internals["codes"]) == expected != (0, 0)
+        assert bench.spin_until(lambda: bench.board.output_codes() == expected, 5.0)
+    finally:
+        bench.close()
+
+
 def test_estop_service_latches_on_the_board_until_rearm(bench: Bench) -> None:
     from std_srvs.srv import Trigger
 

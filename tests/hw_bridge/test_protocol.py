@@ -387,3 +387,40 @@ def test_serial_number_arithmetic_at_the_half_range() -> None:
     assert not p.seq_newer(0x80000000, 0)
     assert not p.seq_newer(5, 5)
     assert p.seq_newer(6, 5)
+
+
+@pytest.mark.parametrize(
+    ("offset", "fmt", "value", "text"),
+    [
+        (8, "<I", 0, "session must be != 0 (0 means no session)"),
+        *(
+            (32 + 2 * c, "<H", 4096 + c, f"adc must be an int in [0, 2**12), got {4096 + c}")
+            for c in range(4)
+        ),
+        (40, "<H", 0x8000, "status has undefined bits set: 0x8000"),
+        (50, "<h", -32768, "output_codes must hold ints in [-32767, 32767], got (-32768, -32767)"),
+        (52, "<h", -32768, "output_codes must hold ints in [-32767, 32767], got (1200, -32768)"),
+    ],
+)
+def test_every_feedback_field_the_wire_can_get_wrong_is_caught_by_the_decoder(
+    offset: int, fmt: str, value: int, text: str
+) -> None:
+    good = _feedback_bytes()
+    body = good[:offset] + struct.pack(fmt, value) + good[offset + struct.calcsize(fmt) : -4]
+    assert _reason(body + struct.pack("<I", zlib.crc32(body))) == (p.Reason.FIELD, f"field: {text}")
+
+
+def test_decoded_and_trusted_frames_behave_as_checked_ones() -> None:
+    decoded = p.decode_feedback(_feedback_bytes())
+    assert decoded == FEEDBACK and hash(decoded) == hash(FEEDBACK) and repr(decoded) == repr(FEEDBACK)
+    command = p.decode_command(_command_bytes())
+    trusted = p.CommandFrame.trusted(
+        **{f.name: getattr(COMMAND, f.name) for f in dataclasses.fields(COMMAND)}
+    )
+    for frame in (command, trusted):
+        assert frame == COMMAND and hash(frame) == hash(COMMAND) and frame.enabled
+        assert p.encode(frame) == _command_bytes()
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            frame.seq = 1  # type: ignore[misc]
+    with pytest.raises(p.ProtocolError, match=r"^field: session must be != 0"):
+        dataclasses.replace(trusted, session=0)  # an externally built frame is still checked

@@ -385,7 +385,11 @@ class HwBridgeNode(LifecycleNode):
         """Hook called in the receiving thread after ``joint_states`` went out (lock released)."""
 
     def take_command(self, core: BridgeCore, torque: npt.ArrayLike, stamp_ns: int, rx_ns: int) -> bool:
-        """Hands one torque command to the core and sends the frame it gives (lock held); True if accepted."""
+        """Hands one torque command to the core and sends the frame it gives (lock held); True if accepted.
+
+        ``torque`` (alpha, beta) (N m): any array-like :meth:`BridgeCore.on_command` takes; a tuple of two
+        Python floats is its fast path.
+        """
         refusal = core.on_command(torque, stamp_ns, rx_ns)
         if refusal is not None:
             self.counters.refused[refusal.value] = self.counters.refused.get(refusal.value, 0) + 1

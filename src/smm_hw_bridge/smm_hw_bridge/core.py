@@ -34,6 +34,10 @@ __all__ = ["BridgeConfig", "BridgeCore", "BridgeError", "BridgeState", "Refusal"
 
 FloatArray = npt.NDArray[np.float64]
 _RECENT_KEPT = 64
+_ENABLE = int(CommandFlag.ENABLE)
+_ESTOP = int(CommandFlag.ESTOP)
+_REARM = int(CommandFlag.REARM)
+_ESTOP_LATCHED = int(StatusBit.ESTOP_LATCHED)
 
 
 class BridgeState(enum.Enum):
@@ -131,13 +135,27 @@ class BridgeConfig:
         return self.admission.period_ns
 
 
-@dataclass
+@dataclass(slots=True)
 class _Pending:
     codes: tuple[int, int]
     answers_seq: int
     answers_tick: int
     answers_tick_unwrapped: int
     rx_ns: int
+
+
+def _finite_pair(torque: npt.ArrayLike) -> tuple[float, float] | None:
+    """(alpha, beta) of a finite array-like of shape (2,) as Python floats; None for anything else."""
+    if isinstance(torque, (tuple, list)) and len(torque) == 2:
+        alpha, beta = torque
+        if type(alpha) is float and type(beta) is float:
+            return (alpha, beta) if math.isfinite(alpha) and math.isfinite(beta) else None
+    if isinstance(torque, str):
+        return None
+    demand = np.asarray(torque, dtype=np.float64)
+    if demand.shape != (2,) or not np.all(np.isfinite(demand)):
+        return None
+    return float(demand[0]), float(demand[1])
 
 
 class BridgeCore:
@@ -157,6 +175,8 @@ class BridgeCore:
             raise ValueError(f"host_session must be an int in [1, 2**32), got {host_session!r}")
         self._config = config
         self._host_session = host_session
+        self._period_s = config.period_ns / 1e9
+        self._limits = (float(config.soft_limits[0]), float(config.soft_limits[1]))
         self._encoder = EncoderDecoder(config.encoder)
         self._valve = ValveOutput(config.valve)
         self._admission = FeedbackAdmission(config.admission)
@@ -178,7 +198,7 @@ class BridgeCore:
         self._recent: OrderedDict[int, tuple[int, int]] = OrderedDict()
         self._last: FeedbackFrame | None = None
         self._last_rx_ns: int | None = None
-        self._effort = np.zeros(2)
+        self._effort = (0.0, 0.0)
         self._pending: _Pending | None = None
         self._active = False
         self._arm_tick = -1
@@ -186,7 +206,7 @@ class BridgeCore:
         self._rearm_pending = False
         self._seq = 0
         self._live = False
-        self._cut = np.zeros(2, dtype=np.bool_)
+        self._cut = (False, False)
         self.last_rejection: Reason | None = None
         """Why the last received frame was dropped (None if it was admitted)."""
 
@@ -267,20 +287,20 @@ class BridgeCore:
         self._valve.reset()
 
     def _use(self, frame: FeedbackFrame, rx_ns: int) -> None:
-        self._encoder.update(frame.counts)
+        self._encoder.update_floats(frame.counts)
         tick = self._admission.tick
         self._recent[tick] = (frame.seq, frame.tick)
         while len(self._recent) > _RECENT_KEPT:
             self._recent.popitem(last=False)
         self.stats.on_feedback(frame.seq, frame.applied_seq, rx_ns)
         self._last, self._last_rx_ns = frame, rx_ns
-        self._effort = self._valve.effort(frame.output_codes, self._config.period_ns / 1e9)
+        self._effort = self._valve.effort_floats(frame.output_codes, self._period_s)
         if frame.faults:
             self.state = BridgeState.FAULT
             self._pending = None
             self._valve.reset()
             return
-        latched = bool(frame.status & StatusBit.ESTOP_LATCHED)
+        latched = bool(frame.status & _ESTOP_LATCHED)
         if self._rearm_pending and not latched and not self._estop_requested:
             self._rearm_pending = False
             self.state = BridgeState.ARMING if self._active else BridgeState.DISARMED
@@ -302,12 +322,22 @@ class BridgeCore:
         return self._encoder.position
 
     @property
+    def position_floats(self) -> tuple[float, float]:
+        """:attr:`position` as Python floats (alpha, beta) (rad), without building an array."""
+        return self._encoder.position_floats
+
+    @property
     def applied_torque(self) -> FloatArray:
         """Torque the valves gave over the last tick (N m), shape (2,); 0 before any feedback.
 
         The D/A codes the board reports, through the valve lag model (``valve.time_constants``).
         """
-        return self._effort.copy()
+        return np.array(self._effort, dtype=np.float64)
+
+    @property
+    def applied_torque_floats(self) -> tuple[float, float]:
+        """:attr:`applied_torque` as Python floats (alpha, beta) (N m), without building an array."""
+        return self._effort
 
     @property
     def supply_pressure_bar(self) -> float:
@@ -323,10 +353,11 @@ class BridgeCore:
     def on_command(self, torque: npt.ArrayLike, stamp_ns: int, rx_ns: int) -> Refusal | None:
         """Takes a torque command answering the measurement stamped ``stamp_ns``; None if accepted.
 
-        A refused command (reason returned and counted) changes nothing.
+        ``torque`` (alpha, beta) (N m): any array-like of shape (2,); a tuple or list of two Python floats
+        is the fast path. A refused command (reason returned and counted) changes nothing.
         """
-        demand = np.asarray(torque, dtype=np.float64) if not isinstance(torque, str) else np.zeros(0)
-        if demand.shape != (2,) or not np.all(np.isfinite(demand)) or isinstance(stamp_ns, bool):
+        demand = _finite_pair(torque)
+        if demand is None or isinstance(stamp_ns, bool):
             return self._refuse(Refusal.INVALID)
         if self.state not in (BridgeState.ARMING, BridgeState.ARMED):
             return self._refuse(Refusal.INACTIVE)
@@ -339,11 +370,14 @@ class BridgeCore:
             return self._refuse(Refusal.STALE)
         if tick <= self._arm_tick:
             return self._refuse(Refusal.BEFORE_ARM)
-        position = self._encoder.position
-        limits = np.asarray(self._config.soft_limits)
-        self._cut = ((position >= limits) & (demand > 0.0)) | ((position <= -limits) & (demand < 0.0))
-        sample = self._valve.step(np.where(self._cut, 0.0, demand), period * 1e-9)
-        self._pending = _Pending(sample.codes, entry[0], entry[1], tick, rx_ns)
+        position_a, position_b = self._encoder.position_floats
+        limit_a, limit_b = self._limits
+        alpha, beta = demand
+        cut_a = (position_a >= limit_a and alpha > 0.0) or (position_a <= -limit_a and alpha < 0.0)
+        cut_b = (position_b >= limit_b and beta > 0.0) or (position_b <= -limit_b and beta < 0.0)
+        self._cut = (cut_a, cut_b)
+        codes = self._valve.step_floats((0.0 if cut_a else alpha, 0.0 if cut_b else beta), period * 1e-9)
+        self._pending = _Pending(codes, entry[0], entry[1], tick, rx_ns)
         last = self._last
         # lockstep: the board re-sends the feedback it built before it locked to us (the board itself drops
         # enabled frames from a host it is not locked to)
@@ -362,25 +396,27 @@ class BridgeCore:
         codes = (0, 0)
         answers_seq, answers_tick = self._last.seq, self._last.tick
         if self._estop_requested:
-            flags = int(CommandFlag.ESTOP)
+            flags = _ESTOP
         elif self._rearm_pending:
-            flags = int(CommandFlag.REARM)
+            flags = _REARM
         elif self.state == BridgeState.ARMED and pending is not None:
             fresh = now_ns - pending.rx_ns <= self._config.host_watchdog_ns
             valid = self._admission.tick - pending.answers_tick_unwrapped <= self._config.validity_ticks
             if fresh and valid:
-                flags = int(CommandFlag.ENABLE)
+                flags = _ENABLE
                 codes = pending.codes
                 answers_seq, answers_tick = pending.answers_seq, pending.answers_tick
             else:
                 self.watchdog_trips += 1
                 self._pending = None
                 self._valve.reset()
-        self._live = bool(flags & CommandFlag.ENABLE)
+        self._live = flags == _ENABLE
         if not self._live:
             self._valve.reset()
         self._seq = (self._seq + 1) & 0xFFFFFFFF
-        frame = CommandFrame(
+        # every field is checked already: sessions and feedback fields by the decoder, validity by the
+        # config, codes by the valve output's clamp to code_limit
+        frame = CommandFrame.trusted(
             session=self._host_session,
             seq=self._seq,
             board_session=self.board_session,
@@ -474,6 +510,6 @@ class BridgeCore:
         (soft limit, 0/1), ``enabled`` (0/1).
         """
         values = dict(self._valve.internals)
-        values["limit_cut"] = self._cut.astype(np.float64)
+        values["limit_cut"] = np.array(self._cut, dtype=np.float64)
         values["enabled"] = np.full(2, 1.0 if self._live else 0.0)
         return values

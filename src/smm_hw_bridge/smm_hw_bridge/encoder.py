@@ -1,4 +1,4 @@
-"""Encoder counts -> joint angle: counts per revolution, zero offset, direction, counter wrap. Pure numpy."""
+"""Encoder counts -> joint angle: counts per revolution, zero offset, direction, counter wrap. No ROS."""
 
 from __future__ import annotations
 
@@ -59,14 +59,19 @@ class EncoderDecoder:
     """Unwraps raw counter values and converts them to joint angles (rad).
 
     Between two samples a counter is assumed to move by less than half its range (2**(bits-1) counts).
+    The angle is computed once per sample as Python floats; :attr:`position` builds its array when read.
     """
 
     def __init__(self, config: EncoderConfig) -> None:
         self._config = config
         self._modulus = 1 << config.counter_bits
         self._half = self._modulus >> 1
-        self._raw: tuple[int, int] | None = None
-        self._counts = [0, 0]
+        quantum = 2.0 * math.pi
+        self._scale = (
+            (float(config.direction[0]), quantum / float(config.counts_per_rev[0])),
+            (float(config.direction[1]), quantum / float(config.counts_per_rev[1])),
+        )
+        self.reset()
 
     @property
     def config(self) -> EncoderConfig:
@@ -75,11 +80,44 @@ class EncoderDecoder:
 
     def reset(self) -> None:
         """Forgets the counter history: the next sample is read relative to ``zero_offset`` again."""
-        self._raw = None
+        self._raw: tuple[int, int] | None = None
         self._counts = [0, 0]
+        self._position = self._angles()
 
     def _signed(self, delta: int) -> int:
         return ((delta + self._half) % self._modulus) - self._half
+
+    def update_floats(self, raw: tuple[int, int]) -> tuple[float, float]:
+        """:meth:`update`, returning the angle as Python floats (alpha, beta) (rad).
+
+        Raises:
+            ValueError: A counter value outside [0, 2**counter_bits).
+        """
+        modulus = self._modulus
+        for value in raw:
+            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < modulus:
+                raise ValueError(f"raw counts must be ints in [0, {modulus}), got {raw!r}")
+        previous = self._raw
+        if previous is None:
+            offset = self._config.zero_offset
+            counts = [self._signed(raw[0] - offset[0]), self._signed(raw[1] - offset[1])]
+        else:
+            counts = [
+                self._counts[0] + self._signed(raw[0] - previous[0]),
+                self._counts[1] + self._signed(raw[1] - previous[1]),
+            ]
+        self._counts = counts
+        self._raw = (raw[0], raw[1])
+        self._position = self._angles()
+        return self._position
+
+    def _angles(self) -> tuple[float, float]:
+        # the order of the numpy expression direction * counts * quantum, so the floats agree bit for bit
+        (direction_a, quantum_a), (direction_b, quantum_b) = self._scale
+        return (
+            direction_a * float(self._counts[0]) * quantum_a,
+            direction_b * float(self._counts[1]) * quantum_b,
+        )
 
     def update(self, raw: tuple[int, int]) -> FloatArray:
         """Takes one pair of raw counter values and returns the joint angle (alpha, beta) (rad).
@@ -87,24 +125,18 @@ class EncoderDecoder:
         Raises:
             ValueError: A counter value outside [0, 2**counter_bits).
         """
-        for value in raw:
-            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < self._modulus:
-                raise ValueError(f"raw counts must be ints in [0, {self._modulus}), got {raw!r}")
-        if self._raw is None:
-            offset = self._config.zero_offset
-            self._counts = [self._signed(raw[0] - offset[0]), self._signed(raw[1] - offset[1])]
-        else:
-            self._counts = [
-                self._counts[joint] + self._signed(raw[joint] - self._raw[joint]) for joint in range(2)
-            ]
-        self._raw = (raw[0], raw[1])
+        self.update_floats(raw)
         return self.position
+
+    @property
+    def position_floats(self) -> tuple[float, float]:
+        """Last joint angle (alpha, beta) (rad) as Python floats; zeros before the first sample."""
+        return self._position
 
     @property
     def position(self) -> FloatArray:
         """Last joint angle (alpha, beta) (rad); zeros before the first sample."""
-        direction = np.asarray(self._config.direction, dtype=np.float64)
-        return direction * np.asarray(self._counts, dtype=np.float64) * self._config.quantum
+        return np.array(self._position, dtype=np.float64)
 
     @property
     def internals(self) -> Mapping[str, FloatArray]:

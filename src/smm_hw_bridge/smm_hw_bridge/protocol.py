@@ -10,8 +10,8 @@ from __future__ import annotations
 import enum
 import struct
 import zlib
-from dataclasses import dataclass
-from typing import Final
+from dataclasses import dataclass, fields
+from typing import Any, Final, TypeVar
 
 __all__ = [
     "ADC_CHANNELS",
@@ -57,6 +57,8 @@ _HEADER: Final[struct.Struct] = struct.Struct("<IBBHII")
 _COMMAND_BODY: Final[struct.Struct] = struct.Struct("<IIIHHhh")
 _FEEDBACK_BODY: Final[struct.Struct] = struct.Struct("<IIII4HHHIHhhHIII")
 _CRC: Final[struct.Struct] = struct.Struct("<I")
+_COMMAND_PACK: Final[struct.Struct] = struct.Struct(_HEADER.format + _COMMAND_BODY.format[1:])
+_FEEDBACK_PACK: Final[struct.Struct] = struct.Struct(_HEADER.format + _FEEDBACK_BODY.format[1:])
 HEADER_SIZE: Final[int] = _HEADER.size
 COMMAND_SIZE: Final[int] = HEADER_SIZE + _COMMAND_BODY.size + _CRC.size
 FEEDBACK_SIZE: Final[int] = HEADER_SIZE + _FEEDBACK_BODY.size + _CRC.size
@@ -99,7 +101,12 @@ class FaultBit(enum.IntFlag):
 
 
 _COMMAND_FLAGS_MASK: Final[int] = int(CommandFlag.ENABLE | CommandFlag.ESTOP | CommandFlag.REARM)
+_ENABLE: Final[int] = int(CommandFlag.ENABLE)
 _STATUS_MASK: Final[int] = 0x001F
+_COMMAND_TYPE: Final[int] = int(FrameType.COMMAND)
+_FEEDBACK_TYPE: Final[int] = int(FrameType.FEEDBACK)
+_CODE_MIN_WIRE: Final[int] = -CODE_MAX - 1
+"""The one value of a signed 16-bit code field that is not a valid code."""
 
 
 class Reason(enum.Enum):
@@ -180,10 +187,30 @@ class CommandFrame:
         _check_u("validity", self.validity, 16)
         _check_codes("codes", self.codes, CODE_MAX)
 
+    @classmethod
+    def trusted(
+        cls,
+        *,
+        session: int,
+        seq: int,
+        board_session: int,
+        answers_seq: int,
+        answers_tick: int,
+        flags: int,
+        validity: int,
+        codes: tuple[int, int],
+    ) -> CommandFrame:
+        """A frame whose fields the caller has already checked (its own validated state), built unchecked."""
+        return _unchecked(
+            cls,
+            _COMMAND_FIELDS,
+            (session, seq, board_session, answers_seq, answers_tick, flags, validity, codes),
+        )
+
     @property
     def enabled(self) -> bool:
         """ENABLE flag set."""
-        return bool(self.flags & CommandFlag.ENABLE)
+        return bool(self.flags & _ENABLE)
 
 
 @dataclass(frozen=True)
@@ -248,6 +275,18 @@ class FeedbackFrame:
         _check_codes("output_codes", self.output_codes, CODE_MAX)
 
 
+_Frame = TypeVar("_Frame", CommandFrame, FeedbackFrame)
+_COMMAND_FIELDS: Final[tuple[str, ...]] = tuple(item.name for item in fields(CommandFrame))
+_FEEDBACK_FIELDS: Final[tuple[str, ...]] = tuple(item.name for item in fields(FeedbackFrame))
+
+
+def _unchecked(cls: type[_Frame], names: tuple[str, ...], values: tuple[Any, ...]) -> _Frame:
+    """A frame of ``cls`` without ``__post_init__``: for values its checks are known to pass."""
+    frame = object.__new__(cls)
+    frame.__dict__.update(zip(names, values, strict=True))
+    return frame
+
+
 def u32_diff(a: int, b: int) -> int:
     """``a - b`` of two wrapping u32 counters, as a signed int in [-2**31, 2**31)."""
     return ((a - b + (1 << 31)) % U32) - (1 << 31)
@@ -261,8 +300,13 @@ def seq_newer(a: int, b: int) -> bool:
 def encode(frame: CommandFrame | FeedbackFrame) -> bytes:
     """The frame's bytes, CRC included."""
     if isinstance(frame, CommandFrame):
-        header = _HEADER.pack(MAGIC, VERSION, FrameType.COMMAND, COMMAND_SIZE, frame.session, frame.seq)
-        body = _COMMAND_BODY.pack(
+        data = _COMMAND_PACK.pack(
+            MAGIC,
+            VERSION,
+            _COMMAND_TYPE,
+            COMMAND_SIZE,
+            frame.session,
+            frame.seq,
             frame.board_session,
             frame.answers_seq,
             frame.answers_tick,
@@ -271,8 +315,13 @@ def encode(frame: CommandFrame | FeedbackFrame) -> bytes:
             *frame.codes,
         )
     else:
-        header = _HEADER.pack(MAGIC, VERSION, FrameType.FEEDBACK, FEEDBACK_SIZE, frame.session, frame.seq)
-        body = _FEEDBACK_BODY.pack(
+        data = _FEEDBACK_PACK.pack(
+            MAGIC,
+            VERSION,
+            _FEEDBACK_TYPE,
+            FEEDBACK_SIZE,
+            frame.session,
+            frame.seq,
             frame.tick,
             frame.host_session,
             *frame.counts,
@@ -287,7 +336,6 @@ def encode(frame: CommandFrame | FeedbackFrame) -> bytes:
             frame.crc_errors,
             frame.dropped_frames,
         )
-    data = header + body
     return data + _CRC.pack(zlib.crc32(data))
 
 
@@ -313,9 +361,9 @@ def decode(data: bytes | bytearray | memoryview) -> CommandFrame | FeedbackFrame
         raise ProtocolError(Reason.CRC, f"CRC {crc:#010x}, computed {computed:#010x}")
     if version != VERSION:
         raise ProtocolError(Reason.VERSION, f"protocol version {version}, this side speaks {VERSION}")
-    if frame_type == FrameType.COMMAND:
+    if frame_type == _COMMAND_TYPE:
         expected = COMMAND_SIZE
-    elif frame_type == FrameType.FEEDBACK:
+    elif frame_type == _FEEDBACK_TYPE:
         expected = FEEDBACK_SIZE
     else:
         raise ProtocolError(Reason.TYPE, f"frame type {frame_type}")
@@ -323,13 +371,16 @@ def decode(data: bytes | bytearray | memoryview) -> CommandFrame | FeedbackFrame
         raise ProtocolError(
             Reason.LENGTH, f"{FrameType(frame_type).name} frame of {length} bytes, expected {expected}"
         )
-    if frame_type == FrameType.COMMAND:
+    if frame_type == _COMMAND_TYPE:
         board_session, answers_seq, answers_tick, flags, validity, code_a, code_b = _COMMAND_BODY.unpack_from(
             raw, HEADER_SIZE
         )
-        return CommandFrame(
-            session, seq, board_session, answers_seq, answers_tick, flags, validity, (code_a, code_b)
-        )
+        command = (session, seq, board_session, answers_seq, answers_tick, flags, validity, (code_a, code_b))
+        # struct's unsigned fields are in range: only what a wire frame can get wrong is checked here; a
+        # frame that fails goes through the checking constructor, which names the field
+        if session and not flags & ~_COMMAND_FLAGS_MASK and _CODE_MIN_WIRE not in (code_a, code_b):
+            return _unchecked(CommandFrame, _COMMAND_FIELDS, command)
+        return CommandFrame(*command)
     (
         tick,
         host_session,
@@ -352,7 +403,7 @@ def decode(data: bytes | bytearray | memoryview) -> CommandFrame | FeedbackFrame
     ) = _FEEDBACK_BODY.unpack_from(raw, HEADER_SIZE)
     if pad != 0:
         raise ProtocolError(Reason.FIELD, f"reserved field is {pad}, must be 0")
-    return FeedbackFrame(
+    feedback = (
         session,
         seq,
         tick,
@@ -368,6 +419,14 @@ def decode(data: bytes | bytearray | memoryview) -> CommandFrame | FeedbackFrame
         crc_errors,
         dropped,
     )
+    if (
+        session
+        and not status & ~_STATUS_MASK
+        and max(adc0, adc1, adc2, adc3) <= ADC_MAX
+        and _CODE_MIN_WIRE not in (out_a, out_b)
+    ):
+        return _unchecked(FeedbackFrame, _FEEDBACK_FIELDS, feedback)
+    return FeedbackFrame(*feedback)
 
 
 def decode_command(data: bytes | bytearray | memoryview) -> CommandFrame:

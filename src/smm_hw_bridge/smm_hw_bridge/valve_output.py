@@ -101,18 +101,31 @@ class OutputSample:
     clamped: BoolArray
 
 
+def _rint(value: float) -> float:
+    """``np.rint`` of a finite float: round half to even, the sign of a zero result kept."""
+    rounded = float(round(value))
+    return rounded if rounded != 0.0 else math.copysign(0.0, value)
+
+
 class ValveOutput:
-    """Maps torque demands to D/A codes, one call per sent command (the rate limit is per call's ``dt``)."""
+    """Maps torque demands to D/A codes, one call per sent command (the rate limit is per call's ``dt``).
+
+    Python floats per joint (numpy on 2-element arrays costs more than the arithmetic); the arrays of
+    :attr:`last` and :attr:`internals` are built when read.
+    """
 
     def __init__(self, config: ValveOutputConfig) -> None:
         self._config = config
-        self._gain = np.asarray(config.gain, dtype=np.float64) * np.asarray(config.polarity, dtype=np.float64)
-        self._deadband = np.asarray(config.deadband, dtype=np.float64)
-        self._limit = np.asarray(config.code_limit, dtype=np.float64)
-        self._rate = np.asarray(config.rate_limit, dtype=np.float64)
-        self._last = np.zeros(2)
-        self._sample = OutputSample((0, 0), np.zeros(2), np.zeros(2, dtype=np.bool_))
-        self._valve = [0.0, 0.0]
+        self._gain = (
+            float(config.gain[0]) * float(config.polarity[0]),
+            float(config.gain[1]) * float(config.polarity[1]),
+        )
+        self._deadband = (float(config.deadband[0]), float(config.deadband[1]))
+        self._limit = (float(config.code_limit[0]), float(config.code_limit[1]))
+        self._rate = (float(config.rate_limit[0]), float(config.rate_limit[1]))
+        self._blend = float(config.deadband_blend)
+        self._lag = (float(config.time_constants[0]), float(config.time_constants[1]))
+        self.reset()
 
     @property
     def config(self) -> ValveOutputConfig:
@@ -121,24 +134,48 @@ class ValveOutput:
 
     def reset(self) -> None:
         """Valves at null: the rate limit starts again from code 0, the lag model from 0 N m."""
-        self._last = np.zeros(2)
-        self._sample = OutputSample((0, 0), np.zeros(2), np.zeros(2, dtype=np.bool_))
+        self._last = [0.0, 0.0]
+        self._codes = (0, 0)
+        self._torque = (0.0, 0.0)
+        self._clamped = (False, False)
+        self._sample: OutputSample | None = None
         self._valve = [0.0, 0.0]
 
-    def _compensate(self, demand: FloatArray) -> FloatArray:
-        blend = self._config.deadband_blend
-        magnitude = np.abs(demand)
-        outside = np.sign(demand) * (magnitude + self._deadband)
-        inside = demand * (blend + self._deadband) / blend
-        return np.where(magnitude >= blend, outside, inside)
+    def _code(self, joint: int, torque: float, dt: float) -> tuple[float, bool]:
+        """D/A code (a whole float) for one joint's demand (N m), and whether it was clamped."""
+        limit = self._limit[joint]
+        deadband = self._deadband[joint]
+        blend = self._blend
+        demand = torque * self._gain[joint]
+        magnitude = abs(demand)
+        if magnitude >= blend:  # demand != 0 here: np.sign is +-1
+            wanted = magnitude + deadband if demand > 0.0 else -(magnitude + deadband)
+        else:
+            wanted = demand * (blend + deadband) / blend
+        # np.clip(x, lo, hi) is min(max(x, lo), hi) with max(a, b) = a if a > b else b (b on a tie)
+        saturated = wanted if wanted > -limit else -limit
+        saturated = saturated if saturated < limit else limit
+        step = self._rate[joint] * dt
+        last = self._last[joint]
+        low, high = last - step, last + step
+        limited = saturated if saturated > low else low
+        limited = limited if limited < high else high
+        code = _rint(limited)
+        code = code if code > -limit else -limit
+        code = code if code < limit else limit
+        self._last[joint] = code
+        return code, saturated != wanted or limited != saturated
 
-    def _uncompensate(self, code: FloatArray) -> FloatArray:
-        blend = self._config.deadband_blend
-        magnitude = np.abs(code)
-        edge = blend + self._deadband
-        outside = np.sign(code) * (magnitude - self._deadband)
-        inside = code * blend / edge
-        return np.where(magnitude >= edge, outside, inside)
+    def step_floats(self, torque: tuple[float, float], dt: float) -> tuple[int, int]:
+        """:meth:`step` for a demand the caller checked: finite floats (alpha, beta) (N m), ``dt`` > 0 (s)."""
+        code_a, clamped_a = self._code(0, torque[0], dt)
+        code_b, clamped_b = self._code(1, torque[1], dt)
+        codes = (int(code_a), int(code_b))
+        self._codes = codes
+        self._torque = self._torque_floats(codes)
+        self._clamped = (clamped_a, clamped_b)
+        self._sample = None
+        return codes
 
     def step(self, torque: npt.ArrayLike, dt: float) -> OutputSample:
         """Maps a torque demand (alpha, beta) (N m) held for ``dt`` seconds to D/A codes.
@@ -151,21 +188,37 @@ class ValveOutput:
             raise ValueError(f"torque must be finite, shape (2,), got {torque!r}")
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"dt must be a finite number > 0 s, got {dt!r}")
-        wanted = self._compensate(demand_torque * self._gain)
-        saturated = np.clip(wanted, -self._limit, self._limit)
-        step = self._rate * dt
-        limited = np.clip(saturated, self._last - step, self._last + step)
-        codes = np.rint(limited)
-        codes = np.clip(codes, -self._limit, self._limit)
-        clamped = (saturated != wanted) | (limited != saturated)
-        self._last = codes
-        applied = self.torque_of((int(codes[0]), int(codes[1])))
-        self._sample = OutputSample((int(codes[0]), int(codes[1])), applied, clamped)
-        return self._sample
+        self.step_floats((float(demand_torque[0]), float(demand_torque[1])), float(dt))
+        return self.last
+
+    def _uncompensate(self, joint: int, code: float) -> float:
+        deadband = self._deadband[joint]
+        edge = self._blend + deadband
+        magnitude = abs(code)
+        if magnitude >= edge:  # code != 0 here: np.sign is +-1
+            return magnitude - deadband if code > 0.0 else -(magnitude - deadband)
+        return code * self._blend / edge
+
+    def _torque_floats(self, codes: tuple[int, int]) -> tuple[float, float]:
+        return (
+            self._uncompensate(0, float(codes[0])) / self._gain[0],
+            self._uncompensate(1, float(codes[1])) / self._gain[1],
+        )
 
     def torque_of(self, codes: tuple[int, int]) -> FloatArray:
         """Torque (N m) that D/A ``codes`` command, the inverse of the map (without clamping), shape (2,)."""
-        return self._uncompensate(np.asarray(codes, dtype=np.float64)) / self._gain
+        return np.array(self._torque_floats(codes), dtype=np.float64)
+
+    def effort_floats(self, codes: tuple[int, int], dt: float) -> tuple[float, float]:
+        """:meth:`effort` as Python floats (alpha, beta) (N m)."""
+        target = self._torque_floats(codes)
+        rise, fall = self._lag
+        if rise == 0.0:
+            return target
+        valve = self._valve
+        valve[0], mean_a = valve_lag_step(valve[0], target[0], dt, rise, fall)
+        valve[1], mean_b = valve_lag_step(valve[1], target[1], dt, rise, fall)
+        return mean_a, mean_b
 
     def effort(self, codes: tuple[int, int], dt: float) -> FloatArray:
         """Torque the valves gave over the last ``dt`` s (N m), shape (2,): ``codes`` through the lag model.
@@ -173,27 +226,29 @@ class ValveOutput:
         Called once per board tick with the codes the board reports on its valves; without a lag model
         (``time_constants`` (0, 0)) it is :meth:`torque_of` ``codes``.
         """
-        target = self.torque_of(codes)
-        rise, fall = self._config.time_constants
-        if rise == 0.0:
-            return target
-        mean = np.empty(2)
-        for joint in range(2):
-            self._valve[joint], mean[joint] = valve_lag_step(
-                self._valve[joint], float(target[joint]), dt, rise, fall
-            )
-        return mean
+        return np.array(self.effort_floats(codes, dt), dtype=np.float64)
+
+    @property
+    def last_codes(self) -> tuple[int, int]:
+        """D/A codes of the last mapped command (alpha, beta), (0, 0) after reset."""
+        return self._codes
 
     @property
     def last(self) -> OutputSample:
         """The last mapped command (codes 0 after reset)."""
+        if self._sample is None:
+            self._sample = OutputSample(
+                self._codes,
+                np.array(self._torque, dtype=np.float64),
+                np.array(self._clamped, dtype=np.bool_),
+            )
         return self._sample
 
     @property
     def internals(self) -> Mapping[str, FloatArray]:
         """``codes``, ``torque`` (N m) and ``clamped`` (0/1) of the last mapped command, shape (2,)."""
         return {
-            "codes": np.asarray(self._sample.codes, dtype=np.float64),
-            "torque": self._sample.torque.copy(),
-            "clamped": self._sample.clamped.astype(np.float64),
+            "codes": np.array(self._codes, dtype=np.float64),
+            "torque": np.array(self._torque, dtype=np.float64),
+            "clamped": np.array(self._clamped, dtype=np.float64),
         }
