@@ -112,10 +112,10 @@ def run(observed: bool) -> dict[str, float]:
             send_us.append((sent_at[count] - started) / 1e3)
         tick_us.append((ended - started) / 1e3)
     answered = len(send_us)
-    peer.destroy_node()
+    peer.destroy_node()  # type: ignore[no-untyped-call]
     bridge._transport = None
     bridge.destroy_node()
-    controller.destroy_node()
+    controller.destroy_node()  # type: ignore[no-untyped-call]
     rclpy.shutdown(context=context)
     steady_send = np.asarray(send_us[1000:])
     steady_tick = np.asarray(tick_us[1000:])

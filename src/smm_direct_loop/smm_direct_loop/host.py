@@ -113,7 +113,7 @@ class DirectControllerNode(ControllerNode):
         """
         if not (math.isfinite(torque[0]) and math.isfinite(torque[1])):
             raise NonFiniteError(f"torque must be finite, got {torque!r}")
-        return (self._held, (torque, stamp_ns))
+        return (self._held, (torque, stamp_ns))  # type: ignore[return-value]  # stands in for the publisher
 
     def _diagnostics(self, stamp_ns: int) -> list[Any]:
         return []  # built by publish_answer, after the command frame went out
@@ -192,9 +192,7 @@ class DirectBridgeNode(HwBridgeNode):
         self._answered_stamp = None
         stamp_ns = core.stamp_ns
         try:
-            torque = self.controller.command_for(
-                stamp_ns, tuple(core.position.tolist()), tuple(core.applied_torque.tolist())
-            )
+            torque = self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
         except Exception as error:
             self.fail(f"control chain failed at stamp {stamp_ns} ns: {type(error).__name__}: {error}")
             return True
