@@ -205,8 +205,49 @@ def test_latency_runs_from_the_feedback_leaving_to_the_command_arriving_not_to_t
         emu.board.receive = slow_parse  # type: ignore[method-assign]
         now[0] = arrival
         emu._drain()
-        assert emu.latencies_ns == [arrival - 1_000_000]
+        assert emu.latencies_ns == [arrival - 1_000_000]  # this transport gives no kernel arrival time
+        assert emu.read_latencies_ns == emu.latencies_ns
         assert emu.last_command_ns == arrival
+    finally:
+        emu.close()
+        host.close()
+
+
+def test_latency_takes_the_kernel_arrival_time_where_the_transport_gives_it() -> None:
+    """Arrival by the socket's kernel timestamp; the process's own wake-up is the read latency only."""
+    from smm_hw_bridge.protocol import CommandFlag, CommandFrame
+
+    now, wall = [1_000_000], [5_000_000_000]
+    host = UdpTransport((LOOPBACK, 0), (LOOPBACK, 9))
+    config = EmulatorConfig(
+        board=BoardConfig(plant=PlantConfig(encoder_counts_per_rev=CPR), adc_noise=0.0),
+        bind=(LOOPBACK, 0),
+        host=host.local_address,
+        mode="realtime",
+    )
+    emu = Emulator(config, clock_ns=lambda: now[0], wall_ns=lambda: wall[0])
+    try:
+        emu._send(emu.board.start())  # leaves at monotonic 1 ms, wall 5 s
+        feedback = emu.board.last_feedback
+        assert feedback is not None
+        command = CommandFrame(
+            7, 1, feedback.session, feedback.seq, feedback.tick, CommandFlag.ENABLE, 10, (5, 5)
+        )
+        received = iter([encode(command)])
+
+        def receive(timeout_s: float = 0.0) -> bytes | None:
+            data = next(received, None)
+            emu.transport.last_stamp_ns = None if data is None else wall[0] + 180_000  # type: ignore[attr-defined]
+            return data
+
+        emu.transport.receive = receive  # type: ignore[method-assign]
+        emu.board.receive = lambda data: command  # type: ignore[method-assign]
+        now[0] += 700_000  # the emulator process read it 0.7 ms after it left
+        emu._drain()
+        assert emu.latencies_ns == [180_000]
+        assert emu.read_latencies_ns == [700_000]
+        status = emu.status()
+        assert status["latency_p99_us"] == 180.0 and status["read_latency_p99_us"] == 700.0
     finally:
         emu.close()
         host.close()

@@ -19,7 +19,7 @@ from smm_bringup.graph import (
     expected_publishers,
     parameter_overrides,
 )
-from smm_bringup.launcher import board_line, with_board_status
+from smm_bringup.launcher import board_line, read_line, with_board_status
 from smm_bringup.parameter_files import load_parameter_file
 
 DIRECT = GraphOptions(plant="hardware", clock_mode="realtime", loop="direct", scenario="case1")
@@ -111,6 +111,24 @@ def test_the_closing_line_is_the_emulator_counters(tmp_path: Path) -> None:
     )
     assert board_line(tmp_path / "missing.json", real_board=False).startswith("board: no end-of-run status")
     assert "host" in board_line(status, real_board=True)  # a real board: what the host knows, and where
+    assert read_line(status) is None  # an emulator that gives no read time
+    status.write_text(
+        json.dumps(
+            {
+                "late_commands": 3,
+                "enabled_ticks": 400,
+                "latency_p50_us": 120.4,
+                "latency_p99_us": 280.6,
+                "read_latency_p50_us": 150.2,
+                "read_latency_p99_us": 390.7,
+            }
+        )
+    )
+    assert board_line(status, real_board=False).endswith("p50 120 us, p99 281 us")
+    assert read_line(status) == (
+        "board: (arrival is the kernel's receive time; the emulator process read them at p50 150 us, "
+        "p99 391 us, its own wake-up included)"
+    )
 
 
 def test_the_launch_file_starts_the_direct_loop_without_renaming_its_nodes(

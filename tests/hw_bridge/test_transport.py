@@ -58,6 +58,31 @@ def test_udp_moves_frames_both_ways() -> None:
         assert a.receive(0.0) is None
 
 
+def test_udp_kernel_timestamps_give_the_arrival_not_the_read() -> None:
+    """The stamp is taken when the datagram reaches the socket, however late the receiver reads it."""
+    import time
+
+    a = UdpTransport((LOOPBACK, 0), (LOOPBACK, 9), kernel_timestamps=True)
+    b = UdpTransport((LOOPBACK, 0), a.local_address)
+    a.set_peer(b.local_address)
+    with a, b:
+        stamps = []
+        for payload in (b"one", b"two"):
+            before = time.time_ns()
+            b.send(payload)
+            after = time.time_ns()
+            time.sleep(0.02)  # the reader is late
+            read = time.time_ns()
+            assert a.receive(2.0) == payload
+            assert a.last_stamp_ns is not None
+            assert before <= a.last_stamp_ns <= after < read
+            stamps.append(a.last_stamp_ns)
+        assert stamps[0] < stamps[1]
+        a.send(b"back")
+        assert b.receive(2.0) == b"back"
+        assert b.last_stamp_ns is None  # b asked for none
+
+
 def test_udp_accepts_frames_only_from_the_configured_peer() -> None:
     a, b = _udp_pair()
     stranger = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

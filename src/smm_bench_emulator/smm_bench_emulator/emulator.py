@@ -82,6 +82,7 @@ class Emulator:
         transport: Link to the bridge (default: UDP on ``config.bind`` to ``config.host``).
         clock_ns: Monotonic clock (ns).
         record: Keep the per-tick record (:attr:`record`).
+        wall_ns: The clock of the transport's kernel arrival times (CLOCK_REALTIME, ns).
     """
 
     def __init__(
@@ -90,24 +91,34 @@ class Emulator:
         transport: Transport | None = None,
         clock_ns: Callable[[], int] = time.monotonic_ns,
         record: bool = False,
+        wall_ns: Callable[[], int] = time.time_ns,
     ) -> None:
         self.config = config
         self.board = BoardCore(config.board)
         self.faults = LinkFaults(config.seed)
-        self.transport = transport if transport is not None else UdpTransport(config.bind, config.host)
+        self.transport = (
+            transport
+            if transport is not None
+            else UdpTransport(config.bind, config.host, kernel_timestamps=True)
+        )
         self._control: socket.socket | None = None
         if config.control is not None:
             self._control = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             self._control.bind(config.control)
             self._control.setblocking(False)
         self._clock = clock_ns
+        self._wall = wall_ns
         self.running = False
         self.overruns = 0
         self.ticks = 0
         self.null_since_ns: int | None = None
-        self._sent_ns: dict[int, int] = {}
+        self._sent_ns: dict[int, tuple[int, int]] = {}
         self.latencies_ns: list[int] = []
-        """Feedback sent -> enabled command answering it received (ns), one per answered feedback."""
+        """Feedback sent -> enabled command answering it arrived (ns), one per answered feedback: the
+        kernel's arrival time where the transport gives it, else when this process read it."""
+        self.read_latencies_ns: list[int] = []
+        """Feedback sent -> enabled command answering it read by this process (ns): also this process's
+        own wake-up, which a board's receive interrupt does not have."""
         self.record: list[tuple[int, float, float, int, int]] | None = [] if record else None
         """Per tick: (tick, true alpha, true beta (rad), D/A codes), when ``record`` is set."""
         self.null_since_tick: int | None = None
@@ -127,11 +138,12 @@ class Emulator:
 
     def _send(self, frame: bytes) -> None:
         now = self._clock()  # before the send: a host may answer before this process runs again
+        wall = self._wall()
         for data in self.faults.outgoing(frame, self.board.tick):
             self.transport.send(data)
         feedback = self.board.last_feedback
         if feedback is not None:
-            self._sent_ns[feedback.seq] = now
+            self._sent_ns[feedback.seq] = (now, wall)
             if len(self._sent_ns) > 2000:
                 del self._sent_ns[next(iter(self._sent_ns))]
             if self.record is not None:
@@ -149,6 +161,7 @@ class Emulator:
     def _drain(self) -> None:
         while (data := self.transport.receive(0.0)) is not None:
             arrived = self._clock()  # before the board parses it: a real board's parse takes microseconds
+            stamp = getattr(self.transport, "last_stamp_ns", None)
             passed = self.faults.incoming(data)
             if passed is not None:
                 command = self.board.receive(passed)
@@ -156,7 +169,8 @@ class Emulator:
                     self.last_command_ns = arrived
                     sent = self._sent_ns.pop(command.answers_seq, None)
                     if sent is not None and command.enabled:
-                        self.latencies_ns.append(self.last_command_ns - sent)
+                        self.read_latencies_ns.append(arrived - sent[0])
+                        self.latencies_ns.append(arrived - sent[0] if stamp is None else stamp - sent[1])
                     if command.enabled:
                         self.last_enabled_ns = self.last_command_ns
         if self._control is not None:
@@ -218,6 +232,8 @@ class Emulator:
             "applied": len(board.applied_log),
             "latency_p50_us": _percentile_us(self.latencies_ns, 50),
             "latency_p99_us": _percentile_us(self.latencies_ns, 99),
+            "read_latency_p50_us": _percentile_us(self.read_latencies_ns, 50),
+            "read_latency_p99_us": _percentile_us(self.read_latencies_ns, 99),
             "last_applied_tick": board.applied_log[-1][0] if board.applied_log else None,
             "status_bits": 0 if board.last_feedback is None else board.last_feedback.status,
         }

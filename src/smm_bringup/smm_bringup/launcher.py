@@ -226,6 +226,9 @@ def run(argv: Sequence[str]) -> int:
             status = Path(folder) / "board.json"
             code = launch_processes(with_board_status(specs, status), stop_grace_s=arguments.stop_grace)
             _say(board_line(status, real_board=options.board is not None))
+            read = read_line(status)
+            if read and options.board is None:
+                _say(read)
             return code
     except (GraphError, ValueError) as error:
         _say(f"error: {error}", sys.stderr)
@@ -263,6 +266,21 @@ def board_line(path: Path, *, real_board: bool) -> str:
     percent = 100.0 * late / enabled if enabled else 0.0
     figures = "no enabled command" if p50 is None else f"p50 {p50:.0f} us, p99 {p99:.0f} us"
     return f"board: late {late} of {enabled} enabled ticks ({percent:.2f} %), feedback->command {figures}"
+
+
+def read_line(path: Path) -> str | None:
+    """When the emulator's process read the commands (its own wake-up included), beside the arrival line."""
+    try:
+        status = json.loads(path.read_text())
+        p50, p99 = status["read_latency_p50_us"], status["read_latency_p99_us"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if p50 is None:
+        return None
+    return (
+        f"board: (arrival is the kernel's receive time; the emulator process read them at p50 {p50:.0f} us, "
+        f"p99 {p99:.0f} us, its own wake-up included)"
+    )
 
 
 def main() -> int:

@@ -10,6 +10,8 @@ import abc
 import ipaddress
 import select
 import socket
+import struct
+import sys
 import time
 from collections import deque
 from typing import Any, Final
@@ -26,6 +28,9 @@ __all__ = [
 
 MAX_FRAME: Final[int] = 512
 """Largest frame a transport passes on (bytes); longer datagrams or serial packets are dropped."""
+_SO_TIMESTAMPNS: Final[int] = getattr(socket, "SO_TIMESTAMPNS", 35)
+"""Linux's SO_TIMESTAMPNS (also the control message's type); Python does not name it."""
+_TIMESPEC: Final[struct.Struct] = struct.Struct("@ll")
 
 
 class TransportError(OSError):
@@ -84,9 +89,13 @@ class UdpTransport(Transport):
         local: (IPv4 address, port) to bind; port 0 picks a free one (see :attr:`local_address`).
         peer: (IPv4 address, port) of the other side; datagrams from anywhere else are dropped and
             counted as ``dropped["source"]``.
+        kernel_timestamps: Ask the kernel for each datagram's arrival time (Linux; see
+            :attr:`last_stamp_ns`).
     """
 
-    def __init__(self, local: tuple[str, int], peer: tuple[str, int]) -> None:
+    def __init__(
+        self, local: tuple[str, int], peer: tuple[str, int], *, kernel_timestamps: bool = False
+    ) -> None:
         super().__init__()
         self._local = _endpoint("local", local)
         self._peer = _endpoint("peer", peer)
@@ -97,6 +106,15 @@ class UdpTransport(Transport):
             self._sock.close()
             raise TransportError(f"cannot bind UDP {self._local[0]}:{self._local[1]}: {error}") from error
         self._sock.setblocking(False)
+        self._stamped = False
+        if kernel_timestamps and sys.platform.startswith("linux"):
+            try:
+                self._sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+                self._stamped = True
+            except OSError:
+                pass  # last_stamp_ns stays None
+        self.last_stamp_ns: int | None = None
+        """Kernel arrival time (CLOCK_REALTIME, ns) of the last datagram returned; None without timestamps."""
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -127,7 +145,10 @@ class UdpTransport(Transport):
         deadline = time.monotonic() + max(timeout_s, 0.0)
         while True:
             try:
-                data, source = self._sock.recvfrom(MAX_FRAME + 1)
+                if self._stamped:
+                    data, source = self._receive_stamped()
+                else:
+                    data, source = self._sock.recvfrom(MAX_FRAME + 1)
             except BlockingIOError:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0.0:
@@ -143,6 +164,15 @@ class UdpTransport(Transport):
                 self._drop("oversize")
                 continue
             return data
+
+    def _receive_stamped(self) -> tuple[bytes, Any]:
+        data, ancillary, _flags, source = self._sock.recvmsg(MAX_FRAME + 1, socket.CMSG_SPACE(_TIMESPEC.size))
+        self.last_stamp_ns = None
+        for level, kind, payload in ancillary:
+            if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(payload) >= _TIMESPEC.size:
+                seconds, nanoseconds = _TIMESPEC.unpack_from(payload)
+                self.last_stamp_ns = seconds * 1_000_000_000 + nanoseconds
+        return data, source
 
     def fileno(self) -> int:
         """The socket's descriptor."""
