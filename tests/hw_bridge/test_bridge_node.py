@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from smm_hw_bridge.core import BridgeState
+from smm_hw_bridge.protocol import Reason
 from udp_bench import LOOPBACK, PARSE_AND_SESSION_REASONS, free_port, parse_and_session_rejections
 
 pytestmark = pytest.mark.ros
@@ -32,6 +34,7 @@ class Bench:
     """Emulator thread + bridge node + a peer node answering every measurement with TORQUE.
 
     ``loop="direct"``: the direct loop's bridge and controller_node instead (the peer only counts).
+    ``counter_bits``: the width of the board's encoder counters, and the bridge's.
     """
 
     def __init__(
@@ -40,6 +43,7 @@ class Bench:
         mode: str = "realtime",
         answer: bool = True,
         loop: str = "topics",
+        counter_bits: int = 32,
         **parameters: Any,
     ) -> None:
         import rclpy
@@ -58,7 +62,9 @@ class Bench:
         host_port, board_port = free_port(), free_port()
         self.emulator = Emulator(
             EmulatorConfig(
-                board=BoardConfig(plant=PlantConfig(encoder_counts_per_rev=1 << 20), adc_noise=0.0),
+                board=BoardConfig(
+                    plant=PlantConfig(encoder_counts_per_rev=1 << 20), adc_noise=0.0, counter_bits=counter_bits
+                ),
                 bind=(LOOPBACK, board_port),
                 host=(LOOPBACK, host_port),
                 control=(LOOPBACK, free_port()),
@@ -78,6 +84,7 @@ class Bench:
             "bridge.link_timeout_ns": 1_000_000_000,
             "bridge.admission.stale_ns": 1_000_000_000,
             "bridge.lockstep": mode == "lockstep",
+            "bridge.encoder.counter_bits": counter_bits,
             **parameters,
         }
         self.controller: Any = None
@@ -342,6 +349,152 @@ def test_diagnostics_carry_the_link_figures(bench: Bench) -> None:
         10.0, abs=0.01
     )
     assert bench.internals, "no internals published"
+
+
+@pytest.mark.parametrize("loop", LOOPS)
+def test_counts_wider_than_the_counters_are_rejected_and_the_loop_keeps_running(
+    ros_context: Any, loop: str
+) -> None:
+    from smm_hw_bridge.protocol import FeedbackFrame, encode
+
+    bits, wide = 24, 5
+    bench = Bench(ros_context, loop=loop, counter_bits=bits)
+    try:
+        bench.start()
+        node, core = bench.node, bench.node.core
+        reader = node._reader
+        genuine = bench.board.last_feedback
+        assert genuine is not None
+        frame = encode(FeedbackFrame(**{**genuine.__dict__, "counts": (1 << bits, genuine.counts[1])}))
+        for _ in range(wide):
+            bench.emulator.transport.send(frame)  # from the board's own address and port
+        answered = bench.measurements
+        assert bench.spin_until(
+            lambda: core.rejected.get(Reason.FIELD, 0) == wide and bench.measurements > answered + 10
+        ), (core.rejected, bench.measurements, reader.is_alive())
+        assert reader.is_alive() and node._reader is reader
+        assert node.lifecycle_state == "active" and core.state == BridgeState.ARMED
+        assert node.health().values["rejected_field"] == wide
+        assert bench.spin_until(bench.live)
+
+        def field_in_diagnostics() -> bool:
+            statuses = bench.bridge_statuses()
+            return bool(statuses) and {kv.key: kv.value for kv in statuses[-1].values}.get(
+                "rejected_field"
+            ) == str(wide)
+
+        assert bench.spin_until(field_in_diagnostics, 5.0), "rejected_field not in /diagnostics"
+    finally:
+        bench.close()
+
+
+@pytest.mark.parametrize("loop", LOOPS)
+def test_an_exception_in_frame_handling_is_a_host_fault_and_the_reader_survives(
+    ros_context: Any, loop: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    # the board's watchdog cannot be the reason the valves go to null
+    bench = Bench(ros_context, loop=loop, **{"bridge.validity_ticks": 5000})
+    try:
+        bench.start()
+        node, core = bench.node, bench.node.core
+        reader = node._reader
+        handle = core.on_datagram
+        calls: list[int] = []
+
+        def raise_once(data: bytes, rx_ns: int) -> Any:
+            calls.append(rx_ns)
+            if len(calls) == 1:
+                raise RuntimeError("injected bug in frame handling")
+            return handle(data, rx_ns)
+
+        safe_before = node.counters.safe_frames_sent
+        monkeypatch.setattr(core, "on_datagram", raise_once)
+        # nothing spins: the reader thread alone must send the safe frame and keep reading
+        deadline = time.monotonic() + 5.0
+        while len(calls) < 20 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert len(calls) >= 20, "the reader stopped reading after the exception"
+        assert reader.is_alive() and node._reader is reader
+        assert node.counters.safe_frames_sent > safe_before
+        assert "injected bug" in node.counters.last_error
+        assert node.health().level == 2
+        assert_safe_now(bench)
+        assert bench.spin_until(lambda: node.lifecycle_state == "unconfigured")  # the error transition
+        assert not bench.live()
+        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS  # and it recovers
+        assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        assert bench.spin_until(bench.live)
+        assert node._reader is not None and node._reader.is_alive()
+    finally:
+        bench.close()
+
+
+def test_configure_rejects_counts_wider_than_the_counters_and_adopts_the_next_good_frame(
+    ros_context: Any,
+) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from smm_hw_bridge.bridge_node import HwBridgeNode
+    from smm_hw_bridge.protocol import FeedbackFrame, encode
+
+    bits, wide = 24, 3
+    host_port, board_port = free_port(), free_port()
+    node = HwBridgeNode(
+        context=ros_context,
+        parameter_overrides={
+            "link.bind_port": host_port,
+            "link.board_port": board_port,
+            "bridge.encoder.counter_bits": bits,
+        },
+    )
+    stop = threading.Event()
+
+    def board() -> None:  # wide frames first, then good ones, until configure has taken one
+        fields: dict[str, Any] = {
+            "session": 0x1234,
+            "seq": 0,
+            "tick": 0,
+            "host_session": 0,
+            "counts": (1 << bits, 0),
+            "adc": (1638, 0, 0, 0),
+            "status": 0,
+            "faults": 0,
+            "applied_seq": 0,
+            "applied_age": 0xFFFF,
+            "output_codes": (0, 0),
+            "late_commands": 0,
+            "crc_errors": 0,
+            "dropped_frames": 0,
+        }
+        while not stop.is_set():  # until configure has bound the bridge's port (so no frame is lost)
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+                try:
+                    probe.bind((LOOPBACK, host_port))
+                except OSError:
+                    break
+            time.sleep(0.005)
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            sock.bind((LOOPBACK, board_port))
+            while not stop.is_set():
+                fields["seq"] += 1
+                fields["tick"] += 1
+                if fields["seq"] > wide:
+                    fields["counts"] = ((1 << bits) - 1, 0)
+                sock.sendto(encode(FeedbackFrame(**fields)), (LOOPBACK, host_port))
+                time.sleep(0.01)
+
+    sender = threading.Thread(target=board, daemon=True)
+    try:
+        sender.start()
+        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        core = node.core
+        assert core is not None and core.board_session == 0x1234
+        assert core.rejected.get(Reason.FIELD, 0) == wide and core.last_feedback.seq == wide + 1
+    finally:
+        stop.set()
+        sender.join(5.0)
+        node.destroy_node()
 
 
 @pytest.mark.parametrize("loop", LOOPS)
