@@ -63,7 +63,9 @@ class Bench:
         self.emulator = Emulator(
             EmulatorConfig(
                 board=BoardConfig(
-                    plant=PlantConfig(encoder_counts_per_rev=1 << 20), adc_noise=0.0, counter_bits=counter_bits
+                    plant=PlantConfig(encoder_counts_per_rev=1 << 20),
+                    adc_noise=0.0,
+                    counter_bits=counter_bits,
                 ),
                 bind=(LOOPBACK, board_port),
                 host=(LOOPBACK, host_port),

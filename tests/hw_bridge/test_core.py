@@ -203,18 +203,22 @@ def test_counts_wider_than_counter_bits_are_dropped_as_field_before_any_use(join
     core, board = armed_core(config)
     board.counts = (1000, -1000 % (1 << bits))
     assert board.step() is not None
-    before = (core.state, core.position_floats, core.stamp_ns, core.last_feedback, core.stats.received)
+
+    def snapshot() -> tuple[object, ...]:
+        return (core.state, core.position_floats, core.stamp_ns, core.last_feedback, core.stats.received)
+
+    before, received, position = snapshot(), core.stats.received, core.position_floats
     counts = list(board.counts)
     counts[joint] = 1 << bits
     frame = board.frame(counts=tuple(counts), tick=board.tick)
     board.seq -= 1  # the next good frame reuses this seq: a rejected frame must not have moved admission
     assert core.on_datagram(encode(frame), board.now) is None
     assert core.last_rejection is Reason.FIELD and core.rejected[Reason.FIELD] == 1
-    assert (core.state, core.position_floats, core.stamp_ns, core.last_feedback, core.stats.received) == before
+    assert snapshot() == before
     board.counts = ((1 << bits) - 1, 0)  # the widest count that fits
     assert board.step() is not None and core.last_rejection is None
-    assert core.state == BridgeState.ARMED and core.stats.received == before[4] + 1
-    assert core.position_floats[0] < before[1][0]  # 1000 -> 2**24 - 1: unwrapped backwards, not wrapped
+    assert core.state == BridgeState.ARMED and core.stats.received == received + 1
+    assert core.position_floats[0] < position[0]  # 1000 -> 2**24 - 1: unwrapped backwards, not wrapped
     assert dict(core.rejected) == {Reason.FIELD: 1}
 
 
