@@ -18,7 +18,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from smm_hw_bridge.core import BridgeState
 from smm_hw_bridge.protocol import Reason
-from udp_bench import LOOPBACK, PARSE_AND_SESSION_REASONS, free_port, parse_and_session_rejections
+from udp_bench import (
+    LOOPBACK,
+    PARSE_AND_SESSION_REASONS,
+    feedback_frame,
+    free_port,
+    parse_and_session_rejections,
+)
 
 pytestmark = pytest.mark.ros
 
@@ -433,70 +439,104 @@ def test_an_exception_in_frame_handling_is_a_host_fault_and_the_reader_survives(
         bench.close()
 
 
+def raw_board(host_port: int, board_port: int, stop: threading.Event, bits: int, wide: int) -> None:
+    """A board of one session sending feedback every 10 ms from ``board_port``, once the bridge has bound
+    ``host_port``: the first ``wide`` frames count 2**bits (too wide for ``bits``-bit counters)."""
+    from smm_hw_bridge.protocol import encode
+
+    local = f"0100007F:{host_port:04X}"  # 127.0.0.1 as /proc/net/udp writes it
+    while not stop.is_set():  # until configure has bound the bridge's port (so no frame is lost)
+        with open("/proc/net/udp") as table:
+            if any(line.split()[1] == local for line in list(table)[1:]):
+                break
+        time.sleep(0.005)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind((LOOPBACK, board_port))
+        seq = 0
+        while not stop.is_set():
+            seq += 1
+            counts = (1 << bits, 0) if seq <= wide else ((1 << bits) - 1, 0)
+            # a frame every 10 ms of the 1 kHz board clock
+            frame = feedback_frame(0x1234, seq, 10 * seq, counts=counts)
+            sock.sendto(encode(frame), (LOOPBACK, host_port))
+            time.sleep(0.01)
+
+
+class RawBench:
+    """A bridge node (``bits``-bit counters) and :func:`raw_board` in a thread, started anew at each
+    :meth:`configure`."""
+
+    def __init__(self, context: Any, bits: int, wide: int) -> None:
+        from smm_hw_bridge.bridge_node import HwBridgeNode
+
+        self.bits, self.wide = bits, wide
+        self.host_port, self.board_port = free_port(), free_port()
+        self.node = HwBridgeNode(
+            context=context,
+            parameter_overrides={
+                "link.bind_port": self.host_port,
+                "link.board_port": self.board_port,
+                "link.configure_timeout": 2.0,
+                "bridge.encoder.counter_bits": bits,
+                "bridge.admission.stale_ns": 1_000_000_000,  # a sender thread sharing this process's GIL
+            },
+        )
+        self.stop = threading.Event()
+        self.sender: threading.Thread | None = None
+
+    def configure(self) -> Any:
+        self.halt()
+        self.stop.clear()
+        arguments = (self.host_port, self.board_port, self.stop, self.bits, self.wide)
+        self.sender = threading.Thread(target=raw_board, args=arguments, daemon=True)
+        self.sender.start()
+        return self.node.trigger_configure()
+
+    def halt(self) -> None:
+        self.stop.set()
+        if self.sender is not None:
+            self.sender.join(5.0)
+
+    def close(self) -> None:
+        self.halt()
+        self.node.destroy_node()
+
+
 def test_configure_rejects_counts_wider_than_the_counters_and_adopts_the_next_good_frame(
     ros_context: Any,
 ) -> None:
     from rclpy.lifecycle import TransitionCallbackReturn
-    from smm_hw_bridge.bridge_node import HwBridgeNode
-    from smm_hw_bridge.protocol import FeedbackFrame, encode
 
-    bits, wide = 24, 3
-    host_port, board_port = free_port(), free_port()
-    node = HwBridgeNode(
-        context=ros_context,
-        parameter_overrides={
-            "link.bind_port": host_port,
-            "link.board_port": board_port,
-            "bridge.encoder.counter_bits": bits,
-        },
-    )
-    stop = threading.Event()
-
-    def board() -> None:  # wide frames first, then good ones, until configure has taken one
-        fields: dict[str, Any] = {
-            "session": 0x1234,
-            "seq": 0,
-            "tick": 0,
-            "host_session": 0,
-            "counts": (1 << bits, 0),
-            "adc": (1638, 0, 0, 0),
-            "status": 0,
-            "faults": 0,
-            "applied_seq": 0,
-            "applied_age": 0xFFFF,
-            "output_codes": (0, 0),
-            "late_commands": 0,
-            "crc_errors": 0,
-            "dropped_frames": 0,
-        }
-        while not stop.is_set():  # until configure has bound the bridge's port (so no frame is lost)
-            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-                try:
-                    probe.bind((LOOPBACK, host_port))
-                except OSError:
-                    break
-            time.sleep(0.005)
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-            sock.bind((LOOPBACK, board_port))
-            while not stop.is_set():
-                fields["seq"] += 1
-                fields["tick"] += 1
-                if fields["seq"] > wide:
-                    fields["counts"] = ((1 << bits) - 1, 0)
-                sock.sendto(encode(FeedbackFrame(**fields)), (LOOPBACK, host_port))
-                time.sleep(0.01)
-
-    sender = threading.Thread(target=board, daemon=True)
+    bench = RawBench(ros_context, bits=24, wide=3)
     try:
-        sender.start()
-        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
-        core = node.core
+        assert bench.configure() == TransitionCallbackReturn.SUCCESS
+        core = bench.node.core
         assert core is not None and core.board_session == 0x1234
-        assert core.rejected.get(Reason.FIELD, 0) == wide and core.last_feedback.seq == wide + 1
+        assert dict(core.rejected) == {Reason.FIELD: 3}  # every wide frame, and nothing else
+        assert core.last_feedback is not None and core.last_feedback.seq > 3
     finally:
-        stop.set()
-        sender.join(5.0)
-        node.destroy_node()
+        bench.close()
+
+
+def test_an_exception_while_configure_waits_fails_it_and_frees_the_socket(
+    ros_context: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from smm_hw_bridge.core import BridgeCore
+
+    bench = RawBench(ros_context, bits=24, wide=0)
+    try:
+        with monkeypatch.context() as patch:
+
+            def broken(self: BridgeCore, data: bytes, rx_ns: int) -> None:
+                raise RuntimeError("injected bug in frame handling")
+
+            patch.setattr(BridgeCore, "on_datagram", broken)
+            assert bench.configure() == TransitionCallbackReturn.FAILURE
+        assert bench.node.lifecycle_state == "unconfigured" and bench.node.transport is None
+        assert bench.configure() == TransitionCallbackReturn.SUCCESS  # its port was closed: bound again
+    finally:
+        bench.close()
 
 
 @pytest.mark.parametrize("loop", LOOPS)

@@ -11,6 +11,7 @@ from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError, BridgeStat
 from smm_hw_bridge.encoder import EncoderConfig
 from smm_hw_bridge.protocol import CommandFlag, FaultBit, FeedbackFrame, Reason, StatusBit, encode
 from smm_hw_bridge.valve_output import ValveOutputConfig
+from udp_bench import feedback_frame
 
 HOST = 0x0000BEEF
 BOARD = 0x12345678
@@ -50,18 +51,11 @@ class Board:
             "tick": self.tick,
             "host_session": self.host,
             "counts": self.counts,
-            "adc": (1638, 2048, 2048, 2048),
             "status": self.status,
             "faults": self.faults,
-            "applied_seq": 0,
-            "applied_age": 0xFFFF,
-            "output_codes": (0, 0),
-            "late_commands": 0,
-            "crc_errors": 0,
-            "dropped_frames": 0,
+            **changes,
         }
-        fields.update(changes)
-        return FeedbackFrame(**fields)  # type: ignore[arg-type]
+        return feedback_frame(**fields)  # type: ignore[arg-type]
 
     def step(self, **changes: object) -> FeedbackFrame | None:
         frame = self.frame(**changes)
