@@ -402,8 +402,9 @@ def test_an_exception_in_frame_handling_is_a_host_fault_and_the_reader_survives(
 ) -> None:
     from rclpy.lifecycle import TransitionCallbackReturn
 
-    # the board's watchdog cannot be the reason the valves go to null
-    bench = Bench(ros_context, loop=loop, **{"bridge.validity_ticks": 5000})
+    # neither the board's watchdog nor the host's can be the reason the valves go to null
+    overrides = {"bridge.validity_ticks": 5000, "bridge.host_watchdog_ns": 5_000_000_000}
+    bench = Bench(ros_context, loop=loop, **overrides)
     try:
         bench.start()
         node, core = bench.node, bench.node.core
@@ -425,9 +426,9 @@ def test_an_exception_in_frame_handling_is_a_host_fault_and_the_reader_survives(
             time.sleep(0.01)
         assert len(calls) >= 20, "the reader stopped reading after the exception"
         assert reader.is_alive() and node._reader is reader
-        assert node.counters.safe_frames_sent > safe_before
-        assert "injected bug" in node.counters.last_error
-        assert node.health().level == 2
+        assert node.counters.safe_frames_sent > safe_before and core.state == BridgeState.DISARMED
+        health = node.health()
+        assert health.level == 2 and "host fault" in health.message and "injected bug" in health.message
         assert_safe_now(bench)
         assert bench.spin_until(lambda: node.lifecycle_state == "unconfigured")  # the error transition
         assert not bench.live()
