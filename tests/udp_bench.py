@@ -1,9 +1,10 @@
-"""Shared by the bridge and emulator tests: free loopback ports, the rejections counted before admission."""
+"""Shared by the bridge and emulator tests: free loopback ports, the rejections counted before admission, a
+feedback frame made by hand."""
 
 import socket
 
 from smm_hw_bridge.core import BridgeCore
-from smm_hw_bridge.protocol import Reason
+from smm_hw_bridge.protocol import FeedbackFrame, Reason
 
 LOOPBACK = "127.0.0.1"
 
@@ -29,3 +30,22 @@ def free_port() -> int:
 def parse_and_session_rejections(core: BridgeCore) -> int:
     """Frames ``core`` refused before admission, all reasons of :data:`PARSE_AND_SESSION_REASONS` together."""
     return sum(core.rejected.get(reason, 0) for reason in PARSE_AND_SESSION_REASONS)
+
+
+def feedback_frame(session: int, seq: int, tick: int, **fields: object) -> FeedbackFrame:
+    """A valid feedback frame: no host, counts 0, supply A/D 1638, nothing applied; ``fields`` change it."""
+    values: dict[str, object] = {
+        "host_session": 0,
+        "counts": (0, 0),
+        "adc": (1638, 2048, 2048, 2048),
+        "status": 0,
+        "faults": 0,
+        "applied_seq": 0,
+        "applied_age": 0xFFFF,
+        "output_codes": (0, 0),
+        "late_commands": 0,
+        "crc_errors": 0,
+        "dropped_frames": 0,
+        **fields,
+    }
+    return FeedbackFrame(session=session, seq=seq, tick=tick, **values)  # type: ignore[arg-type]

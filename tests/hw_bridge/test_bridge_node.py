@@ -16,7 +16,15 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from udp_bench import LOOPBACK, PARSE_AND_SESSION_REASONS, free_port, parse_and_session_rejections
+from smm_hw_bridge.core import BridgeState
+from smm_hw_bridge.protocol import Reason
+from udp_bench import (
+    LOOPBACK,
+    PARSE_AND_SESSION_REASONS,
+    feedback_frame,
+    free_port,
+    parse_and_session_rejections,
+)
 
 pytestmark = pytest.mark.ros
 
@@ -32,6 +40,7 @@ class Bench:
     """Emulator thread + bridge node + a peer node answering every measurement with TORQUE.
 
     ``loop="direct"``: the direct loop's bridge and controller_node instead (the peer only counts).
+    ``counter_bits``: the width of the board's encoder counters, and the bridge's.
     """
 
     def __init__(
@@ -40,6 +49,7 @@ class Bench:
         mode: str = "realtime",
         answer: bool = True,
         loop: str = "topics",
+        counter_bits: int = 32,
         **parameters: Any,
     ) -> None:
         import rclpy
@@ -58,7 +68,11 @@ class Bench:
         host_port, board_port = free_port(), free_port()
         self.emulator = Emulator(
             EmulatorConfig(
-                board=BoardConfig(plant=PlantConfig(encoder_counts_per_rev=1 << 20), adc_noise=0.0),
+                board=BoardConfig(
+                    plant=PlantConfig(encoder_counts_per_rev=1 << 20),
+                    adc_noise=0.0,
+                    counter_bits=counter_bits,
+                ),
                 bind=(LOOPBACK, board_port),
                 host=(LOOPBACK, host_port),
                 control=(LOOPBACK, free_port()),
@@ -78,6 +92,7 @@ class Bench:
             "bridge.link_timeout_ns": 1_000_000_000,
             "bridge.admission.stale_ns": 1_000_000_000,
             "bridge.lockstep": mode == "lockstep",
+            "bridge.encoder.counter_bits": counter_bits,
             **parameters,
         }
         self.controller: Any = None
@@ -342,6 +357,187 @@ def test_diagnostics_carry_the_link_figures(bench: Bench) -> None:
         10.0, abs=0.01
     )
     assert bench.internals, "no internals published"
+
+
+@pytest.mark.parametrize("loop", LOOPS)
+def test_counts_wider_than_the_counters_are_rejected_and_the_loop_keeps_running(
+    ros_context: Any, loop: str
+) -> None:
+    from smm_hw_bridge.protocol import FeedbackFrame, encode
+
+    bits, wide = 24, 5
+    bench = Bench(ros_context, loop=loop, counter_bits=bits)
+    try:
+        bench.start()
+        node, core = bench.node, bench.node.core
+        reader = node._reader
+        genuine = bench.board.last_feedback
+        assert genuine is not None
+        frame = encode(FeedbackFrame(**{**genuine.__dict__, "counts": (1 << bits, genuine.counts[1])}))
+        for _ in range(wide):
+            bench.emulator.transport.send(frame)  # from the board's own address and port
+        answered = bench.measurements
+        assert bench.spin_until(
+            lambda: core.rejected.get(Reason.FIELD, 0) == wide and bench.measurements > answered + 10
+        ), (core.rejected, bench.measurements, reader.is_alive())
+        assert reader.is_alive() and node._reader is reader
+        assert node.lifecycle_state == "active" and core.state == BridgeState.ARMED
+        assert node.health().values["rejected_field"] == wide
+        assert bench.spin_until(bench.live)
+
+        def field_in_diagnostics() -> bool:
+            statuses = bench.bridge_statuses()
+            return bool(statuses) and {kv.key: kv.value for kv in statuses[-1].values}.get(
+                "rejected_field"
+            ) == str(wide)
+
+        assert bench.spin_until(field_in_diagnostics, 5.0), "rejected_field not in /diagnostics"
+    finally:
+        bench.close()
+
+
+@pytest.mark.parametrize("loop", LOOPS)
+def test_an_exception_in_frame_handling_is_a_host_fault_and_the_reader_survives(
+    ros_context: Any, loop: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    # neither the board's watchdog nor the host's can be the reason the valves go to null
+    overrides = {"bridge.validity_ticks": 5000, "bridge.host_watchdog_ns": 5_000_000_000}
+    bench = Bench(ros_context, loop=loop, **overrides)
+    try:
+        bench.start()
+        node, core = bench.node, bench.node.core
+        reader = node._reader
+        handle = core.on_datagram
+        calls: list[int] = []
+
+        def raise_once(data: bytes, rx_ns: int) -> Any:
+            calls.append(rx_ns)
+            if len(calls) == 1:
+                raise RuntimeError("injected bug in frame handling")
+            return handle(data, rx_ns)
+
+        safe_before = node.counters.safe_frames_sent
+        monkeypatch.setattr(core, "on_datagram", raise_once)
+        # nothing spins: the reader thread alone must send the safe frame and keep reading
+        deadline = time.monotonic() + 5.0
+        while len(calls) < 20 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert len(calls) >= 20, "the reader stopped reading after the exception"
+        assert reader.is_alive() and node._reader is reader
+        assert node.counters.safe_frames_sent > safe_before and core.state == BridgeState.DISARMED
+        health = node.health()
+        assert health.level == 2 and "host fault" in health.message and "injected bug" in health.message
+        assert_safe_now(bench)
+        assert bench.spin_until(lambda: node.lifecycle_state == "unconfigured")  # the error transition
+        assert not bench.live()
+        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS  # and it recovers
+        assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        assert bench.spin_until(bench.live)
+        assert node._reader is not None and node._reader.is_alive()
+    finally:
+        bench.close()
+
+
+def raw_board(host_port: int, board_port: int, stop: threading.Event, bits: int, wide: int) -> None:
+    """A board of one session sending feedback every 10 ms from ``board_port``, once the bridge has bound
+    ``host_port``: the first ``wide`` frames count 2**bits (too wide for ``bits``-bit counters)."""
+    from smm_hw_bridge.protocol import encode
+
+    local = f"0100007F:{host_port:04X}"  # 127.0.0.1 as /proc/net/udp writes it
+    while not stop.is_set():  # until configure has bound the bridge's port (so no frame is lost)
+        with open("/proc/net/udp") as table:
+            if any(line.split()[1] == local for line in list(table)[1:]):
+                break
+        time.sleep(0.005)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind((LOOPBACK, board_port))
+        seq = 0
+        while not stop.is_set():
+            seq += 1
+            counts = (1 << bits, 0) if seq <= wide else ((1 << bits) - 1, 0)
+            # a frame every 10 ms of the 1 kHz board clock
+            frame = feedback_frame(0x1234, seq, 10 * seq, counts=counts)
+            sock.sendto(encode(frame), (LOOPBACK, host_port))
+            time.sleep(0.01)
+
+
+class RawBench:
+    """A bridge node (``bits``-bit counters) and :func:`raw_board` in a thread, started anew at each
+    :meth:`configure`."""
+
+    def __init__(self, context: Any, bits: int, wide: int) -> None:
+        from smm_hw_bridge.bridge_node import HwBridgeNode
+
+        self.bits, self.wide = bits, wide
+        self.host_port, self.board_port = free_port(), free_port()
+        self.node = HwBridgeNode(
+            context=context,
+            parameter_overrides={
+                "link.bind_port": self.host_port,
+                "link.board_port": self.board_port,
+                "link.configure_timeout": 2.0,
+                "bridge.encoder.counter_bits": bits,
+                "bridge.admission.stale_ns": 1_000_000_000,  # a sender thread sharing this process's GIL
+            },
+        )
+        self.stop = threading.Event()
+        self.sender: threading.Thread | None = None
+
+    def configure(self) -> Any:
+        self.halt()
+        self.stop.clear()
+        arguments = (self.host_port, self.board_port, self.stop, self.bits, self.wide)
+        self.sender = threading.Thread(target=raw_board, args=arguments, daemon=True)
+        self.sender.start()
+        return self.node.trigger_configure()
+
+    def halt(self) -> None:
+        self.stop.set()
+        if self.sender is not None:
+            self.sender.join(5.0)
+
+    def close(self) -> None:
+        self.halt()
+        self.node.destroy_node()
+
+
+def test_configure_rejects_counts_wider_than_the_counters_and_adopts_the_next_good_frame(
+    ros_context: Any,
+) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    bench = RawBench(ros_context, bits=24, wide=3)
+    try:
+        assert bench.configure() == TransitionCallbackReturn.SUCCESS
+        core = bench.node.core
+        assert core is not None and core.board_session == 0x1234
+        assert dict(core.rejected) == {Reason.FIELD: 3}  # every wide frame, and nothing else
+        assert core.last_feedback is not None and core.last_feedback.seq > 3
+    finally:
+        bench.close()
+
+
+def test_an_exception_while_configure_waits_fails_it_and_frees_the_socket(
+    ros_context: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from smm_hw_bridge.core import BridgeCore
+
+    bench = RawBench(ros_context, bits=24, wide=0)
+    try:
+        with monkeypatch.context() as patch:
+
+            def broken(self: BridgeCore, data: bytes, rx_ns: int) -> None:
+                raise RuntimeError("injected bug in frame handling")
+
+            patch.setattr(BridgeCore, "on_datagram", broken)
+            assert bench.configure() == TransitionCallbackReturn.FAILURE
+        assert bench.node.lifecycle_state == "unconfigured" and bench.node.transport is None
+        assert bench.configure() == TransitionCallbackReturn.SUCCESS  # its port was closed: bound again
+    finally:
+        bench.close()
 
 
 @pytest.mark.parametrize("loop", LOOPS)

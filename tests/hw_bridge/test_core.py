@@ -11,6 +11,7 @@ from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError, BridgeStat
 from smm_hw_bridge.encoder import EncoderConfig
 from smm_hw_bridge.protocol import CommandFlag, FaultBit, FeedbackFrame, Reason, StatusBit, encode
 from smm_hw_bridge.valve_output import ValveOutputConfig
+from udp_bench import feedback_frame
 
 HOST = 0x0000BEEF
 BOARD = 0x12345678
@@ -50,18 +51,11 @@ class Board:
             "tick": self.tick,
             "host_session": self.host,
             "counts": self.counts,
-            "adc": (1638, 2048, 2048, 2048),
             "status": self.status,
             "faults": self.faults,
-            "applied_seq": 0,
-            "applied_age": 0xFFFF,
-            "output_codes": (0, 0),
-            "late_commands": 0,
-            "crc_errors": 0,
-            "dropped_frames": 0,
+            **changes,
         }
-        fields.update(changes)
-        return FeedbackFrame(**fields)  # type: ignore[arg-type]
+        return feedback_frame(**fields)  # type: ignore[arg-type]
 
     def step(self, **changes: object) -> FeedbackFrame | None:
         frame = self.frame(**changes)
@@ -186,6 +180,40 @@ def test_duplicate_out_of_order_stale_and_foreign_feedback_is_dropped_and_counte
     assert core.rejected[Reason.STALE] == 1
     assert core.on_datagram(b"garbage", board.now) is None
     assert core.rejected[Reason.LENGTH] == 1
+
+
+@pytest.mark.parametrize("joint", [0, 1])
+def test_counts_wider_than_counter_bits_are_dropped_as_field_before_any_use(joint: int) -> None:
+    bits = 24
+    config = dataclasses.replace(CONFIG, encoder=dataclasses.replace(CONFIG.encoder, counter_bits=bits))
+    fresh = BridgeCore(config, HOST)
+    wide = Board(fresh).frame(counts=(1 << bits, 0) if joint == 0 else (0, 1 << bits))
+    assert fresh.on_datagram(encode(wide), 0) is None  # the very first frame: no session adopted
+    assert (fresh.state, fresh.board_session, fresh.last_rejection) == (
+        BridgeState.DISCONNECTED,
+        None,
+        Reason.FIELD,
+    )
+    core, board = armed_core(config)
+    board.counts = (1000, -1000 % (1 << bits))
+    assert board.step() is not None
+
+    def snapshot() -> tuple[object, ...]:
+        return (core.state, core.position_floats, core.stamp_ns, core.last_feedback, core.stats.received)
+
+    before, received, position = snapshot(), core.stats.received, core.position_floats
+    counts = list(board.counts)
+    counts[joint] = 1 << bits
+    frame = board.frame(counts=tuple(counts), tick=board.tick)
+    board.seq -= 1  # the next good frame reuses this seq: a rejected frame must not have moved admission
+    assert core.on_datagram(encode(frame), board.now) is None
+    assert core.last_rejection is Reason.FIELD and core.rejected[Reason.FIELD] == 1
+    assert snapshot() == before
+    board.counts = ((1 << bits) - 1, 0)  # the widest count that fits
+    assert board.step() is not None and core.last_rejection is None
+    assert core.state == BridgeState.ARMED and core.stats.received == received + 1
+    assert core.position_floats[0] < position[0]  # 1000 -> 2**24 - 1: unwrapped backwards, not wrapped
+    assert dict(core.rejected) == {Reason.FIELD: 1}
 
 
 def test_loss_and_longest_streak_from_sequence_gaps() -> None:

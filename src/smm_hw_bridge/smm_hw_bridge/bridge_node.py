@@ -20,6 +20,7 @@ import secrets
 import sys
 import threading
 import time
+import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import ClassVar, Final, Literal, Unpack
@@ -229,10 +230,15 @@ class HwBridgeNode(LifecycleNode):
             return TransitionCallbackReturn.FAILURE
         core = BridgeCore(self._bridge.config, host_session=secrets.randbelow(0xFFFFFFFF) + 1)
         deadline = time.monotonic() + link.configure_timeout
-        while core.last_feedback is None and time.monotonic() < deadline:
-            data = transport.receive(min(0.05, max(deadline - time.monotonic(), 0.0)))
-            if data is not None:
-                core.on_datagram(data, time.monotonic_ns())
+        try:
+            while core.last_feedback is None and time.monotonic() < deadline:
+                data = transport.receive(min(0.05, max(deadline - time.monotonic(), 0.0)))
+                if data is not None:
+                    core.on_datagram(data, time.monotonic_ns())
+        except Exception:  # a bug, not a bad frame (those are counted): fail without leaking the socket
+            transport.close()
+            self._log.error(f"configure: waiting for feedback failed:\n{traceback.format_exc()}")
+            return TransitionCallbackReturn.FAILURE
         if core.last_feedback is None:
             transport.close()
             rejected = {reason.value: count for reason, count in core.rejected.items()}
@@ -342,12 +348,24 @@ class HwBridgeNode(LifecycleNode):
                 if self._stop.wait(0.05):
                     return
                 continue
-            if data is None:
-                with self._lock:
-                    if self._core is not None:
-                        self._core.check_link(time.monotonic_ns())
-                continue
-            self._on_datagram(data)
+            try:
+                if data is None:
+                    with self._lock:
+                        if self._core is not None:
+                            self._core.check_link(time.monotonic_ns())
+                else:
+                    self._on_datagram(data)
+            except Exception as error:  # a bug in the host's handling: the reader must outlive it
+                self._handling_failed(error)
+
+    def _handling_failed(self, error: Exception) -> None:
+        """The bridge's own handling of a datagram raised: its state is not to be trusted, a host fault."""
+        if not self._host_fault:  # once: until the error transition the next datagrams may raise too
+            self._log.error(f"reader: handling a datagram raised:\n{traceback.format_exc()}")
+        try:
+            self.fail(f"datagram handling raised {type(error).__name__}: {error}")
+        except Exception:  # the safe frame failed too; the host fault is set, the timer still fails over
+            self._log.error(f"reader: sending the safe frame raised:\n{traceback.format_exc()}")
 
     def _on_datagram(self, data: bytes) -> None:
         now = time.monotonic_ns()

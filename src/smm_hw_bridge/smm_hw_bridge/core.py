@@ -178,6 +178,7 @@ class BridgeCore:
         self._period_s = config.period_ns / 1e9
         self._limits = (float(config.soft_limits[0]), float(config.soft_limits[1]))
         self._encoder = EncoderDecoder(config.encoder)
+        self._count_limit = config.encoder.modulus
         self._valve = ValveOutput(config.valve)
         self._admission = FeedbackAdmission(config.admission)
         self.stats = LinkStats()
@@ -245,6 +246,12 @@ class BridgeCore:
         except ProtocolError as error:
             self._admission.count(error.reason)
             self.last_rejection = error.reason
+            return None
+        # counts wider than the configured counters: malformed (a u32 on the wire), dropped before any use
+        limit = self._count_limit
+        if frame.counts[0] >= limit or frame.counts[1] >= limit:
+            self._admission.count(Reason.FIELD)
+            self.last_rejection = Reason.FIELD
             return None
         if self.board_session is None:
             self._adopt(frame.session)

@@ -50,6 +50,11 @@ class EncoderConfig:
             raise ValueError(f"direction must be +1 or -1 per joint, got {self.direction!r}")
 
     @property
+    def modulus(self) -> int:
+        """2**counter_bits: raw counter values are in [0, modulus)."""
+        return 1 << self.counter_bits
+
+    @property
     def quantum(self) -> FloatArray:
         """Angle of one count (rad), shape (2,)."""
         return 2.0 * math.pi / np.asarray(self.counts_per_rev, dtype=np.float64)
@@ -64,7 +69,7 @@ class EncoderDecoder:
 
     def __init__(self, config: EncoderConfig) -> None:
         self._config = config
-        self._modulus = 1 << config.counter_bits
+        self._modulus = config.modulus
         self._half = self._modulus >> 1
         quantum = 2.0 * math.pi
         self._scale = (
