@@ -161,3 +161,53 @@ def test_each_answered_measurement_gets_one_command_and_torque_command_is_only_a
         answered = direct.node.statistics.execution_us.count
         assert direct.node.counters.commands == answered
     assert direct.node.counters.bad_commands == 0 and not direct.node.counters.refused
+
+
+class _Recorded:
+    """A transport that notes each receive's timeout and gives a frame on the calls listed."""
+
+    def __init__(self, frames_on: set[int]) -> None:
+        self.timeouts: list[float] = []
+        self.frames_on = frames_on
+
+    def receive(self, timeout_s: float = 0.0) -> bytes | None:
+        self.timeouts.append(timeout_s)
+        return b"frame" if len(self.timeouts) in self.frames_on else None
+
+
+@pytest.mark.parametrize("spin_us", [0, 150])
+def test_the_reader_sleeps_until_spin_us_before_the_next_frame_is_due_then_polls(
+    ros_context: Any, spin_us: int
+) -> None:
+    """spin_us = 0: one blocking wait per frame; else a wait ending spin_us before the frame is due, polls."""
+    from hw_bridge.test_bridge_node import DIRECT_CONTROLLER
+    from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode
+    from smm_hw_bridge.core import BridgeCore
+
+    controller = DirectControllerNode(context=ros_context, parameter_overrides=DIRECT_CONTROLLER)
+    node = DirectBridgeNode(controller, context=ros_context, parameter_overrides={"loop.spin_us": spin_us})
+    try:
+        node._core = BridgeCore(node._bridge.config, host_session=1)  # its period: 1 ms
+        transport = _Recorded(frames_on={1, 2} if spin_us == 0 else {1, 5})
+        assert node.receive_next(transport) == b"frame"  # no frame yet: the plain 50 ms wait
+        assert transport.timeouts == [0.05]
+        assert node.receive_next(transport) == b"frame"
+        if spin_us == 0:
+            assert transport.timeouts == [0.05, 0.05]
+        else:
+            sleep, *polls = transport.timeouts[1:]
+            assert 0.0 < sleep <= (1_000_000 - spin_us * 1000) / 1e9  # wakes spin_us before it is due
+            assert polls == [0.0, 0.0, 0.0]  # then polls, no sleep, until it comes
+    finally:
+        node._core = None
+        node.destroy_node()
+        controller.destroy_node()
+
+
+def test_spin_us_is_validated() -> None:
+    from smm_direct_loop.host import LoopSettings
+
+    assert LoopSettings().spin_us > 0  # the direct loop polls by default (docs/LAUNCH.md)
+    for bad in (-1, 100_001, 1.5, True):
+        with pytest.raises(ValueError, match="spin_us"):
+            LoopSettings(spin_us=bad)  # type: ignore[arg-type]

@@ -342,7 +342,7 @@ class HwBridgeNode(LifecycleNode):
             if transport is None:
                 return
             try:
-                data = transport.receive(0.05)
+                data = self.receive_next(transport)
             except (TransportError, OSError) as error:
                 self.counters.last_error = str(error)
                 if self._stop.wait(0.05):
@@ -357,6 +357,10 @@ class HwBridgeNode(LifecycleNode):
                     self._on_datagram(data)
             except Exception as error:  # a bug in the host's handling: the reader must outlive it
                 self._handling_failed(error)
+
+    def receive_next(self, transport: Transport) -> bytes | None:
+        """The next datagram, or None after 50 ms without one (the receiving thread's wait)."""
+        return transport.receive(0.05)
 
     def _handling_failed(self, error: Exception) -> None:
         """The bridge's own handling of a datagram raised: its state is not to be trusted, a host fault."""
