@@ -147,13 +147,16 @@ def offline_with_delay(period: float, delay: int) -> tuple[np.ndarray | None, fl
     return tracking_rms(t, position, 2.0, SECONDS - 2.0), None
 
 
-LOOPS: dict[str, tuple[str, float | None]] = {
-    "topics": ("topics", None),
-    "direct": ("direct", None),
-    "direct-5ms": ("direct", 0.005),
+LOOPS: dict[str, tuple[str, dict[str, str]]] = {
+    "topics": ("topics", {}),
+    "direct": ("direct", {}),
+    "direct-5ms": ("direct", {"loop.switch_interval": "0.005"}),
+    "direct-sleep": ("direct", {"loop.spin_us": "0"}),
 }
-"""Loops the HIL runs: (``--loop``, the direct loop's switch interval, None = its default). ``direct-5ms``
-is the direct loop at Python's own switch interval: what the GIL costs the I/O thread (docs/LAUNCH.md)."""
+"""Loops the HIL runs: (``--loop``, the direct loop's parameters beside its defaults). ``direct-5ms`` is the
+direct loop at Python's own switch interval: what the GIL costs the I/O thread; ``direct-sleep`` without
+polling before the frame is due: what waking from idle costs it (docs/LAUNCH.md). Both at 1 kHz only,
+the first at normal priority, the second under SCHED_FIFO."""
 
 
 def realtime_hil(
@@ -173,7 +176,7 @@ def realtime_hil(
     )
 
     tag = f"{period}_{loop}" + ("_fifo" if host_fifo else "")
-    shape, switch_interval = LOOPS[loop]
+    shape, loop_parameters = LOOPS[loop]
 
     host, board, control = free_port(), free_port(), free_port()
     record = workdir / f"hil_{tag}.npz"
@@ -218,8 +221,7 @@ def realtime_hil(
         "bridge.host_watchdog_ns": str(10 * period_ns),
         "bridge.link_timeout_ns": str(100 * period_ns),
     }
-    if switch_interval is not None:
-        bridge["loop.switch_interval"] = repr(switch_interval)
+    bridge.update(loop_parameters)
     arguments = [text for name, value in bridge.items() for text in ("-p", f"{name}:={value}")]
     options = GraphOptions(
         clock_mode="realtime",
@@ -318,6 +320,8 @@ def compare(workdir: Path, period: float) -> bool:
     for host_fifo, loop in [(fifo, loop) for fifo in (False, True) for loop in LOOPS]:
         if loop == "direct-5ms" and (host_fifo or period != PERIODS[0]):
             continue  # the GIL's cost is measured once: 1 kHz, normal priority
+        if loop == "direct-sleep" and (not host_fifo or period != PERIODS[0]):
+            continue  # the wake-up's cost is measured once: 1 kHz, SCHED_FIFO (the acceptance's setting)
         floor = timer_floor(3.0)
         hil = realtime_hil(workdir, period, host_fifo, loop)
         if hil is None:
@@ -338,7 +342,10 @@ def compare(workdir: Path, period: float) -> bool:
             f"enabled ticks ({late} of {enabled}: no answer to the last feedback yet), held without any new "
             f"command {100 * (enabled - applied) / max(enabled, 1):.2f} %; board overruns {hil['overruns']}; "
             f"feedback-to-command latency p50 {hil['latency_p50_us']:.0f} us, p99 "
-            f"{hil['latency_p99_us']:.0f} us; tracking RMS alpha {hil['rms'][0]:.3e}, beta "
+            f"{hil['latency_p99_us']:.0f} us (kernel arrival; the emulator read them at p50 "
+            f"{hil.get('read_latency_p50_us') or math.nan:.0f} us, p99 "
+            f"{hil.get('read_latency_p99_us') or math.nan:.0f} us); tracking RMS alpha "
+            f"{hil['rms'][0]:.3e}, beta "
             f"{hil['rms'][1]:.3e} rad = {ratio[0]:.2f}x / {ratio[1]:.2f}x lockstep "
             f"(target <= {RMS_RATIO_TARGET}x: {'met' if met else 'MISSED'}); host floor just before: "
             f"sleep-loop lateness p99 {floor['p99_us']:.0f} us, {100 * floor['late_fraction']:.2f} % late"
