@@ -14,8 +14,6 @@ bits, seen in any state, drive the node through the error transition to ``unconf
 
 from __future__ import annotations
 
-import ipaddress
-import math
 import secrets
 import sys
 import threading
@@ -23,7 +21,7 @@ import time
 import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar, Final, Literal, Unpack
+from typing import ClassVar, Final, Unpack
 
 import numpy.typing as npt
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
@@ -37,7 +35,7 @@ from std_srvs.srv import Trigger
 
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError, BridgeState
 from smm_hw_bridge.protocol import CommandFrame, Reason, encode
-from smm_hw_bridge.transport import SerialTransport, Transport, TransportError, UdpTransport
+from smm_hw_bridge.transport import LinkConfig, Transport, TransportError, open_transport
 from smm_msgs_py import topics
 from smm_node_runtime import (
     ConfigParameters,
@@ -45,63 +43,17 @@ from smm_node_runtime import (
     Health,
     Level,
     NodeOptions,
-    bounds,
     node_arguments,
     node_main,
 )
 
-__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "HwBridgeNode", "LinkConfig", "main"]
+__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "HwBridgeNode", "main"]
 
 NODE_NAME: Final[str] = "hw_bridge_node"
 INTERNALS_TOPIC: Final[str] = topics.HW_BRIDGE_INTERNALS
 _FAULT_CHECK_S: Final[float] = 0.005
 _AUTOSTART_POLL_S: Final[float] = 0.01
 """How often ``autostart`` looks for a ``torque_command`` publisher (s)."""
-
-
-@dataclass(frozen=True)
-class LinkConfig:
-    """How the bridge reaches the board (read at ``configure``).
-
-    Attributes:
-        transport: "udp" or "serial".
-        bind_address: UDP: IPv4 address the bridge binds (default loopback).
-        bind_port: UDP: port the bridge binds, in [0, 65535] (0 = any free one).
-        board_address: UDP: the board's IPv4 address; frames from anywhere else are dropped.
-        board_port: UDP: the board's port, in [1, 65535].
-        serial_port: Serial: device name.
-        baudrate: Serial: line speed (bit/s), > 0.
-        configure_timeout: Time ``configure`` waits for a valid feedback frame (s), > 0.
-    """
-
-    transport: Literal["udp", "serial"] = "udp"
-    bind_address: str = "127.0.0.1"
-    bind_port: int = field(default=50100, metadata=bounds(0, 65535))
-    board_address: str = "127.0.0.1"
-    board_port: int = field(default=50101, metadata=bounds(1, 65535))
-    serial_port: str = ""
-    baudrate: int = field(default=921_600, metadata=bounds(1, 100_000_000))
-    configure_timeout: float = field(default=2.0, metadata=bounds(0.001, 600.0))
-
-    def __post_init__(self) -> None:
-        if self.transport not in ("udp", "serial"):
-            raise ValueError(f"transport must be 'udp' or 'serial', got {self.transport!r}")
-        for name in ("bind_address", "board_address"):
-            try:
-                ipaddress.IPv4Address(getattr(self, name))
-            except ValueError as error:
-                raise ValueError(f"{name} must be an IPv4 address, got {getattr(self, name)!r}") from error
-        for name, low in (("bind_port", 0), ("board_port", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 65535:
-                raise ValueError(f"{name} must be an int in [{low}, 65535], got {value!r}")
-        if self.transport == "serial" and not self.serial_port:
-            raise ValueError("serial_port must name a device when transport is 'serial'")
-        if isinstance(self.baudrate, bool) or not isinstance(self.baudrate, int) or self.baudrate <= 0:
-            raise ValueError(f"baudrate must be an int > 0, got {self.baudrate!r}")
-        timeout = self.configure_timeout
-        if not (isinstance(timeout, float) and math.isfinite(timeout) and timeout > 0.0):
-            raise ValueError(f"configure_timeout must be a finite number > 0 s, got {timeout!r}")
 
 
 @dataclass
@@ -219,12 +171,7 @@ class HwBridgeNode(LifecycleNode):
         self._fault_transition = False
         self._host_fault = ""
         try:
-            if link.transport == "udp":
-                transport: Transport = UdpTransport(
-                    (link.bind_address, link.bind_port), (link.board_address, link.board_port)
-                )
-            else:
-                transport = SerialTransport(link.serial_port, link.baudrate)
+            transport = open_transport(link)
         except TransportError as error:
             self._log.error(f"configure: {error}")
             return TransitionCallbackReturn.FAILURE

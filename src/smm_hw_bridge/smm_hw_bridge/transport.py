@@ -1,4 +1,5 @@
-"""Frame transports behind one interface: UDP datagrams and a COBS-framed serial line. No ROS.
+"""Frame transports behind one interface: UDP datagrams and a COBS-framed serial line, and the link
+configuration that picks one (``link.*``). No ROS.
 
 A transport moves whole frames (bytes) and knows nothing of their content; :mod:`smm_hw_bridge.protocol`
 parses them. Both count what they drop before the parser sees it (foreign source, broken framing).
@@ -8,22 +9,28 @@ from __future__ import annotations
 
 import abc
 import ipaddress
+import math
 import select
 import socket
 import struct
 import sys
 import time
 from collections import deque
-from typing import Any, Final
+from dataclasses import dataclass, field
+from typing import Any, Final, Literal
+
+from smm_dynamics.validation import bounds
 
 __all__ = [
     "MAX_FRAME",
+    "LinkConfig",
     "SerialTransport",
     "Transport",
     "TransportError",
     "UdpTransport",
     "cobs_decode",
     "cobs_encode",
+    "open_transport",
 ]
 
 MAX_FRAME: Final[int] = 512
@@ -307,3 +314,59 @@ class SerialTransport(Transport):
     def close(self) -> None:
         """Closes the port."""
         self._port.close()
+
+
+@dataclass(frozen=True)
+class LinkConfig:
+    """How the bridge reaches the board (read at ``configure``).
+
+    Attributes:
+        transport: "udp" or "serial".
+        bind_address: UDP: IPv4 address the bridge binds (default loopback).
+        bind_port: UDP: port the bridge binds, in [0, 65535] (0 = any free one).
+        board_address: UDP: the board's IPv4 address; frames from anywhere else are dropped.
+        board_port: UDP: the board's port, in [1, 65535].
+        serial_port: Serial: device name.
+        baudrate: Serial: line speed (bit/s), > 0.
+        configure_timeout: Time ``configure`` waits for a valid feedback frame (s), > 0.
+    """
+
+    transport: Literal["udp", "serial"] = "udp"
+    bind_address: str = "127.0.0.1"
+    bind_port: int = field(default=50100, metadata=bounds(0, 65535))
+    board_address: str = "127.0.0.1"
+    board_port: int = field(default=50101, metadata=bounds(1, 65535))
+    serial_port: str = ""
+    baudrate: int = field(default=921_600, metadata=bounds(1, 100_000_000))
+    configure_timeout: float = field(default=2.0, metadata=bounds(0.001, 600.0))
+
+    def __post_init__(self) -> None:
+        if self.transport not in ("udp", "serial"):
+            raise ValueError(f"transport must be 'udp' or 'serial', got {self.transport!r}")
+        for name in ("bind_address", "board_address"):
+            try:
+                ipaddress.IPv4Address(getattr(self, name))
+            except ValueError as error:
+                raise ValueError(f"{name} must be an IPv4 address, got {getattr(self, name)!r}") from error
+        for name, low in (("bind_port", 0), ("board_port", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 65535:
+                raise ValueError(f"{name} must be an int in [{low}, 65535], got {value!r}")
+        if self.transport == "serial" and not self.serial_port:
+            raise ValueError("serial_port must name a device when transport is 'serial'")
+        if isinstance(self.baudrate, bool) or not isinstance(self.baudrate, int) or self.baudrate <= 0:
+            raise ValueError(f"baudrate must be an int > 0, got {self.baudrate!r}")
+        timeout = self.configure_timeout
+        if not (isinstance(timeout, float) and math.isfinite(timeout) and timeout > 0.0):
+            raise ValueError(f"configure_timeout must be a finite number > 0 s, got {timeout!r}")
+
+
+def open_transport(link: LinkConfig) -> Transport:
+    """The transport ``link`` names, open.
+
+    Raises:
+        TransportError: The socket cannot bind or the serial port cannot open.
+    """
+    if link.transport == "udp":
+        return UdpTransport((link.bind_address, link.bind_port), (link.board_address, link.board_port))
+    return SerialTransport(link.serial_port, link.baudrate)
