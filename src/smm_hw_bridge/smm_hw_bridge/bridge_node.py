@@ -20,7 +20,6 @@ import threading
 import time
 import traceback
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import ClassVar, Final, Unpack
 
 import numpy.typing as npt
@@ -33,6 +32,7 @@ from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
+from smm_hw_bridge.bridge_health import BridgeCounters, bridge_health
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError, BridgeState
 from smm_hw_bridge.protocol import CommandFrame, Reason, encode
 from smm_hw_bridge.transport import LinkConfig, Transport, TransportError, open_transport
@@ -41,7 +41,6 @@ from smm_node_runtime import (
     ConfigParameters,
     DiagnosticsPublisher,
     Health,
-    Level,
     NodeOptions,
     node_arguments,
     node_main,
@@ -54,16 +53,6 @@ INTERNALS_TOPIC: Final[str] = topics.HW_BRIDGE_INTERNALS
 _FAULT_CHECK_S: Final[float] = 0.005
 _AUTOSTART_POLL_S: Final[float] = 0.01
 """How often ``autostart`` looks for a ``torque_command`` publisher (s)."""
-
-
-@dataclass
-class _Counters:
-    commands: int = 0
-    bad_commands: int = 0
-    frames_sent: int = 0
-    safe_frames_sent: int = 0
-    last_error: str = ""
-    refused: dict[str, int] = field(default_factory=dict)
 
 
 class HwBridgeNode(LifecycleNode):
@@ -98,7 +87,7 @@ class HwBridgeNode(LifecycleNode):
         self._stop = threading.Event()
         self._fault_transition = False
         self._host_fault = ""
-        self.counters = _Counters()
+        self.counters = BridgeCounters()
         self._joint_states = self.create_publisher(
             JointState, topics.JOINT_STATES, qos_for_topic(topics.JOINT_STATES)
         )
@@ -459,67 +448,18 @@ class HwBridgeNode(LifecycleNode):
                 self.trigger_cleanup()  # type: ignore[no-untyped-call]
 
     def health(self) -> Health:
-        """Link, loss, round trip, board counters, faults, supply pressure."""
+        """Link, loss, round trip, board counters, faults, supply pressure (:func:`bridge_health`)."""
         now = time.monotonic_ns()
         with self._lock:
-            core = self._core
-            counters = self.counters
-            values: dict[str, object] = {"lifecycle": self.lifecycle_state}
-            if core is None:
-                return Health(Level.OK, "unconfigured: no board link", values)
-            last = core.last_feedback
-            rtt = core.stats.rtt_percentiles_ns()
-            link_up = core.link_up(now)
-            values.update(
-                {
-                    "state": core.state.value,
-                    "link_up": link_up,
-                    "board_session": f"{core.board_session or 0:#010x}",
-                    "host_session": f"{core.host_session:#010x}",
-                    "feedback_received": core.stats.received,
-                    "packet_loss": f"{core.stats.loss_fraction:.6f}",
-                    "lost_frames": core.stats.lost,
-                    "longest_loss_streak": core.stats.longest_streak,
-                    "rtt_p50_ms": f"{rtt['p50'] / 1e6:.3f}",
-                    "rtt_p99_ms": f"{rtt['p99'] / 1e6:.3f}",
-                    "late_commands": 0 if last is None else last.late_commands,
-                    "board_crc_errors": 0 if last is None else last.crc_errors,
-                    "board_dropped_frames": 0 if last is None else last.dropped_frames,
-                    "fault_bits": f"{0 if last is None else last.faults:#06x}",
-                    "supply_pressure_bar": f"{core.supply_pressure_bar:.2f}",
-                    "watchdog_trips": core.watchdog_trips,
-                    "reboots": core.reboots,
-                    "commands": counters.commands,
-                    "bad_commands": counters.bad_commands,
-                    "frames_sent": counters.frames_sent,
-                    "safe_frames_sent": counters.safe_frames_sent,
-                }
-            )
-            for reason in Reason:
-                values[f"rejected_{reason.value}"] = core.rejected.get(reason, 0)
             dropped = {} if self._transport is None else self._transport.dropped
-            for reason in (Reason.SOURCE, Reason.FRAMING):
-                values[f"rejected_{reason.value}"] = core.rejected.get(reason, 0) + dropped.get(
-                    reason.value, 0
-                )
-            for why, count in counters.refused.items():
-                values[f"refused_{why}"] = count
-            if counters.last_error:
-                values["last_error"] = counters.last_error
-            state = core.state
-        if self._host_fault:
-            return Health(Level.ERROR, f"host fault: {self._host_fault}: valves at null", values)
-        if state == BridgeState.FAULT:
-            return Health(Level.ERROR, f"board fault bits {values['fault_bits']}: valves at null", values)
-        if state == BridgeState.SESSION_LOST:
-            return Health(
-                Level.ERROR, "board rebooted or link lost: output disabled until re-activation", values
+            return bridge_health(
+                self._core,
+                self.counters,
+                dropped,
+                host_fault=self._host_fault,
+                lifecycle=self.lifecycle_state,
+                now_ns=now,
             )
-        if not link_up:
-            return Health(Level.ERROR, "link down: no valid feedback", values)
-        if state == BridgeState.ESTOP:
-            return Health(Level.WARN, "e-stop latched: re-arm to continue", values)
-        return Health(Level.OK, f"{state.value}, link up", values)
 
 
 def main(args: Sequence[str] | None = None) -> int:

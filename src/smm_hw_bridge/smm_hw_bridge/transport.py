@@ -1,8 +1,8 @@
-"""Frame transports behind one interface: UDP datagrams and a COBS-framed serial line, and the link
-configuration that picks one (``link.*``). No ROS.
+"""Frame transports behind one interface: UDP datagrams and a COBS-framed serial line. No ROS.
 
-A transport moves whole frames (bytes) and knows nothing of their content; :mod:`smm_hw_bridge.protocol`
-parses them. Both count what they drop before the parser sees it (foreign source, broken framing).
+``LinkConfig`` (the bridge's ``link.*``) picks one and ``open_transport`` opens it. A transport moves whole
+frames (bytes) and knows nothing of their content; :mod:`smm_hw_bridge.protocol` parses them. Both count
+what they drop before the parser sees it (foreign source, broken framing).
 """
 
 from __future__ import annotations
