@@ -1,12 +1,8 @@
-"""setuptools commands that also put a package's user-facing console scripts on PATH (``<prefix>/bin``).
+"""setuptools commands that also link a package's user-facing console scripts into ``<prefix>/bin``.
 
-ament_python installs every console script into ``<prefix>/lib/<pkg>/`` (``setup.cfg``), where
-``ros2 run <pkg> <executable>`` looks and which is on no PATH. For the commands a user types (``smm-bag``,
-``smm-launch``, ...) these commands add a link ``<prefix>/bin/<name> -> ../lib/<pkg>/<name>`` after
-setuptools wrote the script: ``setup.py develop`` (``pip install -e``, ``colcon build --symlink-install``) and
-``setup.py install`` (``colcon build``). ``<prefix>/bin`` is the virtual environment's ``bin/`` (on PATH once
-activated) or ``install/<pkg>/bin`` (on PATH once ``install/setup.bash`` is sourced). Node executables stay in
-``lib/<pkg>/`` only.
+ament_python puts every console script in ``<prefix>/lib/<pkg>/`` (where ``ros2 run`` looks; on no PATH).
+After ``setup.py develop`` and ``setup.py install`` these add ``<prefix>/bin/<name> -> ../lib/<pkg>/<name>``
+for the commands a user types; node executables stay in ``lib/<pkg>/`` only. See README.md.
 """
 
 from __future__ import annotations

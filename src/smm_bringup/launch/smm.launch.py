@@ -1,26 +1,9 @@
 """Start the SMM control graph on a ROS 2 Jazzy install: ``ros2 launch smm_bringup smm.launch.py``.
 
-The node list comes from :func:`smm_bringup.graph.build_graph`, the same description ``smm-launch`` uses,
-so the two cannot drift apart. Arguments:
-
-* ``plant:=sim|hardware`` (hardware: hw_bridge_node, configured and activated, after smm_bench_emulator
-  unless ``board:=ADDRESS:PORT`` names the I/O board; real time only),
-* ``clock_mode:=lockstep|realtime``, ``algorithm:=fpdeso|fpd|pid|npd``,
-  ``scenario:=step|case1|case2|excite|none``,
-* ``loop:=topics|direct`` (hardware; direct: one process, ``direct_loop``, steps the chain in the bridge's
-  receiving thread and publishes the same topics; needs chain fused and reference controller),
-* ``chain:=fused|split`` (fused: TD, FLESO and law in controller_node; split: td_node and fleso_node too),
-* ``reference:=controller|node`` (controller: controller_node samples the reference, no reference_node;
-  node: reference_node publishes it),
-* ``duration:=<s>`` (empty: the scenario's in lockstep, endless in realtime),
-* ``seed:=<int>`` (empty: as configured),
-* ``params_file:=<path>`` (empty: none), applied after the scenario's file,
-* ``control_period:=<s>`` (empty: as configured, 1 ms), for every node,
-* ``record:=<dir>`` (empty: none): record every topic to a rosbag2 MCAP bag with smm_bag's recorder_node,
-* ``rt_priority:=<n>`` (empty: 50 with plant hardware, else 0): SCHED_FIFO priority of the loop's
-  processes (``chrt -f``; the emulator runs 20 above, hw_bridge_node 5 above), 0 for normal scheduling.
-
-Every node's exit ends the launch: the plant exits 0 when its run is complete, any other exit is a failure.
+The node list comes from :func:`smm_bringup.graph.build_graph`, as for ``smm-launch``, so the two cannot
+drift apart. Arguments (``plant``, ``board``, ``clock_mode``, ``algorithm``, ``scenario``, ``loop``,
+``chain``, ``reference``, ``duration``, ``seed``, ``params_file``, ``control_period``, ``record``,
+``rt_priority``) and how the launch ends: docs/LAUNCH.md, "On a ROS 2 Jazzy machine".
 """
 
 from __future__ import annotations

@@ -1,18 +1,8 @@
-"""The main job: the full closed loop on the simulator, through the real ROS 2 graph.
+"""The main job (``make demo``): the paper's case 2 in lockstep through the real ROS 2 graph on the simulator.
 
-``make demo`` (or ``python -m smm_bringup.demo``) starts the node graph with ``smm-launch`` (one OS process
-per node: the simulator, and controller_node sampling the reference and running TD -> FLESO -> law, the
-default graph; ``--chain split`` adds the TD and FLESO nodes, ``--reference node`` the reference_node),
-runs the paper's case 2
-(sinusoid, sensor noise, eq. 46 disturbance, +10 % inertia error) in lockstep for each controller asked
-for, records each run to a rosbag2 MCAP bag with ``recorder_node`` (``smm-launch --record``), prints the
-paper's indices (eq. 42-45) of each bag (``smm-bag analyze``) beside the offline simulator's for the same
-seed (they agree: a lockstep run is deterministic) and beside the paper's numbers, then analyses the bags
-side by side.
-
-Outputs: the bags under ``--bags`` (default ``bags/``), ``metrics.json`` in ``--out`` (default
-``out/demo``) and ``smm-bag analyze``'s report and figures in ``<out>/analysis``. DDS stays on loopback
-unless ``ROS_AUTOMATIC_DISCOVERY_RANGE`` was set by the caller.
+For each controller asked for: runs the graph with ``smm-launch --record`` into an MCAP bag (``--bags``,
+default ``bags/``), prints its eq. 42-45 indices beside the offline simulator's (same seed) and the paper's,
+then analyses the bags side by side into ``--out`` (default ``out/demo``). See README.md, "Two commands".
 """
 
 from __future__ import annotations

@@ -1,28 +1,9 @@
-"""``smm-launch``: start the SMM node graph without the ``ros2`` CLI (which PyPI does not provide).
+"""``smm-launch``: start the node graph of :func:`smm_bringup.graph.build_graph` without the ``ros2`` CLI.
 
-It starts the graph that :func:`smm_bringup.graph.build_graph` describes, the same one the launch files
-start on a full ROS 2 install:
-
-* by default each node is its own OS process, like ``ros2 launch``: the installed console script with
-  ``--ros-args -r __ns:=/smm -r __node:=<name> --params-file F ... -p key:=value ...``, in a process group
-  of its own (:mod:`smm_bringup.supervisor`); with ``--loop direct`` one of them, ``direct_loop``, hosts
-  ``hw_bridge_node`` and ``controller_node`` (no ``__node`` remapping);
-* with ``--composed`` all nodes run in this process, in one executor (the EventsExecutor when available),
-  built from the node classes with the same parameter values (:mod:`smm_bringup.composed`).
-
-A hardware run with the emulator ends with the board's line, ``board: late L of N enabled ticks (P %),
-feedback->command p50 A us, p99 B us``, from the emulator's end-of-run status.
-
-Shutdown and exit codes (see ``docs/LAUNCH.md``):
-
-* the plant node exits 0 when its run is complete (``duration`` reached): the other nodes are stopped and
-  ``smm-launch`` exits 0;
-* any other node exit (or a non-zero plant exit) is reported with the node's name and exit code, the graph
-  is stopped and ``smm-launch`` exits 1;
-* Ctrl-C (SIGINT) or SIGTERM: every child's process group gets SIGINT, then SIGTERM, then SIGKILL, each
-  after a grace period; all children are reaped; the exit code is 128 + the signal number;
-* a configuration error (unknown option value, ``--plant hardware`` in lockstep or composed, a missing
-  executable or parameter file) exits 2 before anything starts.
+Each node its own OS process, as ``ros2 launch`` starts it (:mod:`smm_bringup.supervisor`; ``--loop direct``:
+``direct_loop`` hosts bridge and controller), or all in this process with ``--composed``
+(:mod:`smm_bringup.composed`). Options, the closing ``board:`` line, shutdown and exit codes (0 run
+complete, 1 a node failed, 128 + signal, 2 bad configuration): docs/LAUNCH.md.
 """
 
 from __future__ import annotations

@@ -1,17 +1,8 @@
-"""The control chain in the order of docs/DESIGN.md, and factories with the paper's defaults.
+"""The control chain TD -> FLESO -> law -> output limits, one step per call, and the paper's factories.
 
-One call of :meth:`ControlChain.step` runs, for measurement y_k and the torque applied during the
-previous interval tau_applied_{k-1}:
-
-1. TD: (q^, q^') = td(y_k)
-2. FLESO (if any): xi~_k = fleso(q^, tau_applied_{k-1})  (else xi~ = 0)
-3. controller: tau_k = controller(r_k, q^, v_k, xi~_k), v_k = q^' or, for a law whose
-   ``velocity_source`` is ``"observer"``, the FLESO's velocity estimate x2^_k
-4. output limits: the torque and rate limits of :class:`smm_controller.limits.OutputLimiter` (a law that
-   tracks saturation, the PID, is told, so its integrator does not wind up)
-
-All stages run on plain floats internally (``step_floats``), so one step converts arrays only once
-on the way in and once on the way out.
+:meth:`ControlChain.step`: y_k (rad, (2,)), tau_applied_{k-1} (N m, (2,)), r_k ((3, 2)) -> tau_k (N m, (2,));
+every stage runs on plain floats (``step_floats``). Order, velocity source and limits: docs/DESIGN.md,
+"The control chain and its order".
 """
 
 from __future__ import annotations

@@ -1,39 +1,9 @@
 """``controller_node``: the control law (FPDESO or a baseline) on the matched inputs of each stamp.
 
-Matches, by exact stamp, ``joint_states_filtered`` (TD position rad and velocity rad/s), ``reference``
-(3x2) and, for ``fpdeso`` only, ``disturbance_estimate`` (row ``xi_tilde``, N m); steps the law once per
-stamp with dt = ``control_period`` and publishes ``torque_command`` ([tau_alpha, tau_beta] N m), then
-``controller_internals`` (the law's internals + the node counters), both stamped with the measurement's
-stamp. The baselines get xi~ = 0 and ``disturbance_estimate`` is then not read. With FPDESO's
-``velocity_source: observer`` the law's velocity is the row ``x2_hat`` of ``disturbance_estimate`` (the
-FLESO's x2^) instead of the TD's.
-
-Parameters: ``algorithm`` (fpdeso | fpd | pid | npd) and ``switch_idle_time``; the gains of every law,
-``fpdeso.<field>`` (nested ``fpdeso.fuzzy.<field>``), ``fpd.fuzzy.<field>``, ``pid.<field>``,
-``npd.<field>``; the nominal model ``model.<field>`` (FPDESO). A valid change of the running law's gains
-(or of the model under FPDESO) reconfigures it in place from the next stamp, keeping its state (the PID's
-integrator and derivative filter). A change of ``algorithm`` is refused while the loop is active (any
-input within the last ``switch_idle_time`` s of wall-clock time): none of the laws can be started so that
-its first torque equals the last one (FPDESO, FPD and NPD are memoryless, so their torque is fixed by the
-inputs; the PID's integrator is not settable), so a switch under load would be a torque step. When idle,
-the switch is accepted and the new law, with fresh state, runs from the next stamp.
-
-Parameter ``chain`` (read-only): ``external`` (default above: the TD and the FLESO run in ``td_node`` and
-``fleso_node``) or ``internal``: the node runs the whole chain of ``smm_controller.chain.ControlChain``
-itself (TD -> FLESO for FPDESO -> law, the offline loop's code), matching by stamp ``joint_states``
-(position rad; effort = applied torque N m, or, where the plant reports none, the command this node sent for
-the previous stamp) and ``reference``. Then the TD and FLESO gains are parameters of this node too
-(``td.<field>``, ``fleso.<field>``, validated and applied live like the law's), ``controller_internals``
-carries the chain's internals (rows ``td.*``, ``fleso.*``, ``controller.*``, ``disturbance_estimate``), and
-the measurement-to-command path has two hops instead of four, which is what a 1 kHz loop of Python
-processes needs.
-
-Parameter ``reference_source`` (read-only): ``topic`` (default: the ``reference`` topic, e.g. from
-``reference_node``, is an input matched by stamp) or ``internal``: the node samples the reference itself
-from its parameters ``reference.kind`` and ``reference.<kind>.<field>`` (the same generators and
-parameters as ``reference_node``), at t = (stamp - first stamp) / 1e9 s, as a trajectory controller samples
-its trajectory. One input less per step; the sampled reference is published on ``reference`` after the
-command, while something (a recorder) listens. See ``docs/NODES.md``.
+Publishes ``torque_command`` ([tau_alpha, tau_beta] N m) and ``controller_internals``, stamped with the
+measurement's stamp. ``chain: internal`` runs the whole :class:`smm_controller.chain.ControlChain` on
+``joint_states``; ``reference_source: internal`` samples the reference in the node. Inputs, parameters, live
+retuning and the guarded ``algorithm`` switch: docs/NODES.md, "controller_node".
 """
 
 from __future__ import annotations

@@ -1,33 +1,8 @@
 """Fuzzy linear extended state observer (FLESO, paper eq. 19-23 with fuzzy bandwidth; SPEC section 4).
 
-Continuous observer per joint j (eq. 21, 23), y the TD-filtered position, tau the applied torque:
-
-    E = y - x1^
-    x1^' = x2^ + l1 E
-    x2^' = x3^ + [M^-1(x1^) (tau - C(x1^, x2^) x2^ - G(x1^))]_j + l2 E
-    x3^' = l3 E,          l1 = 3 w, l2 = 3 w^2, l3 = w^3  (poles of the error dynamics at -w, eq. 22)
-
-Total disturbance estimate (N m): xi~ = -M(y) x3^, since x3 = -M^-1 xi (eq. 20); M is taken at the
-TD position y, the same q the FPDESO law uses.
-
-Fuzzy bandwidth: s = clip(k_s1 E + k_s2 E', -1, 1); w = max(w0 + k_w f(s), w_min) with the rule base of
-``rules.fleso_bandwidth_system``.
-
-Decisions (documented in docs, pinned by tests):
-
-* Discretisation: forward Euler at dt in predictor-corrector ("current observer") form. At step k the
-  chain knows y_k and tau_{k-1}, the torque applied over [t_{k-1}, t_k]. The state is first predicted
-  to t_k with the model and that torque (x^- = x^ + dt f(x^, tau_{k-1})), then corrected with the
-  innovation E_k = y_k - x1^- (x^ = x^- + dt L E_k). This uses the newest measurement and the torque
-  that actually acted over the interval, with no time shift between the two. The error dynamics are
-  (I - dt L C)(I + dt A), which tends to I + dt (A - L C) (char. polynomial (s + w)^3) as dt -> 0 and
-  is stable for w dt well below 1 (w <= w0 + k_w = 48 rad/s gives w dt <= 0.05 at 1 ms).
-* E for the fuzzy input is that innovation (the only estimate of y - x1^ at t_k available before the
-  bandwidth is chosen), and E' = (E_k - E_{k-1}) / dt. Since the TD's position output advances by
-  exactly dt x2_TD per step (eq. 24), this difference amounts to the TD velocity minus the observer's
-  own motion: no raw measurement is differentiated, so no extra input is needed.
-* Initialisation: on the first step after reset, x1^ = y, x2^ = x3^ = 0 and E = E' = 0 (the plant
-  starts at rest); the estimate returned is 0 N m.
+Per joint: states x1^ (rad), x2^ (rad/s), x3^ (rad/s^2) from the TD position y (rad) and the applied torque
+tau (N m); total disturbance estimate xi~ = -M(y) x3^ (N m, shape (2,)). Equations, discretisation, fuzzy
+input and initialisation: docs/DESIGN.md, "FLESO".
 """
 
 from __future__ import annotations

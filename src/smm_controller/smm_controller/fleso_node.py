@@ -1,20 +1,9 @@
-"""``fleso_node``: the fuzzy linear extended state observer (:mod:`smm_controller.fleso`).
+"""``fleso_node``: the fuzzy linear extended state observer (:mod:`smm_controller.fleso`), once per stamp.
 
-Matches, by exact stamp, ``joint_states_filtered`` (TD position, rad) and ``joint_states`` (effort = torque
-applied over the previous interval, N m); steps the FLESO once per stamp with dt = ``control_period`` and
-publishes ``disturbance_estimate`` (rows ``xi_tilde``, N m, and ``x2_hat``, rad/s), then the diagnostics
-``observer_state`` (x1_hat, x2_hat, x3_hat, bandwidth) and ``~/internals`` (all FLESO internals + the node
-counters), all stamped with the measurement's stamp.
-
-Applied torque (SPEC section 4): the measurement's effort; where the plant reports none (empty ``effort``,
-e.g. a bridge without torque sensing), the ``torque_command`` stamped with the previous measurement's stamp,
-i.e. the command that acted over the interval. If that command has not arrived yet (possible in real time,
-never in lockstep), the newest command received is used and ``command_fallback_late`` is counted; before
-any command, and at the first step, the torque is 0.
-
-Parameters ``fleso.<field>`` (observer gains) and ``model.<field>`` (the nominal model,
-:class:`smm_dynamics.SMMParameters`); a valid change reconfigures the running observer, keeping its state.
-See ``docs/NODES.md``.
+Matches ``joint_states_filtered`` (TD position, rad) and ``joint_states`` (applied torque, N m; without
+effort, the previous stamp's ``torque_command``) by stamp; publishes ``disturbance_estimate`` (rows
+``xi_tilde`` N m, ``x2_hat`` rad/s), ``observer_state`` and ``~/internals``. Parameters ``fleso.*`` and
+``model.*``, and the applied-torque rule: docs/NODES.md, "fleso_node".
 """
 
 from __future__ import annotations

@@ -1,22 +1,8 @@
-"""FPDESO control law (paper eq. 26-30; SPEC section 4).
+"""FPDESO control law (paper eq. 26-30; SPEC section 4): tau = M(q)(q_d'' + u) + C(q, q') q' + G(q) + xi~ - v.
 
-    e = q_d - q,  e' = q_d' - q'              (q, q' are the TD outputs)
-    (k_p, k_d) = fuzzy gain schedule (eq. 12),  u = k_p e + k_d e'      (rad/s^2)
-    tau = M(q)(q_d'' + u) + C(q, q') q' + G(q) + xi~ - v
-    v = -b_d * sign(M^-1(q) e')   (element-wise; eq. 27)
-
-Split as in the paper: feedforward tau_c1 = M q_d'' + C q' + G (eq. 28), feedback tau_c2 = M u
-(eq. 29), compensation tau_c3 = xi~ - v (eq. 30). With a boundary layer phi > 0 the sign is replaced by
-sat(x / phi) (phi in the units of M^-1 e', rad/(kg m^2 s)); phi = 0 is the paper's pure sign, with
-sign(0) = 0. On the exact model with xi~ = 0 and b_d = 0 the closed loop is q'' = q_d'' + u (eq. 10).
-
-``compensate_friction`` adds the model's friction F(q') (``model.viscous_friction``,
-``coulomb_friction``, ``torque_offset``) to the feedforward: tau_c1 = M q_d'' + C q' + G + F(q'). Off by
-default (the paper's law). Set it together with the FLESO's ``compensate_friction``, so that the observer's
-model holds the same F and its estimate xi~ leaves it out (otherwise F is compensated twice).
-
-``velocity_source`` says which q' the chain feeds the law: ``"td"`` (the paper: the TD's x2) or
-``"observer"`` (the FLESO's x2^, the usual ADRC choice; default, see docs/REPRODUCTION.md, "Torque noise").
+u = k_p e + k_d e' (rad/s^2, fuzzy-scheduled gains), v = -b_d sign(M^-1(q) e') (N m); per joint, shape (2,).
+The split into feedforward, feedback and compensation, the boundary layer, ``compensate_friction`` and
+``velocity_source``: docs/DESIGN.md, "FPDESO".
 """
 
 from __future__ import annotations

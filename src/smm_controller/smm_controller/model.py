@@ -1,13 +1,8 @@
 """The controller's nominal model on plain floats: M(q), C(q, q') q', G(q) and, when asked, F(q').
 
-The model-based algorithms (FLESO, FPDESO) need these terms several times per control step. The array
-functions of ``smm_dynamics`` cost a few microseconds of call overhead each; here the plain-float fast
-path of ``smm_dynamics`` (``mass_matrix_floats``, ``rigid_body_floats``: the spin form of the model,
-equal to the array functions up to rounding) is used, and the 2x2 algebra stays on Python floats. A
-test pins every term against the array functions of ``smm_dynamics``.
-
-The last mass matrix is memoised per position, and :meth:`NominalModel.shared` lets algorithms built
-from equal parameters share one model.
+Built on the float fast path of ``smm_dynamics`` (docs/DYNAMICS.md), equal to its array functions up to
+rounding (tested); the 2x2 algebra stays on Python floats, the last M is memoised per position, and
+:meth:`NominalModel.shared` gives algorithms built from equal parameters one model.
 """
 
 from __future__ import annotations

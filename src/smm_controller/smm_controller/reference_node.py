@@ -1,16 +1,9 @@
 """``reference_node``: the reference trajectory (:mod:`smm_controller.reference`) sampled at each measurement.
 
-Subscribes ``joint_states`` (only its stamp is used, but the message must be valid); for each new stamp s
-publishes ``reference`` (3x2: position rad, velocity rad/s, acceleration rad/s^2; columns alpha, beta) for the
-stamp s + ``lookahead`` control periods, evaluated at t = (that stamp - first stamp) / 1e9 s; on the first
-measurement it also publishes the references of the stamps before that one, from the first stamp on. So
-with ``lookahead`` >= 1 the reference of a step is already at the controller when the step's measurement
-arrives: the reference node is off the measurement-to-command path (a reference is a known function of
-time, so nothing is lost by computing it one period early). ``~/internals`` carries row ``time`` = t of the
-newest reference in both columns, and the node counters. The generator is a pure function of t; a parameter
-change applies to the references published after it. Parameters: ``kind`` selects the generator; every
-generator's fields are parameters ``<kind>.<field>`` (e.g. ``sine.amplitude``); ``lookahead`` (read-only)
-and ``control_period`` (read-only, s; the plant's period, which spaces the stamps). See ``docs/NODES.md``.
+For each new ``joint_states`` stamp s publishes ``reference`` (3x2: rad, rad/s, rad/s^2; columns alpha, beta)
+for the stamp s + ``lookahead`` control periods, at t = (that stamp - first stamp) / 1e9 s, so it waits at
+the controller when that measurement arrives. Parameters (``kind``, ``<kind>.<field>``, ``lookahead``) and
+why one period ahead: docs/NODES.md, "reference_node".
 """
 
 from __future__ import annotations

@@ -1,18 +1,9 @@
 """Rigid-body model of the 2-DOF SMM (SPEC section 1, paper eq. 1-2 and Appendix A).
 
-    M(q) q'' + C(q, q') q' + G(q) + F(q') + tau_dist = tau,   q = (alpha, beta) (rad).
+    M(q) q'' + C(q, q') q' + G(q) + F(q') + tau_dist = tau,   q = (alpha, beta) (rad), tau (N m).
 
-Every array function accepts a single sample (joint arrays of shape (2,)) or a batch (shape (..., 2),
-broadcast against each other). A single sample runs on Python floats with ``math`` (a few microseconds per
-call, since the controller calls these every control step); a batch runs on numpy arrays. The closed-form
-terms come from ``_generated.py`` (see ``tools/generate_dynamics.py``), which is plain arithmetic and so
-serves both paths.
-
-The ``*_floats`` functions are the fast path for loops that step one sample at a time (the simulated
-plant, the controller's model): plain floats in and out, no array, and the spin form of the model
-(``*_spin_form`` in ``_generated.py``: M and C q' written with the gradient and curvature of the spin
-angle, proven equal to the printed M and the Christoffel C by the generator), about five times cheaper
-than the reference form. They agree with the array functions up to rounding (tests: 1e-12 relative).
+Array functions take one sample (shape (2,)) or a batch (shape (..., 2), broadcast); the ``*_floats``
+functions are the plain-float fast path (spin form, equal up to rounding). Forms and costs: docs/DYNAMICS.md.
 """
 
 from __future__ import annotations

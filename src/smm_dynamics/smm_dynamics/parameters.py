@@ -1,15 +1,7 @@
 """Physical parameters of the spherical motion mechanism (SPEC section 1, paper Table 2).
 
-The paper never defines the inertias I11, I22, I44, I55 of its Appendix A; it only lists body data
-(Table 2). The mapping used here (SPEC section 1):
-
-* the three parts (rudder blade, spin motor, rotor) turn about the common centre of the sphere and
-  their centres of mass lie on the rotor (spin) axis, offset by ``l_i``;
-* the transverse inertias I11 = I22 = I44 are the sum of the parts' x-inertias plus the parallel-axis
-  term ``m_i l_i**2`` (the offset is perpendicular to a transverse axis);
-* the axial inertia I55 is the sum of the parts' z-inertias (the offset lies on the spin axis, so it
-  adds nothing);
-* the gravity lever ``m_c l_c`` is ``sum(m_i l_i)``.
+The inertias I11, I22, I44, I55 (kg m^2) and the gravity lever m_c l_c (kg m) are computed from Table 2's
+body data; the mapping: docs/DYNAMICS.md, "Inertia mapping".
 """
 
 from __future__ import annotations

@@ -1,15 +1,9 @@
 """``hw_bridge_node``: the bench's I/O board as the plant of the graph, a ROS 2 lifecycle node.
 
-Same interface as ``smm_sim_node``: publishes ``joint_states`` (position rad from the encoders; effort =
-torque of the D/A codes on the valves, after clamping) and subscribes ``torque_command``. Also publishes
-``hw_bridge_internals`` (what was sent: codes, torque, clamped, limit_cut, enabled) and ``/diagnostics``,
-and serves ``~/estop`` and ``~/rearm`` (``std_srvs/Trigger``). The logic is :class:`BridgeCore`; the
-protocol and the transitions are in docs/HW_PROTOCOL.md; parameters in docs/NODES.md.
-
-Lifecycle: ``configure`` opens the transport, waits for valid feedback (version and session checked) and
-locks the board with safe frames; ``activate`` arms (output live after newer feedback and a command
-answering it); ``deactivate``, ``cleanup``, ``shutdown`` and errors send a safe frame at once. Board fault
-bits, seen in any state, drive the node through the error transition to ``unconfigured``.
+Same topics as ``smm_sim_node`` (publishes ``joint_states``: encoder position rad, effort N m; subscribes
+``torque_command``), plus ``hw_bridge_internals``, ``/diagnostics`` and the ``~/estop`` / ``~/rearm``
+services; the logic is :class:`BridgeCore`. Lifecycle, faults and parameters: docs/NODES.md,
+"hw_bridge_node"; protocol and host state machine: docs/HW_PROTOCOL.md.
 """
 
 from __future__ import annotations

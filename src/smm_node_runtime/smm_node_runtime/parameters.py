@@ -1,15 +1,10 @@
 """Config dataclasses as ROS 2 parameters: descriptors, declaration, and one binding per node config.
 
-The schema (names, kinds, ranges, descriptions, config <-> values) is :mod:`smm_node_runtime.schema`; this
-module gives it to rclpy. A number field's range becomes the descriptor's ``FloatingPointRange`` /
-``IntegerRange`` (closed: an open end is checked by the config itself, whose ``ValueError`` message is what
-a rejected ``set_parameters`` call reports as ``reason``); an array's element range is stated in
-``additional_constraints`` and checked by the config (ROS ranges apply to scalars only).
-
-The usual way to use this is :class:`ConfigParameters`: it declares the parameters, builds the initial
-config from the declared values (parameter overrides and ``--params-file`` included), validates every later
-change as a whole new config, and swaps the config only after the change succeeded, so a node's step sees
-either the old config or the new one, never a mix.
+Gives rclpy the schema of :mod:`smm_node_runtime.schema`; a number field's range becomes the closed
+``FloatingPointRange`` / ``IntegerRange`` (open ends and array elements in ``additional_constraints``,
+checked by the config). :class:`ConfigParameters` declares, builds the initial config, and validates each
+change as a whole new config, swapped only on success. docs/DESIGN.md, "Ranges of config fields";
+docs/NODES.md, "Parameters".
 """
 
 from __future__ import annotations

@@ -1,11 +1,10 @@
 """Config dataclass <-> flat parameter values: the schema of the ROS parameters, without ROS.
 
-One algorithm config is one frozen dataclass (see ``docs/DESIGN.md``); each of its leaf fields is one
-parameter, named ``<prefix>.<field>`` (nested dataclasses flattened with a dotted path, e.g.
-``fpdeso.fuzzy.k_e``). A field's kind comes from its type hint (``float``, ``int``, ``bool``, ``str`` or a
-``Literal`` of strings, ``tuple[float, float]`` per joint, ``tuple[float, ...]``, the same of ``int``), its
-range from its field metadata (``smm_dynamics.validation.bounds``), its description from the Google-style
-``Attributes:`` section of the dataclass docstring. :mod:`smm_node_runtime.parameters` binds this to rclpy.
+Each leaf field of a frozen config dataclass is one parameter ``<prefix>.<field>`` (nested: dotted,
+``fpdeso.fuzzy.k_e``). Its kind comes from the type hint (``float``, ``int``, ``bool``, ``str`` or a
+``Literal``, ``tuple[float, float]`` per joint, ``tuple[float, ...]``, the same of ``int``), its range from
+the field metadata, its description from the dataclass's ``Attributes:`` section. rclpy side:
+:mod:`smm_node_runtime.parameters`.
 """
 
 from __future__ import annotations
