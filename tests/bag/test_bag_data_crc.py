@@ -1,4 +1,4 @@
-"""The writer's data-section CRC, and ``smm-bag repair`` checking it: a changed byte outside every chunk is seen."""
+"""The writer's data-section CRC and ``smm-bag repair`` checking it: a byte changed outside every chunk."""
 
 from __future__ import annotations
 
