@@ -9,8 +9,9 @@ import json
 import time
 from pathlib import Path
 
-from smm_bag.metadata import BagMetadata
+from smm_bag.metadata import METADATA_FILE, BagMetadata
 from smm_bag.reader import BagReader
+from smm_bag.repair import BACKUP_SUFFIX, repair_backups
 
 __all__ = ["bag_size", "format_info"]
 
@@ -18,9 +19,20 @@ _INDENT = " " * 19
 _NS = 1_000_000_000
 
 
-def bag_size(directory: Path) -> int:
-    """Bytes of every file in the bag folder (rosbag2 counts the whole directory)."""
-    return sum(path.stat().st_size for path in directory.rglob("*") if path.is_file())
+def bag_size(directory: Path, metadata: BagMetadata) -> int:
+    """Bytes of the bag's own files: ``metadata.yaml`` and the storage files it lists (no backups)."""
+    paths = [directory / METADATA_FILE, *(directory / name for name in metadata.relative_file_paths)]
+    return sum(path.stat().st_size for path in paths if path.is_file())
+
+
+def _backups_line(directory: Path) -> str | None:
+    """``Repair backups: N files, size (*.damaged)`` if ``smm-bag repair`` kept originals here."""
+    backups = repair_backups(directory)
+    if not backups:
+        return None
+    size = sum(path.stat().st_size for path in backups)
+    files = "1 file" if len(backups) == 1 else f"{len(backups)} files"
+    return f"Repair backups: {files}, {_size(size)} (*{BACKUP_SUFFIX}; not in the bag size)"
 
 
 def _size(size: int) -> str:
@@ -70,18 +82,19 @@ def format_metadata(metadata: BagMetadata, size: int) -> str:
 
 
 def format_info(path: Path) -> str:
-    """``ros2 bag info`` text of a bag (checked by opening it), then its manifest and loss report.
+    """``ros2 bag info`` text of a bag (checked by opening it), then repair backups, manifest and loss report.
 
     Raises:
         BagError: The bag cannot be opened (see :class:`smm_bag.reader.BagReader`).
     """
     with BagReader(path) as reader:
         metadata = reader.metadata
-    text = format_metadata(metadata, bag_size(path))
+    text = format_metadata(metadata, bag_size(path, metadata))
     custom = {
         key: value for key, value in metadata.custom_data.items() if key not in ("smm.parameters", "smm.loss")
     }
-    extra = []
+    backups = _backups_line(path)
+    extra = [backups] if backups else []
     if custom:
         extra.append("Custom data:")
         extra.extend(f"  {key}: {value}" for key, value in sorted(custom.items()))

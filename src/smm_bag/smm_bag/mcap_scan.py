@@ -43,6 +43,10 @@ _DATA_OPCODES = frozenset(
         Opcode.DATA_END,
     }
 )
+_OUTSIDE_CHUNKS = (
+    " (a byte no chunk CRC covers changed: the Header, a metadata record, a message index or a chunk's"
+    " fixed fields)"
+)
 
 
 @dataclass(frozen=True)
@@ -118,7 +122,7 @@ class FileScan:
         found = ["truncated (no MCAP footer)"] if self.truncated else []
         found += [f"bytes {d.start}-{d.end}: {d.what}" for d in self.damage]
         if self.data_crc == "mismatch":
-            found.append("data section CRC mismatch")
+            found.append("data section CRC mismatch" + ("" if self.damage else _OUTSIDE_CHUNKS))
         return found + self.inconsistencies
 
 

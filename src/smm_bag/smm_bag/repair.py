@@ -9,6 +9,7 @@ kept as ``<file>.damaged``. docs/BAGS.md ("smm-bag repair") says what is kept an
 from __future__ import annotations
 
 import mmap
+import re
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -33,7 +34,10 @@ from smm_bag.metadata import (
 from smm_bag.qos import load_profiles
 from smm_bag.repair_report import FileRepair, RepairReport
 
-__all__ = ["FileRepair", "RepairReport", "repair_bag"]
+__all__ = ["BACKUP_SUFFIX", "FileRepair", "RepairReport", "repair_backups", "repair_bag"]
+
+BACKUP_SUFFIX = ".damaged"
+"""Suffix of the originals repair keeps: ``<file>.damaged``, then ``<file>.damaged.2``, ..."""
 
 _COMPRESSION = {"": CompressionType.NONE, "zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4}
 
@@ -95,11 +99,17 @@ def _storage_files(bag: Path, metadata: BagMetadata | None) -> list[Path]:
 
 
 def _free_name(path: Path) -> Path:
-    candidate, number = path.with_name(path.name + ".damaged"), 1
+    candidate, number = path.with_name(path.name + BACKUP_SUFFIX), 1
     while candidate.exists():
         number += 1
-        candidate = path.with_name(f"{path.name}.damaged.{number}")
+        candidate = path.with_name(f"{path.name}{BACKUP_SUFFIX}.{number}")
     return candidate
+
+
+def repair_backups(bag: Path) -> list[Path]:
+    """The originals repair kept in the bag folder ``bag`` (``*.damaged``, ``*.damaged.N``), sorted."""
+    name = re.compile(rf".+{re.escape(BACKUP_SUFFIX)}(\.[0-9]+)?")
+    return sorted(path for path in bag.iterdir() if name.fullmatch(path.name) and path.is_file())
 
 
 def _rewrite(item: _File, data: bytes, serialized: str) -> Path:

@@ -146,7 +146,10 @@ class BagWriter:
         name = self._file_name(len(self._files))
         self._stream = (self.path / name).open("wb")
         compression = CompressionType.ZSTD if self.options.compression == "zstd" else CompressionType.NONE
-        self._writer = Writer(self._stream, chunk_size=self.options.chunk_size, compression=compression)
+        # Data CRC too: it covers the Header and metadata records, which no chunk CRC does (docs/BAGS.md).
+        self._writer = Writer(
+            self._stream, chunk_size=self.options.chunk_size, compression=compression, enable_data_crcs=True
+        )
         self._writer.start(profile="ros2", library=_library())
         self._files.append(FileInfo(path=name))
         self._schema_ids = {}
