@@ -7,7 +7,6 @@ from pathlib import Path
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
 from smm_node_runtime.parameter_files import (
     ParameterFileError,
     load_parameter_file,

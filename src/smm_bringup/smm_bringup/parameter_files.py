@@ -10,9 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-from smm_node_runtime import parameter_files
 
 from smm_bringup.errors import ParameterFileError
+from smm_node_runtime import parameter_files
 
 __all__ = ["ParameterValue", "format_parameter_value", "load_parameter_file", "package_file"]
 
