@@ -28,7 +28,7 @@ from smm_bringup.parameter_files import format_parameter_value, load_parameter_f
 from smm_bringup.realtime import fifo_allowed, fifo_preexec
 from smm_bringup.supervisor import EXIT_CONFIGURATION_ERROR, EXIT_OK
 
-from smm_bringup import graph, parameter_files
+from smm_bringup import graph
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH_DIR = REPO / "src" / "smm_bringup" / "launch"
@@ -329,25 +329,6 @@ def test_parameter_values_survive_the_yaml_round_trip_with_their_type(value: Any
 def test_unrepresentable_parameter_values_are_refused(value: Any) -> None:
     with pytest.raises(ValueError):
         format_parameter_value(value)
-
-
-@pytest.mark.parametrize(
-    ("key", "matches"),
-    [
-        ("/smm/smm_sim_node", True),
-        ("smm/smm_sim_node", True),
-        ("/**", True),
-        ("/**/smm_sim_node", True),
-        ("/*/smm_sim_node", True),
-        ("/smm/*", True),
-        ("/smm_sim_node", False),
-        ("/other/smm_sim_node", False),
-        ("/**/td_node", False),
-        ("/*", False),
-    ],
-)
-def test_node_keys_match_like_rcl(key: str, matches: bool) -> None:
-    assert parameter_files._node_key_matches(key, "/smm/smm_sim_node") is matches
 
 
 def test_parameter_file_sections_apply_with_wildcards_first(tmp_path: Path) -> None:

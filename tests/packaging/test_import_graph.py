@@ -221,6 +221,7 @@ def test_the_graph_is_read_from_the_code() -> None:
 
 PURE_CORES = (
     "smm_node_runtime.health",
+    "smm_node_runtime.parameter_files",
     "smm_node_runtime.schema",
     "smm_node_runtime.stamp_gate",
     "smm_sim.config",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from smm_node_runtime import parameter_files
+
 __all__ = ["GraphError", "ParameterFileError", "PlantNotAvailableError"]
 
 
@@ -13,5 +15,5 @@ class PlantNotAvailableError(GraphError):
     """The chosen plant cannot run as asked (``hardware`` runs on the board's clock: real time only)."""
 
 
-class ParameterFileError(GraphError):
+class ParameterFileError(GraphError, parameter_files.ParameterFileError):
     """A parameter file is missing or is not a valid ROS 2 parameter file."""

@@ -1,20 +1,18 @@
-"""ROS 2 parameter files and values as rcl reads them: node-key matching, precedence, ``-p`` formatting."""
+"""ROS 2 parameter files and values for the launch: package data files, rcl's reading, ``-p`` formatting."""
 
 from __future__ import annotations
 
 import contextlib
-import fnmatch
 import importlib
 import json
 import math
-from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import yaml
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 
 from smm_bringup.errors import ParameterFileError
+from smm_node_runtime import parameter_files
 
 __all__ = ["ParameterValue", "format_parameter_value", "load_parameter_file", "package_file"]
 
@@ -85,66 +83,13 @@ def package_file(package: str, relative: str) -> Path:
     raise ParameterFileError(f"{package}/{relative} not found; looked in {tried}")
 
 
-def _node_key_matches(key: str, fully_qualified_name: str) -> bool:
-    """Rcl's matching of a parameter-file node key: ``/**`` spans any namespaces, ``*`` one token."""
-    if key == "/**":
-        return True
-    pattern = key if key.startswith("/") else "/" + key
-    if pattern == fully_qualified_name:
-        return True
-    key_tokens = pattern.strip("/").split("/")
-    name_tokens = fully_qualified_name.strip("/").split("/")
-    return _tokens_match(key_tokens, name_tokens)
-
-
-def _tokens_match(pattern: Sequence[str], tokens: Sequence[str]) -> bool:
-    if not pattern:
-        return not tokens
-    head, rest = pattern[0], pattern[1:]
-    if head == "**":
-        return any(_tokens_match(rest, tokens[skip:]) for skip in range(len(tokens) + 1))
-    return bool(tokens) and fnmatch.fnmatchcase(tokens[0], head) and _tokens_match(rest, tokens[1:])
-
-
-def _flatten(prefix: str, values: Mapping[str, Any], out: dict[str, Any]) -> None:
-    for key, value in values.items():
-        name = f"{prefix}.{key}" if prefix else str(key)
-        if isinstance(value, Mapping):
-            _flatten(name, value, out)
-        else:
-            out[name] = value
-
-
 def load_parameter_file(path: str | Path, fully_qualified_name: str) -> dict[str, Any]:
-    """Parameters a ROS 2 parameter file sets for one node, with rcl's precedence.
-
-    Sections are applied in file order; a wildcard section (``/**``) is applied before the sections
-    that name the node, so that a node-specific value wins, as rcl does.
-
-    Args:
-        path: The YAML file.
-        fully_qualified_name: Node name, e.g. ``/smm/smm_sim_node``.
-
-    Returns:
-        ``{parameter name (dotted): value}`` (lists stay lists).
+    """:func:`smm_node_runtime.parameter_files.load_parameter_file`, failing with a :class:`GraphError`.
 
     Raises:
         ParameterFileError: The file is missing, is not YAML, or is not a ROS 2 parameter file.
     """
     try:
-        content = yaml.safe_load(Path(path).read_text())
-    except OSError as error:
-        raise ParameterFileError(f"cannot read parameter file {path}: {error}") from error
-    except yaml.YAMLError as error:
-        raise ParameterFileError(f"parameter file {path} is not valid YAML: {error}") from error
-    if not isinstance(content, Mapping):
-        raise ParameterFileError(f"parameter file {path} must map node names to sections")
-    wildcard: dict[str, Any] = {}
-    specific: dict[str, Any] = {}
-    for key, section in content.items():
-        if not isinstance(section, Mapping) or not isinstance(section.get("ros__parameters"), Mapping):
-            raise ParameterFileError(f"parameter file {path}: section {key!r} has no 'ros__parameters' map")
-        if not _node_key_matches(str(key), fully_qualified_name):
-            continue
-        _flatten("", section["ros__parameters"], wildcard if "*" in str(key) else specific)
-    return {**wildcard, **specific}
+        return parameter_files.load_parameter_file(path, fully_qualified_name)
+    except parameter_files.ParameterFileError as error:
+        raise ParameterFileError(str(error)) from error

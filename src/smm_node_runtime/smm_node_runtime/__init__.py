@@ -1,6 +1,6 @@
 """What every SMM node runs on: process main, executor, node base classes, parameters, ``/diagnostics``.
 
-Names load on first use, so the pure modules (``schema``) import without rclpy.
+Names load on first use, so the pure modules (``schema``, ``parameter_files``) import without rclpy.
 """
 
 from __future__ import annotations
@@ -35,6 +35,13 @@ if TYPE_CHECKING:
         as_parameter_list,
         node_arguments,
         wait_for_delivery,
+    )
+    from smm_node_runtime.parameter_files import (
+        ParameterFileError,
+        load_parameter_file,
+        node_key_matches,
+        parameters_for,
+        read_parameter_file,
     )
     from smm_node_runtime.parameters import (
         ConfigParameters,
@@ -87,6 +94,11 @@ _SOURCES: dict[str, str] = {
     "as_parameter_list": "smm_node_runtime.node",
     "node_arguments": "smm_node_runtime.node",
     "wait_for_delivery": "smm_node_runtime.node",
+    "ParameterFileError": "smm_node_runtime.parameter_files",
+    "load_parameter_file": "smm_node_runtime.parameter_files",
+    "node_key_matches": "smm_node_runtime.parameter_files",
+    "parameters_for": "smm_node_runtime.parameter_files",
+    "read_parameter_file": "smm_node_runtime.parameter_files",
     "ConfigParameters": "smm_node_runtime.parameters",
     "above": "smm_node_runtime.parameters",
     "at_least": "smm_node_runtime.parameters",
@@ -140,6 +152,7 @@ __all__ = [
     "NodeFactory",
     "NodeOptions",
     "Output",
+    "ParameterFileError",
     "ParameterOverrides",
     "SmmNode",
     "StampGate",
@@ -152,11 +165,15 @@ __all__ = [
     "config_fields",
     "ensure_localhost_discovery",
     "level_for",
+    "load_parameter_file",
     "make_executor",
     "no_range",
     "node_arguments",
+    "node_key_matches",
     "node_main",
     "parameter_name",
+    "parameters_for",
+    "read_parameter_file",
     "run_node",
     "run_nodes",
     "spin_until_shutdown",

@@ -102,7 +102,7 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
             ),
             {},
         )
-        parameters = {**recorded, **read_params_files(options.params_files)}
+        parameters = {**recorded, **read_params_files(options.params_files, run.manifest.namespace)}
         settings = chain_settings(parameters, run.manifest.controller or "fpdeso")
         result = rerun(run, settings)
     except BagError as error:

@@ -16,9 +16,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 from smm_controller.chain import LAW_CONFIGS, make_law
+from smm_node_runtime.parameter_files import (
+    ParameterFileError,
+    node_key_matches,
+    parameters_for,
+    read_parameter_file,
+)
 from smm_node_runtime.schema import config_from_parameters
 
 from smm_analysis.errors import ParamsFileError
@@ -41,7 +46,17 @@ FloatArray = NDArray[np.float64]
 TD_PREFIX = "td"
 FLESO_PREFIX = "fleso"
 MODEL_PREFIX = "model"
-_NODES = ("controller_node", "fleso_node", "td_node", "**")
+NAMESPACE = "smm"
+"""The graph's namespace (``smm_bringup.graph.NAMESPACE``)."""
+CONTROLLER_NODE, TD_NODE, FLESO_NODE = "controller_node", "td_node", "fleso_node"
+CHAIN_NODES = (CONTROLLER_NODE, TD_NODE, FLESO_NODE)
+"""The graph's names of the chain's nodes (``smm_bringup.graph``; each node module's ``NODE_NAME``)."""
+_CHAIN_PREFIXES: dict[str, frozenset[str] | None] = {
+    TD_NODE: frozenset({TD_PREFIX}),
+    FLESO_NODE: frozenset({FLESO_PREFIX, MODEL_PREFIX}),
+    CONTROLLER_NODE: None,  # all of them, applied last
+}
+"""Per chain node, the parameter prefixes taken from it (None: every parameter), in the order applied."""
 
 
 @dataclass(frozen=True)
@@ -75,38 +90,37 @@ class ChainSettings:
         )
 
 
-def _flatten(prefix: str, node: Any, into: dict[str, Any]) -> None:
-    if isinstance(node, Mapping):
-        for key, value in node.items():
-            _flatten(f"{prefix}.{key}" if prefix else str(key), value, into)
-    else:
-        into[prefix] = node
+def read_params_files(paths: Sequence[Path], namespace: str = NAMESPACE) -> dict[str, Any]:
+    """Flat ``{parameter: value}`` the chain runs with, from ROS parameter files read as rcl does.
 
-
-def read_params_files(paths: Sequence[Path]) -> dict[str, Any]:
-    """Flat ``{parameter: value}`` of the chain's nodes in ROS parameter files (later files win).
+    The files are read as ``smm-launch`` reads them for the graph's nodes (:data:`CHAIN_NODES` under
+    ``/<namespace>``; later files win, ``/**`` and other wildcard keys before exact keys, other namespaces
+    ignored): ``controller_node``'s parameters, which it runs the fused chain with, over ``td_node``'s
+    ``td.*`` and ``fleso_node``'s ``fleso.*`` and ``model.*`` (files written for the split graph).
 
     Raises:
-        ParamsFileError: Unreadable file or not a ROS parameter file.
+        ParamsFileError: Unreadable file, not a ROS parameter file, or no section for the chain's nodes.
     """
-    merged: dict[str, Any] = {}
+    prefix = f"/{namespace.strip('/')}" if namespace.strip("/") else ""
+    names = {node: f"{prefix}/{node}" for node in CHAIN_NODES}
+    per_node: dict[str, dict[str, Any]] = {node: {} for node in CHAIN_NODES}
     for path in paths:
         try:
-            document = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-        except (OSError, yaml.YAMLError, UnicodeDecodeError) as error:
-            raise ParamsFileError(f"cannot read parameters file {path}: {error}") from None
-        if not isinstance(document, Mapping):
-            raise ParamsFileError(f"{path} is not a ROS parameters file (top level must be a mapping)")
-        found = False
-        for key, section in document.items():
-            if str(key).rstrip("/").split("/")[-1] not in _NODES:
-                continue
-            if not isinstance(section, Mapping) or not isinstance(section.get("ros__parameters"), Mapping):
-                raise ParamsFileError(f"{path}: {key} has no ros__parameters mapping")
-            _flatten("", section["ros__parameters"], merged)
-            found = True
-        if not found:
-            raise ParamsFileError(f"{path} has no section for controller_node, fleso_node, td_node or /**")
+            sections = read_parameter_file(path)
+        except ParameterFileError as error:
+            raise ParamsFileError(str(error)) from None
+        if not any(node_key_matches(key, name) for key in sections for name in names.values()):
+            keys = ", ".join(sections) or "none"
+            raise ParamsFileError(f"{path} has no section for {', '.join(names.values())} (its keys: {keys})")
+        for node, name in names.items():
+            per_node[node].update(parameters_for(sections, name))
+    merged: dict[str, Any] = {}
+    for node, prefixes in _CHAIN_PREFIXES.items():
+        merged.update(
+            (name, value)
+            for name, value in per_node[node].items()
+            if prefixes is None or name.partition(".")[0] in prefixes
+        )
     return merged
 
 
