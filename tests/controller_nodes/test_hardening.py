@@ -337,13 +337,17 @@ def test_the_controller_status_is_ok_in_use_and_error_when_every_input_is_refuse
 
 
 def test_a_refused_input_raises_the_status_to_warn_at_once(make_rig: Any, ros_context: Any) -> None:
-    node = fused_node(ros_context)
+    # A 50 ms period: a slow first step on a busy machine must not be a deadline miss (itself a WARN).
+    period = 0.05
+    node = fused_node(ros_context, control_period=period, **{"td.filter_factor": [period, period]})
     rig = make_rig(node)
     seen = rig.record(DIAGNOSTICS, DiagnosticArray, diagnostic_qos())
-    send(rig, node, measurement(MS, (0.0, 0.0), None))
+    step_ns = round(period * 1e9)
+    send(rig, node, measurement(step_ns, (0.0, 0.0), None))
     assert rig.spin_until(lambda: bool(statuses(seen, "/controller_node")))
+    assert statuses(seen, "/controller_node")[-1].level == bytes([Level.OK])
     count = len(statuses(seen, "/controller_node"))
-    send(rig, node, measurement(2 * MS, (100.0, 100.0), None))
+    send(rig, node, measurement(2 * step_ns, (100.0, 100.0), None))
 
     def warned() -> list[Any]:
         later = statuses(seen, "/controller_node")[count:]
