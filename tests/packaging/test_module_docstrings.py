@@ -18,12 +18,6 @@ MAX_LINES = 8
 
 STILL_LONG = frozenset(
     {
-        "smm_analysis/smm_analysis/closed_loop.py",
-        "smm_analysis/smm_analysis/retuned.py",
-        "smm_analysis/smm_analysis/runs/rerun.py",
-        "smm_bag/smm_bag/lockstep.py",
-        "smm_bag/smm_bag/recorder_node.py",
-        "smm_bag/smm_bag/writer.py",
         "smm_bringup/smm_bringup/graph.py",
     }
 )

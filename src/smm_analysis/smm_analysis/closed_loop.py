@@ -1,15 +1,9 @@
 """Offline closed loop: the simulated plant and the control chain, in the order of docs/DESIGN.md.
 
-At each control step k (t_k = k * period, k = 0 .. N with N = duration / period):
-
-1. ``y_k, tau_applied_{k-1} = plant.measure()`` (encoder position and the torque applied over the
-   previous interval, the ``effort`` of the raw JointState; zero at k = 0);
-2. ``tau_k = chain.step(y_k, tau_applied_{k-1}, r(t_k), dt)`` (TD -> FLESO -> controller);
-3. ``plant.step(tau_k, dt)`` applies tau_k over [t_k, t_{k+1}].
-
-The ROS graph runs the same calls split over nodes, so a lockstep run of the graph reproduces this
-loop. FPDESO gets a FLESO; the baselines get the same TD (they need q') and no FLESO (xi~ = 0).
-Everything is deterministic for a given seed (the plant's noise generator is the only randomness).
+At t_k = k * period (k = 0 .. N, N = duration / period): ``y_k, tau_applied_{k-1} = plant.measure()``
+(applied torque zero at k = 0), ``tau_k = chain.step(y_k, tau_applied_{k-1}, r(t_k), dt)``, then
+``plant.step(tau_k, dt)`` over [t_k, t_{k+1}]. Deterministic for a seed; a lockstep run of the ROS graph
+reproduces it (docs/DESIGN.md, "The control chain and its order").
 """
 
 from __future__ import annotations

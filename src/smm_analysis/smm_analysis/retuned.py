@@ -1,13 +1,9 @@
 """Clearly labelled retuned gain sets, run beside the paper's (SPEC section 4; issue #3).
 
-The paper's gains stay the defaults of ``smm_controller``; a retuned set lives only here, as data, and
-the reproduction runs it as an extra pseudo-controller next to the set it derives from. Each set names
-what it changes, by how much and by what rule, so that the report can say so.
-
-Only one set exists: FPDESO with more damping on beta. With the paper's k_p0 = 4150, k_d0 = 90 the
-beta loop is a PD of damping ratio 0.699, whose continuous-time step overshoots by 4.66 %; the 1 kHz
-loop's phase lag lifts that to about 5.3 %, above the 5 % acceptance bound. The retuned set gives beta the
-damping ratio of the paper's own alpha gains and changes nothing else.
+Each set is data: the gains, and what it changes, by how much, by what rule and why. The only set,
+``fpdeso_retuned``, gives FPDESO's beta the damping ratio of the paper's alpha gains (k_d0 90 -> 111 1/s)
+to bring the 1 kHz beta step under the 5 % overshoot bound: docs/REPRODUCTION.md, "The retuned FPDESO set";
+docs/METRICS.md, "smm-reproduce".
 """
 
 from __future__ import annotations

@@ -1,11 +1,8 @@
 """``smm-bag play --lockstep``: replay a bag into a node one stamp at a time, waiting for its answer.
 
-Timed replay cannot keep a node's state equal to the recorded one: a node that falls behind loses inputs
-(its subscriptions are shallow on purpose) and from then on estimates something else. Lockstep replay is
-flow controlled instead: the messages of the chosen (stamped) topics are grouped by stamp in the order the
-stamps first appear; each (topic, stamp) is published once (a lockstep recording holds re-published
-measurements); then the player waits until the node's answer with that stamp arrives on ``answer_topic``,
-or ``timeout_s`` passes (counted and reported), and goes on with the next stamp.
+Each (topic, stamp) of the chosen stamped topics is published once, stamp by stamp; the player then waits
+for the node's answer with that stamp on ``answer_topic`` or ``timeout_s`` (counted and reported). Why timed
+replay cannot do this: docs/BAGS.md, "smm-bag".
 """
 
 from __future__ import annotations

@@ -1,12 +1,8 @@
 """``recorder_node``: records the stack's topics raw (serialized CDR) to a rosbag2 MCAP bag.
 
-Subscribes each topic with its message type but ``raw=True`` (no deserialisation), RELIABLE (BEST_EFFORT
-if a publisher only offers that) with a deep queue, and stores each topic's offered QoS as its publishers
-report it. Log time = receive time (the middleware's where rclpy gives it, else the callback's).
-Services (std_srvs/Trigger) ``~/pause``, ``~/resume``, ``~/split``. On SIGINT/SIGTERM the messages still
-queued in the middleware are taken and written before the bag is closed. Loss accounting (received vs
-written per topic, stamp gaps of the control topics) goes to ``/diagnostics`` and, at close, into the bag
-and the log. See docs/BAGS.md.
+Services (std_srvs/Trigger) ``~/pause``, ``~/resume``, ``~/split``; writes what is still queued on
+SIGINT/SIGTERM; loss accounting on ``/diagnostics``, in the log and in the bag. QoS, receive times and
+start gates: docs/BAGS.md, "recorder_node" and "What it adds to rosbag2".
 """
 
 from __future__ import annotations

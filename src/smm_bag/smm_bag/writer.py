@@ -1,11 +1,7 @@
 """rosbag2 writer: a bag folder with ``metadata.yaml`` (version 9) and MCAP files in rosbag2's conventions.
 
-Conventions of rosbag2_storage_mcap (Jazzy): profile ``ros2``; one schema per type (name ``pkg/msg/Type``,
-encoding ``ros2msg``, the full concatenated definition); one channel per topic (message encoding ``cdr``,
-metadata ``offered_qos_profiles`` as YAML and ``topic_type_hash``); log time = receive time, publish time =
-send time; a ``rosbag2`` metadata record holding ``serialized_metadata`` at open and at close; files named
-``<folder>_<index>.mcap``. See docs/BAGS.md for what this writer adds (flush interval, metadata at open and
-at each split, loss accounting).
+The conventions of rosbag2_storage_mcap (Jazzy) it follows, and what it adds (flush interval, metadata at
+open and at each split, CRCs, loss accounting): docs/BAGS.md, "Format" and "What it adds to rosbag2".
 """
 
 from __future__ import annotations

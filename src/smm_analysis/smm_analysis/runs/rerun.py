@@ -1,11 +1,8 @@
 """``smm-bag rerun``: the pure control chain offline on a bag's measurements, with other gains.
 
-The chain (``smm_controller.ControlChain``: TD -> FLESO -> law, no ROS) steps through the recorded
-measurements y_k, the recorded applied torques (``joint_states`` effort; the recorded commands shifted by
-one step when the plant sent none) and the recorded references, and its commands and estimates are set
-beside the recorded ones. Gains come from ROS parameter files in controller_node's names
-(``fpdeso.fuzzy.kp0``, ``fleso.w0``, ``td.speed``, ``model.*``), over the parameters recorded in the run
-manifest, over the defaults.
+``ControlChain`` (no ROS) steps through the recorded measurements, applied torques and references with
+gains from parameter files over the run manifest's over the defaults; its commands and estimates are set
+beside the recorded ones. See docs/BAGS.md, "smm-bag" and "Rerun across machines".
 """
 
 from __future__ import annotations
