@@ -137,7 +137,7 @@ def record_at_1khz(seconds: float, workdir: Path) -> None:
 def graph_recordings(runs: int, seconds: float, workdir: Path) -> None:
     """Record the lockstep case2 graph (processes) ``runs`` times per chain; steps found per topic."""
     from smm_bringup.demo import recorded_messages, recorded_steps, run_graph, shortfall
-    from smm_bringup.graph import GraphOptions
+    from smm_bringup.graph_options import GraphOptions
 
     layouts: tuple[tuple[Literal["fused", "split"], Literal["controller", "node"]], ...] = (
         ("fused", "controller"),

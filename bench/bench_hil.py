@@ -167,7 +167,9 @@ def realtime_hil(
     Topics: hw_bridge_node + controller_node; direct: one direct_loop process. ``host_fifo``: the loop's
     processes under SCHED_FIFO too (the emulator always is, if allowed).
     """
-    from smm_bringup.graph import CONTROLLER_NODE, HW_NODE, GraphOptions, build_graph
+    from smm_bringup.graph import build_graph
+    from smm_bringup.graph_nodes import CONTROLLER_NODE, HW_NODE
+    from smm_bringup.graph_options import GraphOptions
     from smm_bringup.realtime import (
         BOARD_PRIORITY_OFFSET,
         DEFAULT_HARDWARE_PRIORITY,

@@ -8,17 +8,17 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from smm_bringup.graph import (
+from smm_bringup.graph import build_graph
+from smm_bringup.graph_nodes import (
     CONTROLLER_NODE,
     DIRECT_LOOP,
     EMULATOR_NODE,
     HW_NODE,
     RECORDER_NODE,
-    GraphOptions,
-    build_graph,
     expected_publishers,
     parameter_overrides,
 )
+from smm_bringup.graph_options import GraphOptions
 from smm_bringup.launcher import board_line, read_line, with_board_status
 from smm_bringup.parameter_files import load_parameter_file
 

@@ -17,7 +17,19 @@ import yaml
 from hypothesis import assume, given
 from hypothesis import strategies as st
 from smm_bringup.errors import ParameterFileError, PlantNotAvailableError
-from smm_bringup.graph import GraphOptions, NodeSpec, build_graph
+from smm_bringup.graph import build_graph
+from smm_bringup.graph_nodes import NodeSpec
+from smm_bringup.graph_options import (
+    ALGORITHMS,
+    CHAIN_LAYOUTS,
+    CLOCK_MODES,
+    LOOPS,
+    PLANTS,
+    REFERENCE_PLACEMENTS,
+    SCENARIO_NAMES,
+    GraphOptions,
+    split_endpoint,
+)
 from smm_bringup.launcher import (
     arguments_from_options,
     options_from_arguments,
@@ -28,7 +40,7 @@ from smm_bringup.parameter_files import format_parameter_value, load_parameter_f
 from smm_bringup.realtime import fifo_allowed, fifo_preexec
 from smm_bringup.supervisor import EXIT_CONFIGURATION_ERROR, EXIT_OK
 
-from smm_bringup import graph
+from smm_bringup import graph, graph_nodes, hardware_graph
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH_DIR = REPO / "src" / "smm_bringup" / "launch"
@@ -72,7 +84,7 @@ def test_reference_in_the_controller_drops_reference_node_and_hands_over_its_par
     controller = dict(specs[-1].parameters)
     assert controller["reference_source"] == "internal"
     # What reference_node would have been given (scenario file, then the user's file), renamed reference.*:
-    given = graph.parameter_overrides(next(spec for spec in with_node if spec.name == "reference_node"))
+    given = graph_nodes.parameter_overrides(next(spec for spec in with_node if spec.name == "reference_node"))
     handed = {name.removeprefix("reference."): value for name, value in controller.items()}
     assert given.pop("lookahead") == 2  # a setting of reference_node itself: not handed over
     for name, value in given.items():
@@ -130,8 +142,8 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
         GraphOptions(plant="hw", clock_mode="realtime", scenario="case1", duration=3.0, seed=4)
     )
     assert [spec.name for spec in hardware] == [
-        graph.EMULATOR_NODE,
-        graph.HW_NODE,
+        graph_nodes.EMULATOR_NODE,
+        graph_nodes.HW_NODE,
         *[s.name for s in sim[1:]],
     ]
     # Nothing changes on the controller side but its scheduling (SCHED_FIFO 50 on the bench; the bridge 55).
@@ -140,8 +152,8 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
     assert {spec.rt_priority for spec in sim} == {0}
     emulator, bridge = dict(hardware[0].parameters), dict(hardware[1].parameters)
     assert emulator == {
-        "bind": graph.EMULATOR_BOARD,
-        "host": graph.EMULATOR_HOST,
+        "bind": hardware_graph.EMULATOR_BOARD,
+        "host": hardware_graph.EMULATOR_HOST,
         "duration": 3.0,
         "seed": 4,
         "noise-std": 0.0,  # case1's plant, as the simulator would run it
@@ -153,7 +165,7 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
         and bridge["link.board_port"] == 50101
         and bridge["link.bind_port"] == 50100
     )
-    assert hardware[0].name in graph.PLANT_NODE_NAMES  # the emulator's end is the end of the run
+    assert hardware[0].name in graph_nodes.PLANT_NODE_NAMES  # the emulator's end is the end of the run
     slow = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", control_period=0.01))
     emulator, bridge = dict(slow[0].parameters), dict(slow[1].parameters)
     assert emulator["control-period"] == 0.01 and bridge["bridge.admission.period_ns"] == 10_000_000
@@ -183,11 +195,11 @@ def test_the_emulator_accepts_every_option_the_graph_passes_it() -> None:
         plant="hardware", clock_mode="realtime", scenario="case2", seed=3, control_period=0.002
     )
     spec = build_graph(options)[0]
-    assert spec.name == graph.EMULATOR_NODE
+    assert spec.name == graph_nodes.EMULATOR_NODE
     parsed = emulator_parser().parse_args(from_ros_arguments([spec.executable, *spec.ros_arguments()][1:]))
     assert (parsed.noise_std, parsed.inertia_scale, parsed.disturbance) == (0.001, 1.1, "eq46")
     assert (parsed.seed, parsed.control_period) == (3, 0.002)
-    assert parsed.bind == graph.split_endpoint("board", graph.EMULATOR_BOARD)
+    assert parsed.bind == split_endpoint("board", hardware_graph.EMULATOR_BOARD)
     with pytest.raises(ValueError, match="unknown parameter 'valve'"):
         from_ros_arguments(["--ros-args", "-p", "valve:=1"])
 
@@ -197,19 +209,24 @@ def test_the_emulator_accepts_every_option_the_graph_passes_it() -> None:
     [
         (
             GraphOptions(clock_mode="realtime", rt_priority=10),
-            {graph.SIM_NODE: 10, graph.CONTROLLER_NODE: 10},
+            {graph_nodes.SIM_NODE: 10, graph_nodes.CONTROLLER_NODE: 10},
         ),
         (
             GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=0),
-            {graph.EMULATOR_NODE: 0, graph.HW_NODE: 0, graph.CONTROLLER_NODE: 0},
+            {graph_nodes.EMULATOR_NODE: 0, graph_nodes.HW_NODE: 0, graph_nodes.CONTROLLER_NODE: 0},
         ),
         (
             GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=90, record="bag"),
-            {graph.RECORDER_NODE: 80, graph.EMULATOR_NODE: 99, graph.HW_NODE: 95, graph.CONTROLLER_NODE: 90},
+            {
+                graph_nodes.RECORDER_NODE: 80,
+                graph_nodes.EMULATOR_NODE: 99,
+                graph_nodes.HW_NODE: 95,
+                graph_nodes.CONTROLLER_NODE: 90,
+            },
         ),
         (
             GraphOptions(clock_mode="realtime", rt_priority=5, record="bag"),
-            {graph.RECORDER_NODE: 1, graph.SIM_NODE: 5, graph.CONTROLLER_NODE: 5},
+            {graph_nodes.RECORDER_NODE: 1, graph_nodes.SIM_NODE: 5, graph_nodes.CONTROLLER_NODE: 5},
         ),
     ],
 )
@@ -253,7 +270,7 @@ def test_children_run_under_sched_fifo_when_the_system_allows_it(
 
 def test_hardware_plant_with_a_board_address_starts_no_emulator() -> None:
     specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", board="10.0.0.7:6000"))
-    assert specs[0].name == graph.HW_NODE
+    assert specs[0].name == graph_nodes.HW_NODE
     parameters = dict(specs[0].parameters)
     assert (parameters["link.board_address"], parameters["link.board_port"]) == ("10.0.0.7", 6000)
     assert "link.bind_address" not in parameters  # the bridge keeps its configured (loopback) bind address
@@ -358,7 +375,7 @@ def test_parameter_overrides_put_explicit_values_after_files(tmp_path: Path) -> 
     path = tmp_path / "p.yaml"
     path.write_text("/**:\n  ros__parameters:\n    seed: 1\n    duration: 2.0\n")
     spec = NodeSpec("p", "e", "smm_sim_node", "m:C", parameter_files=(str(path),), parameters=(("seed", 5),))
-    assert graph.parameter_overrides(spec) == {"seed": 5, "duration": 2.0}
+    assert graph_nodes.parameter_overrides(spec) == {"seed": 5, "duration": 2.0}
 
 
 def test_launcher_arguments_map_onto_graph_options() -> None:
@@ -400,12 +417,12 @@ def graph_options(draw: st.DrawFn) -> GraphOptions:
     positive = st.floats(min_value=1e-4, max_value=1e4, allow_nan=False, allow_infinity=False)
     try:
         return GraphOptions(
-            plant=draw(st.sampled_from(graph.PLANTS)),
-            clock_mode=draw(st.sampled_from(graph.CLOCK_MODES)),
-            chain=draw(st.sampled_from(graph.CHAIN_LAYOUTS)),
-            reference=draw(st.sampled_from(graph.REFERENCE_PLACEMENTS)),
-            algorithm=draw(st.sampled_from(graph.ALGORITHMS)),
-            scenario=draw(st.none() | st.sampled_from(graph.SCENARIO_NAMES)),
+            plant=draw(st.sampled_from(PLANTS)),
+            clock_mode=draw(st.sampled_from(CLOCK_MODES)),
+            chain=draw(st.sampled_from(CHAIN_LAYOUTS)),
+            reference=draw(st.sampled_from(REFERENCE_PLACEMENTS)),
+            algorithm=draw(st.sampled_from(ALGORITHMS)),
+            scenario=draw(st.none() | st.sampled_from(SCENARIO_NAMES)),
             duration=draw(st.none() | st.just(0.0) | positive),
             seed=draw(st.none() | st.integers(min_value=0, max_value=2**32 - 1)),
             params_files=tuple(draw(st.lists(st.sampled_from(["a.yaml", "dir/b c.yaml"]), max_size=3))),
@@ -413,7 +430,7 @@ def graph_options(draw: st.DrawFn) -> GraphOptions:
             board=draw(st.none() | st.just("192.168.0.9:50101")),
             record=draw(st.none() | st.just("bags/run 1")),
             rt_priority=draw(st.none() | st.integers(min_value=0, max_value=98)),
-            loop=draw(st.sampled_from(graph.LOOPS)),
+            loop=draw(st.sampled_from(LOOPS)),
         )
     except ValueError:
         assume(False)
@@ -570,9 +587,9 @@ def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) 
     assert "parameters" not in emulator  # a plain process: options on its command line
     assert emulator["arguments"] == [
         "--bind",
-        graph.EMULATOR_BOARD,
+        hardware_graph.EMULATOR_BOARD,
         "--host",
-        graph.EMULATOR_HOST,
+        hardware_graph.EMULATOR_HOST,
         "--duration",
         "2.0",
         "--noise-std",  # the default scenario's (case2) plant
@@ -585,7 +602,7 @@ def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) 
     nodes = _launched_nodes(
         monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "board": "192.168.1.20:50101"}
     )
-    assert nodes[0].kwargs["name"] == graph.HW_NODE
+    assert nodes[0].kwargs["name"] == graph_nodes.HW_NODE
 
 
 def test_launch_file_records_and_sets_real_time_priorities(
@@ -596,13 +613,13 @@ def test_launch_file_records_and_sets_real_time_priorities(
     specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", record=bag))
     nodes = _launched_nodes(monkeypatch, arguments)
     assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in specs]
-    assert nodes[0].kwargs["name"] == graph.RECORDER_NODE
+    assert nodes[0].kwargs["name"] == graph_nodes.RECORDER_NODE
     prefixes = {node.kwargs["name"]: node.kwargs["prefix"] for node in nodes}
     assert prefixes == {
-        graph.RECORDER_NODE: "chrt -f 40",
-        graph.EMULATOR_NODE: "chrt -f 70",
-        graph.HW_NODE: "chrt -f 55",
-        graph.CONTROLLER_NODE: "chrt -f 50",
+        graph_nodes.RECORDER_NODE: "chrt -f 40",
+        graph_nodes.EMULATOR_NODE: "chrt -f 70",
+        graph_nodes.HW_NODE: "chrt -f 55",
+        graph_nodes.CONTROLLER_NODE: "chrt -f 50",
     }
     nodes = _launched_nodes(monkeypatch, {**arguments, "rt_priority": "0"})
     assert {node.kwargs["prefix"] for node in nodes} == {None}
@@ -656,7 +673,7 @@ def test_rcl_parses_the_command_line_parameters_with_their_types(ros_context: An
         node.destroy_node()
 
 
-@pytest.mark.parametrize("name", graph.SCENARIO_NAMES)
+@pytest.mark.parametrize("name", SCENARIO_NAMES)
 def test_scenario_files_agree_with_smm_analysis(name: str) -> None:
     import numpy as np
     from smm_analysis.scenarios import get_scenario

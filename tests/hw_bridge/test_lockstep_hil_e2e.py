@@ -55,7 +55,9 @@ def simulator_run(tmp_path: Path) -> Any:
 
 
 def hil_run(ros_processes: Any, tmp_path: Path) -> tuple[Any, str]:
-    from smm_bringup.graph import CONTROLLER_NODE, GraphOptions, build_graph
+    from smm_bringup.graph import build_graph
+    from smm_bringup.graph_nodes import CONTROLLER_NODE
+    from smm_bringup.graph_options import GraphOptions
 
     host, board = free_port(), free_port()
     record = tmp_path / "hil.npz"

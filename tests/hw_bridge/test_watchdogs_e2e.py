@@ -54,7 +54,9 @@ def start(ros_processes: Any, loop: str = "topics") -> tuple[Any, Any, int]:
     Returns:
         (the bridge's process, the controller's process (the same with ``direct``), emulator control port).
     """
-    from smm_bringup.graph import CONTROLLER_NODE, HW_NODE, GraphOptions, build_graph
+    from smm_bringup.graph import build_graph
+    from smm_bringup.graph_nodes import CONTROLLER_NODE, HW_NODE
+    from smm_bringup.graph_options import GraphOptions
 
     host, board, control = free_port(), free_port(), free_port()
     ros_processes.start(

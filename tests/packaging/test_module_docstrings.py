@@ -1,8 +1,6 @@
 """Module docstrings under src/ say what the module is in a few lines; reasoning and history live in docs/.
 
-A docstring longer than :data:`MAX_LINES` (counted from the opening to the closing quotes) fails, unless its
-file is in :data:`STILL_LONG`: the modules over the limit that other branches were editing when this test
-came in. The list only shrinks: an entry whose docstring is now short enough fails too, so it gets removed.
+A docstring longer than :data:`MAX_LINES` (counted from the opening to the closing quotes) fails.
 """
 
 from __future__ import annotations
@@ -16,12 +14,6 @@ SRC = Path(__file__).resolve().parents[2] / "src"
 MAX_LINES = 8
 """Most lines a module docstring may span, quotes included."""
 
-STILL_LONG = frozenset(
-    {
-        "smm_bringup/smm_bringup/graph.py",
-    }
-)
-"""Files (relative to src/) allowed over the limit for now; the lead empties this after merging issue 22."""
 
 
 def docstring_lines(source: str) -> int:
@@ -48,14 +40,7 @@ def long_docstrings(root: Path, limit: int = MAX_LINES) -> dict[str, int]:
 
 def test_module_docstrings_are_short() -> None:
     long = long_docstrings(SRC)
-    new = {path: lines for path, lines in long.items() if path not in STILL_LONG}
-    assert not new, f"module docstrings over {MAX_LINES} lines (move the reasoning to docs/): {new}"
-
-
-def test_the_allowlist_only_holds_files_still_too_long() -> None:
-    long = long_docstrings(SRC)
-    stale = sorted(path for path in STILL_LONG if path not in long)
-    assert not stale, f"docstrings now short enough (or files gone): remove from STILL_LONG: {stale}"
+    assert not long, f"module docstrings over {MAX_LINES} lines (move the reasoning to docs/): {long}"
 
 
 def _write(path: Path, docstring_body_lines: int) -> None:

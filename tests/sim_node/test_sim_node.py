@@ -246,7 +246,7 @@ def test_live_parameter_changes_are_validated(make_harness: Any) -> None:
 
 
 def test_console_script_exits_2_on_an_invalid_parameter(ros_domain_id: int) -> None:
-    from smm_bringup.graph import NodeSpec
+    from smm_bringup.graph_nodes import NodeSpec
     from smm_bringup.supervisor import resolve_executable
 
     spec = NodeSpec(

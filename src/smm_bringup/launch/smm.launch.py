@@ -13,7 +13,9 @@ from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunc
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from smm_bringup.graph import (
+from smm_bringup.graph import build_graph
+from smm_bringup.graph_nodes import NodeSpec
+from smm_bringup.graph_options import (
     ALGORITHMS,
     CHAIN_LAYOUTS,
     CLOCK_MODES,
@@ -22,8 +24,6 @@ from smm_bringup.graph import (
     REFERENCE_PLACEMENTS,
     SCENARIO_NAMES,
     GraphOptions,
-    NodeSpec,
-    build_graph,
 )
 
 ARGUMENTS = (

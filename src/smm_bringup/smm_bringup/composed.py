@@ -13,7 +13,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
 from smm_bringup.errors import GraphError
-from smm_bringup.graph import NAMESPACE, PLANT_NODE_NAMES, NodeSpec, parameter_overrides
+from smm_bringup.graph_nodes import NAMESPACE, PLANT_NODE_NAMES, NodeSpec, parameter_overrides
 from smm_bringup.supervisor import (
     _POLL_S,
     EXIT_NODE_FAILED,

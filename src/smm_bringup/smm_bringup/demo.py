@@ -33,7 +33,8 @@ from smm_bag.errors import BagError
 from smm_bag.manifest import RunManifest
 from smm_bag.metadata import read_metadata
 
-from smm_bringup.graph import CHAIN_LAYOUTS, NAMESPACE, REFERENCE_PLACEMENTS, SIM_NODE, GraphOptions
+from smm_bringup.graph_nodes import NAMESPACE, SIM_NODE
+from smm_bringup.graph_options import CHAIN_LAYOUTS, REFERENCE_PLACEMENTS, GraphOptions
 from smm_bringup.launcher import arguments_from_options
 
 DEMO_CONTROLLERS = ("fpdeso", "fpd")

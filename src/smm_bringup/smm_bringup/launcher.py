@@ -18,19 +18,18 @@ from pathlib import Path
 
 from smm_bringup.composed import launch_composed
 from smm_bringup.errors import GraphError
-from smm_bringup.graph import (
+from smm_bringup.graph import build_graph
+from smm_bringup.graph_nodes import EMULATOR_NODE, NodeSpec
+from smm_bringup.graph_options import (
     ALGORITHMS,
     CHAIN_LAYOUTS,
     CLOCK_MODES,
-    EMULATOR_NODE,
     LOOPS,
     PLANT_ALIASES,
     PLANTS,
     REFERENCE_PLACEMENTS,
     SCENARIO_NAMES,
     GraphOptions,
-    NodeSpec,
-    build_graph,
 )
 from smm_bringup.supervisor import (
     EXIT_CONFIGURATION_ERROR,

@@ -22,7 +22,7 @@ from typing import Any, Final, TextIO
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 
 from smm_bringup.errors import GraphError
-from smm_bringup.graph import PLANT_NODE_NAMES, RECORDER_NODE, NodeSpec, expected_publishers
+from smm_bringup.graph_nodes import PLANT_NODE_NAMES, RECORDER_NODE, NodeSpec, expected_publishers
 from smm_bringup.realtime import fifo_allowed, fifo_preexec
 
 __all__ = [

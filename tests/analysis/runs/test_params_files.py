@@ -11,10 +11,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from smm_analysis.errors import ParamsFileError
 from smm_analysis.runs.rerun import CHAIN_NODES, NAMESPACE, chain_settings, read_params_files
-from smm_bringup.graph import CONTROLLER_NODE, FLESO_NODE, TD_NODE, GraphOptions, build_graph
-from smm_bringup.graph import NAMESPACE as GRAPH_NAMESPACE
+from smm_bringup.graph import build_graph
+from smm_bringup.graph_nodes import CONTROLLER_NODE, FLESO_NODE, TD_NODE
+from smm_bringup.graph_nodes import NAMESPACE as GRAPH_NAMESPACE
+from smm_bringup.graph_options import GraphOptions
 
-from smm_bringup import graph
+from smm_bringup import graph_nodes
 
 SECTIONS: dict[str, dict[str, Any]] = {
     "/**": {"td": {"speed": [5000.0, 6000.0]}, "fpdeso": {"fuzzy": {"kp0": [100.0, 110.0]}}},
@@ -36,7 +38,7 @@ def _graph_controller_parameters(path: Path) -> dict[str, Any]:
     """What smm-launch gives controller_node for this file (files, then its explicit overrides)."""
     specs = build_graph(GraphOptions(params_files=(str(path),)))
     controller = next(spec for spec in specs if spec.name == CONTROLLER_NODE)
-    return graph.parameter_overrides(controller)
+    return graph_nodes.parameter_overrides(controller)
 
 
 def test_the_chain_nodes_have_the_graphs_names() -> None:

@@ -44,10 +44,10 @@ TD_PREFIX = "td"
 FLESO_PREFIX = "fleso"
 MODEL_PREFIX = "model"
 NAMESPACE = "smm"
-"""The graph's namespace (``smm_bringup.graph.NAMESPACE``)."""
+"""The graph's namespace (``smm_bringup.graph_nodes.NAMESPACE``)."""
 CONTROLLER_NODE, TD_NODE, FLESO_NODE = "controller_node", "td_node", "fleso_node"
 CHAIN_NODES = (CONTROLLER_NODE, TD_NODE, FLESO_NODE)
-"""The graph's names of the chain's nodes (``smm_bringup.graph``; each node module's ``NODE_NAME``)."""
+"""The graph's names of the chain's nodes (``smm_bringup.graph_nodes``; each node module's ``NODE_NAME``)."""
 _CHAIN_PREFIXES: dict[str, frozenset[str] | None] = {
     TD_NODE: frozenset({TD_PREFIX}),
     FLESO_NODE: frozenset({FLESO_PREFIX, MODEL_PREFIX}),

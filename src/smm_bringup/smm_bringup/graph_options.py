@@ -1,0 +1,172 @@
+"""What the user chooses when starting the SMM graph: :class:`GraphOptions` and the choices it takes.
+
+The options and their meaning for ``smm-launch`` and the launch file: docs/LAUNCH.md.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Final, Literal
+
+from smm_bringup.realtime import MAX_PRIORITY
+
+__all__ = [
+    "ALGORITHMS",
+    "CHAIN_LAYOUTS",
+    "CLOCK_MODES",
+    "LOOPS",
+    "PLANTS",
+    "PLANT_ALIASES",
+    "REFERENCE_PLACEMENTS",
+    "SCENARIO_NAMES",
+    "GraphOptions",
+    "split_endpoint",
+]
+
+PLANTS: Final[tuple[str, ...]] = ("sim", "hardware")
+PLANT_ALIASES: Final[Mapping[str, str]] = MappingProxyType({"hw": "hardware"})
+"""Other names accepted for a plant (``hw`` = ``hardware``)."""
+CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
+LOOPS: Final[tuple[str, ...]] = ("topics", "direct")
+"""``topics``: the plant and ``controller_node`` are separate processes joined by topics (the product's
+shape); ``direct`` (hardware only): one process, ``direct_loop``, steps the chain of ``controller_node`` in
+the bridge's receiving thread and publishes the same topics for observation (docs/LAUNCH.md)."""
+CHAIN_LAYOUTS: Final[tuple[str, ...]] = ("fused", "split")
+"""``fused``: TD, FLESO and law in ``controller_node`` (``chain: internal``), two hops per step; ``split``:
+``td_node`` and ``fleso_node`` as their own nodes (``chain: external``), four hops per step."""
+REFERENCE_PLACEMENTS: Final[tuple[str, ...]] = ("node", "controller")
+"""``node``: ``reference_node`` publishes the reference, ``controller_node`` matches it by stamp;
+``controller``: ``controller_node`` samples it itself (``reference_source: internal``), from the parameters
+that the parameter files give ``reference_node``, and no ``reference_node`` runs."""
+ALGORITHMS: Final[tuple[str, ...]] = ("fpdeso", "fpd", "pid", "npd")
+SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2", "excite")
+
+
+@dataclass(frozen=True)
+class GraphOptions:
+    """What the user chooses when starting the graph.
+
+    Attributes:
+        plant: ``"sim"`` (smm_sim_node) or ``"hardware"`` (``hw_bridge_node``, configured and activated,
+            and the bench emulator unless ``board`` is given; ``"hw"`` is accepted for it).
+        clock_mode: ``"lockstep"`` (deterministic, as fast as the graph allows, /clock published by the
+            simulator) or ``"realtime"`` (wall-clock timer at the control period).
+        chain: ``"fused"`` (default): ``controller_node`` runs TD -> FLESO -> law itself, so a step crosses
+            two process boundaries (plant -> controller -> plant), the layout that keeps up with 1 kHz;
+            ``"split"``: ``td_node`` and ``fleso_node`` run as their own nodes (four crossings per step), to
+            inspect or replace a stage on the wire. Both give the same torques.
+        reference: ``"controller"`` (default): ``controller_node`` samples the reference itself, one input
+            and one process less per step, so the default graph is plant + controller; ``"node"``:
+            ``reference_node`` publishes it one period ahead. The same values either way (see
+            :data:`REFERENCE_PLACEMENTS`).
+        algorithm: Controller algorithm, one of :data:`ALGORITHMS`.
+        scenario: Scenario name (:data:`SCENARIO_NAMES`), or ``None`` for the nodes' own defaults.
+        duration: Simulated time after which the simulator stops (s), > 0; ``None`` keeps the scenario's
+            length in lockstep and runs without end in real time; 0 runs without end.
+        seed: Seed of the simulator's noise generator, >= 0; ``None`` keeps the configured one.
+        params_files: Extra ROS 2 parameter files, applied after the scenario file, in order.
+        control_period: Control period of every node (s), > 0; ``None`` keeps the configured one (1 ms).
+            The plant and the controller nodes must agree on it: each node steps once per measurement.
+        board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board; ``None`` starts
+            ``smm_bench_emulator`` on loopback instead.
+        record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
+            after them; ``None`` records nothing.
+        loop: ``"topics"`` (default) or ``"direct"`` (``plant="hardware"``, fused chain, reference sampled
+            by the controller): see :data:`LOOPS`.
+        rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
+            nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` (as ros2_control's
+            controller manager), 0 with the simulator. The bench emulator, standing for the hard real-time
+            board, runs 20 above (at most 99); the recorder 10 below (at least 1): above every ordinary
+            process, so that a loaded host does not starve it, below the loop. Where the system refuses
+            SCHED_FIFO, the launcher says so and runs them at normal priority.
+    """
+
+    plant: Literal["sim", "hardware", "hw"] = "sim"
+    clock_mode: Literal["lockstep", "realtime"] = "lockstep"
+    chain: Literal["fused", "split"] = "fused"
+    reference: Literal["node", "controller"] = "controller"
+    algorithm: str = "fpdeso"
+    scenario: str | None = "case2"
+    duration: float | None = None
+    seed: int | None = None
+    params_files: tuple[str, ...] = ()
+    control_period: float | None = None
+    board: str | None = None
+    record: str | None = None
+    rt_priority: int | None = None
+    loop: Literal["topics", "direct"] = "topics"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "plant", PLANT_ALIASES.get(self.plant, self.plant))
+        if self.plant not in PLANTS:
+            raise ValueError(f"plant must be one of {PLANTS}, got {self.plant!r}")
+        if self.clock_mode not in CLOCK_MODES:
+            raise ValueError(f"clock_mode must be one of {CLOCK_MODES}, got {self.clock_mode!r}")
+        if self.chain not in CHAIN_LAYOUTS:
+            raise ValueError(f"chain must be one of {CHAIN_LAYOUTS}, got {self.chain!r}")
+        if self.reference not in REFERENCE_PLACEMENTS:
+            raise ValueError(f"reference must be one of {REFERENCE_PLACEMENTS}, got {self.reference!r}")
+        if self.algorithm not in ALGORITHMS:
+            raise ValueError(f"algorithm must be one of {ALGORITHMS}, got {self.algorithm!r}")
+        if self.scenario is not None and self.scenario not in SCENARIO_NAMES:
+            raise ValueError(f"scenario must be one of {SCENARIO_NAMES} or None, got {self.scenario!r}")
+        if self.duration is not None and (
+            isinstance(self.duration, bool)
+            or not isinstance(self.duration, (int, float))
+            or not math.isfinite(self.duration)
+            or self.duration < 0.0
+        ):
+            raise ValueError(f"duration must be a finite number >= 0 s or None, got {self.duration!r}")
+        period = self.control_period
+        if period is not None and (
+            isinstance(period, bool)
+            or not isinstance(period, (int, float))
+            or not math.isfinite(period)
+            or round(period * 1e9) < 1
+        ):
+            raise ValueError(f"control_period must be a finite number >= 1 ns or None, got {period!r}")
+        seed = self.seed
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+            raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
+        if self.record is not None and (not isinstance(self.record, str) or not self.record.strip()):
+            raise ValueError(f"record must be a bag folder path or None, got {self.record!r}")
+        priority = self.rt_priority
+        if priority is not None and (
+            isinstance(priority, bool) or not isinstance(priority, int) or not 0 <= priority < MAX_PRIORITY
+        ):
+            raise ValueError(
+                f"rt_priority must be an int in [0, {MAX_PRIORITY - 1}] or None, got {priority!r}"
+            )
+        if self.loop not in LOOPS:
+            raise ValueError(f"loop must be one of {LOOPS}, got {self.loop!r}")
+        if self.loop == "direct" and (
+            self.plant != "hardware" or self.chain != "fused" or self.reference != "controller"
+        ):
+            raise ValueError(
+                "loop 'direct' runs the whole chain in the bridge's process: it needs plant 'hardware', "
+                "chain 'fused' and reference 'controller'"
+            )
+        if self.board is not None:
+            if self.plant != "hardware":
+                raise ValueError("board is an option of plant 'hardware' only")
+            split_endpoint("board", self.board)
+
+
+def split_endpoint(name: str, text: str) -> tuple[str, int]:
+    """``"ADDRESS:PORT"`` -> (IPv4 address, port).
+
+    Raises:
+        ValueError: not an IPv4 address and a port in [1, 65535] (message names ``name``).
+    """
+    host, _, port = str(text).rpartition(":")
+    try:
+        address = str(ipaddress.IPv4Address(host))
+    except ValueError as error:
+        raise ValueError(f"{name} must be IPV4ADDRESS:PORT, got {text!r}") from error
+    if not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ValueError(f"{name} must be IPV4ADDRESS:PORT with a port in [1, 65535], got {text!r}")
+    return address, int(port)

@@ -1,0 +1,119 @@
+"""The hardware plant's processes of the SMM graph: ``hw_bridge_node`` (or ``direct_loop``) and the emulator.
+
+How ``--plant hardware``, ``--board`` and ``--loop direct`` start them: docs/LAUNCH.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, Final
+
+from smm_bringup.errors import ParameterFileError
+from smm_bringup.graph_nodes import (
+    CONTROLLER_NODE,
+    DIRECT_LOOP,
+    EMULATOR_NODE,
+    HW_NODE,
+    NAMESPACE,
+    SIM_NODE,
+    NodeSpec,
+)
+from smm_bringup.graph_options import GraphOptions, split_endpoint
+from smm_bringup.parameter_files import ParameterValue, load_parameter_file
+
+__all__ = ["EMULATOR_BOARD", "EMULATOR_HOST", "hardware_specs"]
+
+EMULATOR_BOARD: Final[str] = "127.0.0.1:50101"
+EMULATOR_HOST: Final[str] = "127.0.0.1:50100"
+"""Loopback addresses of the emulated board and of the bridge when no board address is given."""
+
+
+def hardware_specs(
+    options: GraphOptions,
+    files: Sequence[str],
+    controller: Sequence[tuple[str, ParameterValue]] = (),
+) -> tuple[NodeSpec, ...]:
+    """``hw_bridge_node`` (autostart), after ``smm_bench_emulator`` unless a board address is given.
+
+    The emulator gets the plant the parameter ``files`` give the simulator (noise, disturbance, inertias).
+    With ``options.loop == "direct"``, ``direct_loop`` replaces the bridge: it hosts ``controller_node``
+    too, with the overrides ``controller``.
+    """
+    board = options.board or EMULATOR_BOARD
+    address, port = split_endpoint("board", board)
+    bind_address, bind_port = split_endpoint("host", EMULATOR_HOST)
+    bridge_parameters: list[tuple[str, ParameterValue]] = [
+        ("autostart", True),
+        ("link.board_address", address),
+        ("link.board_port", port),
+    ]
+    if options.board is None:
+        bridge_parameters += [("link.bind_address", bind_address), ("link.bind_port", bind_port)]
+    if options.control_period is not None:
+        # The bridge's time limits are counted in board ticks at the default 1 kHz: scale them with the tick.
+        period_ns = round(options.control_period * 1e9)
+        bridge_parameters += [
+            ("bridge.admission.period_ns", period_ns),
+            ("bridge.admission.stale_ns", 20 * period_ns),
+            ("bridge.host_watchdog_ns", 10 * period_ns),
+            ("bridge.link_timeout_ns", 100 * period_ns),
+        ]
+    bridge = NodeSpec(
+        package="smm_hw_bridge",
+        executable=HW_NODE,
+        name=HW_NODE,
+        node_class="smm_hw_bridge.bridge_node:HwBridgeNode",
+        parameters=tuple(bridge_parameters),
+    )
+    if options.loop == "direct":
+        bridge = NodeSpec(
+            package="smm_direct_loop",
+            executable=DIRECT_LOOP,
+            name=DIRECT_LOOP,
+            node_class="",  # two nodes in one process, a thread of its own: a process, never composed
+            parameter_files=tuple(files),
+            parameters=(*bridge_parameters, *controller),
+            hosts=(CONTROLLER_NODE, HW_NODE),
+        )
+    if options.board is not None:
+        return (bridge,)
+    emulator_parameters: list[tuple[str, ParameterValue]] = [("bind", board), ("host", EMULATOR_HOST)]
+    if options.duration:
+        emulator_parameters.append(("duration", float(options.duration)))
+    if options.seed is not None:
+        emulator_parameters.append(("seed", options.seed))
+    if options.control_period is not None:
+        emulator_parameters.append(("control-period", float(options.control_period)))
+    emulator_parameters += _emulator_plant(files)
+    emulator = NodeSpec(
+        package="smm_bench_emulator",
+        executable=EMULATOR_NODE,
+        name=EMULATOR_NODE,
+        node_class="",  # a plain process (the board side), not a ROS node: no composed mode
+        parameters=tuple(emulator_parameters),
+    )
+    return (emulator, bridge)
+
+
+def _emulator_plant(files: Sequence[str]) -> list[tuple[str, ParameterValue]]:
+    """The emulator's plant options from the simulator's settings in the parameter ``files``.
+
+    Raises:
+        ParameterFileError: A per-joint noise the emulator cannot take (it takes one std for both joints).
+    """
+    sim: dict[str, Any] = {}
+    for path in files:
+        sim.update(load_parameter_file(path, f"/{NAMESPACE}/{SIM_NODE}"))
+    options: list[tuple[str, ParameterValue]] = []
+    if "noise_std" in sim:
+        noise = sim["noise_std"]
+        if not isinstance(noise, list) or len(noise) != 2 or noise[0] != noise[1]:
+            raise ParameterFileError(
+                f"{SIM_NODE}.noise_std {noise!r}: the bench emulator takes one noise std for both joints"
+            )
+        options.append(("noise-std", float(noise[0])))
+    if "inertia_scale" in sim:
+        options.append(("inertia-scale", float(sim["inertia_scale"])))
+    if "disturbance" in sim:
+        options.append(("disturbance", str(sim["disturbance"])))
+    return options
