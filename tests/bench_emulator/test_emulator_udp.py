@@ -16,7 +16,7 @@ from smm_bench_emulator.cli import main as emulator_main
 from smm_bench_emulator.emulator import Emulator, EmulatorConfig
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
 from smm_hw_bridge.encoder import EncoderConfig
-from smm_hw_bridge.protocol import Reason, encode
+from smm_hw_bridge.protocol import CommandFlag, CommandFrame, Reason, encode
 from smm_hw_bridge.transport import UdpTransport
 from smm_hw_bridge.valve_output import ValveOutputConfig
 from smm_sim.plant import PlantConfig
@@ -174,11 +174,8 @@ def test_cli_runs_for_its_duration_and_prints_a_summary(capsys: pytest.CaptureFi
     assert summary["ticks"] == 50 and summary["output_codes"] == [0, 0]
 
 
-def test_latency_runs_from_the_feedback_leaving_to_the_command_arriving_not_to_the_end_of_its_parse() -> None:
-    """The emulator's own (Python) parse time is not the host's: the arrival is timed before it."""
-    from smm_hw_bridge.protocol import CommandFlag, CommandFrame
-
-    now = [1_000_000]
+def _answered_emulator(now: list[int], wall: list[int]) -> tuple[Emulator, UdpTransport, CommandFrame]:
+    """An emulator on the given clocks that sent its first feedback, and an enabled command answering it."""
     host = UdpTransport((LOOPBACK, 0), (LOOPBACK, 9))
     config = EmulatorConfig(
         board=BoardConfig(plant=PlantConfig(encoder_counts_per_rev=CPR), adc_noise=0.0),
@@ -186,14 +183,21 @@ def test_latency_runs_from_the_feedback_leaving_to_the_command_arriving_not_to_t
         host=host.local_address,
         mode="realtime",
     )
-    emu = Emulator(config, clock_ns=lambda: now[0])
+    emu = Emulator(config, clock_ns=lambda: now[0], wall_ns=lambda: wall[0])
+    emu._send(emu.board.start())
+    feedback = emu.board.last_feedback
+    assert feedback is not None
+    command = CommandFrame(
+        7, 1, feedback.session, feedback.seq, feedback.tick, CommandFlag.ENABLE, 10, (5, 5)
+    )
+    return emu, host, command
+
+
+def test_latency_runs_from_the_feedback_leaving_to_the_command_arriving_not_to_the_end_of_its_parse() -> None:
+    """The emulator's own (Python) parse time is not the host's: the arrival is timed before it."""
+    now = [1_000_000]  # the feedback leaves at 1 ms
+    emu, host, command = _answered_emulator(now, [5_000_000_000])
     try:
-        emu._send(emu.board.start())  # the feedback leaves at 1 ms
-        feedback = emu.board.last_feedback
-        assert feedback is not None
-        command = CommandFrame(
-            7, 1, feedback.session, feedback.seq, feedback.tick, CommandFlag.ENABLE, 10, (5, 5)
-        )
         arrival = 1_250_000
         received = iter([encode(command)])
         emu.transport.receive = lambda timeout_s=0.0: next(received, None)  # type: ignore[method-assign]
@@ -215,24 +219,9 @@ def test_latency_runs_from_the_feedback_leaving_to_the_command_arriving_not_to_t
 
 def test_latency_takes_the_kernel_arrival_time_where_the_transport_gives_it() -> None:
     """Arrival by the socket's kernel timestamp; the process's own wake-up is the read latency only."""
-    from smm_hw_bridge.protocol import CommandFlag, CommandFrame
-
-    now, wall = [1_000_000], [5_000_000_000]
-    host = UdpTransport((LOOPBACK, 0), (LOOPBACK, 9))
-    config = EmulatorConfig(
-        board=BoardConfig(plant=PlantConfig(encoder_counts_per_rev=CPR), adc_noise=0.0),
-        bind=(LOOPBACK, 0),
-        host=host.local_address,
-        mode="realtime",
-    )
-    emu = Emulator(config, clock_ns=lambda: now[0], wall_ns=lambda: wall[0])
+    now, wall = [1_000_000], [5_000_000_000]  # leaves at monotonic 1 ms, wall 5 s
+    emu, host, command = _answered_emulator(now, wall)
     try:
-        emu._send(emu.board.start())  # leaves at monotonic 1 ms, wall 5 s
-        feedback = emu.board.last_feedback
-        assert feedback is not None
-        command = CommandFrame(
-            7, 1, feedback.session, feedback.seq, feedback.tick, CommandFlag.ENABLE, 10, (5, 5)
-        )
         received = iter([encode(command)])
 
         def receive(timeout_s: float = 0.0) -> bytes | None:

@@ -54,15 +54,11 @@ class _Measurement(NamedTuple):
 class _Held:
     """Stands in for the torque publisher while the chain steps: keeps (torque, stamp) until the send."""
 
-    def __init__(self, publisher: Any) -> None:
-        self.publisher = publisher
+    def __init__(self) -> None:
         self.message: tuple[tuple[float, float], int] | None = None
 
     def publish(self, message: tuple[tuple[float, float], int]) -> None:
         self.message = message
-
-    def get_subscription_count(self) -> int:
-        return int(self.publisher.get_subscription_count())
 
 
 class DirectControllerNode(ControllerNode):
@@ -81,7 +77,7 @@ class DirectControllerNode(ControllerNode):
             raise ValueError(
                 "the direct loop steps the whole chain itself: chain and reference_source must be 'internal'"
             )
-        self._held = _Held(self._torque_publisher)
+        self._held = _Held()
         self.tick_lock: threading.RLock = threading.RLock()
         """Held for a whole tick; parameter changes wait for it (the host gives the bridge's lock)."""
 
@@ -129,7 +125,7 @@ class DirectControllerNode(ControllerNode):
         held, self._held.message = self._held.message, None
         if held is None:
             return
-        self._held.publisher.publish(torque_to_msg(np.array(held[0]), held[1]))
+        self._torque_publisher.publish(torque_to_msg(np.array(held[0]), held[1]))
         if self._internals_publisher.get_subscription_count() == 0 and (
             self._reference_publisher.get_subscription_count() == 0
         ):
