@@ -226,7 +226,7 @@ def test_latency_takes_the_kernel_arrival_time_where_the_transport_gives_it() ->
 
         def receive(timeout_s: float = 0.0) -> bytes | None:
             data = next(received, None)
-            emu.transport.last_stamp_ns = None if data is None else wall[0] + 180_000  # type: ignore[attr-defined]
+            emu.transport.last_stamp_ns = None if data is None else wall[0] + 180_000
             return data
 
         emu.transport.receive = receive  # type: ignore[method-assign]

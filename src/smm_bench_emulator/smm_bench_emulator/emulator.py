@@ -161,7 +161,7 @@ class Emulator:
     def _drain(self) -> None:
         while (data := self.transport.receive(0.0)) is not None:
             arrived = self._clock()  # before the board parses it: a real board's parse takes microseconds
-            stamp = getattr(self.transport, "last_stamp_ns", None)
+            stamp = self.transport.last_stamp_ns
             passed = self.faults.incoming(data)
             if passed is not None:
                 command = self.board.receive(passed)

@@ -49,6 +49,8 @@ class Transport(abc.ABC):
 
     def __init__(self) -> None:
         self.dropped: dict[str, int] = {}
+        self.last_stamp_ns: int | None = None
+        """Kernel arrival time (CLOCK_REALTIME, ns) of the last frame returned; None where not known."""
 
     def _drop(self, why: str) -> None:
         self.dropped[why] = self.dropped.get(why, 0) + 1
@@ -120,8 +122,6 @@ class UdpTransport(Transport):
                 self._stamped = True
             except OSError:
                 pass  # last_stamp_ns stays None
-        self.last_stamp_ns: int | None = None
-        """Kernel arrival time (CLOCK_REALTIME, ns) of the last datagram returned; None without timestamps."""
 
     @property
     def local_address(self) -> tuple[str, int]:
