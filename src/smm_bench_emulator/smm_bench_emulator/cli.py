@@ -12,6 +12,7 @@ from pathlib import Path
 from types import FrameType
 
 import numpy as np
+from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED, VerdictConfig
 from smm_sim.plant import PAPER_VALVE_RESPONSE_TIMES, PlantConfig, valve_time_constants_from_response_times
 
 from smm_bench_emulator.board import BoardConfig
@@ -53,11 +54,26 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--control-period", type=float, default=1e-3, help="board tick (s)")
     parser.add_argument("--record", default="", help="write the per-tick record (.npz) here at the end")
     parser.add_argument("--status-file", default="", help="write the end-of-run status (JSON) here too")
+    parser.add_argument(
+        "--late-limit",
+        type=float,
+        default=VerdictConfig.late_limit * 100,
+        help="percent of late enabled ticks (after --settle) above which the run did not control (exit 3)",
+    )
+    parser.add_argument(
+        "--settle", type=float, default=VerdictConfig.settle_s, help="seconds of live output not judged"
+    )
+    parser.add_argument(
+        "--start-timeout",
+        type=float,
+        default=0.0,
+        help="lockstep: seconds without a first step after which the run never started (exit 3); 0 = none",
+    )
     return parser
 
 
 def run(args: argparse.Namespace) -> int:
-    """Builds and runs the emulator; returns the exit code."""
+    """Builds and runs the emulator; returns the exit code (3: the run did not control, its reason on stderr)."""
     lag = None if args.no_valve_lag else valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES)
     try:
         plant = PlantConfig(
@@ -79,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
             lockstep_trigger=args.lockstep_trigger,
             duration_ticks=round(args.duration * 1e9 / plant.period_ns),
             seed=args.seed,
+            verdict=VerdictConfig(late_limit=args.late_limit / 100, settle_s=args.settle),
+            start_timeout_ns=round(args.start_timeout * 1e9),
         )
         emulator = Emulator(config, record=bool(args.record))
     except (ValueError, OSError) as error:
@@ -101,10 +119,15 @@ def run(args: argparse.Namespace) -> int:
     if args.record and emulator.record is not None:
         rows = np.asarray(emulator.record, dtype=np.float64).reshape(-1, 5)
         np.savez(args.record, tick=rows[:, 0].astype(np.int64), position=rows[:, 1:3], codes=rows[:, 3:5])
-    summary = json.dumps(emulator.status())
+    status = emulator.status()
+    summary = json.dumps(status)
     if args.status_file:
         Path(args.status_file).write_text(summary)
+    print(f"smm_bench_emulator: {status['figures']}", flush=True)
     print(summary, flush=True)
+    if status["verdict"] is not None:
+        print(f"smm_bench_emulator: the run did not control: {status['verdict']}", file=sys.stderr, flush=True)
+        return EXIT_NOT_CONTROLLED
     return 0
 
 

@@ -17,6 +17,7 @@ from typing import Any, Literal
 
 import numpy as np
 from smm_hw_bridge.protocol import encode
+from smm_hw_bridge.run_verdict import RunTally, VerdictConfig
 from smm_hw_bridge.transport import Transport, UdpTransport
 
 from smm_bench_emulator.board import BoardConfig, BoardCore
@@ -43,6 +44,12 @@ class EmulatorConfig:
         resend_ns: Lockstep: re-send the unanswered feedback after this long (ns), > 0.
         duration_ticks: Stop after this many ticks (0 = run until stopped).
         seed: Seed of the injected corruption.
+        verdict: When the run counts as controlled (:mod:`smm_hw_bridge.run_verdict`).
+        start_timeout_ns: Lockstep: stop, as a run that never started, when no tick came this long (ns)
+            after start (0 = wait for ever).
+        min_idle_ns: Realtime: after a tick the loop waits at least this long (ns) before the next, even
+            when behind; on a shared host a board behind its clock must not take the CPU from the host's
+            threads, as a separate board never would (docs/LAUNCH.md, "Real time").
     """
 
     board: BoardConfig = field(default_factory=BoardConfig)
@@ -54,6 +61,9 @@ class EmulatorConfig:
     resend_ns: int = 50_000_000
     duration_ticks: int = 0
     seed: int = 0
+    verdict: VerdictConfig = field(default_factory=VerdictConfig)
+    start_timeout_ns: int = 0
+    min_idle_ns: int = 100_000
 
     def __post_init__(self) -> None:
         if self.lockstep_trigger not in ("any", "enabled"):
@@ -68,6 +78,10 @@ class EmulatorConfig:
             or self.duration_ticks < 0
         ):
             raise ValueError(f"duration_ticks must be an int >= 0, got {self.duration_ticks!r}")
+        for name in ("start_timeout_ns", "min_idle_ns"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ValueError(f"{name} must be an int >= 0 (ns), got {value!r}")
 
 
 def _percentile_us(values: list[int], q: float) -> float | None:
@@ -124,6 +138,10 @@ class Emulator:
         self.null_since_tick: int | None = None
         self.last_command_ns: int | None = None
         self.last_enabled_ns: int | None = None
+        self.tally = RunTally(config.board.period_ns, config.verdict)
+        """Enabled and late ticks of the feedback sent, as the bridge counts them."""
+        self.never_started = False
+        """Lockstep: no tick within ``start_timeout_ns``."""
 
     @property
     def control_address(self) -> tuple[str, int] | None:
@@ -143,6 +161,7 @@ class Emulator:
             self.transport.send(data)
         feedback = self.board.last_feedback
         if feedback is not None:
+            self.tally.on_feedback(feedback)
             self._sent_ns[feedback.seq] = (now, wall)
             if len(self._sent_ns) > 2000:
                 del self._sent_ns[next(iter(self._sent_ns))]
@@ -173,6 +192,7 @@ class Emulator:
                         self.latencies_ns.append(arrived - sent[0] if stamp is None else stamp - sent[1])
                     if command.enabled:
                         self.last_enabled_ns = self.last_command_ns
+                        self.tally.armed = True
         if self._control is not None:
             while True:
                 try:
@@ -236,7 +256,22 @@ class Emulator:
             "read_latency_p99_us": _percentile_us(self.read_latencies_ns, 99),
             "last_applied_tick": board.applied_log[-1][0] if board.applied_log else None,
             "status_bits": 0 if board.last_feedback is None else board.last_feedback.status,
+            "armed": self.tally.armed,
+            "live_ticks": self.tally.live_ticks,
+            "judged_enabled_ticks": self.tally.enabled_ticks,
+            "judged_late_ticks": self.tally.late_ticks,
+            "settle_s": self.config.verdict.settle_s,
+            "late_limit": self.config.verdict.late_limit,
+            "figures": self.tally.figures(),
+            "verdict": self.verdict(),
         }
+
+    def verdict(self) -> str | None:
+        """Why the run did not control, or None if it did (:meth:`RunTally.verdict`)."""
+        if self.never_started:
+            timeout = self.config.start_timeout_ns / 1e9
+            return f"the lockstep run never started: no step within its start timeout of {timeout:g} s"
+        return self.tally.verdict()
 
     def _wait(self, timeout_ns: int) -> None:
         sources = [self.transport.fileno()] + ([self._control.fileno()] if self._control is not None else [])
@@ -263,13 +298,20 @@ class Emulator:
             self._drain()
             self._send(self.board.tick_realtime())
             deadline += period
-            if self._clock() > deadline:
-                self.overruns += 1  # the ticks still run, back to back: the board's clock is the plant's
+            now = self._clock()
+            if now > deadline:
+                self.overruns += 1  # the ticks still run, the board's clock is the plant's, but never
+                self._wait(self.config.min_idle_ns)  # back to back: the host's threads need the CPU
+                self._drain()
 
     def _run_lockstep(self) -> None:
         resend = self.config.resend_ns
-        sent = self._clock()
+        sent = started = self._clock()
+        timeout = self.config.start_timeout_ns
         while self.running:
+            if timeout and self.ticks <= 1 and self._clock() - started > timeout:
+                self.never_started, self.running = True, False
+                break
             self._wait(resend - (self._clock() - sent))
             self._drain()
             enabled_only = self.config.lockstep_trigger == "enabled"

@@ -117,12 +117,13 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
         The node specs, in start order.
 
     Raises:
-        PlantNotAvailableError: ``plant="hardware"`` with ``clock_mode="lockstep"``.
+        PlantNotAvailableError: ``plant="hardware"`` with ``clock_mode="lockstep"`` and a real ``board``.
         ParameterFileError: A scenario or extra parameter file is missing.
     """
-    if options.plant == "hardware" and options.clock_mode != "realtime":
+    if options.plant == "hardware" and options.clock_mode == "lockstep" and options.board is not None:
         raise PlantNotAvailableError(
-            "plant 'hardware' runs on the I/O board's own 1 kHz clock: use --clock-mode realtime"
+            "a real board runs on its own 1 kHz clock: lockstep needs the emulator (no --board), or use "
+            "--clock-mode realtime"
         )
     files: list[str] = []
     if options.scenario is not None:
@@ -195,7 +196,8 @@ def _with_priority(spec: NodeSpec, options: GraphOptions) -> NodeSpec:
     """``spec`` with the SCHED_FIFO priority ``options`` give its process (``GraphOptions.rt_priority``)."""
     priority = options.rt_priority
     if priority is None:
-        priority = DEFAULT_HARDWARE_PRIORITY if options.plant == "hardware" else 0
+        realtime_hardware = options.plant == "hardware" and options.clock_mode == "realtime"
+        priority = DEFAULT_HARDWARE_PRIORITY if realtime_hardware else 0
     if priority and spec.name == EMULATOR_NODE:
         priority = min(MAX_PRIORITY, priority + BOARD_PRIORITY_OFFSET)
     elif priority and spec.name == HW_NODE:

@@ -77,12 +77,16 @@ class GraphOptions:
             after them; ``None`` records nothing.
         loop: ``"topics"`` (default) or ``"direct"`` (``plant="hardware"``, fused chain, reference sampled
             by the controller): see :data:`LOOPS`.
+        late_limit: ``hardware``: percent of the enabled ticks after the first second that may be late
+            before the run counts as not controlled (exit 3, docs/LAUNCH.md), in [0, 100].
+        start_timeout: ``hardware`` in lockstep: seconds the emulator waits for the first step before the
+            run counts as never started (exit 3), > 0.
         rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
-            nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` (as ros2_control's
+            nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` in real time (as ros2_control's
             controller manager), 0 with the simulator. The bench emulator, standing for the hard real-time
             board, runs 20 above (at most 99); the recorder 10 below (at least 1): above every ordinary
             process, so that a loaded host does not starve it, below the loop. Where the system refuses
-            SCHED_FIFO, the launcher says so and runs them at normal priority.
+            SCHED_FIFO, the launcher says so and runs them at normal priority. Lockstep: 0 by default.
     """
 
     plant: Literal["sim", "hardware", "hw"] = "sim"
@@ -99,6 +103,8 @@ class GraphOptions:
     record: str | None = None
     rt_priority: int | None = None
     loop: Literal["topics", "direct"] = "topics"
+    late_limit: float = 1.0
+    start_timeout: float = 60.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "plant", PLANT_ALIASES.get(self.plant, self.plant))
@@ -141,6 +147,15 @@ class GraphOptions:
             raise ValueError(
                 f"rt_priority must be an int in [0, {MAX_PRIORITY - 1}] or None, got {priority!r}"
             )
+        for name, wanted in (("late_limit", "a percentage in [0, 100]"), ("start_timeout", "> 0 s")):
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not math.isfinite(value)
+                or not (0.0 <= value <= 100.0 if name == "late_limit" else value > 0.0)
+            ):
+                raise ValueError(f"{name} must be a finite number, {wanted}, got {value!r}")
         if self.loop not in LOOPS:
             raise ValueError(f"loop must be one of {LOOPS}, got {self.loop!r}")
         if self.loop == "direct" and (

@@ -46,10 +46,21 @@ def hardware_specs(
         ("autostart", True),
         ("link.board_address", address),
         ("link.board_port", port),
+        ("verdict.late_limit", options.late_limit / 100.0),
     ]
+    lockstep = options.clock_mode == "lockstep"
+    if lockstep:
+        # The board ticks when the controller has answered: the graph's pace, no wall-clock limit may fire.
+        bridge_parameters += [
+            ("bridge.lockstep", True),
+            ("bridge.host_watchdog_ns", 10_000_000_000),
+            ("bridge.link_timeout_ns", 60_000_000_000),
+            ("bridge.admission.stale_ns", 60_000_000_000),
+            ("link.configure_timeout", min(float(options.start_timeout), 600.0)),
+        ]
     if options.board is None:
         bridge_parameters += [("link.bind_address", bind_address), ("link.bind_port", bind_port)]
-    if options.control_period is not None:
+    if options.control_period is not None and not lockstep:
         # The bridge's time limits are counted in board ticks at the default 1 kHz: scale them with the tick.
         period_ns = round(options.control_period * 1e9)
         bridge_parameters += [
@@ -77,9 +88,22 @@ def hardware_specs(
         )
     if options.board is not None:
         return (bridge,)
-    emulator_parameters: list[tuple[str, ParameterValue]] = [("bind", board), ("host", EMULATOR_HOST)]
-    if options.duration:
-        emulator_parameters.append(("duration", float(options.duration)))
+    emulator_parameters: list[tuple[str, ParameterValue]] = [
+        ("bind", board),
+        ("host", EMULATOR_HOST),
+        ("late-limit", float(options.late_limit)),
+    ]
+    duration = options.duration
+    if duration is None and lockstep:
+        duration = _scenario_duration(files)  # as the simulator: the scenario's length in lockstep
+    if duration:
+        emulator_parameters.append(("duration", float(duration)))
+    if lockstep:
+        emulator_parameters += [
+            ("mode", "lockstep"),
+            ("lockstep-trigger", "enabled"),  # tick 0 waits for the controller, as the simulator's step 0
+            ("start-timeout", float(options.start_timeout)),
+        ]
     if options.seed is not None:
         emulator_parameters.append(("seed", options.seed))
     if options.control_period is not None:
@@ -95,15 +119,26 @@ def hardware_specs(
     return (emulator, bridge)
 
 
+def _simulator_settings(files: Sequence[str]) -> dict[str, Any]:
+    sim: dict[str, Any] = {}
+    for path in files:
+        sim.update(load_parameter_file(path, f"/{NAMESPACE}/{SIM_NODE}"))
+    return sim
+
+
+def _scenario_duration(files: Sequence[str]) -> float | None:
+    """The simulator's ``duration`` the parameter ``files`` set (s), None if none."""
+    value = _simulator_settings(files).get("duration")
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
 def _emulator_plant(files: Sequence[str]) -> list[tuple[str, ParameterValue]]:
     """The emulator's plant options from the simulator's settings in the parameter ``files``.
 
     Raises:
         ParameterFileError: A per-joint noise the emulator cannot take (it takes one std for both joints).
     """
-    sim: dict[str, Any] = {}
-    for path in files:
-        sim.update(load_parameter_file(path, f"/{NAMESPACE}/{SIM_NODE}"))
+    sim = _simulator_settings(files)
     options: list[tuple[str, ParameterValue]] = []
     if "noise_std" in sim:
         noise = sim["noise_std"]

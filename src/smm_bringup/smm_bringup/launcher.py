@@ -2,8 +2,9 @@
 
 Each node its own OS process, as ``ros2 launch`` starts it (:mod:`smm_bringup.supervisor`; ``--loop direct``:
 ``direct_loop`` hosts bridge and controller), or all in this process with ``--composed``
-(:mod:`smm_bringup.composed`). Options, the closing ``board:`` line, shutdown and exit codes (0 run
-complete, 1 a node failed, 128 + signal, 2 bad configuration): docs/LAUNCH.md.
+(:mod:`smm_bringup.composed`). Options, the closing ``board:`` and ``run:`` lines, shutdown and exit codes
+(0 run complete, 1 a node failed, 2 bad configuration, 3 a hardware run that did not control, 128 + signal):
+docs/LAUNCH.md.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from smm_bringup.graph_options import (
 )
 from smm_bringup.supervisor import (
     EXIT_CONFIGURATION_ERROR,
+    EXIT_NOT_CONTROLLED,
     EXIT_OK,
     STOP_GRACE_S,
     _say,
@@ -63,7 +65,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--board", default=None, help="hardware: ADDRESS:PORT of the I/O board (default: start the emulator)"
     )
-    parser.add_argument("--clock-mode", choices=CLOCK_MODES, default="lockstep", help="simulator clock mode")
+    parser.add_argument(
+        "--clock-mode",
+        choices=CLOCK_MODES,
+        default="lockstep",
+        help="lockstep: each step waits for the controller's answer (simulator, or the emulator board-clocked "
+        "over UDP); realtime: the plant's own clock",
+    )
     parser.add_argument(
         "--chain",
         choices=CHAIN_LAYOUTS,
@@ -128,6 +136,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="SCHED_FIFO priority of the loop's processes, 0 = normal scheduling (default: 50 with --plant "
         "hardware, 0 with the simulator); the emulator runs 20 above, the recorder 10 below",
     )
+    parser.add_argument(
+        "--late-limit",
+        type=float,
+        default=GraphOptions.late_limit,
+        metavar="PERCENT",
+        help="hardware: exit 3 (did not control) when more than this percentage of the enabled ticks after "
+        "the first second were late",
+    )
+    parser.add_argument(
+        "--start-timeout",
+        type=float,
+        default=GraphOptions.start_timeout,
+        metavar="S",
+        help="hardware lockstep: exit 3 (never started) when no step came within S seconds",
+    )
     parser.add_argument("--composed", action="store_true", help="run all nodes in this process")
     parser.add_argument("--dry-run", action="store_true", help="print the node command lines and exit")
     parser.add_argument(
@@ -161,6 +184,8 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         record=arguments.record,
         rt_priority=arguments.rt_priority,
         loop=arguments.loop,
+        late_limit=arguments.late_limit,
+        start_timeout=arguments.start_timeout,
     )
 
 
@@ -185,6 +210,10 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--rt-priority", str(options.rt_priority)]
     if options.loop != GraphOptions.loop:
         arguments += ["--loop", options.loop]
+    if options.late_limit != GraphOptions.late_limit:
+        arguments += ["--late-limit", repr(options.late_limit)]
+    if options.start_timeout != GraphOptions.start_timeout:
+        arguments += ["--start-timeout", repr(options.start_timeout)]
     return arguments
 
 
@@ -209,6 +238,11 @@ def run(argv: Sequence[str]) -> int:
             read = read_line(status)
             if read and options.board is None:
                 _say(read)
+            verdict = None if options.board is not None else verdict_line(status)
+            if verdict is not None:
+                _say(verdict, sys.stderr if verdict.startswith("run: did not control") else None)
+                if code == EXIT_OK and verdict.startswith("run: did not control"):
+                    return EXIT_NOT_CONTROLLED
             return code
     except (GraphError, ValueError) as error:
         _say(f"error: {error}", sys.stderr)
@@ -246,6 +280,18 @@ def board_line(path: Path, *, real_board: bool) -> str:
     percent = 100.0 * late / enabled if enabled else 0.0
     figures = "no enabled command" if p50 is None else f"p50 {p50:.0f} us, p99 {p99:.0f} us"
     return f"board: late {late} of {enabled} enabled ticks ({percent:.2f} %), feedback->command {figures}"
+
+
+def verdict_line(path: Path) -> str | None:
+    """``run: controlled (figures)`` or ``run: did not control: reason (figures)`` from the emulator's status."""
+    try:
+        status = json.loads(path.read_text())
+        figures, reason = str(status["figures"]), status["verdict"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if reason is None:
+        return f"run: controlled ({figures})"
+    return f"run: did not control: {reason} ({figures})"
 
 
 def read_line(path: Path) -> str | None:

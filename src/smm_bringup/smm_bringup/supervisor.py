@@ -21,6 +21,8 @@ from typing import Any, Final, TextIO
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 
+from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
+
 from smm_bringup.errors import GraphError
 from smm_bringup.graph_nodes import PLANT_NODE_NAMES, RECORDER_NODE, NodeSpec, expected_publishers
 from smm_bringup.realtime import fifo_allowed, fifo_preexec
@@ -28,6 +30,7 @@ from smm_bringup.realtime import fifo_allowed, fifo_preexec
 __all__ = [
     "EXIT_CONFIGURATION_ERROR",
     "EXIT_NODE_FAILED",
+    "EXIT_NOT_CONTROLLED",
     "EXIT_OK",
     "ExecutableNotFoundError",
     "GraphProcesses",
@@ -324,10 +327,11 @@ def launch_processes(
                 if exited is None:
                     continue
                 spec, code = exited
-                if spec.name in PLANT_NODE_NAMES and code == 0:
+                if spec.name in PLANT_NODE_NAMES and code in (EXIT_OK, EXIT_NOT_CONTROLLED):
                     _say(f"{spec.name} completed its run; stopping the graph")
-                    _report_stop(processes.stop(), expected_done=spec.name)
-                    return EXIT_OK
+                    codes = processes.stop()
+                    _report_stop(codes, expected_done=spec.name)
+                    return EXIT_NOT_CONTROLLED if EXIT_NOT_CONTROLLED in codes.values() else EXIT_OK
                 _say(f"node {spec.name} exited with code {code}; stopping the graph", sys.stderr)
                 _report_stop(processes.stop(), expected_done=spec.name)
                 return EXIT_NODE_FAILED
@@ -343,5 +347,7 @@ def launch_processes(
 def _report_stop(codes: Mapping[str, int], expected_done: str | None = None) -> None:
     clean = {0, -signal.SIGINT, 128 + signal.SIGINT}
     for name, code in codes.items():
-        if name != expected_done and code not in clean:
+        if code == EXIT_NOT_CONTROLLED:
+            _say(f"{name}: the run did not control (exit code {code}; its reason above)", sys.stderr)
+        elif name != expected_done and code not in clean:
             _say(f"node {name} did not stop cleanly (exit code {code})", sys.stderr)

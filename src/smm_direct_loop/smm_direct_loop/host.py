@@ -20,7 +20,7 @@ from rclpy.context import Context
 from rclpy.exceptions import ParameterException
 from rclpy.parameter import Parameter
 from smm_controller.controller_node import ControllerNode
-from smm_hw_bridge.bridge_node import HwBridgeNode
+from smm_hw_bridge.bridge_node import HwBridgeNode, judged_exit
 from smm_hw_bridge.core import BridgeCore
 from smm_hw_bridge.transport import Transport
 from smm_msgs_py.conversions import JointSample, torque_to_msg
@@ -177,6 +177,7 @@ class DirectBridgeNode(HwBridgeNode):
     """
 
     SUBSCRIBES_COMMAND = False
+    PROCESS_NAME = "direct_loop"
 
     def __init__(self, controller: DirectControllerNode, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
@@ -254,22 +255,12 @@ class DirectBridgeNode(HwBridgeNode):
         return Health(health.level, health.message, values)
 
     def closing_line(self) -> str:
-        """What the host knows of a run: the board's late count from its feedback, receive -> send."""
-        core = self.core
-        last = None if core is None else core.last_feedback
-        late = "unknown" if last is None else str(last.late_commands)
+        """The bridge's closing line, and receive -> send of the commands this host answered."""
         return (
-            f"host: late {late} (the board's count, from its feedback frames; its enabled ticks are not on "
-            f"the wire), receive->send p50 {self.statistics.execution_percentile_us(50):.0f} us, "
+            f"{super().closing_line()}; receive->send p50 {self.statistics.execution_percentile_us(50):.0f} us, "
             f"p99 {self.statistics.execution_percentile_us(99):.0f} us over "
             f"{self.statistics.execution_us.count} commands"
         )
-
-    def destroy_node(self) -> None:
-        """Prints :meth:`closing_line`, then as the bridge's."""
-        if getattr(self, "statistics", None) is not None and self.statistics.execution_us.count:
-            print(f"[direct_loop] {self.closing_line()}", flush=True)
-        super().destroy_node()
 
 
 def main(args: Sequence[str] | None = None) -> int:
@@ -280,15 +271,18 @@ def main(args: Sequence[str] | None = None) -> int:
         made.append(DirectControllerNode(context=context))
         return made[0]
 
+    bridges: list[DirectBridgeNode] = []
+
     def bridge(context: Context) -> DirectBridgeNode:
-        return DirectBridgeNode(made[0], context=context)
+        bridges.append(DirectBridgeNode(made[0], context=context))
+        return bridges[0]
 
     try:
         run_nodes([controller, bridge], args)
     except (ValueError, ParameterException) as error:
         print(f"direct_loop: invalid parameter: {error}", file=sys.stderr)
         return 2
-    return 0
+    return judged_exit(0, bridges[0] if bridges else None, "direct_loop")
 
 
 if __name__ == "__main__":

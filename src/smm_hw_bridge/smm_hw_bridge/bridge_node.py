@@ -18,6 +18,7 @@ from typing import ClassVar, Final, Unpack
 
 import numpy.typing as npt
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
+from rclpy.context import Context
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import JointSample, internals_to_msg, msg_to_torque, sample_to_joint_state
@@ -29,6 +30,7 @@ from std_srvs.srv import Trigger
 from smm_hw_bridge.bridge_health import BridgeCounters, bridge_health
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError, BridgeState
 from smm_hw_bridge.protocol import CommandFrame, Reason, encode
+from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED, RunTally, VerdictConfig
 from smm_hw_bridge.transport import LinkConfig, Transport, TransportError, open_transport
 from smm_msgs_py import topics
 from smm_node_runtime import (
@@ -63,6 +65,8 @@ class HwBridgeNode(LifecycleNode):
     SUBSCRIBES_COMMAND: ClassVar[bool] = True
     """False for a host that answers each measurement itself (the direct loop): ``torque_command`` is then
     an output for observation, and a command on it, its own or another publisher's, is not taken."""
+    PROCESS_NAME: ClassVar[str] = NODE_NAME
+    """How the closing line names the process."""
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         name, arguments = node_arguments(NODE_NAME, options)
@@ -70,6 +74,7 @@ class HwBridgeNode(LifecycleNode):
         try:
             self._link = ConfigParameters(self, "link", LinkConfig())
             self._bridge = ConfigParameters(self, "bridge", BridgeConfig())
+            self._verdict = ConfigParameters(self, "verdict", VerdictConfig(), read_only=True)
         except ValueError:
             self.destroy_node()
             raise
@@ -82,6 +87,8 @@ class HwBridgeNode(LifecycleNode):
         self._fault_transition = False
         self._host_fault = ""
         self.counters = BridgeCounters()
+        self.tally: RunTally | None = None
+        """The run's enabled and late ticks from the admitted feedback, from the first configure on."""
         self._joint_states = self.create_publisher(
             JointState, topics.JOINT_STATES, qos_for_topic(topics.JOINT_STATES)
         )
@@ -101,8 +108,8 @@ class HwBridgeNode(LifecycleNode):
         self.create_timer(_FAULT_CHECK_S, self._check, clock=steady)
         self.diagnostics = DiagnosticsPublisher(self, self.health)
         self._started = False
-        self.declare_parameter("autostart", False)
-        if self.get_parameter("autostart").value is True:
+        self.autostart = self.declare_parameter("autostart", False).value is True
+        if self.autostart:
             self._autostart = self.create_timer(_AUTOSTART_POLL_S, self._start, clock=steady)
         self._waiting_logged = False
 
@@ -124,10 +131,27 @@ class HwBridgeNode(LifecycleNode):
             self.trigger_activate()  # type: ignore[no-untyped-call]
 
     def destroy_node(self) -> None:
-        """Sends safe output, stops the reader thread and closes the transport, then destroys the node."""
+        """Sends safe output, stops the reader thread and closes the transport, prints the closing line."""
         if getattr(self, "_transport", None) is not None:
             self._close()
+        if getattr(self, "tally", None) is not None:
+            print(f"[{self.PROCESS_NAME}] {self.closing_line()}", flush=True)
         super().destroy_node()  # type: ignore[no-untyped-call]
+
+    def closing_line(self) -> str:
+        """What the host knows of the run, from the board's feedback frames (docs/LAUNCH.md, "Exit codes")."""
+        tally = self.tally
+        if tally is None:
+            return "host: never configured: no feedback from the board"
+        reason = self.run_verdict()
+        verdict = "controlled" if reason is None else f"did not control: {reason}"
+        return f"host: {tally.figures()}, from the board's feedback frames; {verdict}"
+
+    def run_verdict(self) -> str | None:
+        """Why this run did not control (never configured, never armed, ...), or None if it did."""
+        if self.tally is None:
+            return "the bridge was never configured: no feedback from the board"
+        return self.tally.verdict()
 
     # ---- public views -----------------------------------------------------------------------------
 
@@ -184,6 +208,8 @@ class HwBridgeNode(LifecycleNode):
             return TransitionCallbackReturn.FAILURE
         with self._lock:
             self._core, self._transport = core, transport
+            if self.tally is None:
+                self.tally = RunTally(core.config.period_ns, self._verdict.config)
             self._send_safe()
         self._stop.clear()
         self._reader = threading.Thread(target=self._read_loop, name="hw_bridge_reader", daemon=True)
@@ -265,6 +291,8 @@ class HwBridgeNode(LifecycleNode):
         self.counters.frames_sent += 1
         if not frame.enabled:
             self.counters.safe_frames_sent += 1
+        elif self.tally is not None:
+            self.tally.armed = True
 
     def _read_loop(self) -> None:
         while not self._stop.is_set():
@@ -308,6 +336,8 @@ class HwBridgeNode(LifecycleNode):
             if core is None or self._transport is None:
                 return
             frame = core.on_datagram(data, now)
+            if frame is not None and self.tally is not None and core.last_feedback is not None:
+                self.tally.on_feedback(core.last_feedback)
             # lockstep: the board re-sends its unanswered feedback; so do we (a DDS sample may be lost)
             resent = core.config.lockstep and core.last_rejection is Reason.DUPLICATE
             if frame is None and not resent:
@@ -456,9 +486,29 @@ class HwBridgeNode(LifecycleNode):
             )
 
 
+def judged_exit(code: int, node: HwBridgeNode | None, name: str) -> int:
+    """``code``, or :data:`EXIT_NOT_CONTROLLED` when ``node`` was to start itself and its run did not control.
+
+    A bridge driven by hand (no ``autostart``) is not judged: the closing line says what it saw.
+    """
+    if code != 0 or node is None or not node.autostart:
+        return code
+    reason = node.run_verdict()
+    if reason is None:
+        return code
+    print(f"{name}: the run did not control: {reason}", file=sys.stderr, flush=True)
+    return EXIT_NOT_CONTROLLED
+
+
 def main(args: Sequence[str] | None = None) -> int:
-    """Console script ``hw_bridge_node``: builds the node (unconfigured) and spins it."""
-    return node_main(lambda context: HwBridgeNode(context=context), args)
+    """Console script ``hw_bridge_node``: builds the node (unconfigured) and spins it; exit codes: :func:`judged_exit`."""
+    made: list[HwBridgeNode] = []
+
+    def build(context: Context) -> HwBridgeNode:
+        made.append(HwBridgeNode(context=context))
+        return made[0]
+
+    return judged_exit(node_main(build, args), made[0] if made else None, NODE_NAME)
 
 
 if __name__ == "__main__":

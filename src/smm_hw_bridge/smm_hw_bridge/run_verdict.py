@@ -1,0 +1,100 @@
+"""Whether a hardware run controlled: armed, output live, few enough late ticks (docs/LAUNCH.md, "Exit codes").
+
+The board's feedback frames carry its status (``ENABLED``) and its late count; the emulator (the frames it
+sends) and the bridge (the frames it admits) count them with :class:`RunTally`, so both give the same figures.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Final
+
+from smm_dynamics.validation import at_least, bounds, check_bounds
+
+from smm_hw_bridge.protocol import FeedbackFrame, StatusBit, u32_diff
+
+__all__ = ["EXIT_NOT_CONTROLLED", "RunTally", "VerdictConfig"]
+
+EXIT_NOT_CONTROLLED: Final[int] = 3
+"""Exit code of a hardware run that did not control (never armed, never live, too many late ticks)."""
+
+
+@dataclass(frozen=True)
+class VerdictConfig:
+    """When a run counts as controlled.
+
+    Attributes:
+        late_limit: Largest fraction of late enabled ticks after ``settle_s`` (0.01 = 1 %).
+        settle_s: Enabled ticks in the first ``settle_s`` seconds of live output are not judged (s).
+    """
+
+    late_limit: float = field(default=0.01, metadata=bounds(0.0, 1.0))
+    settle_s: float = field(default=1.0, metadata=at_least(0.0))
+
+    def __post_init__(self) -> None:
+        check_bounds(self)
+
+
+class RunTally:
+    """Counts a run's enabled and late ticks from the board's feedback frames, one call per frame.
+
+    Args:
+        period_ns: The board's tick (ns), > 0.
+        config: Limit and settling time.
+    """
+
+    def __init__(self, period_ns: int, config: VerdictConfig | None = None) -> None:
+        if period_ns <= 0:
+            raise ValueError(f"period_ns must be > 0, got {period_ns!r}")
+        self.config = config or VerdictConfig()
+        self.settle_ticks = round(self.config.settle_s * 1e9 / period_ns)
+        self.armed = False
+        """An enabled command was sent (bridge) or arrived (board)."""
+        self.live_ticks = 0
+        """Feedback frames with ENABLED set: ticks that latched an enabled command."""
+        self.enabled_ticks = 0
+        """Enabled ticks after the settling time (the late fraction's denominator)."""
+        self.late_ticks = 0
+        """Of :attr:`enabled_ticks`, those at which the answer to the previous feedback had not arrived."""
+        self._first_live: int | None = None
+        self._last: FeedbackFrame | None = None
+
+    def on_feedback(self, frame: FeedbackFrame) -> None:
+        """Counts one feedback frame (in tick order; a lost frame's ticks count as the next one's)."""
+        last, self._last = self._last, frame
+        if not frame.status & StatusBit.ENABLED:
+            return
+        self.live_ticks += 1
+        if self._first_live is None:
+            self._first_live = frame.tick
+        if u32_diff(frame.tick, self._first_live) < self.settle_ticks or last is None:
+            return
+        if last.session != frame.session or u32_diff(frame.tick, last.tick) <= 0:
+            return  # a reboot, or the same tick re-sent (lockstep)
+        self.enabled_ticks += u32_diff(frame.tick, last.tick)
+        self.late_ticks += max(0, u32_diff(frame.late_commands, last.late_commands))
+
+    @property
+    def late_fraction(self) -> float:
+        """Late share of the judged enabled ticks (0 before any)."""
+        return self.late_ticks / self.enabled_ticks if self.enabled_ticks else 0.0
+
+    def figures(self) -> str:
+        """``late L of N enabled ticks after the first S s (P %), T live ticks in all``."""
+        return (
+            f"late {self.late_ticks} of {self.enabled_ticks} enabled ticks after the first "
+            f"{self.config.settle_s:g} s ({100.0 * self.late_fraction:.2f} %), {self.live_ticks} live ticks in all"
+        )
+
+    def verdict(self) -> str | None:
+        """Why the run did not control, or None if it did."""
+        if not self.armed:
+            return "the bridge never armed: no enabled command reached the board"
+        if not self.live_ticks:
+            return "the output never went live: no board tick latched an enabled command"
+        if self.late_fraction > self.config.late_limit:
+            return (
+                f"{100.0 * self.late_fraction:.2f} % of the enabled ticks after the first "
+                f"{self.config.settle_s:g} s were late, above the limit of {100.0 * self.config.late_limit:g} %"
+            )
+        return None
