@@ -17,6 +17,7 @@ from smm_bench_emulator.emulator import Emulator, EmulatorConfig
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
 from smm_hw_bridge.encoder import EncoderConfig
 from smm_hw_bridge.protocol import CommandFlag, CommandFrame, Reason, encode
+from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 from smm_hw_bridge.transport import UdpTransport
 from smm_hw_bridge.valve_output import ValveOutputConfig
 from smm_sim.plant import PlantConfig
@@ -165,13 +166,31 @@ def test_cli_rejects_a_bad_address_with_exit_code_2(capsys: pytest.CaptureFixtur
     assert "smm_bench_emulator" in capsys.readouterr().err
 
 
-def test_cli_runs_for_its_duration_and_prints_a_summary(capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_runs_for_its_duration_prints_a_summary_and_a_run_no_host_armed_exits_3(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     code = emulator_main(
         ["--bind", "127.0.0.1:0", "--host", "127.0.0.1:9", "--control", "127.0.0.1:0", "--duration", "0.05"]
     )
-    assert code == 0
-    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == EXIT_NOT_CONTROLLED
+    out = capsys.readouterr()
+    summary = json.loads(out.out.strip().splitlines()[-1])
     assert summary["ticks"] == 50 and summary["output_codes"] == [0, 0]
+    assert summary["verdict"] == "the bridge never armed: no enabled command reached the board"
+    assert "the run did not control: the bridge never armed" in out.err
+
+
+def test_a_lockstep_run_without_a_first_step_within_its_start_timeout_never_started_and_exits_3(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code = emulator_main(
+        ["--bind", "127.0.0.1:0", "--host", "127.0.0.1:9", "--control", "127.0.0.1:0", "--mode", "lockstep",
+         "--duration", "1", "--start-timeout", "0.2"]
+    )  # fmt: skip
+    assert code == EXIT_NOT_CONTROLLED
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["ticks"] == 1  # only the boot feedback
+    assert summary["verdict"].startswith("the lockstep run never started: no step within its start timeout")
 
 
 def _answered_emulator(now: list[int], wall: list[int]) -> tuple[Emulator, UdpTransport, CommandFrame]:

@@ -131,9 +131,33 @@ def test_missing_extra_file_is_a_graph_error(tmp_path: Path) -> None:
         build_graph(GraphOptions(params_files=(str(tmp_path / "nope.yaml"),)))
 
 
-def test_hardware_plant_in_lockstep_is_refused_clearly() -> None:
+def test_a_real_board_in_lockstep_is_refused_clearly() -> None:
     with pytest.raises(PlantNotAvailableError, match="realtime"):
-        build_graph(GraphOptions(plant="hardware", clock_mode="lockstep"))
+        build_graph(GraphOptions(plant="hardware", clock_mode="lockstep", board="10.0.0.7:6000"))
+
+
+def test_hardware_lockstep_clocks_the_emulator_by_the_controller_without_wall_clock_limits() -> None:
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="lockstep", scenario="case2", start_timeout=7.0))
+    emulator, bridge = (dict(spec.parameters) for spec in specs[:2])
+    assert (emulator["mode"], emulator["lockstep-trigger"]) == ("lockstep", "enabled")
+    assert (emulator["start-timeout"], emulator["duration"]) == (7.0, 5.0)  # the scenario's length
+    assert bridge["bridge.lockstep"] is True
+    assert bridge["bridge.host_watchdog_ns"] >= 10_000_000_000  # type: ignore[operator]
+    assert all(spec.rt_priority == 0 for spec in specs)  # lockstep needs no real-time scheduling
+    realtime = dict(build_graph(GraphOptions(plant="hardware", clock_mode="realtime"))[0].parameters)
+    assert "mode" not in realtime and "start-timeout" not in realtime
+
+
+def test_the_late_limit_reaches_the_emulator_and_the_bridge_as_their_units() -> None:
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", late_limit=2.5))
+    assert dict(specs[0].parameters)["late-limit"] == 2.5  # percent
+    assert dict(specs[1].parameters)["verdict.late_limit"] == 0.025  # fraction
+
+
+@pytest.mark.parametrize(("name", "value"), [("late_limit", -1.0), ("late_limit", 101.0), ("start_timeout", 0.0)])
+def test_bad_late_limit_or_start_timeout_is_rejected_with_its_name(name: str, value: float) -> None:
+    with pytest.raises(ValueError, match=name):
+        GraphOptions(plant="hardware", **{name: value})  # type: ignore[arg-type]
 
 
 def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_controller_side() -> None:
@@ -154,6 +178,7 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
     assert emulator == {
         "bind": hardware_graph.EMULATOR_BOARD,
         "host": hardware_graph.EMULATOR_HOST,
+        "late-limit": 1.0,
         "duration": 3.0,
         "seed": 4,
         "noise-std": 0.0,  # case1's plant, as the simulator would run it
@@ -431,6 +456,8 @@ def graph_options(draw: st.DrawFn) -> GraphOptions:
             record=draw(st.none() | st.just("bags/run 1")),
             rt_priority=draw(st.none() | st.integers(min_value=0, max_value=98)),
             loop=draw(st.sampled_from(LOOPS)),
+            late_limit=draw(st.floats(min_value=0.0, max_value=100.0)),
+            start_timeout=draw(positive),
         )
     except ValueError:
         assume(False)
@@ -446,7 +473,7 @@ def test_launcher_arguments_from_options_give_the_same_options_back(options: Gra
 def test_launcher_reports_hardware_in_lockstep_and_composed_and_exits_2(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    assert run(["--plant", "hardware"]) == EXIT_CONFIGURATION_ERROR
+    assert run(["--plant", "hardware", "--board", "10.0.0.7:6000"]) == EXIT_CONFIGURATION_ERROR
     assert "realtime" in capsys.readouterr().err
     assert run(["--plant", "hardware", "--clock-mode", "realtime", "--composed"]) == EXIT_CONFIGURATION_ERROR
     assert "smm_bench_emulator" in capsys.readouterr().err
@@ -579,7 +606,7 @@ def test_launch_file_starts_the_graph_the_launcher_starts(
 
 def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(PlantNotAvailableError):
-        _launched_nodes(monkeypatch, {"plant": "hardware"})
+        _launched_nodes(monkeypatch, {"plant": "hardware", "board": "10.0.0.7:6000"})
     nodes = _launched_nodes(monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "duration": "2"})
     specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", duration=2.0))
     assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in specs]
@@ -590,6 +617,8 @@ def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) 
         hardware_graph.EMULATOR_BOARD,
         "--host",
         hardware_graph.EMULATOR_HOST,
+        "--late-limit",
+        "1.0",
         "--duration",
         "2.0",
         "--noise-std",  # the default scenario's (case2) plant

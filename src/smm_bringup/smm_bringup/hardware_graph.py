@@ -60,15 +60,16 @@ def hardware_specs(
         ]
     if options.board is None:
         bridge_parameters += [("link.bind_address", bind_address), ("link.bind_port", bind_port)]
-    if options.control_period is not None and not lockstep:
+    if options.control_period is not None:
         # The bridge's time limits are counted in board ticks at the default 1 kHz: scale them with the tick.
         period_ns = round(options.control_period * 1e9)
-        bridge_parameters += [
-            ("bridge.admission.period_ns", period_ns),
-            ("bridge.admission.stale_ns", 20 * period_ns),
-            ("bridge.host_watchdog_ns", 10 * period_ns),
-            ("bridge.link_timeout_ns", 100 * period_ns),
-        ]
+        bridge_parameters.append(("bridge.admission.period_ns", period_ns))
+        if not lockstep:
+            bridge_parameters += [
+                ("bridge.admission.stale_ns", 20 * period_ns),
+                ("bridge.host_watchdog_ns", 10 * period_ns),
+                ("bridge.link_timeout_ns", 100 * period_ns),
+            ]
     bridge = NodeSpec(
         package="smm_hw_bridge",
         executable=HW_NODE,
