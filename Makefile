@@ -1,6 +1,8 @@
 # SMM control stack: every target sets itself up on a fresh machine (Python >= 3.11 and make are all it needs).
 #   make demo   full closed-loop run on the simulator (the main job)
-#   make test   the whole test suite (unit, bag, node, end-to-end in a private network namespace)
+#   make test   the whole test suite (unit, bag, node, end-to-end in a private network namespace); nothing in it
+#               needs the machine to keep up with a clock
+#   make test-realtime  the tests that need the wall clock kept (1 kHz / 100 Hz runs): a quiet machine only
 #   make test-other-cpu  the tests against data made on another machine, under other numeric paths
 #   make bench  benchmarks: figures and ratios, never pass/fail on a shared machine's timing
 # Re-running a target is quick: the virtual environment is rebuilt only when a requirements file or a
@@ -17,7 +19,7 @@ PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg sr
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export PYTHONDONTWRITEBYTECODE := 1
 
-.PHONY: setup test test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
+.PHONY: setup test test-realtime test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
 
 setup: $(STAMP)
 
@@ -30,6 +32,11 @@ $(STAMP): requirements.txt requirements-dev.txt $(PACKAGE_FILES)
 
 test: $(STAMP)
 	$(PY) -m pytest tests
+
+# The real-time versions of the hardware tests (marker realtime, deselected by pyproject's addopts): they need
+# a quiet machine, as a bench run does (docs/TESTING.md, "Real-time tests").
+test-realtime: $(STAMP)
+	$(PY) -m pytest tests -m realtime
 
 # The cross_machine tests (data made on another machine) once per forced numeric path (OpenBLAS kernel,
 # numpy SIMD, libm), after a table of the sample-bag rerun under each: see docs/TESTING.md.

@@ -738,3 +738,11 @@ def test_a_missing_executable_is_reported_before_anything_starts() -> None:
     real = build_graph(GraphOptions(scenario=None))[0]
     with pytest.raises(ExecutableNotFoundError):
         launch_processes([real, missing])
+
+
+@pytest.mark.parametrize(("loop", "readers"), [("topics", 2), ("direct", 1)])
+def test_a_recorded_hardware_run_arms_once_the_recorder_reads_joint_states(loop: str, readers: int) -> None:
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="lockstep", loop=loop, record="bag"))
+    bridge = dict(specs[-1 if loop == "direct" else 2].parameters)  # recorder, emulator, bridge, controller
+    assert bridge["autostart_subscribers"] == readers  # the recorder (+ controller_node in the topics loop)
+    assert all("autostart_subscribers" not in dict(spec.parameters) for spec in build_graph(GraphOptions(plant="hardware", clock_mode="lockstep", loop=loop)))

@@ -177,18 +177,20 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
     recorder: tuple[NodeSpec, ...] = ()
     if options.record is not None:
         recorder = (_recorder_spec(options),)
+        # Step 0 waits for the recorder (and every node reading joint_states) to be matched.
+        readers = sum(spec.name in _JOINT_STATES_READERS for spec in controller_side) + (
+            1 if fused and options.loop == "topics" else 0
+        )
+        gate: tuple[tuple[str, ParameterValue], ...] = ()
+        gated = SIM_NODE
         if options.clock_mode == "lockstep" and options.plant == "sim":
-            # Step 0 waits for the recorder (and every node reading joint_states) to be matched.
-            readers = sum(spec.name in _JOINT_STATES_READERS for spec in controller_side) + (
-                1 if fused else 0
-            )
             gate = (("start.min_subscribers", readers + 1),)
-            plant_side = tuple(
-                dataclasses.replace(spec, parameters=spec.parameters + gate)
-                if spec.name == SIM_NODE
-                else spec
-                for spec in plant_side
-            )
+        elif options.plant == "hardware":  # the bridge arms once they are: the first enabled tick is recorded
+            gate, gated = (("autostart_subscribers", readers + 1),), plant_side[-1].name
+        plant_side = tuple(
+            dataclasses.replace(spec, parameters=spec.parameters + gate) if spec.name == gated else spec
+            for spec in plant_side
+        )
     return tuple(_with_priority(spec, options) for spec in (*recorder, *plant_side, *controller_side))
 
 

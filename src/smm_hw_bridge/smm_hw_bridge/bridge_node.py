@@ -109,6 +109,9 @@ class HwBridgeNode(LifecycleNode):
         self.diagnostics = DiagnosticsPublisher(self, self.health)
         self._started = False
         self.autostart = self.declare_parameter("autostart", False).value is True
+        self._autostart_subscribers = int(self.declare_parameter("autostart_subscribers", 0).value or 0)
+        """``autostart`` also waits for this many ``joint_states`` subscriptions (the controller, a recorder),
+        so that a recording has the first step."""
         if self.autostart:
             self._autostart = self.create_timer(_AUTOSTART_POLL_S, self._start, clock=steady)
         self._waiting_logged = False
@@ -120,9 +123,13 @@ class HwBridgeNode(LifecycleNode):
         """
         if self._started:
             return
-        if self.count_publishers(topics.TORQUE_COMMAND) == 0:
+        wanted = self._autostart_subscribers
+        if self.count_publishers(topics.TORQUE_COMMAND) == 0 or self.count_subscribers(topics.JOINT_STATES) < wanted:
             if not self._waiting_logged:
-                self._log.info("autostart: waiting for a torque_command publisher (the controller)")
+                self._log.info(
+                    "autostart: waiting for a torque_command publisher (the controller)"
+                    + (f" and {wanted} joint_states subscriptions" if wanted else "")
+                )
                 self._waiting_logged = True
             return
         self._autostart.cancel()  # type: ignore[no-untyped-call]
@@ -134,23 +141,25 @@ class HwBridgeNode(LifecycleNode):
         """Sends safe output, stops the reader thread and closes the transport, prints the closing line."""
         if getattr(self, "_transport", None) is not None:
             self._close()
-        if getattr(self, "tally", None) is not None:
+        if getattr(self, "tally", None) is not None or getattr(self, "autostart", False):
             print(f"[{self.PROCESS_NAME}] {self.closing_line()}", flush=True)
         super().destroy_node()  # type: ignore[no-untyped-call]
 
     def closing_line(self) -> str:
         """What the host knows of the run, from the board's feedback frames (docs/LAUNCH.md, "Exit codes")."""
         tally = self.tally
-        if tally is None:
-            return "host: never configured: no feedback from the board"
         reason = self.run_verdict()
+        if tally is None:
+            return f"host: no feedback frame counted; did not control: {reason}"
         verdict = "controlled" if reason is None else f"did not control: {reason}"
         return f"host: {tally.figures()}, from the board's feedback frames; {verdict}"
 
     def run_verdict(self) -> str | None:
         """Why this run did not control (never configured, never armed, ...), or None if it did."""
         if self.tally is None:
-            return "the bridge was never configured: no feedback from the board"
+            if self.autostart and not self._started:
+                return "the bridge never armed: autostart waited for the controller to the end"
+            return "the bridge was never configured: no valid feedback from the board"
         return self.tally.verdict()
 
     # ---- public views -----------------------------------------------------------------------------

@@ -1,0 +1,92 @@
+"""A hardware run that did not control exits 3 and says why; a lockstep hardware run is deterministic.
+
+Lockstep and "never armed" runs: nothing here depends on the machine keeping up with a clock.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+from udp_bench import LOOPBACK, free_port
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def _launch(ros_processes: Any, name: str, *arguments: str) -> tuple[int, str]:
+    launcher = ros_processes.start(name, [sys.executable, "-m", "smm_bringup.launcher", *arguments])
+    try:
+        code = launcher.popen.wait(timeout=600)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"smm-launch did not finish\n{launcher.logs()}")
+    return code, launcher.logs()
+
+
+def test_hardware_lockstep_case2_recorded_twice_gives_a_bag_with_the_same_indices(
+    ros_processes: Any, tmp_path: Path
+) -> None:
+    indices = []
+    for run in (1, 2):
+        bag = tmp_path / f"case2-{run}"
+        arguments = ("--plant", "hardware", "--clock-mode", "lockstep", "--scenario", "case2", "--record", str(bag))
+        code, logs = _launch(ros_processes, f"smm-launch-{run}", *arguments)
+        assert code == 0, logs
+        assert "[smm-launch] run: controlled (late 0 of 3999 enabled ticks after the first 1 s" in logs
+        analysed = subprocess.run(
+            [sys.executable, "-m", "smm_bag.cli", "analyze", "--json", "--quiet", str(bag)],
+            capture_output=True,
+            text=True,
+            check=False,
+            timeout=300,
+        )
+        assert analysed.returncode == 0, analysed.stdout + analysed.stderr
+        indices.append(json.loads(analysed.stdout))
+    assert indices[0]["case2"] == indices[1]["case2"]
+    assert indices[0]["case2"]["fpdeso"]["alpha"]["RMS"] < 0.05  # rad: it tracked the reference
+
+
+def test_a_lockstep_hardware_run_that_never_starts_exits_3_and_says_why(tmp_path: Path) -> None:
+    from smm_bringup.graph import build_graph
+    from smm_bringup.graph_nodes import CONTROLLER_NODE
+    from smm_bringup.graph_options import GraphOptions
+    from smm_bringup.launcher import verdict_line, with_board_status
+    from smm_bringup.supervisor import launch_processes
+    from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
+
+    options = GraphOptions(plant="hardware", clock_mode="lockstep", scenario="case2", start_timeout=2.0)
+    # No controller: the bridge waits for a torque_command publisher and the board for its first answer.
+    specs = [spec for spec in build_graph(options) if spec.name != CONTROLLER_NODE]
+    status = tmp_path / "board.json"
+    assert launch_processes(with_board_status(specs, status), stop_grace_s=5.0) == EXIT_NOT_CONTROLLED
+    assert verdict_line(status) == (
+        "run: did not control: the lockstep run never started: no step within its start timeout of 2 s "
+        "(late 0 of 0 enabled ticks after the first 1 s (0.00 %), 0 live ticks in all)"
+    )
+
+
+def test_a_bridge_that_never_arms_exits_3_and_both_sides_say_so(ros_processes: Any) -> None:
+    host, board = free_port(), free_port()
+    emulator = ros_processes.start(
+        "emulator",
+        [sys.executable, "-m", "smm_bench_emulator.cli", "--bind", f"{LOOPBACK}:{board}",
+         "--host", f"{LOOPBACK}:{host}", "--control", f"{LOOPBACK}:{free_port()}", "--duration", "3"],
+    )  # fmt: skip
+    bridge = ros_processes.start(
+        "hw_bridge_node",
+        [sys.executable, "-m", "smm_hw_bridge.bridge_node", "--ros-args", "-r", "__ns:=/smm",
+         "-p", "autostart:=true", "-p", f"link.bind_port:={host}", "-p", f"link.board_port:={board}"],
+    )  # fmt: skip
+    # no controller: autostart waits for a torque_command publisher, so nothing ever arms
+    assert emulator.popen.wait(timeout=120) == 3, emulator.logs()
+    assert "the run did not control: the bridge never armed" in emulator.logs()
+    os.killpg(bridge.popen.pid, signal.SIGINT)
+    assert bridge.popen.wait(timeout=60) == 3, bridge.logs()
+    reason = "the bridge never armed: autostart waited for the controller to the end"
+    assert f"hw_bridge_node: the run did not control: {reason}" in bridge.logs()
+    assert f"[hw_bridge_node] host: no feedback frame counted; did not control: {reason}" in bridge.logs()
