@@ -138,6 +138,7 @@ def test_reboot_over_udp_disables_output_until_rearmed() -> None:
         assert len(emu.board.applied_log) > applied
 
 
+@pytest.mark.realtime  # the test's host must keep up with 1 kHz; twin: test_board.py's hold-then-null
 def test_realtime_board_clock_holds_then_nulls_when_the_host_goes_quiet() -> None:
     with emulator("realtime") as (emu, host):
         core = BridgeCore(BRIDGE, host_session=0x45)
@@ -259,3 +260,16 @@ def test_latency_takes_the_kernel_arrival_time_where_the_transport_gives_it() ->
     finally:
         emu.close()
         host.close()
+
+
+def test_a_realtime_run_counted_from_live_output_that_never_arms_stops_at_its_start_timeout(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code = emulator_main(
+        ["--bind", "127.0.0.1:0", "--host", "127.0.0.1:9", "--control", "127.0.0.1:0", "--duration", "0.01",
+         "--duration-from", "live", "--start-timeout", "0.3"]
+    )  # fmt: skip
+    assert code == EXIT_NOT_CONTROLLED
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["ticks"] > 10  # 10 ticks of board time passed, but none was live: the run goes on
+    assert summary["verdict"] == "the bridge never armed: no tick latched an enabled command within 0.3 s"

@@ -145,7 +145,8 @@ def test_hardware_lockstep_clocks_the_emulator_by_the_controller_without_wall_cl
     assert bridge["bridge.host_watchdog_ns"] >= 10_000_000_000  # type: ignore[operator]
     assert all(spec.rt_priority == 0 for spec in specs)  # lockstep needs no real-time scheduling
     realtime = dict(build_graph(GraphOptions(plant="hardware", clock_mode="realtime"))[0].parameters)
-    assert "mode" not in realtime and "start-timeout" not in realtime
+    assert "mode" not in realtime and realtime["duration-from"] == "live"  # a slow start shortens no run
+    assert realtime["start-timeout"] == GraphOptions.start_timeout
 
 
 def test_the_late_limit_reaches_the_emulator_and_the_bridge_as_their_units() -> None:
@@ -180,6 +181,8 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
         "host": hardware_graph.EMULATOR_HOST,
         "late-limit": 1.0,
         "duration": 3.0,
+        "start-timeout": 60.0,
+        "duration-from": "live",
         "seed": 4,
         "noise-std": 0.0,  # case1's plant, as the simulator would run it
         "inertia-scale": 1.0,
@@ -621,6 +624,10 @@ def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) 
         "1.0",
         "--duration",
         "2.0",
+        "--start-timeout",
+        "60.0",
+        "--duration-from",
+        "live",
         "--noise-std",  # the default scenario's (case2) plant
         "0.001",
         "--inertia-scale",

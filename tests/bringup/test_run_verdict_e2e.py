@@ -90,3 +90,13 @@ def test_a_bridge_that_never_arms_exits_3_and_both_sides_say_so(ros_processes: A
     reason = "the bridge never armed: autostart waited for the controller to the end"
     assert f"hw_bridge_node: the run did not control: {reason}" in bridge.logs()
     assert f"[hw_bridge_node] host: no feedback frame counted; did not control: {reason}" in bridge.logs()
+
+
+@pytest.mark.realtime
+def test_a_realtime_run_more_late_than_its_limit_exits_3(ros_processes: Any) -> None:
+    # A 5 kHz board with a late limit of 0: no host loop through DDS answers every 200 us tick in time.
+    arguments = ("--plant", "hardware", "--clock-mode", "realtime", "--scenario", "case1", "--algorithm", "pid",
+                 "--control-period", "0.0002", "--duration", "3", "--late-limit", "0")  # fmt: skip
+    code, logs = _launch(ros_processes, "smm-launch-late", *arguments)
+    assert code == 3, logs
+    assert "[smm-launch] run: did not control: " in logs and "were late, above the limit of 0 %" in logs

@@ -20,7 +20,9 @@ from typing import Any
 import pytest
 from udp_bench import LOOPBACK, free_port
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.realtime]
+"""A loop kept at 1 kHz until the kill (make test-realtime); the twins on the board's and the host watchdog's
+own clocks: tests/bench_emulator/test_board.py, tests/hw_bridge/test_core.py (docs/TESTING.md)."""
 
 VALIDITY = 50  # ticks: long enough that the controller-kill case shows the host watchdog, not the board's
 HOST_WATCHDOG_MS = 10.0

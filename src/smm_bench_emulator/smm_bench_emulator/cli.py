@@ -67,7 +67,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--start-timeout",
         type=float,
         default=0.0,
-        help="lockstep: seconds without a first step after which the run never started (exit 3); 0 = none",
+        help="seconds without a first step (lockstep) or a first live tick (realtime) after which the run "
+        "never started (exit 3); 0 = none",
+    )
+    parser.add_argument(
+        "--duration-from",
+        choices=("boot", "live"),
+        default="boot",
+        help="count --duration from boot, or from the first tick that latched an enabled command",
     )
     return parser
 
@@ -97,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
             seed=args.seed,
             verdict=VerdictConfig(late_limit=args.late_limit / 100, settle_s=args.settle),
             start_timeout_ns=round(args.start_timeout * 1e9),
+            duration_from_live=args.duration_from == "live",
         )
         emulator = Emulator(config, record=bool(args.record))
     except (ValueError, OSError) as error:

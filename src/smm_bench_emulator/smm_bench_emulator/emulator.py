@@ -42,11 +42,14 @@ class EmulatorConfig:
             ``enabled``: only an enabled one (the plant waits at tick 0 until the controller drives it, so a
             run lines up with the simulator's from its first step).
         resend_ns: Lockstep: re-send the unanswered feedback after this long (ns), > 0.
-        duration_ticks: Stop after this many ticks (0 = run until stopped).
+        duration_ticks: Stop after this many ticks (0 = run until stopped), counted from boot, or with
+            ``duration_from_live`` from the first tick that latched an enabled command.
+        duration_from_live: Count ``duration_ticks`` from the first live tick: a host slow to start (a
+            loaded machine) shortens no run.
         seed: Seed of the injected corruption.
         verdict: When the run counts as controlled (:mod:`smm_hw_bridge.run_verdict`).
-        start_timeout_ns: Lockstep: stop, as a run that never started, when no tick came this long (ns)
-            after start (0 = wait for ever).
+        start_timeout_ns: Stop, as a run that never started, when no tick came (lockstep) or no tick
+            latched an enabled command (realtime) this long (ns) after boot (0 = wait for ever).
         min_idle_ns: Realtime: after a tick the loop waits at least this long (ns) before the next, even
             when behind; on a shared host a board behind its clock must not take the CPU from the host's
             threads, as a separate board never would (docs/LAUNCH.md, "Real time").
@@ -60,6 +63,7 @@ class EmulatorConfig:
     lockstep_trigger: Literal["any", "enabled"] = "any"
     resend_ns: int = 50_000_000
     duration_ticks: int = 0
+    duration_from_live: bool = False
     seed: int = 0
     verdict: VerdictConfig = field(default_factory=VerdictConfig)
     start_timeout_ns: int = 0
@@ -174,7 +178,8 @@ class Emulator:
         else:
             self.null_since_ns = self.null_since_tick = None
         self.ticks += 1
-        if self.config.duration_ticks and self.ticks >= self.config.duration_ticks:
+        counted = self.tally.live_ticks if self.config.duration_from_live else self.ticks
+        if self.config.duration_ticks and counted >= self.config.duration_ticks:
             self.running = False
 
     def _drain(self) -> None:
@@ -270,6 +275,8 @@ class Emulator:
         """Why the run did not control, or None if it did (:meth:`RunTally.verdict`)."""
         if self.never_started:
             timeout = self.config.start_timeout_ns / 1e9
+            if self.config.mode == "realtime":
+                return f"the bridge never armed: no tick latched an enabled command within {timeout:g} s"
             return f"the lockstep run never started: no step within its start timeout of {timeout:g} s"
         return self.tally.verdict()
 
@@ -288,9 +295,13 @@ class Emulator:
 
     def _run_realtime(self) -> None:
         period = self.config.board.period_ns
-        deadline = self._clock() + period
+        deadline = started = self._clock() + period
+        timeout = self.config.start_timeout_ns
         while self.running:
             now = self._clock()
+            if timeout and not self.tally.live_ticks and now - started > timeout:
+                self.never_started, self.running = True, False
+                break
             if now < deadline:
                 self._wait(deadline - now)
                 self._drain()

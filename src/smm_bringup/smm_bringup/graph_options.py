@@ -79,8 +79,8 @@ class GraphOptions:
             by the controller): see :data:`LOOPS`.
         late_limit: ``hardware``: percent of the enabled ticks after the first second that may be late
             before the run counts as not controlled (exit 3, docs/LAUNCH.md), in [0, 100].
-        start_timeout: ``hardware`` in lockstep: seconds the emulator waits for the first step before the
-            run counts as never started (exit 3), > 0.
+        start_timeout: ``hardware``: seconds the emulator waits for the first step (lockstep) or the first
+            tick with an enabled command (real time) before the run counts as never started (exit 3), > 0.
         rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
             nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` in real time (as ros2_control's
             controller manager), 0 with the simulator. The bench emulator, standing for the hard real-time

@@ -99,12 +99,14 @@ def hardware_specs(
         duration = _scenario_duration(files)  # as the simulator: the scenario's length in lockstep
     if duration:
         emulator_parameters.append(("duration", float(duration)))
+    emulator_parameters.append(("start-timeout", float(options.start_timeout)))
     if lockstep:
         emulator_parameters += [
             ("mode", "lockstep"),
             ("lockstep-trigger", "enabled"),  # tick 0 waits for the controller, as the simulator's step 0
-            ("start-timeout", float(options.start_timeout)),
         ]
+    else:  # a host slow to start (a loaded machine) shortens no run
+        emulator_parameters.append(("duration-from", "live"))
     if options.seed is not None:
         emulator_parameters.append(("seed", options.seed))
     if options.control_period is not None:
