@@ -37,7 +37,7 @@ def test_hardware_lockstep_case2_recorded_twice_gives_a_bag_with_the_same_indice
         arguments = ("--plant", "hardware", "--clock-mode", "lockstep", "--scenario", "case2", "--record", str(bag))
         code, logs = _launch(ros_processes, f"smm-launch-{run}", *arguments)
         assert code == 0, logs
-        assert "[smm-launch] run: controlled (late 0 of 3999 enabled ticks after the first 1 s" in logs
+        assert "[smm-launch] run: controlled (late 0 of 3999 ticks after the first 1 s live" in logs
         analysed = subprocess.run(
             [sys.executable, "-m", "smm_bag.cli", "analyze", "--json", "--quiet", str(bag)],
             capture_output=True,
@@ -66,7 +66,7 @@ def test_a_lockstep_hardware_run_that_never_starts_exits_3_and_says_why(tmp_path
     assert launch_processes(with_board_status(specs, status), stop_grace_s=5.0) == EXIT_NOT_CONTROLLED
     assert verdict_line(status) == (
         "run: did not control: the lockstep run never started: no step within its start timeout of 2 s "
-        "(late 0 of 0 enabled ticks after the first 1 s (0.00 %), 0 live ticks in all)"
+        "(late 0 of 0 ticks after the first 1 s live (0.00 %), 0 live ticks in all)"
     )
 
 
@@ -99,4 +99,4 @@ def test_a_realtime_run_more_late_than_its_limit_exits_3(ros_processes: Any) -> 
                  "--control-period", "0.0002", "--duration", "3", "--late-limit", "0")  # fmt: skip
     code, logs = _launch(ros_processes, "smm-launch-late", *arguments)
     assert code == 3, logs
-    assert "[smm-launch] run: did not control: " in logs and "were late, above the limit of 0 %" in logs
+    assert "[smm-launch] run: did not control: " in logs and "were late or not live, above the limit of 0 %" in logs

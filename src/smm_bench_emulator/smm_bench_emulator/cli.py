@@ -71,6 +71,12 @@ def build_parser() -> argparse.ArgumentParser:
         "never started (exit 3); 0 = none",
     )
     parser.add_argument(
+        "--min-idle-us",
+        type=int,
+        default=EmulatorConfig.min_idle_ns // 1000,
+        help="realtime: the least time the loop waits between two ticks when behind (us); 0 = back to back",
+    )
+    parser.add_argument(
         "--duration-from",
         choices=("boot", "live"),
         default="boot",
@@ -105,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
             verdict=VerdictConfig(late_limit=args.late_limit / 100, settle_s=args.settle),
             start_timeout_ns=round(args.start_timeout * 1e9),
             duration_from_live=args.duration_from == "live",
+            min_idle_ns=args.min_idle_us * 1000,
         )
         emulator = Emulator(config, record=bool(args.record))
     except (ValueError, OSError) as error:

@@ -77,7 +77,7 @@ class GraphOptions:
             after them; ``None`` records nothing.
         loop: ``"topics"`` (default) or ``"direct"`` (``plant="hardware"``, fused chain, reference sampled
             by the controller): see :data:`LOOPS`.
-        late_limit: ``hardware``: percent of the enabled ticks after the first second that may be late
+        late_limit: ``hardware``: percent of the ticks after the first second of live output that may be late or not live
             before the run counts as not controlled (exit 3, docs/LAUNCH.md), in [0, 100].
         start_timeout: ``hardware``: seconds the emulator waits for the first step (lockstep) or the first
             tick with an enabled command (real time) before the run counts as never started (exit 3), > 0.

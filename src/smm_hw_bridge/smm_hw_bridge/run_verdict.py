@@ -1,4 +1,4 @@
-"""Whether a hardware run controlled: armed, output live, few enough late ticks (docs/LAUNCH.md, "Exit codes").
+"""Whether a hardware run controlled: armed, output live, few late ticks (docs/LAUNCH.md, "Shutdown and exit codes").
 
 The board's feedback frames carry its status (``ENABLED``) and its late count; the emulator (the frames it
 sends) and the bridge (the frames it admits) count them with :class:`RunTally`, so both give the same figures.
@@ -53,26 +53,37 @@ class RunTally:
         self.live_ticks = 0
         """Feedback frames with ENABLED set: ticks that latched an enabled command."""
         self.enabled_ticks = 0
-        """Enabled ticks after the settling time (the late fraction's denominator)."""
+        """Ticks after the settling time from the first live tick on (the late fraction's denominator)."""
         self.late_ticks = 0
-        """Of :attr:`enabled_ticks`, those at which the answer to the previous feedback had not arrived."""
+        """Of :attr:`enabled_ticks`, those at which the board held the previous command (the answer to its
+        last feedback had not arrived) or the output was not live."""
         self._first_live: int | None = None
         self._last: FeedbackFrame | None = None
 
     def on_feedback(self, frame: FeedbackFrame) -> None:
-        """Counts one feedback frame (in tick order; a lost frame's ticks count as the next one's)."""
+        """Counts one feedback frame (in tick order; a lost frame's ticks count as the next one's).
+
+        After the settling time every tick is judged: late if the board held the previous command, or if
+        the output was not live (nulled by a watchdog, a fault, a disarm) at all.
+        """
         last, self._last = self._last, frame
-        if not frame.status & StatusBit.ENABLED:
+        enabled = bool(frame.status & StatusBit.ENABLED)
+        if enabled:
+            self.live_ticks += 1
+            if self._first_live is None:
+                self._first_live = frame.tick
+        first = self._first_live
+        if first is None or last is None or u32_diff(frame.tick, first) < self.settle_ticks:
             return
-        self.live_ticks += 1
-        if self._first_live is None:
-            self._first_live = frame.tick
-        if u32_diff(frame.tick, self._first_live) < self.settle_ticks or last is None:
-            return
-        if last.session != frame.session or u32_diff(frame.tick, last.tick) <= 0:
+        ticks = u32_diff(frame.tick, last.tick)
+        if last.session != frame.session or ticks <= 0:
             return  # a reboot, or the same tick re-sent (lockstep)
-        self.enabled_ticks += u32_diff(frame.tick, last.tick)
-        self.late_ticks += max(0, u32_diff(frame.late_commands, last.late_commands))
+        self.enabled_ticks += ticks
+        if not enabled:
+            self.late_ticks += ticks
+        else:
+            dead = ticks - 1 if not last.status & StatusBit.ENABLED else 0
+            self.late_ticks += dead + max(0, u32_diff(frame.late_commands, last.late_commands))
 
     @property
     def late_fraction(self) -> float:
@@ -80,10 +91,10 @@ class RunTally:
         return self.late_ticks / self.enabled_ticks if self.enabled_ticks else 0.0
 
     def figures(self) -> str:
-        """``late L of N enabled ticks after the first S s (P %), T live ticks in all``."""
+        """``late L of N ticks after the first S s live (P %), T live ticks in all``."""
         return (
-            f"late {self.late_ticks} of {self.enabled_ticks} enabled ticks after the first "
-            f"{self.config.settle_s:g} s ({100.0 * self.late_fraction:.2f} %), {self.live_ticks} live ticks in all"
+            f"late {self.late_ticks} of {self.enabled_ticks} ticks after the first {self.config.settle_s:g} s "
+            f"live ({100.0 * self.late_fraction:.2f} %), {self.live_ticks} live ticks in all"
         )
 
     def verdict(self) -> str | None:
@@ -94,7 +105,7 @@ class RunTally:
             return "the output never went live: no board tick latched an enabled command"
         if self.late_fraction > self.config.late_limit:
             return (
-                f"{100.0 * self.late_fraction:.2f} % of the enabled ticks after the first "
-                f"{self.config.settle_s:g} s were late, above the limit of {100.0 * self.config.late_limit:g} %"
+                f"{100.0 * self.late_fraction:.2f} % of the ticks after the first {self.config.settle_s:g} s live "
+                f"were late or not live, above the limit of {100.0 * self.config.late_limit:g} %"
             )
         return None
