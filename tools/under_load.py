@@ -1,4 +1,4 @@
-"""Run a command with busy processes beside it, optionally all pinned to some CPUs (docs/TESTING.md, "Under load").
+"""Run a command beside busy processes, optionally all pinned to some CPUs (docs/TESTING.md, "Under load").
 
     python tools/under_load.py --busy 2 -- env CI=true bash .ci/run
     python tools/under_load.py --busy 1 --cpus 0 -- env CI=true bash .ci/run     # as taskset -c 0
@@ -38,7 +38,9 @@ def build_parser() -> argparse.ArgumentParser:
     """The command line."""
     parser = argparse.ArgumentParser(prog="under_load.py", description=__doc__.splitlines()[0])
     parser.add_argument("--busy", type=int, default=2, help="busy processes beside the command (default 2)")
-    parser.add_argument("--cpus", type=parse_cpus, default=None, help="pin the command and the busy ones here")
+    parser.add_argument(
+        "--cpus", type=parse_cpus, default=None, help="pin the command and the busy ones here"
+    )
     parser.add_argument("--repeat", type=int, default=1, help="run the command this many times (default 1)")
     parser.add_argument("command", nargs=argparse.REMAINDER, help="-- COMMAND [ARGS...]")
     return parser
@@ -53,6 +55,7 @@ class FloorProbe(threading.Thread):
         self.stop = threading.Event()
 
     def run(self) -> None:
+        """Sleeps 1 ms at a time, keeping each overshoot."""
         while not self.stop.is_set():
             start = time.monotonic_ns()
             time.sleep(0.001)

@@ -137,7 +137,9 @@ def test_a_real_board_in_lockstep_is_refused_clearly() -> None:
 
 
 def test_hardware_lockstep_clocks_the_emulator_by_the_controller_without_wall_clock_limits() -> None:
-    specs = build_graph(GraphOptions(plant="hardware", clock_mode="lockstep", scenario="case2", start_timeout=7.0))
+    specs = build_graph(
+        GraphOptions(plant="hardware", clock_mode="lockstep", scenario="case2", start_timeout=7.0)
+    )
     emulator, bridge = (dict(spec.parameters) for spec in specs[:2])
     assert (emulator["mode"], emulator["lockstep-trigger"]) == ("lockstep", "enabled")
     assert (emulator["start-timeout"], emulator["duration"]) == (7.0, 5.0)  # the scenario's length
@@ -155,7 +157,9 @@ def test_the_late_limit_reaches_the_emulator_and_the_bridge_as_their_units() -> 
     assert dict(specs[1].parameters)["verdict.late_limit"] == 0.025  # fraction
 
 
-@pytest.mark.parametrize(("name", "value"), [("late_limit", -1.0), ("late_limit", 101.0), ("start_timeout", 0.0)])
+@pytest.mark.parametrize(
+    ("name", "value"), [("late_limit", -1.0), ("late_limit", 101.0), ("start_timeout", 0.0)]
+)
 def test_bad_late_limit_or_start_timeout_is_rejected_with_its_name(name: str, value: float) -> None:
     with pytest.raises(ValueError, match=name):
         GraphOptions(plant="hardware", **{name: value})  # type: ignore[arg-type]
@@ -752,4 +756,7 @@ def test_a_recorded_hardware_run_arms_once_the_recorder_reads_joint_states(loop:
     specs = build_graph(GraphOptions(plant="hardware", clock_mode="lockstep", loop=loop, record="bag"))
     bridge = dict(specs[-1 if loop == "direct" else 2].parameters)  # recorder, emulator, bridge, controller
     assert bridge["autostart_subscribers"] == readers  # the recorder (+ controller_node in the topics loop)
-    assert all("autostart_subscribers" not in dict(spec.parameters) for spec in build_graph(GraphOptions(plant="hardware", clock_mode="lockstep", loop=loop)))
+    assert all(
+        "autostart_subscribers" not in dict(spec.parameters)
+        for spec in build_graph(GraphOptions(plant="hardware", clock_mode="lockstep", loop=loop))
+    )

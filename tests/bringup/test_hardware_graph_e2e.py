@@ -75,7 +75,9 @@ def test_hardware_graph_runs_for_its_duration_and_the_output_goes_live(
     )
     assert closing in logs  # the closing line is the emulator's own counters
     # the bridge counts the same ticks from the feedback frames it admitted
-    assert f"[hw_bridge_node] host: {figures['figures']}, from the board's feedback frames; controlled" in logs
+    assert (
+        f"[hw_bridge_node] host: {figures['figures']}, from the board's feedback frames; controlled" in logs
+    )
 
 
 def _smm_bag(*arguments: str) -> subprocess.CompletedProcess[str]:

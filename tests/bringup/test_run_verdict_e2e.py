@@ -34,7 +34,16 @@ def test_hardware_lockstep_case2_recorded_twice_gives_a_bag_with_the_same_indice
     indices = []
     for run in (1, 2):
         bag = tmp_path / f"case2-{run}"
-        arguments = ("--plant", "hardware", "--clock-mode", "lockstep", "--scenario", "case2", "--record", str(bag))
+        arguments = (
+            "--plant",
+            "hardware",
+            "--clock-mode",
+            "lockstep",
+            "--scenario",
+            "case2",
+            "--record",
+            str(bag),
+        )
         code, logs = _launch(ros_processes, f"smm-launch-{run}", *arguments)
         assert code == 0, logs
         assert "[smm-launch] run: controlled (late 0 of 3999 ticks after the first 1 s live" in logs
@@ -95,8 +104,11 @@ def test_a_bridge_that_never_arms_exits_3_and_both_sides_say_so(ros_processes: A
 @pytest.mark.realtime
 def test_a_realtime_run_more_late_than_its_limit_exits_3(ros_processes: Any) -> None:
     # A 5 kHz board with a late limit of 0: no host loop through DDS answers every 200 us tick in time.
-    arguments = ("--plant", "hardware", "--clock-mode", "realtime", "--scenario", "case1", "--algorithm", "pid",
-                 "--control-period", "0.0002", "--duration", "3", "--late-limit", "0")  # fmt: skip
+    arguments = ("--plant", "hardware", "--clock-mode", "realtime", "--scenario", "case1", "--algorithm",
+                 "pid", "--control-period", "0.0002", "--duration", "3", "--late-limit", "0")  # fmt: skip
     code, logs = _launch(ros_processes, "smm-launch-late", *arguments)
     assert code == 3, logs
-    assert "[smm-launch] run: did not control: " in logs and "were late or not live, above the limit of 0 %" in logs
+    assert (
+        "[smm-launch] run: did not control: " in logs
+        and "were late or not live, above the limit of 0 %" in logs
+    )

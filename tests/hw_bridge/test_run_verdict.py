@@ -57,11 +57,15 @@ def test_late_ticks_in_the_settling_time_are_not_judged_and_those_after_are() ->
     tally = tally_of(frames)
     assert (tally.live_ticks, tally.enabled_ticks, tally.late_ticks) == (1100, 1000, 0)
     assert tally.verdict() is None
-    assert tally.figures() == "late 0 of 1000 ticks after the first 0.1 s live (0.00 %), 1100 live ticks in all"
+    assert (
+        tally.figures() == "late 0 of 1000 ticks after the first 0.1 s live (0.00 %), 1100 live ticks in all"
+    )
 
 
 @pytest.mark.parametrize(("late", "controlled"), [(10, True), (11, False)])
-def test_more_late_ticks_than_the_limit_after_the_settling_time_did_not_control(late: int, controlled: bool) -> None:
+def test_more_late_ticks_than_the_limit_after_the_settling_time_did_not_control(
+    late: int, controlled: bool
+) -> None:
     frames = [frame(t) for t in range(100)]
     frames += [frame(t, late=min(t - 99, late)) for t in range(100, 1100)]
     tally = tally_of(frames)
@@ -104,3 +108,13 @@ def test_ticks_without_live_output_after_the_settling_time_count_as_late() -> No
     assert tally.verdict() is not None and "were late or not live" in tally.verdict()  # type: ignore[operator]
     back = tally_of([*frames, frame(1205, late=0)], limit=1.0)  # live again after lost frames
     assert (back.enabled_ticks, back.late_ticks) == (1106, 1005)  # 5 of the 6 ticks since were not live
+
+
+def test_ticks_without_a_frame_are_counted_and_shown() -> None:
+    tally = tally_of([frame(t) for t in range(150)] + [frame(160, late=12)])
+    assert (tally.missed_ticks, tally.enabled_ticks, tally.late_ticks) == (
+        10,
+        61,
+        11,
+    )  # at most the ticks passed
+    assert tally.figures().endswith(", 10 ticks without a frame here")

@@ -86,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Builds and runs the emulator; returns the exit code (3: the run did not control, its reason on stderr)."""
+    """Builds and runs the emulator; returns the exit code (3: the run did not control, why on stderr)."""
     lag = None if args.no_valve_lag else valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES)
     try:
         plant = PlantConfig(
@@ -141,7 +141,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"smm_bench_emulator: {status['figures']}", flush=True)
     print(summary, flush=True)
     if status["verdict"] is not None:
-        print(f"smm_bench_emulator: the run did not control: {status['verdict']}", file=sys.stderr, flush=True)
+        print(
+            f"smm_bench_emulator: the run did not control: {status['verdict']}", file=sys.stderr, flush=True
+        )
         return EXIT_NOT_CONTROLLED
     return 0
 

@@ -44,8 +44,8 @@ class EmulatorConfig:
         resend_ns: Lockstep: re-send the unanswered feedback after this long (ns), > 0.
         duration_ticks: Stop after this many ticks (0 = run until stopped), counted from boot, or with
             ``duration_from_live`` from the first tick that latched an enabled command.
-        duration_from_live: Count ``duration_ticks`` from the first live tick: a host slow to start (a
-            loaded machine) shortens no run.
+        duration_from_live: Count ``duration_ticks`` from the first live tick (live or not since): a host
+            slow to start (a loaded machine) shortens no run.
         seed: Seed of the injected corruption.
         verdict: When the run counts as controlled (:mod:`smm_hw_bridge.run_verdict`).
         start_timeout_ns: Stop, as a run that never started, when no tick came (lockstep) or no tick
@@ -144,6 +144,7 @@ class Emulator:
         self.last_enabled_ns: int | None = None
         self.tally = RunTally(config.board.period_ns, config.verdict)
         """Enabled and late ticks of the feedback sent, as the bridge counts them."""
+        self._live_from: int | None = None
         self.never_started = False
         """Lockstep: no tick within ``start_timeout_ns``."""
 
@@ -178,7 +179,11 @@ class Emulator:
         else:
             self.null_since_ns = self.null_since_tick = None
         self.ticks += 1
-        counted = self.tally.live_ticks if self.config.duration_from_live else self.ticks
+        if self._live_from is None and self.tally.live_ticks:
+            self._live_from = self.ticks - 1
+        counted = self.ticks
+        if self.config.duration_from_live:
+            counted = 0 if self._live_from is None else self.ticks - self._live_from
         if self.config.duration_ticks and counted >= self.config.duration_ticks:
             self.running = False
 

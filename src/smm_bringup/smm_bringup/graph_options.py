@@ -77,16 +77,17 @@ class GraphOptions:
             after them; ``None`` records nothing.
         loop: ``"topics"`` (default) or ``"direct"`` (``plant="hardware"``, fused chain, reference sampled
             by the controller): see :data:`LOOPS`.
-        late_limit: ``hardware``: percent of the ticks after the first second of live output that may be late or not live
-            before the run counts as not controlled (exit 3, docs/LAUNCH.md), in [0, 100].
+        late_limit: ``hardware``: percent of the ticks after the first second of live output that may be
+            late or not live before the run counts as not controlled (exit 3, docs/LAUNCH.md), in [0, 100].
         start_timeout: ``hardware``: seconds the emulator waits for the first step (lockstep) or the first
             tick with an enabled command (real time) before the run counts as never started (exit 3), > 0.
         rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
-            nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` in real time (as ros2_control's
-            controller manager), 0 with the simulator. The bench emulator, standing for the hard real-time
-            board, runs 20 above (at most 99); the recorder 10 below (at least 1): above every ordinary
-            process, so that a loaded host does not starve it, below the loop. Where the system refuses
-            SCHED_FIFO, the launcher says so and runs them at normal priority. Lockstep: 0 by default.
+            nodes), 0 for normal scheduling; ``None``: 50 with ``plant="hardware"`` in real time (as
+            ros2_control's controller manager), 0 with the simulator. The bench emulator, standing for the
+            hard real-time board, runs 20 above (at most 99); the recorder 10 below (at least 1): above
+            every ordinary process, so that a loaded host does not starve it, below the loop. Where the
+            system refuses SCHED_FIFO, the launcher says so and runs them at normal priority. Lockstep: 0
+            by default.
     """
 
     plant: Literal["sim", "hardware", "hw"] = "sim"

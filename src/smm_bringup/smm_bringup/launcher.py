@@ -69,8 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--clock-mode",
         choices=CLOCK_MODES,
         default="lockstep",
-        help="lockstep: each step waits for the controller's answer (simulator, or the emulator board-clocked "
-        "over UDP); realtime: the plant's own clock",
+        help="lockstep: each step waits for the controller's answer (simulator, or the emulator "
+        "board-clocked over UDP); realtime: the plant's own clock",
     )
     parser.add_argument(
         "--chain",
@@ -283,7 +283,7 @@ def board_line(path: Path, *, real_board: bool) -> str:
 
 
 def verdict_line(path: Path) -> str | None:
-    """``run: controlled (figures)`` or ``run: did not control: reason (figures)`` from the emulator's status."""
+    """``run: controlled (figures)`` or ``run: did not control: reason (figures)``, from the emulator."""
     try:
         status = json.loads(path.read_text())
         figures, reason = str(status["figures"]), status["verdict"]

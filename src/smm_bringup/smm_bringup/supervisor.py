@@ -20,7 +20,6 @@ from types import FrameType
 from typing import Any, Final, TextIO
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
-
 from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 
 from smm_bringup.errors import GraphError

@@ -257,7 +257,8 @@ class DirectBridgeNode(HwBridgeNode):
     def closing_line(self) -> str:
         """The bridge's closing line, and receive -> send of the commands this host answered."""
         return (
-            f"{super().closing_line()}; receive->send p50 {self.statistics.execution_percentile_us(50):.0f} us, "
+            f"{super().closing_line()}; receive->send "
+            f"p50 {self.statistics.execution_percentile_us(50):.0f} us, "
             f"p99 {self.statistics.execution_percentile_us(99):.0f} us over "
             f"{self.statistics.execution_us.count} commands"
         )

@@ -124,7 +124,10 @@ class HwBridgeNode(LifecycleNode):
         if self._started:
             return
         wanted = self._autostart_subscribers
-        if self.count_publishers(topics.TORQUE_COMMAND) == 0 or self.count_subscribers(topics.JOINT_STATES) < wanted:
+        if (
+            self.count_publishers(topics.TORQUE_COMMAND) == 0
+            or self.count_subscribers(topics.JOINT_STATES) < wanted
+        ):
             if not self._waiting_logged:
                 self._log.info(
                     "autostart: waiting for a torque_command publisher (the controller)"
@@ -160,7 +163,14 @@ class HwBridgeNode(LifecycleNode):
             if self.autostart and not self._started:
                 return "the bridge never armed: autostart waited for the controller to the end"
             return "the bridge was never configured: no valid feedback from the board"
-        return self.tally.verdict()
+        reason = self.tally.verdict()
+        core = self._core
+        if reason is not None and not self.tally.armed and core is not None and core.refused:
+            refused = ", ".join(
+                f"{why.value} {count}" for why, count in sorted(core.refused.items(), key=str)
+            )
+            reason += f" (commands refused: {refused})"
+        return reason
 
     # ---- public views -----------------------------------------------------------------------------
 
@@ -510,7 +520,7 @@ def judged_exit(code: int, node: HwBridgeNode | None, name: str) -> int:
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Console script ``hw_bridge_node``: builds the node (unconfigured) and spins it; exit codes: :func:`judged_exit`."""
+    """Console script ``hw_bridge_node``: builds the node (unconfigured), spins it; exit code: judged_exit."""
     made: list[HwBridgeNode] = []
 
     def build(context: Context) -> HwBridgeNode:

@@ -1,4 +1,4 @@
-"""Whether a hardware run controlled: armed, output live, few late ticks (docs/LAUNCH.md, "Shutdown and exit codes").
+"""Whether a hardware run controlled: armed, live, few late ticks (docs/LAUNCH.md, "Shutdown and exit codes").
 
 The board's feedback frames carry its status (``ENABLED``) and its late count; the emulator (the frames it
 sends) and the bridge (the frames it admits) count them with :class:`RunTally`, so both give the same figures.
@@ -57,6 +57,8 @@ class RunTally:
         self.late_ticks = 0
         """Of :attr:`enabled_ticks`, those at which the board held the previous command (the answer to its
         last feedback had not arrived) or the output was not live."""
+        self.missed_ticks = 0
+        """Ticks of which no feedback frame was counted here (lost on the way, or not read in time)."""
         self._first_live: int | None = None
         self._last: FeedbackFrame | None = None
 
@@ -67,6 +69,8 @@ class RunTally:
         the output was not live (nulled by a watchdog, a fault, a disarm) at all.
         """
         last, self._last = self._last, frame
+        if last is not None and last.session == frame.session:
+            self.missed_ticks += max(0, u32_diff(frame.tick, last.tick) - 1)
         enabled = bool(frame.status & StatusBit.ENABLED)
         if enabled:
             self.live_ticks += 1
@@ -83,7 +87,8 @@ class RunTally:
             self.late_ticks += ticks
         else:
             dead = ticks - 1 if not last.status & StatusBit.ENABLED else 0
-            self.late_ticks += dead + max(0, u32_diff(frame.late_commands, last.late_commands))
+            late = max(0, u32_diff(frame.late_commands, last.late_commands))
+            self.late_ticks += min(ticks, dead + late)  # a missed tick is not late twice
 
     @property
     def late_fraction(self) -> float:
@@ -92,9 +97,11 @@ class RunTally:
 
     def figures(self) -> str:
         """``late L of N ticks after the first S s live (P %), T live ticks in all``."""
+        missed = f", {self.missed_ticks} ticks without a frame here" if self.missed_ticks else ""
         return (
-            f"late {self.late_ticks} of {self.enabled_ticks} ticks after the first {self.config.settle_s:g} s "
-            f"live ({100.0 * self.late_fraction:.2f} %), {self.live_ticks} live ticks in all"
+            f"late {self.late_ticks} of {self.enabled_ticks} ticks after the first "
+            f"{self.config.settle_s:g} s live ({100.0 * self.late_fraction:.2f} %), "
+            f"{self.live_ticks} live ticks in all{missed}"
         )
 
     def verdict(self) -> str | None:
@@ -105,7 +112,8 @@ class RunTally:
             return "the output never went live: no board tick latched an enabled command"
         if self.late_fraction > self.config.late_limit:
             return (
-                f"{100.0 * self.late_fraction:.2f} % of the ticks after the first {self.config.settle_s:g} s live "
-                f"were late or not live, above the limit of {100.0 * self.config.late_limit:g} %"
+                f"{100.0 * self.late_fraction:.2f} % of the ticks after the first "
+                f"{self.config.settle_s:g} s live were late or not live, above the limit of "
+                f"{100.0 * self.config.late_limit:g} %"
             )
         return None
