@@ -239,8 +239,8 @@ def _fifo_priorities(specs: Sequence[NodeSpec]) -> dict[str, int]:
     cpus = len(os.sched_getaffinity(0))
     if len(wanted) >= cpus:
         _say(
-            f"{len(wanted)} processes under SCHED_FIFO on {cpus} CPU(s): when they need more CPU than there is, "
-            "they starve every other process and the kernel's RT throttling stops them all, the emulator "
+            f"{len(wanted)} processes under SCHED_FIFO on {cpus} CPU(s): when they need more CPU than there "
+            "is, they starve every other process and the kernel's RT throttling stops them all, the emulator "
             "included, for up to 50 ms a second (docs/LAUNCH.md, 'Real time on a small machine'); "
             "--rt-priority 0 runs them at normal priority",
             sys.stderr,
