@@ -176,6 +176,7 @@ def realtime_hil(
         fifo_allowed,
         fifo_preexec,
     )
+    from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 
     tag = f"{period}_{loop}" + ("_fifo" if host_fifo else "")
     shape, loop_parameters = LOOPS[loop]
@@ -264,10 +265,12 @@ def realtime_hil(
         for log in logs:
             log.close()
     lines = (workdir / f"emulator_{tag}.log").read_text(errors="replace").strip().splitlines()
-    if emulator.returncode != 0 or not record.is_file() or not lines:
+    if emulator.returncode not in (0, EXIT_NOT_CONTROLLED) or not record.is_file() or not lines:
         print(f"  the emulator failed (exit {emulator.returncode})")
         return None
     status: dict[str, Any] = json.loads(lines[-1])
+    verdict = "controlled" if status["verdict"] is None else f"did not control: {status['verdict']}"
+    print(f"  run: {status['figures']}; {verdict}")
     data = np.load(record)
     ticks, q, codes = data["tick"], data["position"], data["codes"]
     live = np.flatnonzero(np.any(codes != 0, axis=1))
