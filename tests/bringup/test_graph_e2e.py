@@ -193,7 +193,13 @@ def test_sigint_stops_every_child(ros_processes: Any, ros_context: Any) -> None:
     assert_gone(children)
 
 
-def test_realtime_graph_runs_for_its_duration_and_answers(ros_processes: Any, tmp_path: Path) -> None:
+@pytest.mark.parametrize("answers", [False, pytest.param(True, marks=pytest.mark.realtime)])
+def test_realtime_graph_runs_for_its_duration_and_answers(
+    ros_processes: Any, tmp_path: Path, answers: bool
+) -> None:
+    """The simulator's clock gives 200 steps in 2 s whatever the machine; that the controller, started beside
+    it, answered within those 2 s of wall time needs a machine that keeps up (make test-realtime; the answers'
+    twin in make test: the lockstep graph tests above, which answer every step)."""
     import json
 
     stats = tmp_path / "stats.json"
@@ -227,8 +233,9 @@ def test_realtime_graph_runs_for_its_duration_and_answers(ros_processes: Any, tm
     figures = json.loads(stats.read_text())
     assert figures["clock_mode"] == "realtime"
     assert figures["steps"] == 200
-    assert figures["latency"]["count"] > 0, figures
     assert figures["dropped_invalid"] == 0 and figures["dropped_unknown_stamp"] == 0, figures
+    if answers:
+        assert figures["latency"]["count"] > 0, figures
 
 
 def test_composed_mode_reports_an_invalid_parameter_and_exits_2(ros_domain_id: int, tmp_path: Path) -> None:
