@@ -103,9 +103,10 @@ def test_a_bridge_that_never_arms_exits_3_and_both_sides_say_so(ros_processes: A
 
 @pytest.mark.realtime
 def test_a_realtime_run_more_late_than_its_limit_exits_3(ros_processes: Any) -> None:
-    # A 5 kHz board with a late limit of 0: no host loop through DDS answers every 200 us tick in time.
+    # A limit of 0 %: one held tick in 3 s at 1 kHz through DDS is enough (the quiet developers' machine
+    # holds about 0.1 % with the topics loop, docs/LAUNCH.md).
     arguments = ("--plant", "hardware", "--clock-mode", "realtime", "--scenario", "case1", "--algorithm",
-                 "pid", "--control-period", "0.0002", "--duration", "3", "--late-limit", "0")  # fmt: skip
+                 "pid", "--duration", "3", "--late-limit", "0")  # fmt: skip
     code, logs = _launch(ros_processes, "smm-launch-late", *arguments)
     assert code == 3, logs
     assert (
