@@ -2,8 +2,9 @@
 
 Builds a git worktree of the baseline (default: the commit before the ControllerCore change) with its own
 virtual environment, runs ``smm-launch --scenario case2 --record`` there and here (each in a private network
-namespace, as the test suite does), and compares, per topic and per stamp, the CDR payloads of the stack's
-stamped topics (everything recorded but ``/diagnostics``, whose values are wall-clock figures). The offline
+namespace, as the test suite does), and compares, per topic and per stamp, the decoded payloads of the
+stack's topics (everything recorded but ``/diagnostics``, whose values are wall-clock figures; a wall-clock
+retransmission counted once, the wall-clock counter rows of ``*_internals`` left out). The offline
 closed loop (every law both trees know) is compared array by array, bit for bit. Exit 0 when all agree.
 
     .venv/bin/python tools/compare_baseline.py [--commit 362816c] [--out out/baseline]
@@ -20,14 +21,15 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from smm_bag.cdr import decode_float64_multi_array, stamp_of
+from smm_bag.cdr import decode_float64_multi_array, decode_joint_state, stamp_of
 from smm_bag.reader import BagReader
 
 HERE = Path(__file__).resolve().parents[1]
 DEFAULT_COMMIT = "362816c"
 IGNORED_TOPICS = ("/diagnostics", "/rosout", "/parameter_events")
-WALL_CLOCK_ROWS = ("deadline_misses",)
-"""Internals rows counted against the wall clock (a step longer than the period): may differ run to run."""
+WALL_CLOCK_ROWS = ("deadline_misses", "duplicates_answered")
+"""Internals rows that count wall-clock events (a step longer than the period; a measurement the simulator
+re-published after ``republish_period`` of wall time): they may differ run to run."""
 
 OFFLINE_SNIPPET = """
 import sys, numpy as np
@@ -91,24 +93,46 @@ def offline_run(tree: Path, out: Path, seed: int) -> Path:
     return path
 
 
-def payloads(bag: Path) -> dict[str, dict[int | None, list[bytes]]]:
-    """``{topic: {stamp ns: [CDR payloads in log order]}}`` of every compared topic."""
-    found: dict[str, dict[int | None, list[bytes]]] = defaultdict(lambda: defaultdict(list))
+Payload = tuple[object, ...]
+
+
+def decoded(type_name: str, data: bytes) -> Payload:
+    """A message's content (CDR alignment padding is not content: the serializer leaves it uninitialised)."""
+    if type_name == "std_msgs/msg/Float64MultiArray":
+        array = decode_float64_multi_array(data)
+        return (array.dims, array.data_offset, array.data)
+    if type_name == "sensor_msgs/msg/JointState":
+        state = decode_joint_state(data)
+        return (state.stamp_ns, state.name, state.position, state.velocity, state.effort)
+    return (type_name, stamp_of(type_name, data), data if stamp_of(type_name, data) is None else b"")
+
+
+def payloads(bag: Path) -> dict[str, dict[int | None, list[Payload]]]:
+    """``{topic: {stamp ns: [decoded payloads, distinct, in log order]}}`` of every compared topic.
+
+    A retransmission (the simulator re-publishes an unanswered measurement after ``republish_period`` of
+    wall time; the controller answers it again) repeats a payload: kept once.
+    """
+    found: dict[str, dict[int | None, list[Payload]]] = defaultdict(lambda: defaultdict(list))
     with BagReader(bag) as reader:
         for message in reader.messages():
             if message.topic in IGNORED_TOPICS:
                 continue
-            found[message.topic][stamp_of(message.type, message.data)].append(message.data)
+            content = decoded(message.type, message.data)
+            stamp = stamp_of(message.type, message.data)
+            if content not in found[message.topic][stamp]:
+                found[message.topic][stamp].append(content)
     return found
 
 
-def without_wall_clock_rows(payload: bytes) -> tuple[tuple[str, ...], tuple[float, ...]]:
+def without_wall_clock_rows(payload: Payload) -> tuple[tuple[str, ...], tuple[float, ...]]:
     """An internals payload's labels and values, the wall-clock rows left out."""
-    decoded = decode_float64_multi_array(payload)
-    labels = decoded.dims[0][0].partition(":")[2].split(",") if decoded.dims else []
+    dims, _, data = payload
+    assert isinstance(dims, tuple) and isinstance(data, tuple)
+    labels = dims[0][0].partition(":")[2].split(",") if dims else []
     kept = [row for row, label in enumerate(labels) if label not in WALL_CLOCK_ROWS]
-    width = len(decoded.data) // max(len(labels), 1)
-    values = tuple(v for row in kept for v in decoded.data[row * width : (row + 1) * width])
+    width = len(data) // max(len(labels), 1)
+    values = tuple(v for row in kept for v in data[row * width : (row + 1) * width])
     return tuple(labels[row] for row in kept), values
 
 
@@ -124,7 +148,7 @@ def compare_bags(before: Path, after: Path) -> list[str]:
         differing = [stamp for stamp in a if a[stamp] != b[stamp]]
         if topic.endswith("internals"):
             strip = without_wall_clock_rows
-            differing = [s for s in differing if list(map(strip, a[s])) != list(map(strip, b[s]))]
+            differing = [s for s in differing if set(map(strip, a[s])) != set(map(strip, b[s]))]
         messages = sum(len(v) for v in a.values())
         status = "equal" if not differing else f"{len(differing)} stamps DIFFER (first {differing[0]})"
         print(f"  {topic}: {len(a)} stamps, {messages} messages: {status}")
@@ -157,15 +181,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=HERE / "out" / "baseline")
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--domain-id", type=int, default=77, help="ROS_DOMAIN_ID of both runs")
+    parser.add_argument("--compare-only", action="store_true", help="compare the runs already in OUT")
     args = parser.parse_args(argv)
     out: Path = args.out.resolve()
-    tree = baseline_tree(args.commit, (args.worktree or out / f"tree-{args.commit}").resolve())
-    results = {}
-    for name, root in (("before", tree), ("after", HERE)):
-        results[name] = (
-            graph_run(root, out / name, args.seed, args.domain_id),
-            offline_run(root, out / name, args.seed),
-        )
+    results = {name: (out / name / "bag", out / name / "offline.npz") for name in ("before", "after")}
+    if not args.compare_only:
+        tree = baseline_tree(args.commit, (args.worktree or out / f"tree-{args.commit}").resolve())
+        for name, root in (("before", tree), ("after", HERE)):
+            results[name] = (
+                graph_run(root, out / name, args.seed, args.domain_id),
+                offline_run(root, out / name, args.seed),
+            )
     print(f"lockstep case2, seed {args.seed}: {args.commit} (before) vs this tree (after)")
     problems = compare_bags(results["before"][0], results["after"][0])
     problems += compare_offline(results["before"][1], results["after"][1])
