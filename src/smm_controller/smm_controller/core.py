@@ -271,7 +271,8 @@ class ControllerCore:
         self.last_reference = reference
         applied = effort if effort is not None else self._last_command
         torque = self.chain.step_floats(position, applied, reference, self.control_period)
-        self._last_command = torque
+        if math.isfinite(torque[0]) and math.isfinite(torque[1]):
+            self._last_command = torque  # the applied torque of the next step when the plant gives none
         return torque
 
     def step_law(
