@@ -17,6 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 from smm_controller.chain import ControlChain, make_chain
+from smm_controller.laws import PAPER_LAWS
 from smm_controller.reference import SineReference
 
 from smm_dynamics import SMMParameters, rk4_step, rk4_step_floats
@@ -122,7 +123,7 @@ def main() -> int:
     )
     for stage, seconds in time_stages(fpdeso, inputs).items():
         print(f"  {stage:28s} {seconds * 1e6:7.2f} us")
-    for name in ("fpd", "pid", "npd"):
+    for name in PAPER_LAWS[1:]:
         chain_array, chain_float = time_chain(make_chain(name, params), record_inputs(name, params))
         print(
             f"{name.upper():6s} chain: step {chain_array * 1e6:7.2f} us,"

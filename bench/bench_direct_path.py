@@ -1,49 +1,73 @@
-"""The direct loop's per-frame host work, in process: feedback frame in -> command frame out, no sockets.
+"""The direct loop's per-frame host work: feedback frame received -> command frame sent, through public API.
 
-Figures, not pass/fail (``make bench``). ``DirectBridgeNode._on_datagram`` is fed encoded feedback frames of
-a board that follows case 1's reference; a transport stands in for the socket and notes when ``send`` is
-called. Printed: receive -> send (what the board waits for, less the UDP hops) and the whole tick (the ROS
-side after the send included), p50 / p99 / max over the frames, with and without a subscriber on every topic.
+Figures, not pass/fail (``make bench``). The emulator's board (``smm_bench_emulator.board.BoardCore``) sits
+behind an in-memory link that the bridge opens at configure (a new feedback frame each time the reader asks:
+no sockets, no clock to wait for). ``DirectControllerNode`` and ``DirectBridgeNode`` are configured and
+activated through their lifecycle; ``DirectBridgeNode.statistics`` (receive -> send of each answered frame,
+the figure the direct loop reports on /diagnostics) gives p50 / p99 / max, with and without a subscriber on
+every topic, printed beside the time of a fixed pure-Python loop so that machines compare. A run the bridge
+ends (a fault) prints what it had. ``--profile``: a cProfile of the controller's part of a tick instead.
 Runs in a private network namespace (as bench_hil.py).
 """
 
 from __future__ import annotations
 
-import math
 import os
 import sys
+import threading
 import time
 from pathlib import Path
-
-import numpy as np
+from typing import Any
 
 HERE = Path(__file__).resolve().parent
-FRAMES = int(os.environ.get("SMM_BENCH_DIRECT_FRAMES", "20000"))
-COUNTS = 1 << 20
+FRAMES = int(os.environ.get("SMM_BENCH_DIRECT_FRAMES", "5000"))
+WARM_UP = 1000
+"""Frames left out of the figures (imports, first allocations, the arming handshake)."""
 
 
-def run(observed: bool) -> dict[str, float]:
-    """Per-frame times (us) of the direct loop's host; ``observed``: a subscriber on every topic."""
+def reference_loop_s() -> float:
+    """Seconds of the fixed pure-Python reference loop ``s = 0; for i in range(3_000_000): s += i * i``."""
+    started = time.perf_counter()
+    s = 0
+    for i in range(3_000_000):
+        s += i * i
+    return time.perf_counter() - started
+
+
+def run(observed: bool) -> dict[str, Any]:
+    """Receive -> send (us) of the direct loop's host; ``observed``: a subscriber on every topic."""
     import rclpy
+    import smm_hw_bridge.bridge_node
     from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+    from smm_bench_emulator.board import BoardConfig, BoardCore
     from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode
-    from smm_hw_bridge.core import BridgeCore
-    from smm_hw_bridge.protocol import FeedbackFrame, decode_command, encode
-    from smm_hw_bridge.transport import Transport
+    from smm_hw_bridge.transport import LinkConfig, Transport
     from std_msgs.msg import Float64MultiArray
 
     from smm_msgs_py import topics
 
-    sent_at: list[int] = []
-    sent: list[bytes] = []
+    class Board(Transport):
+        """The emulator's board behind an in-memory link: a new feedback frame each time one is read.
 
-    class Noting(Transport):
+        The board ticks when the host asks for the next frame (its lockstep tick once the last feedback is
+        answered, else its own tick), so the host never waits for a clock and no other process runs.
+        """
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.board = BoardCore(BoardConfig())
+            self.first: bytes | None = self.board.start()
+
         def send(self, frame: bytes) -> None:
-            sent_at.append(time.perf_counter_ns())
-            sent.append(frame)
+            self.board.receive(frame)
 
         def receive(self, timeout_s: float = 0.0) -> bytes | None:
-            return None
+            first, self.first = self.first, None
+            if first is not None:
+                return first
+            return self.board.tick_lockstep() if self.board.answered else self.board.tick_realtime()
 
         def fileno(self) -> int:
             return -1
@@ -51,98 +75,156 @@ def run(observed: bool) -> dict[str, float]:
         def close(self) -> None:
             pass
 
+    def open_board(link: LinkConfig) -> Transport:
+        return Board()
+
+    # The one seam: the link the bridge opens at configure (a public function of its module, no member).
+    smm_hw_bridge.bridge_node.open_transport = open_board  # type: ignore[attr-defined]
     context = Context()
     rclpy.init(context=context)
     controller = DirectControllerNode(
         context=context,
         parameter_overrides={"chain": "internal", "reference_source": "internal", "reference.kind": "sine"},
     )
-    bridge = DirectBridgeNode(controller, context=context, parameter_overrides={"bridge.lockstep": False})
+    bridge = DirectBridgeNode(
+        controller, context=context, parameter_overrides={"loop.spin_us": 0}
+    )
     peer = rclpy.create_node("bench_peer", context=context)
     if observed:
-        from sensor_msgs.msg import JointState
-
         peer.create_subscription(JointState, topics.JOINT_STATES, lambda _m: None, 10)
         arrays = (topics.TORQUE_COMMAND, topics.REFERENCE, topics.CONTROLLER_INTERNALS, "hw_bridge_internals")
         for name in arrays:
             peer.create_subscription(Float64MultiArray, name, lambda _m: None, 10)
         deadline = time.monotonic() + 5.0
-        while time.monotonic() < deadline and controller._internals_publisher.get_subscription_count() == 0:
+        while time.monotonic() < deadline and controller.count_subscribers(topics.CONTROLLER_INTERNALS) == 0:
             time.sleep(0.05)
-    host_session = 7
-    core = BridgeCore(bridge._bridge.config, host_session=host_session)
-    bridge._core, bridge._transport = core, Noting()
-
-    def frame(tick: int, codes: tuple[int, int], applied_seq: int) -> bytes:
-        angle = math.sin(math.pi * tick * 1e-3) * 0.5
-        count = round(angle / (2 * math.pi) * COUNTS) % (1 << 32)
-        return encode(
-            FeedbackFrame(
-                session=11,
-                seq=tick + 1,
-                tick=tick,
-                host_session=host_session,
-                counts=(count, count),
-                adc=(1600, 0, 0, 0),
-                status=0,
-                faults=0,
-                applied_seq=applied_seq,
-                applied_age=0 if applied_seq else 0xFFFF,
-                output_codes=codes,
-                late_commands=0,
-                crc_errors=0,
-                dropped_frames=0,
+    executor = SingleThreadedExecutor(context=context)
+    for node in (controller, bridge, peer):
+        executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    try:
+        bridge.trigger_configure()  # type: ignore[no-untyped-call]
+        bridge.trigger_activate()  # type: ignore[no-untyped-call]
+        statistics = bridge.statistics
+        deadline = time.monotonic() + float(os.environ.get("SMM_BENCH_DIRECT_WAIT", "60"))
+        while statistics.execution_us.count < WARM_UP and time.monotonic() < deadline:
+            time.sleep(0.01)
+        if statistics.execution_us.count < WARM_UP:
+            raise RuntimeError(
+                f"the loop did not start: {statistics.execution_us.count} frames answered, bridge "
+                f"{bridge.lifecycle_state} ({None if bridge.core is None else bridge.core.state}), "
+                f"{bridge.counters}, controller {controller.counters}"
             )
-        )
+        statistics.reset()
+        started = time.monotonic()
+        deadline = started + 600.0
+        while (
+            statistics.execution_us.count < FRAMES
+            and time.monotonic() < deadline
+            and bridge.lifecycle_state == "active"
+        ):
+            time.sleep(0.1)  # this thread's wake-ups take the GIL from the reader: few of them
+        seconds = time.monotonic() - started
+        figures = {
+            "answered": float(statistics.execution_us.count),
+            "rate_hz": statistics.execution_us.count / seconds,
+            "send_p50": statistics.execution_percentile_us(50),
+            "send_p99": statistics.execution_percentile_us(99),
+            "send_max": statistics.execution_us.maximum,
+            "publish_mean": bridge.publish_us.mean,
+            "state": bridge.lifecycle_state,
+        }
+    finally:
+        if bridge.lifecycle_state == "active":
+            bridge.trigger_deactivate()  # type: ignore[no-untyped-call]
+        executor.shutdown()
+        spinner.join(10.0)
+        bridge.destroy_node()
+        controller.destroy_node()  # type: ignore[no-untyped-call]
+        peer.destroy_node()  # type: ignore[no-untyped-call]
+        rclpy.shutdown(context=context)
+    return figures
 
-    core.on_datagram(frame(0, (0, 0), 0), time.monotonic_ns())
-    core.arm()
-    send_us: list[float] = []
-    tick_us: list[float] = []
-    codes, applied = (0, 0), 0
-    for tick in range(1, FRAMES + 1):
-        data = frame(tick, codes, applied)
-        count = len(sent_at)
+
+def profile(frames: int) -> None:
+    """cProfile of the controller's part of a tick (``command_for``, ``publish_answer``), no subscriber."""
+    import cProfile
+    import math
+    import pstats
+
+    import numpy as np
+    import rclpy
+    from rclpy.context import Context
+    from smm_controller.chain import make_chain
+    from smm_direct_loop.host import DirectControllerNode
+
+    from smm_dynamics import SMMParameters
+
+    context = Context()
+    rclpy.init(context=context)
+    controller = DirectControllerNode(
+        context=context,
+        parameter_overrides={"chain": "internal", "reference_source": "internal", "reference.kind": "sine"},
+    )
+    measurements = [
+        (k * 1_000_000, (0.5 * math.sin(math.pi * k * 1e-3), 0.5 * math.sin(math.pi * k * 1e-3)), (0.0, 0.0))
+        for k in range(1, frames + 1)
+    ]
+    half = frames // 2
+    command_ns: list[int] = []
+    for stamp_ns, position, effort in measurements[:half]:  # unprofiled: the real cost of each part
         started = time.perf_counter_ns()
-        bridge._on_datagram(data)
-        ended = time.perf_counter_ns()
-        if len(sent_at) > count:
-            command = decode_command(sent[-1])
-            codes, applied = command.codes, command.seq
-            send_us.append((sent_at[count] - started) / 1e3)
-        tick_us.append((ended - started) / 1e3)
-    answered = len(send_us)
-    peer.destroy_node()  # type: ignore[no-untyped-call]
-    bridge._transport = None
-    bridge.destroy_node()
+        controller.command_for(stamp_ns, position, effort)
+        command_ns.append(time.perf_counter_ns() - started)
+        controller.publish_answer()
+    chain = make_chain("fpdeso", SMMParameters())
+    chain_ns: list[int] = []
+    rows = ((0.1, 0.1), (0.0, 0.0), (0.0, 0.0))
+    for _, position, effort in measurements[:half]:
+        started = time.perf_counter_ns()
+        chain.step_floats(position, effort, rows, 1e-3)
+        chain_ns.append(time.perf_counter_ns() - started)
+    print(
+        f"controller part before the send (command_for), p50 {np.percentile(command_ns, 50) / 1e3:.1f} us, "
+        f"p99 {np.percentile(command_ns, 99) / 1e3:.1f} us; of which the chain's own step (ControlChain."
+        f"step_floats alone) p50 {np.percentile(chain_ns, 50) / 1e3:.1f} us, "
+        f"p99 {np.percentile(chain_ns, 99) / 1e3:.1f} us"
+    )
+    profiler = cProfile.Profile()
+    profiler.enable()
+    for stamp_ns, position, effort in measurements[half:]:
+        controller.command_for(stamp_ns, position, effort)
+        controller.publish_answer()
+    profiler.disable()
     controller.destroy_node()  # type: ignore[no-untyped-call]
     rclpy.shutdown(context=context)
-    steady_send = np.asarray(send_us[1000:])
-    steady_tick = np.asarray(tick_us[1000:])
-    return {
-        "answered": answered,
-        "send_p50": float(np.percentile(steady_send, 50)),
-        "send_p99": float(np.percentile(steady_send, 99)),
-        "send_max": float(steady_send.max()),
-        "tick_p50": float(np.percentile(steady_tick, 50)),
-        "tick_p99": float(np.percentile(steady_tick, 99)),
-    }
+    print(f"cProfile of {frames - half} ticks' controller part (command_for, then publish_answer):")
+    pstats.Stats(profiler).sort_stats("tottime").print_stats(18)
 
 
 def main(argv: list[str]) -> int:
+    """Re-executes in a private network namespace, then prints the figures."""
     if "--inner" not in argv:
         sys.path.insert(0, str(HERE))
         from bench_graph import reexec_in_private_netns
 
         return reexec_in_private_netns(argv, __file__, domain_base=190, domains=10)
+    if "--profile" in argv:
+        profile(FRAMES)
+        return 0
+    reference = reference_loop_s()
+    print(f"reference loop (s = 0; for i in range(3_000_000): s += i * i): {reference:.3f} s", flush=True)
     for observed in (False, True):
         figures = run(observed)
         listeners = "every topic subscribed" if observed else "no subscriber"
         print(
-            f"direct loop host, in process, {FRAMES} frames, {listeners}: "
-            f"{figures['answered']:.0f} answered; receive -> send p50 {figures['send_p50']:.1f} us, "
-            f"p99 {figures['send_p99']:.1f} us, max {figures['send_max']:.0f} us; whole tick p50 "
-            f"{figures['tick_p50']:.1f} us, p99 {figures['tick_p99']:.1f} us"
+            f"direct loop host, in process, {figures['answered']:.0f} frames "
+            f"({figures['rate_hz']:.0f} Hz), {listeners}: receive -> send p50 {figures['send_p50']:.1f} us, "
+            f"p99 {figures['send_p99']:.1f} us, max {figures['send_max']:.0f} us; ROS side after the send "
+            f"mean {figures['publish_mean']:.1f} us; reference loop {reference:.3f} s"
+            + ("" if figures["state"] == "active" else f"; the bridge ended the run ({figures['state']})"),
+            flush=True,
         )
     return 0
 

@@ -116,8 +116,9 @@ def offline_with_delay(period: float, delay: int) -> tuple[np.ndarray | None, fl
     Returns:
         (RMS, None), or (None, t in s) when the loop diverged at t (a non-finite torque or position).
     """
-    from smm_analysis.closed_loop import build_chain, scenario_plant_config
+    from smm_analysis.closed_loop import scenario_plant_config
     from smm_analysis.scenarios import get_scenario
+    from smm_controller.chain import build_chain
     from smm_controller.td import TrackingDifferentiatorConfig
     from smm_sim.plant import SimulatedPlant
 
@@ -130,7 +131,7 @@ def offline_with_delay(period: float, delay: int) -> tuple[np.ndarray | None, fl
     )
     h = max(period, 1e-3)
     td = TrackingDifferentiatorConfig(filter_factor=(h, h))
-    chain = build_chain("fpdeso", SMMParameters(), td_config=td)
+    chain = build_chain("fpdeso", SMMParameters(), td=td)
     steps = round(SECONDS / period)
     t = np.arange(steps + 1) * period
     reference = spec.reference().sample(t).tolist()

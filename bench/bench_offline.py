@@ -15,8 +15,9 @@ import sys
 import time
 
 import numpy as np
-from smm_analysis.closed_loop import build_chain, run_closed_loop, scenario_plant_config
+from smm_analysis.closed_loop import run_closed_loop, scenario_plant_config
 from smm_analysis.scenarios import SCENARIOS
+from smm_controller.chain import build_chain
 from smm_sim.plant import SimulatedPlant, disturbance_torque
 
 from smm_dynamics import SMMParameters, rk4_step, rk4_step_floats

@@ -22,6 +22,7 @@ from smm_analysis.errors import AnalysisError
 from smm_analysis.scenarios import get_scenario
 from smm_controller.fuzzy_batch import MamdaniBatch
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, FuzzyPDConfig
+from smm_controller.laws import PAPER_LAWS
 from smm_controller.limits import OutputLimitConfig
 from smm_controller.rules import TABLE_1, TABLE_7, fleso_bandwidth_system, pd_gain_system
 from smm_sim.plant import PlantConfig
@@ -138,7 +139,7 @@ def _settings(draw: st.DrawFn, controller: str, smooth: bool = True) -> RunSetti
     )
 
 
-@pytest.mark.parametrize("controller", ["fpdeso", "fpd", "pid", "npd"])
+@pytest.mark.parametrize("controller", PAPER_LAWS)
 @settings(max_examples=12)
 @given(data=st.data())
 def test_every_run_of_a_batch_equals_the_scalar_loop(controller: str, data: st.DataObject) -> None:

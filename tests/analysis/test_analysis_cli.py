@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import pytest
+from smm_controller.laws import PAPER_LAWS
 
 from smm_analysis import acceptance, cli
 
@@ -19,8 +20,8 @@ def test_writes_metrics_report_and_plots(tmp_path: Path, capsys: pytest.CaptureF
     document = json.loads((out / "metrics.json").read_text(encoding="utf-8"))
     assert set(document) == {"step", "case1", "case2", "acceptance", "acceptance_verdict", "meta"}
     for scenario in ("step", "case1", "case2"):
-        assert set(document[scenario]) == {"fpdeso", "fpdeso_retuned", "fpd", "pid", "npd"}
-        for controller in ("fpdeso", "fpdeso_retuned", "fpd", "pid", "npd"):
+        assert set(document[scenario]) == {*PAPER_LAWS, "fpdeso_retuned"}
+        for controller in (*PAPER_LAWS, "fpdeso_retuned"):
             for joint in ("alpha", "beta"):
                 values = document[scenario][controller][joint]
                 assert all(isinstance(values[key], float) for key in ("Ma", "Ave", "RMS", "eps_u"))

@@ -17,6 +17,7 @@ from smm_analysis.errors import (
 )
 from smm_analysis.metrics import rms_error
 from smm_analysis.scenarios import SCENARIOS
+from smm_controller.laws import PAPER_LAWS
 from smm_sim.plant import SimulatedPlant
 
 from smm_controller import ControlChain, FPDController, TrackingDifferentiator, make_chain
@@ -70,7 +71,7 @@ def test_fpdeso_gets_fleso_and_baselines_do_not() -> None:
     assert any(key.startswith("fleso.") for key in fpdeso.internals)
     assert np.any(fpdeso.disturbance_estimate != 0.0)
     assert_array_equal(fpdeso.disturbance_estimate, fpdeso.internals["fleso.xi_tilde"])
-    for name in ("fpd", "pid", "npd"):
+    for name in PAPER_LAWS[1:]:
         baseline = run_closed_loop(scenario, name)
         assert not any(key.startswith("fleso.") for key in baseline.internals)
         assert any(key.startswith("td.") for key in baseline.internals)

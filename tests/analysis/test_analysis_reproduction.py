@@ -21,6 +21,7 @@ from smm_analysis.reproduction import (
     run_reproduction,
 )
 from smm_analysis.tune_td import TDSweepPoint, best_point, chosen_point, format_table, sweep_td
+from smm_controller.laws import PAPER_LAWS
 
 from smm_analysis import acceptance
 
@@ -30,7 +31,7 @@ SHORT = 0.2
 @pytest.fixture(scope="module")
 def short_result() -> ReproductionResult:
     return run_reproduction(
-        resolve_scenarios(["step", "case1", "case2"], SHORT), ("fpdeso", "fpd", "pid", "npd")
+        resolve_scenarios(["step", "case1", "case2"], SHORT), PAPER_LAWS
     )
 
 
@@ -133,7 +134,7 @@ def test_metrics_document_schema(short_result: ReproductionResult) -> None:
     for scenario in ("step", "case1", "case2"):
         per_scenario = document[scenario]
         assert isinstance(per_scenario, dict)
-        assert set(per_scenario) == {"fpdeso", "fpd", "pid", "npd"}
+        assert set(per_scenario) == set(PAPER_LAWS)
         for entry in per_scenario.values():
             for joint in JOINTS:
                 values = entry[joint]

@@ -25,6 +25,7 @@ from smm_analysis.retuned import (
     matched_damping_kd0,
 )
 from smm_analysis.scenarios import SCENARIOS
+from smm_controller.laws import PAPER_LAWS
 
 from smm_analysis import cli, closed_loop, reproduction
 from smm_controller import FPDESOConfig, FPDESOController, TrackingDifferentiatorConfig
@@ -75,7 +76,7 @@ def test_matched_damping_kd0_is_the_identity_on_the_source_joint() -> None:
 
 def test_retuned_set_is_a_default_controller_next_to_fpdeso() -> None:
     assert REPRODUCTION_CONTROLLERS[:2] == ("fpdeso", "fpdeso_retuned")
-    assert set(REPRODUCTION_CONTROLLERS) == {"fpdeso", "fpdeso_retuned", "fpd", "pid", "npd"}
+    assert set(REPRODUCTION_CONTROLLERS) == {*PAPER_LAWS, "fpdeso_retuned"}
     assert resolve_controllers(["fpdeso_retuned"]) == ("fpdeso_retuned",)
 
 
@@ -105,7 +106,7 @@ def test_retuned_run_differs_and_is_labelled() -> None:
 
 def test_retuned_set_gets_step_checks_and_stays_out_of_the_case1_ranking() -> None:
     scenarios = resolve_scenarios(["step", "case1"], 0.05)
-    result = run_reproduction(scenarios, ("fpdeso", "fpdeso_retuned", "fpd"))
+    result = run_reproduction(scenarios, (PAPER_LAWS[0], "fpdeso_retuned", PAPER_LAWS[1]))
     retuned = [check for check in result.checks if check.controller == "fpdeso_retuned"]
     assert {(check.quantity, check.joint) for check in retuned} == {
         (quantity, joint) for quantity in ("overshoot_fraction", "rise_time") for joint in ("alpha", "beta")

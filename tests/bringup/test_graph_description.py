@@ -20,7 +20,6 @@ from smm_bringup.errors import ParameterFileError, PlantNotAvailableError
 from smm_bringup.graph import build_graph
 from smm_bringup.graph_nodes import NodeSpec
 from smm_bringup.graph_options import (
-    ALGORITHMS,
     CHAIN_LAYOUTS,
     CLOCK_MODES,
     LOOPS,
@@ -39,6 +38,7 @@ from smm_bringup.launcher import build_parser as launcher_parser
 from smm_bringup.parameter_files import format_parameter_value, load_parameter_file
 from smm_bringup.realtime import fifo_allowed, fifo_preexec
 from smm_bringup.supervisor import EXIT_CONFIGURATION_ERROR, EXIT_OK
+from smm_controller.laws import law_names
 
 from smm_bringup import graph, graph_nodes, hardware_graph
 
@@ -453,7 +453,7 @@ def graph_options(draw: st.DrawFn) -> GraphOptions:
             clock_mode=draw(st.sampled_from(CLOCK_MODES)),
             chain=draw(st.sampled_from(CHAIN_LAYOUTS)),
             reference=draw(st.sampled_from(REFERENCE_PLACEMENTS)),
-            algorithm=draw(st.sampled_from(ALGORITHMS)),
+            algorithm=draw(st.sampled_from(law_names())),
             scenario=draw(st.none() | st.sampled_from(SCENARIO_NAMES)),
             duration=draw(st.none() | st.just(0.0) | positive),
             seed=draw(st.none() | st.integers(min_value=0, max_value=2**32 - 1)),

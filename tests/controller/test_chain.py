@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from smm_controller.baselines import FPDController, NPDController, PIDController
-from smm_controller.chain import CONTROLLER_NAMES, ControlChain, make_chain, make_controller
+from smm_controller.chain import ControlChain, make_chain, make_controller
 from smm_controller.fleso import FLESO
 from smm_controller.fpdeso import FPDESOConfig, FPDESOController
+from smm_controller.laws import UnknownLawError, get_law, law_names
 from smm_controller.reference import SineReference
 from smm_controller.td import TrackingDifferentiator
 
@@ -88,12 +89,12 @@ def test_make_controller(name: str, kind: type) -> None:
     assert isinstance(make_controller(name, PARAMS), kind)
     chain = make_chain(name, PARAMS)
     assert isinstance(chain.controller, kind)
-    assert (chain.fleso is not None) == (name == "fpdeso")
-    assert name in CONTROLLER_NAMES
+    assert (chain.fleso is not None) == get_law(name).uses_disturbance_estimate == (name == "fpdeso")
+    assert name in law_names()
 
 
 def test_make_controller_rejects_unknown_names() -> None:
-    with pytest.raises(ValueError, match="controller name must be one of"):
+    with pytest.raises(UnknownLawError, match="unknown law 'lqr'; known: fpdeso, fpd, pid, npd"):
         make_controller("lqr", PARAMS)
 
 

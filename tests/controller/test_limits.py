@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from smm_controller.baselines import PIDConfig, PIDController
 from smm_controller.chain import make_chain
+from smm_controller.laws import PAPER_LAWS
 from smm_controller.limits import (
     DEFAULT_TORQUE_LIMIT,
     MECHANICAL_STOPS,
@@ -103,7 +104,7 @@ def test_no_limited_output_exceeds_either_limit(taus: list[tuple[float, float]])
         previous = out
 
 
-@pytest.mark.parametrize("name", ["fpdeso", "fpd", "pid", "npd"])
+@pytest.mark.parametrize("name", PAPER_LAWS)
 def test_the_chain_applies_the_default_torque_limit_to_absurd_measurements(name: str) -> None:
     chain = make_chain(name, SMMParameters())
     chain.step((0.0, 0.0), (0.0, 0.0), REFERENCE, 1e-3)

@@ -133,7 +133,9 @@ def test_a_chain_that_stops_answering_is_caught_by_the_host_watchdog(direct: Ben
     """Refused measurements (no command) are not a fault: the board holds, then the host watchdog nulls."""
     direct.start()
     trips = direct.node.core.watchdog_trips
-    direct.controller.command_for = lambda *_measurement: None
+    from smm_controller.core import Refusal
+
+    direct.controller.command_for = lambda stamp_ns, *_measurement: Refusal(stamp_ns, "dropped_stale", "", "")
     assert_safe_now(direct)
     assert direct.node.core.watchdog_trips > trips
     assert direct.node.lifecycle_state == "active"  # no error transition: the loop runs on, with safe output

@@ -8,7 +8,6 @@ from smm_analysis.closed_loop import (
     DEFAULT_CONTROL_PERIOD,
     DEFAULT_SUBSTEPS,
     Trajectory,
-    build_chain,
     run_closed_loop,
     scenario_plant_config,
 )
@@ -49,7 +48,6 @@ __all__ = [
     "Trajectory",
     "UnknownControllerError",
     "UnknownScenarioError",
-    "build_chain",
     "control_energy",
     "end_effector_errors",
     "get_scenario",

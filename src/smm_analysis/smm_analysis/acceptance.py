@@ -6,8 +6,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from smm_controller.laws import PAPER_LAWS
+
 from smm_analysis.retuned import RETUNED_SETS, controller_label
-from smm_controller import CONTROLLER_NAMES
 
 if TYPE_CHECKING:
     from smm_analysis.reproduction import ReproductionResult, RunResult
@@ -135,7 +136,7 @@ def acceptance_checks(result: ReproductionResult) -> list[AcceptanceCheck]:
         step = result.run("step", controller)
         if step is not None and step.step is not None:
             checks += _step_checks(step, controller)
-    paper_controllers = [name for name in result.controllers if name in CONTROLLER_NAMES]
+    paper_controllers = [name for name in result.controllers if name in PAPER_LAWS]
     case1 = {name: result.run("case1", name) for name in paper_controllers}
     if case1.get("fpdeso") is not None and len([run for run in case1.values() if run is not None]) > 1:
         for metric in ("RMS", "Ma"):

@@ -15,20 +15,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from smm_controller.limits import OutputLimitConfig, OutputLimiter
+from smm_controller.limits import OutputLimitConfig
 from smm_sim.plant import PlantConfig, SimulatedPlant, disturbance_torque
 
 from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError, UnknownControllerError
 from smm_analysis.scenarios import Scenario, get_scenario
 from smm_controller import (
-    CONTROLLER_NAMES,
-    FLESO,
-    ControlChain,
     FLESOConfig,
     JointController,
-    TrackingDifferentiator,
     TrackingDifferentiatorConfig,
-    make_controller,
+    UnknownLawError,
+    build_chain,
 )
 from smm_dynamics import SMMParameters
 
@@ -36,7 +33,6 @@ __all__ = [
     "DEFAULT_CONTROL_PERIOD",
     "DEFAULT_SUBSTEPS",
     "Trajectory",
-    "build_chain",
     "run_closed_loop",
     "scenario_plant_config",
 ]
@@ -144,41 +140,6 @@ def scenario_plant_config(
     )
 
 
-def build_chain(
-    controller_name: str,
-    model_params: SMMParameters,
-    *,
-    td_config: TrackingDifferentiatorConfig | None = None,
-    fleso_config: FLESOConfig | None = None,
-    controller: JointController | None = None,
-    output_limits: OutputLimitConfig | None = None,
-) -> ControlChain:
-    """TD -> (FLESO for FPDESO) -> controller.
-
-    Args:
-        controller_name: One of ``smm_controller.CONTROLLER_NAMES``.
-        model_params: Nominal model parameters (FLESO and FPDESO).
-        td_config: TD parameters (default: ``smm_controller``'s defaults).
-        fleso_config: FLESO parameters for FPDESO (default: the paper's).
-        controller: A controller instance to use instead of the paper's default gains (for a clearly
-            labelled retuned set).
-        output_limits: Torque and rate limits after the law (default: ``OutputLimitConfig()``).
-
-    Returns:
-        The chain.
-
-    Raises:
-        UnknownControllerError: ``controller_name`` is unknown.
-    """
-    if controller_name not in CONTROLLER_NAMES:
-        raise UnknownControllerError(
-            f"unknown controller {controller_name!r}; known: {', '.join(CONTROLLER_NAMES)}"
-        )
-    law = controller if controller is not None else make_controller(controller_name, model_params)
-    fleso = FLESO(fleso_config, model_params) if controller_name == "fpdeso" else None
-    return ControlChain(TrackingDifferentiator(td_config), fleso, law, OutputLimiter(output_limits))
-
-
 def run_closed_loop(
     scenario: Scenario | str,
     controller_name: str,
@@ -198,12 +159,12 @@ def run_closed_loop(
 
     Args:
         scenario: A :class:`Scenario` or the name of one in ``SCENARIOS``.
-        controller_name: ``"fpdeso"``, ``"fpd"``, ``"pid"`` or ``"npd"``.
+        controller_name: A law of ``smm_controller.law_table()``.
         seed: Seed of the plant's noise generator.
         control_period: Control period dt (s); the scenario's duration must be a whole number of
             periods (to 1 ns).
         td_config: TD parameters (default: ``smm_controller``'s defaults).
-        fleso_config: FLESO parameters (FPDESO only; default: the paper's).
+        fleso_config: FLESO parameters (laws that use the disturbance estimate; default: the paper's).
         controller: Controller instance replacing the default-gain one (retuned sets).
         model_params: Nominal model of the controller (default ``SMMParameters()``).
         plant_config: Full plant configuration, replacing the one derived from the scenario
@@ -241,14 +202,12 @@ def run_closed_loop(
         )
     )
     plant = SimulatedPlant(config)
-    chain = build_chain(
-        controller_name,
-        nominal,
-        td_config=td_config,
-        fleso_config=fleso_config,
-        controller=controller,
-        output_limits=output_limits,
-    )
+    try:
+        chain = build_chain(
+            controller_name, nominal, law=controller, td=td_config, fleso=fleso_config, limiter=output_limits
+        )
+    except UnknownLawError as error:
+        raise UnknownControllerError(str(error)) from None
     dt = period_ns / _NS_PER_S
 
     t_ns = np.arange(steps + 1, dtype=np.int64) * period_ns

@@ -18,6 +18,7 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
+from smm_controller.laws import law_names
 
 from smm_analysis.errors import AnalysisError
 from smm_analysis.reproduction import JOINTS, ReproductionResult, RunResult
@@ -27,13 +28,24 @@ __all__ = ["DEFAULT_DPI", "write_plots"]
 
 DEFAULT_DPI = 80
 _FIGSIZE = (7.0, 3.4)
-_STYLES: dict[str, dict[str, Any]] = {
-    "fpdeso": {"color": "tab:red", "linestyle": "-"},
-    "fpd": {"color": "tab:blue", "linestyle": "--"},
-    "pid": {"color": "tab:green", "linestyle": "-."},
-    "npd": {"color": "tab:purple", "linestyle": ":"},
-    "fpdeso_retuned": {"color": "tab:orange", "linestyle": (0, (6, 2))},
-}
+_PALETTE: tuple[dict[str, Any], ...] = (
+    {"color": "tab:red", "linestyle": "-"},
+    {"color": "tab:blue", "linestyle": "--"},
+    {"color": "tab:green", "linestyle": "-."},
+    {"color": "tab:purple", "linestyle": ":"},
+    {"color": "tab:brown", "linestyle": (0, (3, 1, 1, 1))},
+    {"color": "tab:pink", "linestyle": (0, (1, 2))},
+    {"color": "tab:gray", "linestyle": (0, (5, 3))},
+)
+"""Line styles given to the laws in the table's order (the paper's four first), cycled past the seventh."""
+_RETUNED_STYLE: dict[str, Any] = {"color": "tab:orange", "linestyle": (0, (6, 2))}
+
+
+def _style(name: str) -> dict[str, Any]:
+    if name in RETUNED_SETS:
+        return _RETUNED_STYLE
+    names = law_names()
+    return _PALETTE[names.index(name) % len(_PALETTE)] if name in names else {}
 _SYMBOLS = {"alpha": "\u03b1", "beta": "\u03b2"}
 
 
@@ -71,7 +83,7 @@ def _tracking_figure(runs: Sequence[RunResult], joint: int, title: str, error: b
             values,
             linewidth=1.0,
             label=_legend_label(run.controller),
-            **_STYLES.get(run.controller, {}),
+            **_style(run.controller),
         )
     axes.set_xlabel("t (s)")
     axes.set_ylabel(f"{'error ' if error else ''}{_SYMBOLS[JOINTS[joint]]} (rad)")

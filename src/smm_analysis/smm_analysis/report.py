@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
+from smm_controller.laws import PAPER_LAWS
+
 from smm_analysis.acceptance import (
     CASE2_RMS_REDUCTION,
     STEP_OVERSHOOT_LIMIT,
@@ -309,7 +311,7 @@ def _retuned_section(result: ReproductionResult) -> list[str]:
 
 
 def _baseline_step_explanation(result: ReproductionResult, params: SMMParameters) -> list[str]:
-    if not any(result.run("step", name) is not None for name in ("pid", "npd", "fpd")):
+    if not any(result.run("step", name) is not None for name in PAPER_LAWS[1:]):
         return []
     lines = [
         "### Why the baselines' step responses differ from the paper's",

@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from smm_controller.laws import PAPER_LAWS, law_names, law_table
 from smm_controller.limits import OutputLimitConfig
 
 from smm_analysis.acceptance import AcceptanceCheck, acceptance_checks
@@ -27,7 +28,7 @@ from smm_analysis.metrics import (
 )
 from smm_analysis.retuned import RETUNED_SETS, damping_ratio
 from smm_analysis.scenarios import SCENARIOS, Scenario, get_scenario
-from smm_controller import CONTROLLER_NAMES, FPDESOConfig, TrackingDifferentiatorConfig
+from smm_controller import FPDESOConfig, TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
 
 __all__ = [
@@ -48,9 +49,9 @@ __all__ = [
 
 JOINTS: tuple[str, str] = ("alpha", "beta")
 REPRODUCTION_CONTROLLERS: tuple[str, ...] = (
-    CONTROLLER_NAMES[0],
+    PAPER_LAWS[0],
     *RETUNED_SETS,
-    *CONTROLLER_NAMES[1:],
+    *PAPER_LAWS[1:],
 )
 """Default controllers of the reproduction: the paper's, with the labelled retuned sets after FPDESO."""
 
@@ -151,8 +152,8 @@ def resolve_controllers(names: Sequence[str]) -> tuple[str, ...]:
     if len(set(names)) != len(names):
         raise AnalysisError(f"duplicate controller in {list(names)}")
     for name in names:
-        if name not in CONTROLLER_NAMES and name not in RETUNED_SETS:
-            known = ", ".join((*CONTROLLER_NAMES, *RETUNED_SETS))
+        if name not in law_table() and name not in RETUNED_SETS:
+            known = ", ".join((*law_names(), *RETUNED_SETS))
             raise UnknownControllerError(f"unknown controller {name!r}; known: {known}")
     return tuple(names)
 

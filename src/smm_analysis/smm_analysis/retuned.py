@@ -14,6 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
+from smm_controller.laws import law_table
+
 from smm_controller import FPDESOConfig, FPDESOController, JointController
 from smm_dynamics import SMMParameters
 
@@ -105,11 +107,9 @@ RETUNED_SETS: Mapping[str, RetunedSet] = MappingProxyType({FPDESO_RETUNED.name: 
 """Every retuned set by pseudo-controller name."""
 
 
-_PAPER_LABELS = {"fpdeso": "FPDESO", "fpd": "FPD", "pid": "PID", "npd": "NPD"}
-
-
 def controller_label(name: str) -> str:
     """Human label of a controller or retuned set (``FPDESO``, ``FPDESO, retuned (...)``)."""
     if name in RETUNED_SETS:
         return RETUNED_SETS[name].label
-    return _PAPER_LABELS.get(name, name)
+    law = law_table().get(name)
+    return name if law is None else law.display

@@ -16,7 +16,6 @@ from launch_ros.actions import Node
 from smm_bringup.graph import build_graph
 from smm_bringup.graph_nodes import NodeSpec
 from smm_bringup.graph_options import (
-    ALGORITHMS,
     CHAIN_LAYOUTS,
     CLOCK_MODES,
     LOOPS,
@@ -25,6 +24,7 @@ from smm_bringup.graph_options import (
     SCENARIO_NAMES,
     GraphOptions,
 )
+from smm_controller.laws import law_names
 
 ARGUMENTS = (
     ("plant", "sim", f"plant node: {' | '.join(PLANTS)}"),
@@ -32,7 +32,7 @@ ARGUMENTS = (
     ("loop", "topics", f"control loop: {' | '.join(LOOPS)}"),
     ("chain", "fused", f"chain layout: {' | '.join(CHAIN_LAYOUTS)}"),
     ("reference", "controller", f"who samples the reference: {' | '.join(REFERENCE_PLACEMENTS)}"),
-    ("algorithm", "fpdeso", f"controller: {' | '.join(ALGORITHMS)}"),
+    ("algorithm", "fpdeso", f"controller: {' | '.join(law_names())}"),
     ("scenario", "case2", f"scenario: {' | '.join(SCENARIO_NAMES)} | none"),
     ("duration", "", "simulated seconds until the simulator stops (empty: scenario / endless; 0: endless)"),
     ("seed", "", "noise seed of the simulator (empty: as configured)"),

@@ -32,12 +32,14 @@ from smm_analysis.scenarios import get_scenario
 from smm_bag.errors import BagError
 from smm_bag.manifest import RunManifest
 from smm_bag.metadata import read_metadata
+from smm_controller.laws import PAPER_LAWS, law_names
 
 from smm_bringup.graph_nodes import NAMESPACE, SIM_NODE
 from smm_bringup.graph_options import CHAIN_LAYOUTS, REFERENCE_PLACEMENTS, GraphOptions
 from smm_bringup.launcher import arguments_from_options
 
-DEMO_CONTROLLERS = ("fpdeso", "fpd")
+DEMO_CONTROLLERS = PAPER_LAWS[:2]
+"""FPDESO and its first baseline, FPD (the paper's case-2 comparison)."""
 JOINTS = ("alpha", "beta")
 
 
@@ -279,7 +281,7 @@ def demo(
         },
     }
     (out_dir / "metrics.json").write_text(json.dumps(document, indent=2))
-    if len(runs) == 2 and {run.controller for run in runs} == {"fpdeso", "fpd"}:
+    if len(runs) == 2 and {run.controller for run in runs} == set(DEMO_CONTROLLERS):
         by_name = {run.controller: run for run in runs}
         for joint in JOINTS:
             ours, theirs = by_name["fpdeso"].graph[joint].RMS, by_name["fpd"].graph[joint].RMS
@@ -299,11 +301,11 @@ def demo(
     return 0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``python -m smm_bringup.demo [--controllers ...] [--scenario ...]``."""
+def build_parser() -> argparse.ArgumentParser:
+    """The demo's command line (``--controllers``: the laws of ``smm_controller.laws.law_table()``)."""
     parser = argparse.ArgumentParser(prog="smm-demo", description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--controllers", nargs="+", default=list(DEMO_CONTROLLERS), choices=("fpdeso", "fpd", "pid", "npd")
+        "--controllers", nargs="+", default=list(DEMO_CONTROLLERS), choices=law_names()
     )
     parser.add_argument("--scenario", default="case2", choices=("step", "case1", "case2"))
     parser.add_argument("--seed", type=int, default=1)
@@ -322,7 +324,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         default=GraphOptions.reference,
         help="controller: controller_node samples the reference; node: reference_node publishes it",
     )
-    arguments = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line: ``python -m smm_bringup.demo [--controllers ...] [--scenario ...]``."""
+    arguments = build_parser().parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     return demo(
         arguments.controllers,

@@ -12,10 +12,11 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Final, Literal
 
+from smm_controller.laws import law_names, law_table
+
 from smm_bringup.realtime import MAX_PRIORITY
 
 __all__ = [
-    "ALGORITHMS",
     "CHAIN_LAYOUTS",
     "CLOCK_MODES",
     "LOOPS",
@@ -42,7 +43,6 @@ REFERENCE_PLACEMENTS: Final[tuple[str, ...]] = ("node", "controller")
 """``node``: ``reference_node`` publishes the reference, ``controller_node`` matches it by stamp;
 ``controller``: ``controller_node`` samples it itself (``reference_source: internal``), from the parameters
 that the parameter files give ``reference_node``, and no ``reference_node`` runs."""
-ALGORITHMS: Final[tuple[str, ...]] = ("fpdeso", "fpd", "pid", "npd")
 SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2", "excite")
 
 
@@ -63,7 +63,7 @@ class GraphOptions:
             and one process less per step, so the default graph is plant + controller; ``"node"``:
             ``reference_node`` publishes it one period ahead. The same values either way (see
             :data:`REFERENCE_PLACEMENTS`).
-        algorithm: Controller algorithm, one of :data:`ALGORITHMS`.
+        algorithm: Controller algorithm, a law of ``smm_controller.laws.law_table()``.
         scenario: Scenario name (:data:`SCENARIO_NAMES`), or ``None`` for the nodes' own defaults.
         duration: Simulated time after which the simulator stops (s), > 0; ``None`` keeps the scenario's
             length in lockstep and runs without end in real time; 0 runs without end.
@@ -117,8 +117,8 @@ class GraphOptions:
             raise ValueError(f"chain must be one of {CHAIN_LAYOUTS}, got {self.chain!r}")
         if self.reference not in REFERENCE_PLACEMENTS:
             raise ValueError(f"reference must be one of {REFERENCE_PLACEMENTS}, got {self.reference!r}")
-        if self.algorithm not in ALGORITHMS:
-            raise ValueError(f"algorithm must be one of {ALGORITHMS}, got {self.algorithm!r}")
+        if self.algorithm not in law_table():
+            raise ValueError(f"algorithm must be one of {law_names()}, got {self.algorithm!r}")
         if self.scenario is not None and self.scenario not in SCENARIO_NAMES:
             raise ValueError(f"scenario must be one of {SCENARIO_NAMES} or None, got {self.scenario!r}")
         if self.duration is not None and (

@@ -17,12 +17,13 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
+from smm_controller.laws import law_names
+
 from smm_bringup.composed import launch_composed
 from smm_bringup.errors import GraphError
 from smm_bringup.graph import build_graph
 from smm_bringup.graph_nodes import EMULATOR_NODE, NodeSpec
 from smm_bringup.graph_options import (
-    ALGORITHMS,
     CHAIN_LAYOUTS,
     CLOCK_MODES,
     LOOPS,
@@ -93,7 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="hardware: topics (the bridge and controller_node as processes joined by topics) or direct "
         "(one process steps the chain in the bridge's receiving thread; topics for observation only)",
     )
-    parser.add_argument("--algorithm", choices=ALGORITHMS, default="fpdeso", help="controller algorithm")
+    parser.add_argument("--algorithm", choices=law_names(), default="fpdeso", help="controller algorithm")
     parser.add_argument(
         "--scenario",
         choices=(*SCENARIO_NAMES, "none"),

@@ -14,9 +14,9 @@ from smm_controller.baselines import (
     npd_gain,
 )
 from smm_controller.chain import (
-    CONTROLLER_NAMES,
     ControlChain,
     JointController,
+    build_chain,
     make_chain,
     make_controller,
 )
@@ -40,6 +40,7 @@ from smm_controller.fuzzy_pd import (
     FuzzyPDConfig,
     FuzzyPDGainSchedule,
 )
+from smm_controller.laws import Law, UnknownLawError, get_law, law_names, law_table
 from smm_controller.model import NominalModel
 from smm_controller.reference import (
     REFERENCE_KINDS,
@@ -60,7 +61,6 @@ from smm_controller.td import (
 )
 
 __all__ = [
-    "CONTROLLER_NAMES",
     "DEFAULT_FLESO_W_MIN",
     "DEFAULT_TD_FILTER_FACTOR",
     "DEFAULT_TD_SPEED",
@@ -82,6 +82,7 @@ __all__ = [
     "FuzzyVariable",
     "GaussianMF",
     "JointController",
+    "Law",
     "MamdaniBatch",
     "MamdaniSystem",
     "NPDConfig",
@@ -97,11 +98,16 @@ __all__ = [
     "TrackingDifferentiator",
     "TrackingDifferentiatorConfig",
     "TriangularMF",
+    "UnknownLawError",
+    "build_chain",
     "centroid",
     "centroid_weights",
     "fhan",
     "fst",
     "gaussian_mf",
+    "get_law",
+    "law_names",
+    "law_table",
     "make_chain",
     "make_controller",
     "make_reference",

@@ -14,27 +14,17 @@ import numpy as np
 import numpy.typing as npt
 
 from smm_controller._validation import FloatArray, as_joint_vector, as_reference, check_dt
-from smm_controller.baselines import (
-    FPDConfig,
-    FPDController,
-    NPDConfig,
-    NPDController,
-    PIDConfig,
-    PIDController,
-)
-from smm_controller.fleso import FLESO
-from smm_controller.fpdeso import FPDESOConfig, FPDESOController
-from smm_controller.limits import OutputLimiter, track_saturation
-from smm_controller.td import TrackingDifferentiator
+from smm_controller.fleso import FLESO, FLESOConfig
+from smm_controller.laws import get_law, law_for_config
+from smm_controller.limits import OutputLimitConfig, OutputLimiter, track_saturation
+from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
 from smm_controller.torque_law import TorqueLaw
 from smm_dynamics import SMMParameters
 
 __all__ = [
-    "CONTROLLER_NAMES",
-    "LAW_CONFIGS",
     "ControlChain",
     "JointController",
-    "LawConfig",
+    "build_chain",
     "limited_torque",
     "make_chain",
     "make_controller",
@@ -42,31 +32,23 @@ __all__ = [
     "stage_internals",
 ]
 
-#: Names accepted by :func:`make_controller` and :func:`make_chain`.
-CONTROLLER_NAMES: tuple[str, ...] = ("fpdeso", "fpd", "pid", "npd")
-
 
 JointController = TorqueLaw
 """The interface shared by FPDESO and the baselines (see :class:`smm_controller.torque_law.TorqueLaw`)."""
 
-LawConfig = FPDESOConfig | FPDConfig | PIDConfig | NPDConfig
-"""The config of one of the laws."""
 
-LAW_CONFIGS: Mapping[str, type[LawConfig]] = types.MappingProxyType(
-    {"fpdeso": FPDESOConfig, "fpd": FPDConfig, "pid": PIDConfig, "npd": NPDConfig}
-)
-"""The config type of each law, by the names of :data:`CONTROLLER_NAMES`."""
+def make_law(config: object, params: SMMParameters) -> JointController:
+    """The law ``config`` configures (its type says which, :func:`~smm_controller.laws.law_for_config`).
 
+    Args:
+        config: A law's config.
+        params: The nominal model (for the laws that use it).
 
-def make_law(config: LawConfig, params: SMMParameters) -> JointController:
-    """The law ``config`` configures (its type says which); ``params``: FPDESO's nominal model."""
-    if isinstance(config, FPDESOConfig):
-        return FPDESOController(config, params)
-    if isinstance(config, FPDConfig):
-        return FPDController(config)
-    if isinstance(config, PIDConfig):
-        return PIDController(config)
-    return NPDController(config)
+    Raises:
+        UnknownLawError: ``config`` is the config of no law.
+    """
+    law: JointController = law_for_config(config).build(config, params)
+    return law
 
 
 def stage_internals(stage: str, internals: Mapping[str, FloatArray]) -> dict[str, FloatArray]:
@@ -191,30 +173,47 @@ class ControlChain:
 
 
 def make_controller(name: str, params: SMMParameters) -> JointController:
-    """A controller with the paper's default gains.
+    """Law ``name`` of :func:`~smm_controller.laws.law_table` with its default gains.
+
+    Raises:
+        UnknownLawError: No law has this name.
+    """
+    law = get_law(name)
+    built: JointController = law.build(law.config(), params)
+    return built
+
+
+def build_chain(
+    name: str,
+    model: SMMParameters,
+    *,
+    law: JointController | None = None,
+    td: TrackingDifferentiatorConfig | None = None,
+    fleso: FLESOConfig | None = None,
+    limiter: OutputLimiter | OutputLimitConfig | None = None,
+) -> ControlChain:
+    """The chain of law ``name``: TD -> FLESO (when the law uses the disturbance estimate) -> law -> limits.
+
+    The one place the chain is assembled (node, offline loop, rerun).
 
     Args:
-        name: "fpdeso", "fpd", "pid" or "npd".
-        params: Nominal model parameters (used by FPDESO only).
+        name: A law of :func:`~smm_controller.laws.law_table`.
+        model: Nominal model parameters (FLESO, and the laws that use a model).
+        law: The running law to put in the chain (default: law ``name`` with its default gains).
+        td: TD parameters (default: its defaults).
+        fleso: FLESO parameters (default: the paper's); unused without the FLESO.
+        limiter: The output limiter to share, or its config (default: ``OutputLimitConfig()``).
 
-    Returns:
-        The controller.
+    Raises:
+        UnknownLawError: No law has this name.
     """
-    if name not in LAW_CONFIGS:
-        raise ValueError(f"controller name must be one of {CONTROLLER_NAMES}, got {name!r}")
-    return make_law(LAW_CONFIGS[name](), params)
+    row = get_law(name)
+    controller = law if law is not None else make_controller(name, model)
+    observer = FLESO(fleso, model) if row.uses_disturbance_estimate else None
+    limits = limiter if isinstance(limiter, OutputLimiter) else OutputLimiter(limiter)
+    return ControlChain(TrackingDifferentiator(td), observer, controller, limits)
 
 
 def make_chain(name: str, params: SMMParameters) -> ControlChain:
-    """The full chain with default gains: TD, FLESO (FPDESO only) and the named controller.
-
-    Args:
-        name: "fpdeso", "fpd", "pid" or "npd".
-        params: Nominal model parameters (FLESO and FPDESO).
-
-    Returns:
-        The chain.
-    """
-    controller = make_controller(name, params)
-    fleso = FLESO(None, params) if name == "fpdeso" else None
-    return ControlChain(TrackingDifferentiator(), fleso, controller)
+    """The full chain of law ``name`` with default gains (:func:`build_chain`)."""
+    return build_chain(name, params)

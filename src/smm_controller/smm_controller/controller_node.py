@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Final, Generic, TypeVar, Unpack
+from typing import Any, ClassVar, Final, Unpack
 
 import numpy as np
 import numpy.typing as npt
+from rclpy.publisher import Publisher
 from sensor_msgs.msg import JointState
 from smm_dynamics.validation import at_least, check_bounds
 from smm_msgs_py.conversions import (
@@ -32,33 +33,15 @@ from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
 from smm_node_runtime.parameters import ConfigParameters
 from std_msgs.msg import Float64MultiArray
 
-from smm_controller.baselines import (
-    FPDConfig,
-    FPDController,
-    NPDConfig,
-    NPDController,
-    PIDConfig,
-    PIDController,
-)
-from smm_controller.chain import (
-    CONTROLLER_NAMES,
-    ControlChain,
-    JointController,
-    limited_torque,
-    stage_internals,
-)
-from smm_controller.fleso import FLESO, FLESOConfig
+from smm_controller.chain import ControlChain, JointController
+from smm_controller.core import ControllerCore, CoreSettings
+from smm_controller.fleso import FLESOConfig
 from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
-from smm_controller.fpdeso import FPDESOConfig, FPDESOController
-from smm_controller.limits import (
-    MeasurementLimits,
-    OutputLimitConfig,
-    OutputLimiter,
-    PlausibilityCheck,
-)
-from smm_controller.reference_node import ReferenceClock, ReferenceParameters
+from smm_controller.laws import law_names, law_table
+from smm_controller.limits import MeasurementLimits, OutputLimitConfig, OutputLimiter
+from smm_controller.reference_node import ReferenceParameters
 from smm_controller.sync import ExactTimeSynchronizer, Matched
-from smm_controller.td import TrackingDifferentiator, TrackingDifferentiatorConfig
+from smm_controller.td import TrackingDifferentiatorConfig
 from smm_controller.td_node import MEASUREMENT_PREFIX, TD_PREFIX, check_filter_factor
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
@@ -103,8 +86,6 @@ REFERENCE_SOURCES: Final[tuple[str, ...]] = ("topic", "internal")
 """Values of the ``reference_source`` parameter."""
 
 FloatArray = npt.NDArray[np.float64]
-ConfigT = TypeVar("ConfigT")
-LawT = TypeVar("LawT", bound=JointController)
 
 
 @dataclass(frozen=True)
@@ -112,8 +93,8 @@ class ControllerSelection:
     """Which control law runs, and when it may change.
 
     Attributes:
-        algorithm: Control law, "fpdeso", "fpd", "pid" or "npd"; its gains are the parameters
-            ``<algorithm>.<field>``.
+        algorithm: Control law, a name of :func:`smm_controller.laws.law_table`; its gains are the
+            parameters ``<algorithm>.<field>``.
         switch_idle_time: A change of ``algorithm`` is accepted only when no input arrived during the last
             this many seconds of wall-clock time (s), >= 0; 0 accepts it at any time.
     """
@@ -122,8 +103,8 @@ class ControllerSelection:
     switch_idle_time: float = field(default=DEFAULT_SWITCH_IDLE_TIME, metadata=at_least(0.0))
 
     def __post_init__(self) -> None:
-        if self.algorithm not in CONTROLLER_NAMES:
-            raise ValueError(f"algorithm must be one of {CONTROLLER_NAMES}, got {self.algorithm!r}")
+        if self.algorithm not in law_table():
+            raise ValueError(f"algorithm must be one of {law_names()}, got {self.algorithm!r}")
         check_bounds(self)
 
 
@@ -161,36 +142,8 @@ class ReferenceSource:
             )
 
 
-@dataclass(frozen=True)
-class _Law(Generic[ConfigT, LawT]):
-    """A control law: its default gains, how to build it and how to give a running one new gains/model."""
-
-    default: ConfigT
-    build: Callable[[ConfigT, SMMParameters], LawT]
-    reconfigure: Callable[[LawT, ConfigT, SMMParameters], None]
-    uses_disturbance_estimate: bool = False
-
-
-def _reconfigure_fpdeso(law: FPDESOController, config: FPDESOConfig, model: SMMParameters) -> None:
-    law.reconfigure(config, params=model)
-
-
-def _reconfigure_baseline(
-    law: FPDController | PIDController | NPDController, config: Any, _model: SMMParameters
-) -> None:
-    law.reconfigure(config)  # the baselines use no model
-
-
-_LAWS: Final[Mapping[str, _Law[Any, Any]]] = {
-    "fpdeso": _Law(FPDESOConfig(), FPDESOController, _reconfigure_fpdeso, uses_disturbance_estimate=True),
-    "fpd": _Law(FPDConfig(), lambda config, _model: FPDController(config), _reconfigure_baseline),
-    "pid": _Law(PIDConfig(), lambda config, _model: PIDController(config), _reconfigure_baseline),
-    "npd": _Law(NPDConfig(), lambda config, _model: NPDController(config), _reconfigure_baseline),
-}
-
-
 class ControllerNode(MeasurementDrivenNode):
-    """Controller node.
+    """Controller node: ROS glue around :class:`~smm_controller.core.ControllerCore`.
 
     Args:
         **options: The node options every SMM node takes (:class:`~smm_node_runtime.NodeOptions`).
@@ -205,7 +158,8 @@ class ControllerNode(MeasurementDrivenNode):
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
-        self._last_input_time: float | None = None
+        self.last_input_s: float | None = None
+        """Monotonic time of the last input (s), None before any (an ``algorithm`` switch waits for quiet)."""
         self.placement = ConfigParameters(self, "", ChainPlacement(), read_only=True)
         self.reference_source = ConfigParameters(self, "", ReferenceSource(), read_only=True)
         internal = self.reference_source.config.reference_source == "internal"
@@ -213,64 +167,70 @@ class ControllerNode(MeasurementDrivenNode):
             ReferenceParameters(self, REFERENCE_PREFIX) if internal else None
         )
         """The reference generator this node samples with ``reference_source = internal`` (else None)."""
-        self.reference_clock = ReferenceClock(self.get_logger().info)  # type: ignore[no-untyped-call]
-        """Time of the sampled reference: t = 0 at the first matched measurement (``internal`` only)."""
         self.selection = ConfigParameters(
             self, "", ControllerSelection(), check=self._check_selection, on_change=self._on_selection
         )
         self.law_parameters: dict[str, ConfigParameters[Any]] = {
-            name: ConfigParameters(self, name, law.default, on_change=self._on_gains(name))
-            for name, law in _LAWS.items()
+            name: ConfigParameters(self, name, law.config(), on_change=self._on_gains(name))
+            for name, law in law_table().items()
         }
-        # FPDESO (and, in the internal chain, the FLESO) use the nominal model.
+        # The laws that use a model (FPDESO) and, in the internal chain, the FLESO use the nominal model.
         self.model_parameters = ConfigParameters(
-            self, MODEL_PREFIX, SMMParameters(), on_change=self._on_model
+            self, MODEL_PREFIX, SMMParameters(), on_change=self._to_core("set_model")
         )
         self.output_limits = ConfigParameters(
-            self,
-            OUTPUT_PREFIX,
-            OutputLimitConfig(),
-            on_change=self._on_output_limits,
+            self, OUTPUT_PREFIX, OutputLimitConfig(), on_change=self._to_core("set_output_limits")
         )
-        self.limiter = OutputLimiter(self.output_limits.config)
-        """Torque and rate limits after the law (shared with the internal chain: one clamp count)."""
         self.internal_chain = self.placement.config.chain == "internal"
-        self.plausibility: PlausibilityCheck | None = None
-        """Range and step check of ``joint_states`` (internal chain only; else ``td_node`` checks)."""
+        td, fleso, limits = TrackingDifferentiatorConfig(), FLESOConfig(), MeasurementLimits()
         if self.internal_chain:
             self.measurement_limits = ConfigParameters(
                 self,
                 MEASUREMENT_PREFIX,
                 MeasurementLimits(),
-                on_change=lambda limits: self._plausibility().reconfigure(limits),
+                on_change=self._to_core("set_measurement_limits"),
             )
-            self.plausibility = PlausibilityCheck(self.measurement_limits.config)
-        self.chain: ControlChain | None = None
-        """The TD -> FLESO -> law chain this node runs with ``chain = internal`` (None otherwise)."""
-        if self.internal_chain:
             self.td_parameters = ConfigParameters(
                 self,
                 TD_PREFIX,
                 TrackingDifferentiatorConfig(),
                 check=lambda config: check_filter_factor(config, self.control_period),
-                on_change=self._on_td,
+                on_change=self._to_core("set_td"),
             )
             self.fleso_parameters = ConfigParameters(
-                self, FLESO_PREFIX, FLESOConfig(), on_change=self._on_fleso
+                self, FLESO_PREFIX, FLESOConfig(), on_change=self._to_core("set_fleso")
             )
-        self._last_command: FloatArray = np.zeros(2)
-        self._reference: Sequence[Sequence[float]] = ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0))
-        self._algorithm = self.selection.config.algorithm
-        self.controller = self._build(self._algorithm)
-        self.sync: ExactTimeSynchronizer[Any] = ExactTimeSynchronizer(self._inputs(self._algorithm))
-        self._torque_publisher = self.create_publisher(
+            td, fleso = self.td_parameters.config, self.fleso_parameters.config
+            limits = self.measurement_limits.config
+        reference = self.reference
+        self.core = ControllerCore(
+            CoreSettings(
+                algorithm=self.selection.config.algorithm,
+                gains={name: parameters.config for name, parameters in self.law_parameters.items()},
+                model=self.model_parameters.config,
+                output_limits=self.output_limits.config,
+                control_period=self.control_period,
+                chain=self.internal_chain,
+                td=td,
+                fleso=fleso,
+                measurement_limits=limits,
+            ),
+            self.admission,
+            reference=None if reference is None else lambda: reference.generator,
+            announce=self.get_logger().info,  # type: ignore[no-untyped-call]
+        )
+        """What the node does per measurement, without ROS."""
+        self.sync: ExactTimeSynchronizer[Any] = ExactTimeSynchronizer(self._inputs())
+        self.torque_publisher = self.create_publisher(
             Float64MultiArray, topics.TORQUE_COMMAND, qos_for_topic(topics.TORQUE_COMMAND)
         )
-        self._internals_publisher = self.create_publisher(
+        self.internals_publisher = self.create_publisher(
             Float64MultiArray, topics.CONTROLLER_INTERNALS, qos_for_topic(topics.CONTROLLER_INTERNALS)
         )
+        self.reference_publisher: Publisher | None = None
+        """Publishes the sampled reference (``reference_source = internal``), else None."""
         if self.internal_reference:
-            self._reference_publisher = self.create_publisher(
+            self.reference_publisher = self.create_publisher(
                 Float64MultiArray, topics.REFERENCE, qos_for_topic(topics.REFERENCE)
             )
         else:
@@ -303,88 +263,69 @@ class ControllerNode(MeasurementDrivenNode):
             subscription_qos_for_topic(topics.DISTURBANCE_ESTIMATE),
         )
 
-    def _on_output_limits(self, config: OutputLimitConfig) -> None:
-        self.limiter.reconfigure(config)
-
-    def _plausibility(self) -> PlausibilityCheck:
-        assert self.plausibility is not None  # declared with the internal chain only
-        return self.plausibility
-
     @property
     def algorithm(self) -> str:
         """Name of the running law."""
-        return self._algorithm
+        return self.core.algorithm
 
-    # ------------------------------------------------------------------------------ laws and switching
+    @property
+    def controller(self) -> JointController:
+        """The running law."""
+        return self.core.law
 
-    def _build(self, name: str) -> JointController:
-        """Build law ``name`` with its current gains; with the internal chain, a fresh chain around it."""
-        built: JointController = _LAWS[name].build(
-            self.law_parameters[name].config, self.model_parameters.config
-        )
-        if self.internal_chain:
-            fleso = (
-                FLESO(self.fleso_parameters.config, self.model_parameters.config)
-                if _LAWS[name].uses_disturbance_estimate
-                else None
-            )
-            self.chain = ControlChain(
-                TrackingDifferentiator(self.td_parameters.config), fleso, built, self.limiter
-            )
-            self._last_command = np.zeros(2)
-        return built
+    @property
+    def chain(self) -> ControlChain | None:
+        """The TD -> FLESO -> law chain this node runs with ``chain = internal`` (None otherwise)."""
+        return self.core.chain
+
+    @property
+    def limiter(self) -> OutputLimiter:
+        """Torque and rate limits after the law."""
+        return self.core.limiter
 
     @property
     def internal_reference(self) -> bool:
         """True with ``reference_source = internal``: this node samples the reference, nothing feeds it."""
         return self.reference is not None
 
-    def _inputs(self, name: str) -> tuple[str, ...]:
+    # ------------------------------------------------------------------------------ laws and switching
+
+    def _inputs(self) -> tuple[str, ...]:
         reference = () if self.internal_reference else (topics.REFERENCE,)
         if self.internal_chain:
             return (topics.JOINT_STATES, *reference)
         required = (topics.JOINT_STATES_FILTERED, *reference)
-        return (*required, topics.DISTURBANCE_ESTIMATE) if _LAWS[name].uses_disturbance_estimate else required
+        if self.core.uses_disturbance_estimate:
+            return (*required, topics.DISTURBANCE_ESTIMATE)
+        return required
 
     def _check_selection(self, candidate: ControllerSelection) -> None:
-        if self._last_input_time is None or candidate.algorithm == self._algorithm:
+        last = self.last_input_s
+        if last is None:  # nothing received yet (and, at start-up, no core yet)
             return
-        quiet = time.monotonic() - self._last_input_time
-        if quiet < candidate.switch_idle_time:
-            raise ValueError(
-                f"algorithm cannot change from {self._algorithm!r} to {candidate.algorithm!r} while the loop "
-                f"is active: last input {quiet:.3f} s ago, switch_idle_time = {candidate.switch_idle_time} s "
-                "(no law can take over bumplessly; stop the plant first)"
-            )
+        reason = self.core.switch_refusal(
+            candidate.algorithm, candidate.switch_idle_time, time.monotonic() - last
+        )
+        if reason is not None:
+            raise ValueError(reason)
 
     def _on_selection(self, selection: ControllerSelection) -> None:
-        if selection.algorithm != self._algorithm:
-            self._algorithm = selection.algorithm
-            self.controller = self._build(self._algorithm)
-            self.sync.set_inputs(self._inputs(self._algorithm))
+        if selection.algorithm != self.core.algorithm:
+            self.core.switch(selection.algorithm)
+            self.sync.set_inputs(self._inputs())
 
     def _on_gains(self, name: str) -> Callable[[Any], None]:
-        def reconfigure_if_running(_config: Any) -> None:
-            # In place, so that the PID keeps its integrator (a rebuild would be a torque step under load).
-            # A law that is not running takes its current gains when a switch builds it.
-            if name == self._algorithm:
-                _LAWS[name].reconfigure(
-                    self.controller, self.law_parameters[name].config, self.model_parameters.config
-                )
+        # In place, so that the PID keeps its integrator (a rebuild would be a torque step under load).
+        # A law that is not running takes its current gains when a switch builds it.
+        return lambda config: self.core.set_gains(name, config)
 
-        return reconfigure_if_running
+    def _to_core(self, setter: str) -> Callable[[Any], None]:
+        """Hands a parameter group's new config to the core's ``setter`` (the core is built after them)."""
 
-    def _on_model(self, _model: SMMParameters) -> None:
-        self._on_gains("fpdeso")(_model)
-        self._on_fleso(None)
+        def forward(config: Any) -> None:
+            getattr(self.core, setter)(config)
 
-    def _on_td(self, config: TrackingDifferentiatorConfig) -> None:
-        if self.chain is not None:
-            self.chain.td.reconfigure(config)
-
-    def _on_fleso(self, _config: FLESOConfig | None) -> None:
-        if self.chain is not None and self.chain.fleso is not None:
-            self.chain.fleso.reconfigure(self.fleso_parameters.config, params=self.model_parameters.config)
+        return forward
 
     # --------------------------------------------------------------------------------------- inputs
 
@@ -408,7 +349,7 @@ class ControllerNode(MeasurementDrivenNode):
             )
 
     def _on_input(self, topic: str, msg: Any, parse: Callable[[Any], Any]) -> None:
-        self._last_input_time = time.monotonic()
+        self.last_input_s = time.monotonic()
         try:
             item = parse(msg)
         except InterfaceError as error:
@@ -420,17 +361,17 @@ class ControllerNode(MeasurementDrivenNode):
         """Admits a parsed input (``values`` as :func:`values_of` gives them); steps once it is matched."""
         if not self.admit(topic, item.stamp_ns, values):
             return
-        if self.plausibility is not None and topic == topics.JOINT_STATES:
+        if topic == topics.JOINT_STATES:
             position = (float(item.position[0]), float(item.position[1]))
-            reason = self.plausibility.admit(position, item.stamp_ns, self.period_ns)
-            if reason is not None:
-                self.reject_implausible(topic, item.stamp_ns, reason)
+            refused = self.core.implausible(topic, item.stamp_ns, position)
+            if refused is not None:
+                self.warn_refused(topic, refused.counter, refused.message)
                 return
         matched = self.sync.add(topic, item.stamp_ns, item)
         self.counters.dropped_unmatched = self.sync.dropped
         if matched is not None:
             stamp_ns = matched.stamp_ns
-            self.answer(stamp_ns, lambda: self._step(matched), lambda: self._diagnostics(stamp_ns))
+            self.answer(stamp_ns, lambda: self._step(matched), lambda: self.diagnostics_of(stamp_ns))
 
     # ----------------------------------------------------------------------------------------- step
 
@@ -439,39 +380,32 @@ class ControllerNode(MeasurementDrivenNode):
         if self.reference is None:
             rows: list[list[float]] = matched.items[topics.REFERENCE].values.tolist()
             return rows
-        return self.reference.generator.rows(self.reference_clock.time_s(matched.stamp_ns))
+        return self.core.reference_rows(matched.stamp_ns)
 
     def _step(self, matched: Matched[Any]) -> list[Output]:
         reference = self._reference_rows(matched)
-        self._reference = reference
-        if self.chain is not None:
+        # The conversions validated shapes and finiteness, so the chain's float path skips the checks
+        # of ControlChain.step (same arithmetic, same result).
+        if self.internal_chain:
             measurement = matched.items[topics.JOINT_STATES]
-            applied = measurement.effort if measurement.effort is not None else self._last_command
-            # The conversions validated shapes and finiteness, so the chain's float path skips the checks
-            # of ControlChain.step (same arithmetic, same result).
-            torque = self.chain.step_floats(
+            effort = measurement.effort
+            torque = self.core.step(
+                matched.stamp_ns,
                 (float(measurement.position[0]), float(measurement.position[1])),
-                (float(applied[0]), float(applied[1])),
+                None if effort is None else (float(effort[0]), float(effort[1])),
                 reference,
-                self.control_period,
             )
-            output = self.torque_output(torque, matched.stamp_ns)  # raises for a non-finite torque
-            self._last_command = np.array(torque)
-            return [output]
+            return [self.torque_output(torque, matched.stamp_ns)]  # raises for a non-finite torque
         filtered = matched.items[topics.JOINT_STATES_FILTERED]
         estimate = matched.items.get(topics.DISTURBANCE_ESTIMATE)
         xi: FloatArray = np.zeros(2) if estimate is None else estimate.values[0]
         observer = estimate is not None and self.controller.velocity_source == "observer"
         velocity = estimate.values[1] if estimate is not None and observer else filtered.velocity
-        # The conversions validated shapes and finiteness: step 4 of the chain, on floats.
-        limited = limited_torque(
-            self.controller,
-            self.limiter,
-            reference,
+        limited = self.core.step_law(
             (float(filtered.position[0]), float(filtered.position[1])),
             (float(velocity[0]), float(velocity[1])),
-            disturbance=(float(xi[0]), float(xi[1])),
-            dt=self.control_period,
+            (float(xi[0]), float(xi[1])),
+            reference,
         )
         return [self.torque_output(limited, matched.stamp_ns)]
 
@@ -481,35 +415,27 @@ class ControllerNode(MeasurementDrivenNode):
         Raises:
             InterfaceError: The torque is not finite (the step then gives no output).
         """
-        return (self._torque_publisher, torque_to_msg(np.array(torque), stamp_ns))
+        return (self.torque_publisher, torque_to_msg(np.array(torque), stamp_ns))
 
-    def _diagnostics(self, stamp_ns: int) -> list[Output]:
-        internals = (
-            self.chain.internals
-            if self.chain is not None
-            else {
-                **stage_internals("controller", self.controller.internals),
-                **stage_internals("limiter", self.limiter.internals),
-            }
-        )
-        rows = {**internals, **self.counter_rows()}
-        outputs = [(self._internals_publisher, internals_to_msg(rows, stamp_ns))]
-        if self.internal_reference:
-            outputs.append((self._reference_publisher, reference_to_msg(np.array(self._reference), stamp_ns)))
+    def diagnostics_of(self, stamp_ns: int) -> list[Output]:
+        """``controller_internals`` (and the sampled ``reference``) of the step that answered ``stamp_ns``."""
+        outputs = [(self.internals_publisher, internals_to_msg(self.core.internals_rows(), stamp_ns))]
+        if self.reference_publisher is not None:
+            outputs.append(
+                (self.reference_publisher, reference_to_msg(self.core.last_reference_array(), stamp_ns))
+            )
         return outputs
+
+    def diagnostics_observed(self) -> bool:
+        """True while ``controller_internals`` or the sampled ``reference`` has a subscriber."""
+        publishers = [self.internals_publisher, self.reference_publisher]
+        return any(p is not None and p.get_subscription_count() > 0 for p in publishers)
 
     def on_time_jump(self, *, backward: bool) -> None:
         """Forget the old timeline's pending stamps; a new run (backward jump) starts from fresh state."""
         self.sync.clear()
         if backward:
-            self.controller.reset()
-            if self.chain is not None:
-                self.chain.reset()
-            self.limiter.reset()
-            if self.plausibility is not None:
-                self.plausibility.reset()
-            self.reference_clock = ReferenceClock(self.get_logger().info)  # type: ignore[no-untyped-call]
-            self._last_command = np.zeros(2)
+            self.core.reset()
 
     def health_counts(self) -> dict[str, int]:
         """The base counts plus ``clamps`` (steps whose torque the output limits changed)."""

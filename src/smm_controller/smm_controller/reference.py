@@ -7,6 +7,7 @@ Every generator returns, for a time t (s), an array of shape (3, 2): rows positi
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,6 +22,7 @@ __all__ = [
     "ExcitationReference",
     "RampHoldReference",
     "Reference",
+    "ReferenceClock",
     "ReferenceGenerator",
     "Rows",
     "SineReference",
@@ -166,3 +168,36 @@ def make_reference(kind: str, **params: Any) -> ReferenceGenerator:
         return factory(**{key: _as_pair(value) for key, value in params.items()})
     except TypeError as error:
         raise ValueError(f"invalid parameters for reference kind {kind!r}: {error}") from None
+
+
+_NS_PER_S = 1_000_000_000
+
+
+class ReferenceClock:
+    """Time of the reference from measurement stamps: t = (stamp - first stamp) / 1e9 (s).
+
+    t = 0 at the first stamp it is asked about, as a trajectory controller starts its trajectory at the
+    first state it sees. Exact integer difference, then one rounding: the offline loop's ``t_ns / 1e9``
+    for the same stamps.
+
+    Args:
+        announce: Called once with a one-line note when t = 0 is set (a node passes its logger's ``info``),
+            so a run's logs say which measurement stamp its reference time starts at.
+    """
+
+    def __init__(self, announce: Callable[[str], object] | None = None) -> None:
+        self._first_stamp_ns: int | None = None
+        self._announce = announce
+
+    @property
+    def first_stamp_ns(self) -> int | None:
+        """Stamp (ns) that is t = 0; None before the first call of :meth:`time_s`."""
+        return self._first_stamp_ns
+
+    def time_s(self, stamp_ns: int) -> float:
+        """Reference time (s) at ``stamp_ns`` (ns); the first stamp ever passed becomes t = 0."""
+        if self._first_stamp_ns is None:
+            self._first_stamp_ns = stamp_ns
+            if self._announce is not None:
+                self._announce(f"reference t = 0 s at measurement stamp {stamp_ns} ns")
+        return (stamp_ns - self._first_stamp_ns) / _NS_PER_S

@@ -9,7 +9,7 @@ why one period ahead: docs/NODES.md, "reference_node".
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Unpack
 
@@ -18,7 +18,6 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from smm_dynamics.validation import at_least, check_bounds
 from smm_msgs_py.conversions import (
-    NANOSECONDS_PER_SECOND,
     internals_to_msg,
     joint_state_to_sample,
     reference_to_msg,
@@ -28,7 +27,7 @@ from smm_msgs_py.qos import diagnostic_qos, qos_for_topic, subscription_qos_for_
 from smm_node_runtime.parameters import ConfigParameters, parameter_name
 from std_msgs.msg import Float64MultiArray
 
-from smm_controller.reference import REFERENCE_KINDS, ReferenceGenerator
+from smm_controller.reference import REFERENCE_KINDS, ReferenceClock, ReferenceGenerator
 from smm_msgs_py import topics
 from smm_node_runtime import (
     MeasurementDrivenNode,
@@ -110,36 +109,6 @@ class ReferenceParameters:
     def generator(self) -> ReferenceGenerator:
         """The generator ``kind`` selects, with its current parameters."""
         return self.generators[self.selection.config.kind].config
-
-
-class ReferenceClock:
-    """Time of the reference from measurement stamps: t = (stamp - first stamp) / 1e9 (s).
-
-    t = 0 at the first stamp it is asked about, as a trajectory controller starts its trajectory at the
-    first state it sees. Exact integer difference, then one rounding: the offline loop's ``t_ns / 1e9``
-    for the same stamps.
-
-    Args:
-        announce: Called once with a one-line note when t = 0 is set (a node passes its logger's ``info``),
-            so a run's logs say which measurement stamp its reference time starts at.
-    """
-
-    def __init__(self, announce: Callable[[str], object] | None = None) -> None:
-        self._first_stamp_ns: int | None = None
-        self._announce = announce
-
-    @property
-    def first_stamp_ns(self) -> int | None:
-        """Stamp (ns) that is t = 0; None before the first call of :meth:`time_s`."""
-        return self._first_stamp_ns
-
-    def time_s(self, stamp_ns: int) -> float:
-        """Reference time (s) at ``stamp_ns`` (ns); the first stamp ever passed becomes t = 0."""
-        if self._first_stamp_ns is None:
-            self._first_stamp_ns = stamp_ns
-            if self._announce is not None:
-                self._announce(f"reference t = 0 s at measurement stamp {stamp_ns} ns")
-        return (stamp_ns - self._first_stamp_ns) / NANOSECONDS_PER_SECOND
 
 
 class ReferenceNode(MeasurementDrivenNode):

@@ -6,13 +6,12 @@ A failing chain sends a safe frame and goes to ERROR. Why and when: docs/LAUNCH.
 
 from __future__ import annotations
 
-import math
 import sys
 import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Final, NamedTuple, Unpack
+from typing import Any, Final, Unpack
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -20,18 +19,18 @@ from rclpy.context import Context
 from rclpy.exceptions import ParameterException
 from rclpy.parameter import Parameter
 from smm_controller.controller_node import ControllerNode
+from smm_controller.core import Refusal, StepResult
 from smm_hw_bridge.bridge_node import HwBridgeNode, judged_exit
 from smm_hw_bridge.core import BridgeCore
 from smm_hw_bridge.transport import Transport
 from smm_msgs_py.conversions import JointSample, torque_to_msg
-from smm_msgs_py.errors import NonFiniteError
 from smm_node_runtime.parameters import bounds
 
 from smm_direct_loop.statistics import LoopStatistics, RunningFigures
 from smm_msgs_py import topics
-from smm_node_runtime import ConfigParameters, Health, NodeOptions, Output, run_nodes
+from smm_node_runtime import Admission, ConfigParameters, Health, NodeOptions, run_nodes
 
-__all__ = ["ChainFailureError", "DirectBridgeNode", "DirectControllerNode", "LoopSettings", "main"]
+__all__ = ["DirectBridgeNode", "DirectControllerNode", "LoopSettings", "main"]
 
 DEFAULT_SWITCH_INTERVAL: Final[float] = 0.0005
 """Default ``sys.setswitchinterval`` of the direct loop's process (s); docs/LAUNCH.md says why."""
@@ -39,30 +38,8 @@ DEFAULT_SPIN_US: Final[int] = 150
 """Default ``loop.spin_us`` (us); docs/LAUNCH.md says why."""
 
 
-class ChainFailureError(RuntimeError):
-    """The control chain gave no valid torque for a measurement (it raised or its output was not finite)."""
-
-
-class _Measurement(NamedTuple):
-    """A measurement as the bridge's core has it, before any message is built."""
-
-    stamp_ns: int
-    position: tuple[float, float]
-    effort: tuple[float, float]
-
-
-class _Held:
-    """Stands in for the torque publisher while the chain steps: keeps (torque, stamp) until the send."""
-
-    def __init__(self) -> None:
-        self.message: tuple[tuple[float, float], int] | None = None
-
-    def publish(self, message: tuple[tuple[float, float], int]) -> None:
-        self.message = message
-
-
 class DirectControllerNode(ControllerNode):
-    """``controller_node`` whose internal chain is stepped by the direct loop's bridge, not by a topic.
+    """``controller_node`` whose core is stepped by the direct loop's bridge, not by a topic.
 
     Raises:
         ValueError: Invalid parameters, or ``chain`` / ``reference_source`` not ``internal``.
@@ -77,61 +54,51 @@ class DirectControllerNode(ControllerNode):
             raise ValueError(
                 "the direct loop steps the whole chain itself: chain and reference_source must be 'internal'"
             )
-        self._held = _Held()
+        self._pending: StepResult | None = None
         self.tick_lock: threading.RLock = threading.RLock()
         """Held for a whole tick; parameter changes wait for it (the host gives the bridge's lock)."""
 
     def command_for(
         self, stamp_ns: int, position: tuple[float, float], effort: tuple[float, float]
-    ) -> tuple[float, float] | None:
-        """Steps the chain on one measurement (rad, N m applied; caller holds :attr:`tick_lock`).
+    ) -> StepResult:
+        """Steps the core on one measurement (rad, N m applied; caller holds :attr:`tick_lock`).
 
-        The ``torque_command`` message is built later, by :meth:`publish_answer`, after the frame is sent.
+        The messages are built later, by :meth:`publish_answer`, after the frame is sent.
 
         Returns:
-            The torque (N m); None when the stamp policy or the plausibility check refused the measurement.
-
-        Raises:
-            ChainFailureError: The chain gave no valid torque (counted as an invalid output).
-            Exception: Whatever else the chain raised.
+            The torque to send, or why there is none (``chain_failed``: the chain gave no valid torque).
         """
-        self._held.message = None
-        failures = self.counters.invalid_outputs
-        self._last_input_time = time.monotonic()
-        self.take_input(topics.JOINT_STATES, _Measurement(stamp_ns, position, effort), (position, effort))
-        if self.counters.invalid_outputs != failures:
-            raise ChainFailureError(self.last_error)
-        held = self._held.message
-        return None if held is None else held[0]
+        started = time.perf_counter()
+        self.last_input_s = time.monotonic()
+        result = self.core.measurement(
+            topics.JOINT_STATES, stamp_ns, position, effort, self.get_clock().now().nanoseconds
+        )
+        if time.perf_counter() - started > self.control_period:
+            self.counters.deadline_misses += 1
+        self._pending = result
+        return result
 
-    def torque_output(self, torque: tuple[float, float], stamp_ns: int) -> Output:
-        """The torque, held as floats until the frame is sent.
+    def publish_answer(self) -> None:
+        """Publishes what the topics loop would for the last measurement, after the frame went out.
 
-        Raises:
-            NonFiniteError: The torque is not finite.
+        Warnings, ``torque_command``, then ``controller_internals`` and ``reference`` while someone
+        subscribes (a recorder, a plot).
         """
-        if not (math.isfinite(torque[0]) and math.isfinite(torque[1])):
-            raise NonFiniteError(f"torque must be finite, got {torque!r}")
-        return (self._held, (torque, stamp_ns))  # type: ignore[return-value]  # stands in for the publisher
-
-    def _diagnostics(self, stamp_ns: int) -> list[Any]:
-        return []  # built by publish_answer, after the command frame went out
-
-    def publish_answer(self, stamp_ns: int) -> None:
-        """Publishes ``torque_command``, then ``controller_internals`` and ``reference`` of the last step.
-
-        The last two only while someone subscribes (a recorder, a plot), as in the topics loop.
-        """
-        held, self._held.message = self._held.message, None
-        if held is None:
+        result, self._pending = self._pending, None
+        if result is None:
             return
-        self._torque_publisher.publish(torque_to_msg(np.array(held[0]), held[1]))
-        if self._internals_publisher.get_subscription_count() == 0 and (
-            self._reference_publisher.get_subscription_count() == 0
-        ):
+        if isinstance(result, Refusal):
+            if result.counter != "duplicates_answered":
+                self.warn_refused(result.topic, result.counter, result.message)
             return
-        for publisher, output in ControllerNode._diagnostics(self, stamp_ns):
-            publisher.publish(output)
+        if result.verdict.admission is Admission.RESYNC:
+            self.report(topics.JOINT_STATES, result.verdict)
+            self.diagnostics.check()
+        self.torque_publisher.publish(torque_to_msg(np.array(result.torque), result.stamp_ns))
+        if result.duplicate or not self.diagnostics_observed():
+            return
+        for publisher, message in self.diagnostics_of(result.stamp_ns):
+            publisher.publish(message)
 
     def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
         """As rclpy's, between two ticks."""
@@ -217,11 +184,16 @@ class DirectBridgeNode(HwBridgeNode):
         self._answered_stamp = None
         stamp_ns = core.stamp_ns
         try:
-            torque = self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
-        except Exception as error:
+            result = self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
+        except Exception as error:  # a bug in a law: the loop cannot go on
             self.fail(f"control chain failed at stamp {stamp_ns} ns: {type(error).__name__}: {error}")
             return True
-        if torque is None or not self.take_command(core, torque, stamp_ns, rx_ns):
+        if isinstance(result, Refusal):
+            if result.chain_failed:
+                self.fail(f"control chain failed at stamp {stamp_ns} ns: {result.message}")
+                return True
+            return False
+        if not self.take_command(core, result.torque, stamp_ns, rx_ns):
             return False
         self.statistics.on_tick(rx_ns, time.monotonic_ns())
         self._answered_stamp = stamp_ns
@@ -233,7 +205,7 @@ class DirectBridgeNode(HwBridgeNode):
         if stamp is None:
             return
         started = time.monotonic_ns()
-        self.controller.publish_answer(stamp)
+        self.controller.publish_answer()
         core = self.core
         if core is not None:
             self.publish_internals(core, stamp)

@@ -46,6 +46,7 @@ __all__ = [
     "potential_energy",
     "rigid_body_floats",
     "rigid_body_terms",
+    "rk4_stages",
     "rk4_step",
     "rk4_step_floats",
     "spin_angle",
@@ -621,7 +622,7 @@ def rk4_step(
             friction=friction,
         )
 
-    a1, b1, ad1, bd1 = _rk4_stages(accel, (a0, b0, ad0, bd0), dt)
+    a1, b1, ad1, bd1 = rk4_stages(accel, (a0, b0, ad0, bd0), dt)
     return _pack_vector(a1, b1, batch), _pack_vector(ad1, bd1, batch)
 
 
@@ -630,7 +631,7 @@ def _check_step(dt: float) -> None:
         raise ValueError(f"dt must be a finite number > 0 s, got {dt!r}")
 
 
-def _rk4_stages(
+def rk4_stages(
     accel: Callable[[_Real, _Real, _Real, _Real], tuple[_Real, _Real]],
     state: tuple[_Real, _Real, _Real, _Real],
     dt: float,
@@ -728,7 +729,7 @@ def rk4_step_floats(
         def accel(a: _Real, b: _Real, ad: _Real, bd: _Real) -> tuple[_Real, _Real]:
             return forward_dynamics_floats((a, b, ad, bd), torque, params, disturbance=disturbance)
 
-        return _rk4_stages(accel, state, dt)
+        return rk4_stages(accel, state, dt)
     alpha, beta, alpha_dot, beta_dot = state
     friction_alpha, friction_beta = params.viscous_friction if friction else (0.0, 0.0)
     offset_alpha, offset_beta = params.torque_offset if friction else (0.0, 0.0)

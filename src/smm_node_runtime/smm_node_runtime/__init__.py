@@ -9,6 +9,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from smm_node_runtime.admission import InputAdmission, Verdict
     from smm_node_runtime.diagnostics import (
         CountWindows,
         DiagnosticsPublisher,
@@ -74,7 +75,9 @@ _SOURCES: dict[str, str] = {
     "Level": "smm_node_runtime.health",
     "level_for": "smm_node_runtime.health",
     "worst": "smm_node_runtime.health",
-    "COUNTER_ROWS": "smm_node_runtime.measurement",
+    "COUNTER_ROWS": "smm_node_runtime.admission",
+    "InputAdmission": "smm_node_runtime.admission",
+    "Verdict": "smm_node_runtime.admission",
     "DEFAULT_CONTROL_PERIOD": "smm_node_runtime.stamp_gate",
     "REFUSED": "smm_node_runtime.stamp_gate",
     "STAMP_PREFIX": "smm_node_runtime.measurement",
@@ -82,7 +85,7 @@ _SOURCES: dict[str, str] = {
     "WARN_THROTTLE_S": "smm_node_runtime.measurement",
     "Admission": "smm_node_runtime.stamp_gate",
     "ControlPeriodConfig": "smm_node_runtime.measurement",
-    "InputCounters": "smm_node_runtime.measurement",
+    "InputCounters": "smm_node_runtime.admission",
     "MeasurementDrivenNode": "smm_node_runtime.measurement",
     "Output": "smm_node_runtime.measurement",
     "StampGate": "smm_node_runtime.stamp_gate",
@@ -146,6 +149,7 @@ __all__ = [
     "CountWindows",
     "DiagnosticsPublisher",
     "Health",
+    "InputAdmission",
     "InputCounters",
     "Level",
     "MeasurementDrivenNode",
@@ -157,6 +161,7 @@ __all__ = [
     "SmmNode",
     "StampGate",
     "StampPolicy",
+    "Verdict",
     "above",
     "as_parameter_list",
     "at_least",

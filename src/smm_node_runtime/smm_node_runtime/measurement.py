@@ -13,10 +13,19 @@ from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
 from smm_dynamics.validation import bounds, check_bounds
 
+from smm_node_runtime.admission import (
+    COUNTER_ROWS,
+    OUTPUTS_TOPIC,
+    InputAdmission,
+    InputCounters,
+    Verdict,
+    implausible_text,
+    output_failure_text,
+)
 from smm_node_runtime.diagnostics import CountWindows, DiagnosticsPublisher, Health, Level, worst
 from smm_node_runtime.node import NodeOptions, SmmNode
 from smm_node_runtime.parameters import ConfigParameters
-from smm_node_runtime.stamp_gate import DEFAULT_CONTROL_PERIOD, Admission, StampGate, StampPolicy
+from smm_node_runtime.stamp_gate import DEFAULT_CONTROL_PERIOD, Admission, StampPolicy
 
 __all__ = [
     "COUNTER_ROWS",
@@ -57,21 +66,6 @@ class ControlPeriodConfig:
         check_bounds(self)
 
 
-COUNTER_ROWS: Final[tuple[str, ...]] = (
-    "dropped_invalid",
-    "dropped_stale",
-    "dropped_unmatched",
-    "duplicates_answered",
-    "invalid_outputs",
-    "dropped_ahead",
-    "dropped_future",
-    "dropped_implausible",
-    "conflicting_duplicates",
-    "time_jumps",
-    "deadline_misses",
-)
-"""Internals rows of the node counters (same count in both columns)."""
-
 WARN_COUNTERS: Final[tuple[str, ...]] = (
     "dropped_invalid",
     "dropped_stale",
@@ -85,57 +79,6 @@ WARN_COUNTERS: Final[tuple[str, ...]] = (
 
 DEADLINE_MISS_WARN_FRACTION: Final[float] = 0.1
 """WARN when more than this fraction of the last period's steps took longer than the control period."""
-
-
-@dataclass
-class InputCounters:
-    """Counts of what a node did not process normally, since start.
-
-    Attributes:
-        dropped_invalid: Inputs breaking the interface contract (NaN/Inf, length, joint, layout, stamp).
-        dropped_stale: Inputs older than the last answered stamp.
-        dropped_unmatched: Stamps dropped by the synchroniser before all inputs for them arrived.
-        duplicates_answered: Re-transmitted inputs answered by re-publishing the last answer.
-        invalid_outputs: Steps whose output broke the contract (e.g. non-finite) and was not published.
-        dropped_ahead: Inputs more than ``stamp.max_ahead_periods`` ahead of the last answered stamp.
-        dropped_future: Inputs more than ``stamp.clock_tolerance`` ahead of the node's clock.
-        dropped_implausible: Measurements outside the plausible range or step of the joints.
-        conflicting_duplicates: Inputs with the last answered stamp but other values (not answered).
-        time_jumps: Resynchronisations after a time jump.
-        deadline_misses: Steps that took longer than the control period (wall clock).
-    """
-
-    dropped_invalid: int = 0
-    dropped_stale: int = 0
-    dropped_unmatched: int = 0
-    duplicates_answered: int = 0
-    invalid_outputs: int = 0
-    dropped_ahead: int = 0
-    dropped_future: int = 0
-    dropped_implausible: int = 0
-    conflicting_duplicates: int = 0
-    time_jumps: int = 0
-    deadline_misses: int = 0
-
-    def rows(self) -> dict[str, npt.NDArray[np.float64]]:
-        """Return ``{row name: [count, count]}`` in :data:`COUNTER_ROWS` order, for an internals message."""
-        return {name: np.full(2, float(getattr(self, name))) for name in COUNTER_ROWS}
-
-    def counts(self) -> dict[str, int]:
-        """``{counter name: count}`` in :data:`COUNTER_ROWS` order."""
-        return {name: int(getattr(self, name)) for name in COUNTER_ROWS}
-
-
-_REFUSAL_COUNTERS: Final[Mapping[Admission, str]] = {
-    Admission.STALE: "dropped_stale",
-    Admission.AHEAD: "dropped_ahead",
-    Admission.FUTURE: "dropped_future",
-}
-_REFUSAL_TEXT: Final[Mapping[Admission, str]] = {
-    Admission.STALE: "older than the last answered",
-    Admission.AHEAD: "too far ahead of the last answered",
-    Admission.FUTURE: "ahead of the node's clock",
-}
 
 
 _VALUE_ATTRIBUTES: Final[tuple[str, ...]] = ("position", "velocity", "effort", "values")
@@ -162,23 +105,16 @@ class MeasurementDrivenNode(SmmNode):
 
     def __init__(self, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
-        self.counters = InputCounters()
         self.timing = ConfigParameters(self, "", ControlPeriodConfig(), read_only=True)
         self.stamp_policy = ConfigParameters(self, STAMP_PREFIX, StampPolicy(), on_change=self._on_policy)
-        self._gate = StampGate(self.stamp_policy.config, self.timing.config.control_period)
+        self.admission = InputAdmission(self.stamp_policy.config, self.timing.config.control_period)
+        """Stamp gate, counters and last reason (pure; shared with a pure core of the node's algorithm)."""
         self._last_answer: tuple[Output, ...] = ()
-        self._answered_values: dict[str, tuple[int, object]] = {}
         # Publishers the diagnostics went to, learnt from the first build: while none of them has a
         # subscriber, diagnostics are neither built nor published (lazy publishing, as image_transport
         # does), which is indistinguishable from publishing to nobody and halves the work per step.
         self._diagnostic_publishers: tuple[Publisher, ...] | None = None
         self._topic_loggers: dict[str, RcutilsLogger] = {}
-        self.inputs = 0
-        """Inputs received (every topic, valid or not)."""
-        self.answered = 0
-        """Stamps answered."""
-        self.last_error = ""
-        """The newest reason an input or output was dropped ("" before any)."""
         self._window = CountWindows({})  # every count starts at 0
         self.diagnostics = DiagnosticsPublisher(self, self.health, on_period=self._end_period)
 
@@ -195,10 +131,30 @@ class MeasurementDrivenNode(SmmNode):
     @property
     def last_answered_stamp_ns(self) -> int | None:
         """Stamp (ns) of the last measurement this node answered, None before the first."""
-        return self._gate.last_stamp_ns
+        return self.admission.gate.last_stamp_ns
+
+    @property
+    def counters(self) -> InputCounters:
+        """What the node did not process normally, since start."""
+        return self.admission.counters
+
+    @property
+    def inputs(self) -> int:
+        """Inputs received (every topic, valid or not)."""
+        return self.admission.inputs
+
+    @property
+    def answered(self) -> int:
+        """Stamps answered."""
+        return self.admission.answered
+
+    @property
+    def last_error(self) -> str:
+        """The newest reason an input or output was dropped ("" before any)."""
+        return self.admission.last_error
 
     def _on_policy(self, policy: StampPolicy) -> None:
-        self._gate.policy = policy
+        self.admission.gate.policy = policy
 
     def warn_throttled(self, topic: str, message: str) -> None:
         """Log a warning, at most once per :data:`WARN_THROTTLE_S` per ``topic`` (throttled per topic)."""
@@ -211,25 +167,24 @@ class MeasurementDrivenNode(SmmNode):
 
     def _refused(self, counter: str, topic: str, message: str) -> None:
         """Count a refused input in ``counter``, remember and warn about it (throttled), update the status."""
-        setattr(self.counters, counter, getattr(self.counters, counter) + 1)
-        self.last_error = message
+        self.admission.refuse(counter, message)
+        self.warn_refused(topic, counter, message)
+
+    def warn_refused(self, topic: str, counter: str, message: str) -> None:
+        """Warn about an input or output already counted in ``counter`` (throttled); update the status."""
         self.warn_throttled(topic, f"{message}; {getattr(self.counters, counter)} {counter} so far")
         self.diagnostics.check()
 
     def reject(self, topic: str, error: Exception) -> None:
         """Drop an input that broke the interface contract: count it and warn (throttled)."""
-        self.inputs += 1
+        self.admission.inputs += 1
         self._refused(
             "dropped_invalid", topic, f"dropped input on '{topic}' ({type(error).__name__}: {error})"
         )
 
     def reject_implausible(self, topic: str, stamp_ns: int, reason: str) -> None:
         """Drop a measurement that is valid but physically implausible (after :meth:`admit` accepted it)."""
-        self._refused(
-            "dropped_implausible",
-            topic,
-            f"dropped implausible measurement on '{topic}' at {stamp_ns} ns: {reason}",
-        )
+        self._refused("dropped_implausible", topic, implausible_text(topic, stamp_ns, reason))
 
     def admit(self, topic: str, stamp_ns: int, values: object = None) -> bool:
         """Apply the stamp policy to an input stamped ``stamp_ns`` (ns) on ``topic``.
@@ -245,43 +200,31 @@ class MeasurementDrivenNode(SmmNode):
             answer has been re-published), a conflicting duplicate, or a refused stamp (each counted and
             warned about).
         """
-        self.inputs += 1
-        last = self._gate.last_stamp_ns
-        admission = self._gate.classify(stamp_ns, self.get_clock().now().nanoseconds)
-        if admission is Admission.NEW:
-            self._answered_values[topic] = (stamp_ns, values)
-            return True
-        if admission is Admission.RESYNC:
-            self.counters.time_jumps += 1
-            self._answered_values.clear()
-            self.last_error = f"time jump on '{topic}' from {last} ns to {stamp_ns} ns: resynchronised"
-            self.get_logger().warning(  # type: ignore[no-untyped-call]
-                f"{self.last_error} after {self._gate.policy.resync_samples} consistent samples"
-            )
-            self._answered_values[topic] = (stamp_ns, values)
-            self.on_time_jump(backward=last is not None and stamp_ns < last)
+        verdict = self.admission.admit(topic, stamp_ns, values, self.get_clock().now().nanoseconds)
+        if verdict.admission is Admission.RESYNC:
+            self.report(topic, verdict)
+            self.on_time_jump(backward=verdict.backward)
             self.diagnostics.check()
             return True
-        if admission is Admission.DUPLICATE:
-            answered = self._answered_values.get(topic)
-            if answered is not None and answered[0] == stamp_ns and answered[1] != values:
-                self._refused(
-                    "conflicting_duplicates",
-                    topic,
-                    f"dropped input on '{topic}': stamp {stamp_ns} ns was answered with other values",
-                )
-                return False
-            self.counters.duplicates_answered += 1
+        if verdict.answer_again:
             for publisher, message in self._last_answer:
                 publisher.publish(message)
             return False
-        self._refused(
-            _REFUSAL_COUNTERS[admission],
-            topic,
-            f"dropped input on '{topic}': stamp {stamp_ns} ns is {_REFUSAL_TEXT[admission]} "
-            f"(last answered {last} ns)",
-        )
-        return False
+        self.report(topic, verdict)
+        return verdict.accepted
+
+    def report(self, topic: str, verdict: Verdict) -> None:
+        """Logs what a verdict of :attr:`admission` says (time jump, dropped input); nothing for a new stamp.
+
+        The verdict is counted already; a time jump is logged as a warning, a dropped input warned about
+        (throttled) and the status updated.
+        """
+        if verdict.admission is Admission.RESYNC:
+            self.get_logger().warning(  # type: ignore[no-untyped-call]
+                f"{verdict.message} after {self.admission.gate.policy.resync_samples} consistent samples"
+            )
+        elif verdict.counter is not None and not verdict.answer_again:
+            self.warn_refused(topic, verdict.counter, verdict.message)
 
     def on_time_jump(self, *, backward: bool) -> None:
         """Called when the node resynchronised after a time jump (``backward``: to older stamps, a new run).
@@ -317,8 +260,7 @@ class MeasurementDrivenNode(SmmNode):
             True when the control-chain outputs were published.
         """
         started = time.perf_counter()
-        self._gate.mark_answered(stamp_ns)
-        self.answered += 1
+        self.admission.mark_answered(stamp_ns)
         outputs = self._built(stamp_ns, build_outputs)
         self._last_answer = () if outputs is None else outputs
         if outputs is None:
@@ -350,11 +292,7 @@ class MeasurementDrivenNode(SmmNode):
 
     def step_failed(self, stamp_ns: int, error: Exception) -> None:
         """Count and warn about a step whose result cannot be published (nothing is published)."""
-        self._refused(
-            "invalid_outputs",
-            "~/outputs",
-            f"no output for stamp {stamp_ns} ns ({type(error).__name__}: {error})",
-        )
+        self._refused("invalid_outputs", OUTPUTS_TOPIC, output_failure_text(stamp_ns, error))
 
     def counter_rows(self) -> Mapping[str, npt.NDArray[np.float64]]:
         """The node counters as internals rows (see :meth:`InputCounters.rows`)."""

@@ -17,6 +17,7 @@ from smm_analysis.runs.recorded import load_run
 from smm_analysis.scenarios import get_scenario
 from smm_bag.cli import main
 from smm_bag.exit_codes import EXIT_CHECK_FAILED
+from smm_controller.laws import PAPER_LAWS
 
 JOINTS = ("alpha", "beta")
 
@@ -25,7 +26,7 @@ JOINTS = ("alpha", "beta")
 def case2_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Trajectory, Path]]:
     scenario = get_scenario("case2").with_duration(1.5)
     runs = {}
-    for controller in ("fpdeso", "fpd"):
+    for controller in PAPER_LAWS[:2]:
         trajectory = run_closed_loop(scenario, controller, seed=3)
         bag = tmp_path_factory.mktemp("bags") / controller
         write_trajectory_bag(trajectory, bag)
@@ -85,8 +86,8 @@ def test_cli_json_table_report_and_plots(
     assert main(["analyze", "--json", *bags]) == 0
     document = json.loads(capsys.readouterr().out)
     assert set(document) == {"case2", "meta"}
-    assert set(document["case2"]) == {"fpdeso", "fpd"}
-    for controller in ("fpdeso", "fpd"):
+    assert set(document["case2"]) == set(PAPER_LAWS[:2])
+    for controller in PAPER_LAWS[:2]:
         assert set(document["case2"][controller]) == {"alpha", "beta", "end_effector"}
         assert set(document["case2"][controller]["alpha"]) == {"Ma", "Ave", "RMS", "eps_u", "du_rms"}
     assert document["meta"]["bags"][bags[0]]["position_source"] == "ground truth"

@@ -13,8 +13,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from smm_controller.fuzzy_pd import FuzzyPDConfig
+from smm_controller.laws import batched_twin, get_law
 from smm_controller.limits import OutputLimitConfig
-from smm_dynamics._generated import mass_matrix_entries_spin_form, rigid_body_entries_spin_form
+from smm_dynamics.spin_form import mass_matrix_entries_spin_form, rigid_body_entries_spin_form
 
 from smm_analysis.batch.fuzzy import BandwidthFuzzy, PDGainFuzzy
 from smm_controller import (
@@ -255,7 +256,7 @@ class BatchFPDESO(BatchLaw):
 class BatchFPD(BatchLaw):
     """``smm_controller.baselines.FPDController`` per run."""
 
-    def __init__(self, configs: Sequence[FPDConfig]) -> None:
+    def __init__(self, configs: Sequence[FPDConfig], _model: BatchModel | None = None) -> None:
         self.schedule = BatchSchedule([c.fuzzy for c in configs])
         self.uses_observer = np.zeros(len(configs), dtype=bool)
 
@@ -284,7 +285,7 @@ def _npd_gain(
 class BatchNPD(BatchLaw):
     """``smm_controller.baselines.NPDController`` per run."""
 
-    def __init__(self, configs: Sequence[NPDConfig]) -> None:
+    def __init__(self, configs: Sequence[NPDConfig], _model: BatchModel | None = None) -> None:
         self.k_np, self.k_nd, self.delta_p, self.delta_d, self.rho_p, self.rho_d = _fields(
             configs, ("k_np", "k_nd", "delta_p", "delta_d", "rho_p", "rho_d")
         )
@@ -304,7 +305,7 @@ class BatchNPD(BatchLaw):
 class BatchPID(BatchLaw):
     """``smm_controller.baselines.PIDController`` per run."""
 
-    def __init__(self, configs: Sequence[PIDConfig]) -> None:
+    def __init__(self, configs: Sequence[PIDConfig], _model: BatchModel | None = None) -> None:
         self.kp, self.ki, self.kd, self.n, self.i_max, self.limit = _fields(
             configs, ("kp", "ki", "kd", "derivative_filter", "integrator_limit", "output_limit")
         )
@@ -363,16 +364,13 @@ class BatchLimiter:
 
 
 def make_batch_law(name: str, configs: Sequence[Any], model: BatchModel) -> BatchLaw:
-    """The batched law ``name`` ("fpdeso", "fpd", "pid", "npd") with one config per run."""
-    if name == "fpdeso":
-        return BatchFPDESO(configs, model)
-    if name == "fpd":
-        return BatchFPD(configs)
-    if name == "pid":
-        return BatchPID(configs)
-    if name == "npd":
-        return BatchNPD(configs)
-    raise ValueError(f"unknown controller {name!r}")
+    """The batched twin of law ``name`` (``smm_controller.laws``) with one config per run.
+
+    Raises:
+        UnknownLawError: No law has this name, or it has no batched twin.
+    """
+    law: BatchLaw = batched_twin(get_law(name))(configs, model)
+    return law
 
 
 class BatchChain:

@@ -10,10 +10,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from smm_controller.chain import LAW_CONFIGS, LawConfig, make_law
+from smm_controller.chain import make_law
+from smm_controller.laws import get_law, law_names, law_table
 from smm_controller.limits import OutputLimitConfig
 from smm_sim.plant import PlantConfig
 
@@ -60,11 +62,11 @@ class RunSettings:
 
     Attributes:
         scenario: Reference and duration (the plant is ``plant``, not the scenario's).
-        controller: "fpdeso", "fpd", "pid" or "npd".
+        controller: A law of ``smm_controller.law_table()`` with a batched twin.
         law: The law's gains (the config type of ``controller``).
         plant: The simulated plant (noise, seed, disturbance, model error, limits, lag).
         td: TD parameters.
-        fleso: FLESO parameters (FPDESO only).
+        fleso: FLESO parameters (laws that use the disturbance estimate).
         model: The controller's nominal model.
         output: Output limits after the law.
         control_period: Control period (s).
@@ -72,7 +74,7 @@ class RunSettings:
 
     scenario: Scenario
     controller: str
-    law: LawConfig
+    law: Any
     plant: PlantConfig
     td: TrackingDifferentiatorConfig = field(default_factory=TrackingDifferentiatorConfig)
     fleso: FLESOConfig = field(default_factory=FLESOConfig)
@@ -81,9 +83,10 @@ class RunSettings:
     control_period: float = DEFAULT_CONTROL_PERIOD
 
     def __post_init__(self) -> None:
-        expected = LAW_CONFIGS.get(self.controller)
-        if expected is None:
-            raise AnalysisError(f"unknown controller {self.controller!r}; known: {', '.join(LAW_CONFIGS)}")
+        row = law_table().get(self.controller)
+        if row is None:
+            raise AnalysisError(f"unknown controller {self.controller!r}; known: {', '.join(law_names())}")
+        expected = row.config
         if not isinstance(self.law, expected):
             raise AnalysisError(
                 f"{self.controller} needs a {expected.__name__}, got {type(self.law).__name__}"
@@ -212,7 +215,8 @@ def _simulate(
     model = BatchModel([run.model for run in runs])
     controller = runs[0].controller
     law = make_batch_law(controller, [run.law for run in runs], model)
-    fleso = BatchFLESO([run.fleso for run in runs], model) if controller == "fpdeso" else None
+    uses_estimate = get_law(controller).uses_disturbance_estimate
+    fleso = BatchFLESO([run.fleso for run in runs], model) if uses_estimate else None
     chain = BatchChain(
         BatchTD([run.td for run in runs]), fleso, law, BatchLimiter([run.output for run in runs])
     )

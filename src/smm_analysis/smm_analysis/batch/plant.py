@@ -14,8 +14,8 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from smm_dynamics._generated import forward_dynamics_entries_spin_form
-from smm_dynamics.model import _rk4_stages
+from smm_dynamics.model import rk4_stages
+from smm_dynamics.spin_form import forward_dynamics_entries_spin_form
 from smm_sim.plant import PlantConfig, eq46_disturbance
 
 from smm_analysis.batch.chain import BatchModel, pairs
@@ -119,7 +119,7 @@ class BatchPlant:
             return qdd_a, qdd_b
 
         s = self.state
-        return np.stack(_rk4_stages(accel, (s[:, 0], s[:, 1], s[:, 2], s[:, 3]), h), axis=-1)
+        return np.stack(rk4_stages(accel, (s[:, 0], s[:, 1], s[:, 2], s[:, 3]), h), axis=-1)
 
     def _stops(self, state: FloatArray) -> FloatArray:
         q, qd = state[:, :2], state[:, 2:]

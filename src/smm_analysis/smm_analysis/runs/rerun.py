@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from smm_controller.chain import LAW_CONFIGS, make_law
+from smm_controller.chain import build_chain, make_law
+from smm_controller.laws import law_names, law_table
 from smm_node_runtime.parameter_files import (
     ParameterFileError,
     node_key_matches,
@@ -26,11 +27,9 @@ from smm_node_runtime.schema import config_from_parameters
 from smm_analysis.errors import ParamsFileError
 from smm_analysis.runs.recorded import RecordedRun
 from smm_controller import (
-    CONTROLLER_NAMES,
-    FLESO,
     ControlChain,
     FLESOConfig,
-    TrackingDifferentiator,
+    FPDESOConfig,
     TrackingDifferentiatorConfig,
 )
 from smm_dynamics import SMMParameters
@@ -67,10 +66,9 @@ class ChainSettings:
     fleso: FLESOConfig
 
     def build(self) -> ControlChain:
-        """A fresh chain (FLESO only for FPDESO, as in the graph)."""
+        """A fresh chain, as the graph's (:func:`smm_controller.chain.build_chain`)."""
         law = make_law(self.law, self.model)
-        fleso = FLESO(self.fleso, self.model) if self.algorithm == "fpdeso" else None
-        return ControlChain(TrackingDifferentiator(self.td), fleso, law)
+        return build_chain(self.algorithm, self.model, law=law, td=self.td, fleso=self.fleso)
 
     @property
     def flip_size(self) -> tuple[float, float]:
@@ -78,7 +76,7 @@ class ChainSettings:
 
         2 b_d for FPDESO's pure sign (boundary layer 0), 0 where the law is continuous.
         """
-        if self.algorithm != "fpdeso":
+        if not isinstance(self.law, FPDESOConfig):
             return (0.0, 0.0)
         gain, layer = self.law.robust_gain, self.law.boundary_layer
         return (
@@ -132,10 +130,10 @@ def chain_settings(parameters: Mapping[str, Any], algorithm: str = "fpdeso") -> 
         ParamsFileError: Unknown algorithm or a value the configs reject (the message says which).
     """
     name = str(parameters.get("algorithm", algorithm))
-    if name not in CONTROLLER_NAMES:
-        raise ParamsFileError(f"algorithm must be one of {', '.join(CONTROLLER_NAMES)}, got {name!r}")
+    if name not in law_table():
+        raise ParamsFileError(f"algorithm must be one of {', '.join(law_names())}, got {name!r}")
     try:
-        law_type = LAW_CONFIGS[name]
+        law_type = law_table()[name].config
         return ChainSettings(
             algorithm=name,
             law=config_from_parameters(law_type, law_type(), parameters, name),

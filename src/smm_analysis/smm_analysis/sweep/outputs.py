@@ -19,6 +19,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+from smm_controller.laws import get_law
 from smm_node_runtime.schema import config_to_parameters
 
 from smm_analysis.batch.loop import RunSettings
@@ -39,7 +40,7 @@ def parameters_sections(settings: RunSettings) -> dict[str, dict[str, Any]]:
     controller.update(config_to_parameters(settings.output, "output"))
     chain: dict[str, Any] = {}
     chain.update(config_to_parameters(settings.td, "td"))
-    if settings.controller == "fpdeso":
+    if get_law(settings.controller).uses_disturbance_estimate:
         chain.update(config_to_parameters(settings.fleso, "fleso"))
     chain.update(config_to_parameters(settings.model, "model"))
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
-from smm_controller.chain import LAW_CONFIGS
+from smm_controller.laws import law_table
 from smm_controller.limits import OutputLimitConfig
 
 from smm_analysis.batch.loop import INDEX_NAMES, RunSettings, run_batch
@@ -180,7 +180,7 @@ def reference_bounds(spec: SweepSpec) -> dict[str, float]:
                 settings = RunSettings(
                     scenario=scenario,
                     controller=controller,
-                    law=LAW_CONFIGS[controller](),
+                    law=law_table()[controller].config(),
                     plant=scenario_plant_config(scenario),
                     td=TrackingDifferentiatorConfig(),
                     fleso=FLESOConfig(),

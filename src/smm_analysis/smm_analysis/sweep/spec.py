@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import yaml
 from scipy.stats import qmc
-from smm_controller.chain import LAW_CONFIGS
+from smm_controller.laws import PAPER_LAWS, law_names, law_table
 from smm_controller.limits import OutputLimitConfig
 from smm_node_runtime.schema import config_fields, config_from_parameters, config_to_parameters
 
@@ -29,7 +29,7 @@ from smm_analysis.batch.loop import INDEX_NAMES, RunSettings
 from smm_analysis.closed_loop import scenario_plant_config
 from smm_analysis.errors import AnalysisError, UnknownScenarioError
 from smm_analysis.scenarios import Scenario, get_scenario
-from smm_controller import CONTROLLER_NAMES, FLESOConfig, TrackingDifferentiatorConfig
+from smm_controller import FLESOConfig, TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
 from smm_sim.config import PlantParameters
 
@@ -166,7 +166,7 @@ class SweepSpec:
 
 
 def _controller_sections(controller: str) -> dict[str, tuple[type, Any]]:
-    law = LAW_CONFIGS[controller]
+    law = law_table()[controller].config
     return {
         controller: (law, law()),
         "td": (TrackingDifferentiatorConfig, TrackingDifferentiatorConfig()),
@@ -472,10 +472,10 @@ def _constraints(spec: Mapping[str, Any], scenarios: Sequence[Scenario]) -> tupl
             if (
                 not isinstance(controllers, list)
                 or not controllers
-                or any(c not in CONTROLLER_NAMES for c in controllers)
+                or any(c not in law_table() for c in controllers)
             ):
                 raise SpecError(
-                    f"{where}.{op}: a bound is a number or laws among {CONTROLLER_NAMES}, got {bound!r}"
+                    f"{where}.{op}: a bound is a number or laws among {law_names()}, got {bound!r}"
                 )
             factor = _number(f"{where}.{op}.factor", laws.get("factor", 1.0))
             result.append(Constraint(column, op, None, tuple(controllers), factor))
@@ -494,8 +494,8 @@ def _claims(scenarios: Sequence[Scenario]) -> tuple[Constraint, ...]:
             Constraint(f"step.overshoot_{joint}", "<", STEP_OVERSHOOT_LIMIT),
             Constraint(f"step.rise_time_{joint}", ">=", low),
             Constraint(f"step.rise_time_{joint}", "<=", high),
-            Constraint(f"case1.RMS_{joint}", "<", None, ("fpd", "pid", "npd")),
-            Constraint(f"case1.Ma_{joint}", "<", None, ("fpd", "pid", "npd")),
+            Constraint(f"case1.RMS_{joint}", "<", None, PAPER_LAWS[1:]),
+            Constraint(f"case1.Ma_{joint}", "<", None, PAPER_LAWS[1:]),
             Constraint(f"case2.RMS_{joint}", "<=", None, ("fpd",), 1.0 - CASE2_RMS_REDUCTION),
             Constraint(f"case2.eps_u_{joint}", "<", None, ("fpd",)),
         ]
@@ -533,8 +533,8 @@ def parse_spec(spec: Mapping[str, Any]) -> SweepSpec:
     if unknown:
         raise SpecError(f"unknown spec keys {sorted(unknown)}; known: {sorted(_KEYS)}")
     controller = spec.get("controller")
-    if controller not in CONTROLLER_NAMES:
-        raise SpecError(f"controller must be one of {CONTROLLER_NAMES}, got {controller!r}")
+    if not isinstance(controller, str) or controller not in law_table():
+        raise SpecError(f"controller must be one of {law_names()}, got {controller!r}")
     names = spec.get("scenarios")
     names = [names] if isinstance(names, str) else names
     if not isinstance(names, list) or not names:

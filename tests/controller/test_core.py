@@ -1,0 +1,135 @@
+"""ControllerCore: what controller_node does per measurement, without ROS (times passed in)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+from smm_controller.chain import make_chain
+from smm_controller.core import Command, ControllerCore, CoreSettings, Refusal, default_gains
+from smm_controller.fleso import FLESOConfig
+from smm_controller.laws import law_names
+from smm_controller.limits import MeasurementLimits, OutputLimitConfig
+from smm_controller.reference import SineReference
+from smm_controller.td import TrackingDifferentiatorConfig
+from smm_node_runtime.admission import InputAdmission
+from smm_node_runtime.stamp_gate import StampPolicy
+
+from smm_dynamics import SMMParameters
+
+PERIOD_NS = 1_000_000
+TOPIC = "joint_states"
+
+
+def make_core(algorithm: str = "fpdeso", **overrides: Any) -> ControllerCore:
+    settings = CoreSettings(
+        algorithm=algorithm,
+        gains=default_gains(),
+        model=SMMParameters(),
+        output_limits=OutputLimitConfig(),
+        control_period=1e-3,
+        chain=True,
+        td=TrackingDifferentiatorConfig(),
+        fleso=FLESOConfig(),
+        measurement_limits=MeasurementLimits(),
+    )
+    reference = overrides.pop("reference", SineReference())
+    return ControllerCore(settings, InputAdmission(StampPolicy(), 1e-3), reference=lambda: reference)
+
+
+def position(k: int) -> tuple[float, float]:
+    return (0.01 * math.sin(0.01 * k), 0.005 * math.cos(0.01 * k))
+
+
+def run(core: ControllerCore, steps: int, first: int = 1) -> list[Command | Refusal]:
+    stamps = range(first, first + steps)
+    return [core.measurement(TOPIC, k * PERIOD_NS, position(k), (0.1, -0.1), 0) for k in stamps]
+
+
+@pytest.mark.parametrize("name", law_names())
+def test_each_measurement_gets_the_torque_of_the_chain_on_the_same_inputs(name: str) -> None:
+    core = make_core(name)
+    chain = make_chain(name, SMMParameters())
+    reference = SineReference()
+    results = run(core, 50)
+    for k, result in enumerate(results, start=1):
+        assert isinstance(result, Command) and result.stamp_ns == k * PERIOD_NS
+        rows = reference.rows((k - 1) * PERIOD_NS / 1e9)  # t = 0 at the first answered stamp
+        expected = chain.step_floats(position(k), (0.1, -0.1), rows, 1e-3)
+        assert result.torque == expected
+    assert core.admission.answered == 50
+
+
+def test_a_stale_stamp_is_refused_and_counted() -> None:
+    core = make_core()
+    run(core, 5)
+    refused = core.measurement(TOPIC, 2 * PERIOD_NS, position(2), (0.0, 0.0), 0)
+    assert isinstance(refused, Refusal) and refused.counter == "dropped_stale" and not refused.chain_failed
+    assert core.admission.counters.dropped_stale == 1 and "older than the last answered" in refused.message
+
+
+def test_a_re_sent_stamp_gets_the_last_torque_again_without_a_step() -> None:
+    core = make_core()
+    (first,) = run(core, 1)
+    again = core.measurement(TOPIC, PERIOD_NS, position(1), (0.1, -0.1), 0)
+    assert isinstance(first, Command) and isinstance(again, Command)
+    assert again.duplicate and again.torque == first.torque
+    assert core.admission.answered == 1 and core.admission.counters.duplicates_answered == 1
+    conflicting = core.measurement(TOPIC, PERIOD_NS, (0.3, 0.3), (0.1, -0.1), 0)
+    assert isinstance(conflicting, Refusal) and conflicting.counter == "conflicting_duplicates"
+
+
+def test_an_implausible_measurement_is_refused_before_the_chain_steps() -> None:
+    core = make_core()
+    run(core, 3)
+    jump = core.measurement(TOPIC, 4 * PERIOD_NS, (1.0, 0.0), (0.0, 0.0), 0)
+    assert isinstance(jump, Refusal) and jump.counter == "dropped_implausible"
+    assert core.admission.counters.dropped_implausible == 1 and core.admission.answered == 3
+
+
+def test_a_non_finite_torque_is_a_chain_failure_counted_as_an_invalid_output() -> None:
+    core = make_core("pid")
+    assert core.chain is not None
+    core.chain.step_floats = lambda *_args: (math.nan, 0.0)  # type: ignore[method-assign]
+    (result,) = run(core, 1)
+    assert isinstance(result, Refusal) and result.chain_failed
+    assert core.admission.counters.invalid_outputs == 1 and "finite" in result.message
+
+
+def test_a_backward_time_jump_starts_a_fresh_run() -> None:
+    core = make_core()
+    run(core, 40, first=1000)
+    policy = core.admission.gate.policy
+    after = run(core, policy.resync_samples + 2, first=1)
+    assert core.admission.counters.time_jumps == 1
+    resynced = after[policy.resync_samples - 1 :]
+    assert isinstance(resynced[0], Command) and resynced[0].verdict.backward
+    # from the resynchronising sample on, the core behaves as a fresh one fed from that sample
+    twin = make_core()
+    expected = run(twin, 3, first=policy.resync_samples)
+    assert [r.torque for r in resynced if isinstance(r, Command)] == [
+        r.torque for r in expected if isinstance(r, Command)
+    ]
+
+
+def test_a_switch_is_refused_while_inputs_arrive_and_builds_the_new_law_fresh() -> None:
+    core = make_core("fpdeso")
+    assert core.switch_refusal("pid", 0.5, quiet_s=0.1) is not None
+    assert core.switch_refusal("pid", 0.5, quiet_s=0.6) is None
+    assert core.switch_refusal("fpdeso", 0.5, quiet_s=0.0) is None
+    core.switch("pid")
+    assert core.algorithm == "pid" and core.chain is not None and core.chain.fleso is None
+    assert core.chain.controller is core.law
+
+
+def test_new_gains_reach_the_running_law_in_place() -> None:
+    from smm_controller.baselines import PIDConfig
+
+    core = make_core("pid")
+    run(core, 20)
+    law = core.law
+    integral = law.internals["i"].copy()
+    core.set_gains("pid", PIDConfig(kp=(50.0, 50.0)))
+    assert core.law is law and law.config.kp == (50.0, 50.0)  # type: ignore[attr-defined]
+    assert (law.internals["i"] == integral).all()  # the integral is kept (the I term, ki unchanged)
