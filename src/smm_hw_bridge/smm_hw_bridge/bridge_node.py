@@ -14,6 +14,7 @@ import threading
 import time
 import traceback
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import ClassVar, Final, Unpack
 
 import numpy.typing as npt
@@ -21,6 +22,7 @@ from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.context import Context
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
+from smm_dynamics.validation import at_least, check_bounds
 from smm_msgs_py.conversions import JointSample, internals_to_msg, msg_to_torque, sample_to_joint_state
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
@@ -51,6 +53,21 @@ _AUTOSTART_POLL_S: Final[float] = 0.01
 """How often ``autostart`` looks for a ``torque_command`` publisher (s)."""
 
 
+@dataclass(frozen=True)
+class AutostartGate:
+    """What ``autostart`` waits for besides a ``torque_command`` publisher.
+
+    Attributes:
+        autostart_subscribers: ``joint_states`` subscriptions (the controller, a recorder), so that a
+            recording has the first step.
+    """
+
+    autostart_subscribers: int = field(default=0, metadata=at_least(0))
+
+    def __post_init__(self) -> None:
+        check_bounds(self)
+
+
 class HwBridgeNode(LifecycleNode):
     """The hardware bridge (see the module docstring).
 
@@ -75,6 +92,7 @@ class HwBridgeNode(LifecycleNode):
             self._link = ConfigParameters(self, "link", LinkConfig())
             self._bridge = ConfigParameters(self, "bridge", BridgeConfig())
             self._verdict = ConfigParameters(self, "verdict", VerdictConfig(), read_only=True)
+            self._gate = ConfigParameters(self, "", AutostartGate(), read_only=True)
         except ValueError:
             self.destroy_node()
             raise
@@ -109,9 +127,6 @@ class HwBridgeNode(LifecycleNode):
         self.diagnostics = DiagnosticsPublisher(self, self.health)
         self._started = False
         self.autostart = self.declare_parameter("autostart", False).value is True
-        self._autostart_subscribers = int(self.declare_parameter("autostart_subscribers", 0).value or 0)
-        """``autostart`` also waits for this many ``joint_states`` subscriptions (the controller, a recorder),
-        so that a recording has the first step."""
         if self.autostart:
             self._autostart = self.create_timer(_AUTOSTART_POLL_S, self._start, clock=steady)
         self._waiting_logged = False
@@ -123,7 +138,7 @@ class HwBridgeNode(LifecycleNode):
         """
         if self._started:
             return
-        wanted = self._autostart_subscribers
+        wanted = self._gate.config.autostart_subscribers
         if (
             self.count_publishers(topics.TORQUE_COMMAND) == 0
             or self.count_subscribers(topics.JOINT_STATES) < wanted
