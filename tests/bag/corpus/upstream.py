@@ -1,0 +1,84 @@
+"""Bags of an external directory (rosbag2's test bags, the MCAP conformance files): never committed here.
+
+``make test-bags UPSTREAM=DIR`` runs the corpus checks over every bag folder (one with metadata.yaml) and
+every bare ``.mcap`` file outside such folders under DIR.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bag.corpus.run import file_bytes, hashes, info_counts, smm_bag, storage_files
+from bag.corpus.sample import file_messages
+
+
+def bags(directory: str) -> list[Path]:
+    """Bag folders and bare MCAP files under ``directory`` ("" or missing: none)."""
+    if not directory or not Path(directory).is_dir():
+        return []
+    root = Path(directory)
+    folders = sorted({p.parent for p in root.rglob("metadata.yaml")})
+    loose = [p for p in sorted(root.rglob("*.mcap")) if not any(f in p.parents for f in folders)]
+    return folders + loose
+
+
+@dataclass
+class Checked:
+    """What the checks found on one upstream bag."""
+
+    outcomes: dict[str, str] = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)
+
+
+def check(bag: Path, work: Path) -> Checked:
+    """info's counts against mcap's StreamReader, repair's verdict and the files' hashes, no traceback."""
+    seen = Checked()
+    target = work / bag.name
+    if bag.is_dir():
+        shutil.copytree(bag, target)
+    else:
+        shutil.copy2(bag, target)
+    files = storage_files(target)
+    messages: Counter[str] = Counter()
+    readable = True
+    for path in files:
+        try:
+            readable_path = path
+            if path.name.endswith(".zstd"):
+                readable_path = work / "scratch.mcap"
+                readable_path.write_bytes(file_bytes(path))
+            messages.update(m.topic for m in file_messages(readable_path))
+        except Exception as error:  # the independent reader refuses it: not a valid bag by mcap
+            readable = False
+            seen.outcomes["mcap"] = f"mcap reader: {type(error).__name__}"
+    before = hashes(target)
+    info = smm_bag(["info", str(target)])
+    repair = smm_bag(["repair", str(target)])
+    after = hashes(target)
+    for name, result in (("info", info), ("repair", repair)):
+        seen.outcomes[name] = (
+            f"{result.code} {(result.errors or result.stdout.splitlines()[-1:] or [''])[0][:200]}"
+        )
+        if result.traceback:
+            seen.problems.append(f"{name} printed a traceback: {result.stderr[-1500:]}")
+    if not files:
+        if info.code == 0 or len(info.errors) != 1:
+            seen.problems.append(
+                f"no MCAP file: info should name the storage in one line, got {info.code} {info.stderr}"
+            )
+        return seen
+    if readable:
+        total, topics = info_counts(info.stdout)
+        if info.code != 0 or total != sum(messages.values()) or topics != messages:
+            seen.problems.append(
+                f"info: {info.code} {total} {dict(topics)} vs files {dict(messages)}; {info.stderr[-300:]}"
+            )
+        if repair.code != 0 or after != before or "damaged" in repair.stdout:
+            seen.problems.append(
+                f"repair of a valid bag: exit {repair.code}, changed {after != before}: "
+                f"{repair.stdout[-400:]} {repair.stderr[-300:]}"
+            )
+    return seen
