@@ -1,4 +1,8 @@
-"""``metadata.yaml`` of a rosbag2 folder, version 9 as rosbag2 Jazzy writes it (rosbag2_storage/yaml.hpp)."""
+"""``metadata.yaml`` of a rosbag2 folder, versions 4 to 9 as rosbag2 Jazzy reads and writes them (yaml.hpp).
+
+Versions <= 8 hold each topic's offered QoS profiles as one YAML string with enum integers, version 9 as a
+YAML list with policy names; a file is written back in the version it was read in.
+"""
 
 from __future__ import annotations
 
@@ -11,7 +15,7 @@ from typing import Any
 import yaml
 
 from smm_bag.errors import CorruptBagError, NotABagError
-from smm_bag.qos import QosProfile, load_profiles
+from smm_bag.qos import QosProfile, dump_profiles, load_profiles
 
 __all__ = [
     "METADATA_FILE",
@@ -26,6 +30,8 @@ __all__ = [
 
 METADATA_FILE = "metadata.yaml"
 METADATA_VERSION = 9
+OLDEST_VERSION = 4
+"""The oldest metadata version read (the first with offered QoS profiles; rosbag2 Jazzy reads it)."""
 NO_START_NS = 9_223_372_036_854_775_807
 """``starting_time`` rosbag2 writes before the first message (nanoseconds::max())."""
 
@@ -41,14 +47,19 @@ class TopicInfo:
     type_description_hash: str = ""
     message_count: int = 0
 
-    def to_yaml_node(self) -> dict[str, Any]:
-        """``topics_with_message_count`` entry."""
+    def to_yaml_node(self, version: int = METADATA_VERSION) -> dict[str, Any]:
+        """``topics_with_message_count`` entry, QoS encoded as metadata ``version`` holds it."""
+        profiles: Any = (
+            [profile.to_yaml_node(version) for profile in self.offered_qos_profiles]
+            if version >= 9
+            else dump_profiles(self.offered_qos_profiles, version)
+        )
         return {
             "topic_metadata": {
                 "name": self.name,
                 "type": self.type,
                 "serialization_format": self.serialization_format,
-                "offered_qos_profiles": [profile.to_yaml_node() for profile in self.offered_qos_profiles],
+                "offered_qos_profiles": profiles,
                 "type_description_hash": self.type_description_hash,
             },
             "message_count": self.message_count,
@@ -107,7 +118,7 @@ class BagMetadata:
             "duration": {"nanoseconds": self.duration_ns},
             "starting_time": {"nanoseconds_since_epoch": self.starting_time_ns},
             "message_count": self.message_count,
-            "topics_with_message_count": [topic.to_yaml_node() for topic in self.topics],
+            "topics_with_message_count": [topic.to_yaml_node(self.version) for topic in self.topics],
             "compression_format": self.compression_format,
             "compression_mode": self.compression_mode,
             "relative_file_paths": list(self.relative_file_paths),
@@ -161,7 +172,7 @@ def _int(node: Mapping[str, Any], *keys: str) -> int:
 
 
 def parse_metadata(node: Any, source: str = METADATA_FILE) -> BagMetadata:
-    """Parses the mapping under ``rosbag2_bagfile_information`` (versions 5 to 9).
+    """Parses the mapping under ``rosbag2_bagfile_information`` (versions 4 to 9).
 
     Raises:
         CorruptBagError: A field is missing or of the wrong kind.
@@ -169,8 +180,10 @@ def parse_metadata(node: Any, source: str = METADATA_FILE) -> BagMetadata:
     if not isinstance(node, Mapping):
         raise CorruptBagError(f"{source}: rosbag2_bagfile_information must be a mapping")
     version = _int(node, "version")
-    if not 5 <= version <= METADATA_VERSION:
-        raise CorruptBagError(f"{source}: metadata version {version} not supported (5 to {METADATA_VERSION})")
+    if not OLDEST_VERSION <= version <= METADATA_VERSION:
+        raise CorruptBagError(
+            f"{source}: metadata version {version} not supported ({OLDEST_VERSION} to {METADATA_VERSION})"
+        )
     try:
         topics = []
         for entry in node.get("topics_with_message_count") or []:
