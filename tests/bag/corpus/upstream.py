@@ -11,7 +11,12 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bag.corpus.run import file_bytes, hashes, info_counts, smm_bag, storage_files
+if __package__ in (None, ""):
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from bag.corpus.run import file_bytes, hashes, info_counts, smm_bag, storage_files, topic_messages
 from bag.corpus.sample import file_messages
 
 
@@ -36,6 +41,7 @@ class Checked:
 def check(bag: Path, work: Path) -> Checked:
     """info's counts against mcap's StreamReader, repair's verdict and the files' hashes, no traceback."""
     seen = Checked()
+    work.mkdir(parents=True, exist_ok=True)
     target = work / bag.name
     if bag.is_dir():
         shutil.copytree(bag, target)
@@ -64,15 +70,18 @@ def check(bag: Path, work: Path) -> Checked:
         )
         if result.traceback:
             seen.problems.append(f"{name} printed a traceback: {result.stderr[-1500:]}")
-    if not files:
-        if info.code == 0 or len(info.errors) != 1:
-            seen.problems.append(
-                f"no MCAP file: info should name the storage in one line, got {info.code} {info.stderr}"
-            )
+    if not files:  # another storage (sqlite3, ROS 1): one line naming it, its own exit code, nothing changed
+        for name, result in (("info", info), ("repair", repair)):
+            if result.code in (0, 8) or len(result.errors) != 1:
+                seen.problems.append(
+                    f"not MCAP: {name} must say so in one line: {result.code} {result.stderr}"[:400]
+                )
+        if after != before:
+            seen.problems.append("repair changed a bag that is not MCAP")
         return seen
     if readable:
         total, topics = info_counts(info.stdout)
-        if info.code != 0 or total != sum(messages.values()) or topics != messages:
+        if info.code != 0 or total != topic_messages(messages) or topics != messages:
             seen.problems.append(
                 f"info: {info.code} {total} {dict(topics)} vs files {dict(messages)}; {info.stderr[-300:]}"
             )
@@ -82,3 +91,24 @@ def check(bag: Path, work: Path) -> Checked:
                 f"{repair.stdout[-400:]} {repair.stderr[-300:]}"
             )
     return seen
+
+
+def main(directory: str) -> int:
+    """Prints each bag's outcomes and problems (``python tests/bag/corpus/upstream.py DIR``)."""
+    import tempfile
+
+    failed = 0
+    for number, bag in enumerate(bags(directory)):
+        with tempfile.TemporaryDirectory() as work:
+            seen = check(bag, Path(work) / str(number))
+        failed += bool(seen.problems)
+        print(f"{bag.relative_to(directory)}: " + "; ".join(f"{k}: {v}" for k, v in seen.outcomes.items()))
+        for problem in seen.problems:
+            print(f"    PROBLEM {problem[:400]}")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main(sys.argv[1]))
