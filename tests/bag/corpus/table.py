@@ -7,6 +7,7 @@ between its markers; ``tests/bag/test_corpus.py`` checks every row it ran agains
 from __future__ import annotations
 
 import re
+import shutil
 import sys
 import tempfile
 from collections.abc import Mapping
@@ -35,30 +36,58 @@ def row(entry: Entry, outcomes: Mapping[str, Outcome]) -> str:
     return f"| `{entry.name}` | {entry.writer} | {entry.options} | " + " | ".join(cells) + " |"
 
 
+SHAPES = "shape-*"
+"""The row of every conformance shape together (each outcome with its count); the fast ones have own rows."""
+
+
+def grouped(entry: Entry) -> bool:
+    """Whether ``entry`` is one of the conformance shapes summed up in the ``shape-*`` row."""
+    return entry.name.startswith("shape-") and not entry.damage and entry.name != "shape-other-topics"
+
+
+def rows(observed: list[tuple[Entry, Mapping[str, Outcome]]]) -> list[str]:
+    """The table's rows: one per entry (the conformance shapes only if fast), then the ``shape-*`` row."""
+    lines = [row(entry, outcomes) for entry, outcomes in observed if entry.fast or not grouped(entry)]
+    shapes = [(entry, outcomes) for entry, outcomes in observed if grouped(entry)]
+    if shapes:
+        cells = []
+        for command in COMMANDS:
+            counts: dict[str, int] = {}
+            for entry, outcomes in shapes:
+                text = cell(outcomes.get(command) if entry.expect.get(command, SKIP) != SKIP else None)
+                counts[text] = counts.get(text, 0) + 1
+            cells.append("; ".join(f"{text} ({n})" for text, n in sorted(counts.items())))
+        first = shapes[0][0]
+        lines.append(
+            f"| `{SHAPES}` | {first.writer} | all {len(shapes)} feature sets | " + " | ".join(cells) + " |"
+        )
+    return lines
+
+
 def committed_rows(text: str | None = None) -> dict[str, str]:
     """Bag name -> its row in docs/BAGS.md's table."""
     text = DOC.read_text() if text is None else text
     start, end = text.find(BEGIN), text.find(END)
     if start < 0 or end < 0:
         return {}
-    rows = {}
+    found = {}
     for line in text[start:end].splitlines():
         match = re.match(r"\| `([^`]+)` \|", line)
         if match:
-            rows[match.group(1)] = line
-    return rows
+            found[match.group(1)] = line
+    return found
 
 
-def render(rows: list[str]) -> str:
-    return "\n".join([BEGIN, "", HEAD, RULE, *rows, "", END])
+def render(lines: list[str]) -> str:
+    return "\n".join([BEGIN, "", HEAD, RULE, *lines, "", END])
 
 
-def write(rows: list[str]) -> None:
+def write(lines: list[str]) -> None:
     text = DOC.read_text()
     start, end = text.find(BEGIN), text.find(END)
     if start < 0 or end < 0:
         raise SystemExit(f"{DOC}: no corpus table markers")
-    DOC.write_text(text[:start] + render(rows) + text[end + len(END) :])
+    DOC.write_text(text[:start] + render(lines) + text[end + len(END) :])
 
 
 def main() -> int:
@@ -67,13 +96,15 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as work:
         root = Path(work)
         metrics = original_metrics(root / "original")
-        rows = []
+        observed = []
         for number, entry in enumerate(entries()):
             bag = entry.build(root / "built" / str(number))
             seen = run_entry(entry, bag, root / "work" / str(number), metrics, subprocess_call=False)
-            rows.append(row(entry, seen.outcomes))
-            print(rows[-1], file=sys.stderr)
-    write(rows)
+            observed.append((entry, seen.outcomes))
+            print(row(entry, seen.outcomes), file=sys.stderr)
+            shutil.rmtree(root / "built" / str(number))
+            shutil.rmtree(root / "work" / str(number))
+    write(rows(observed))
     return 0
 
 

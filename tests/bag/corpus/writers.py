@@ -440,3 +440,34 @@ def zstd_file(path: Path) -> Path:
     target.write_bytes(zstandard.ZstdCompressor().compress(path.read_bytes()))
     path.unlink()
     return target
+
+
+NOT_INSTALLED = ("/corpus/not_installed", "smm_corpus_msgs/msg/NotInstalled")
+"""A topic whose type no installed package defines (what ``ros2 bag play`` skips with a warning)."""
+
+
+def not_installed_bag(path: Path, count: int = 200) -> Path:
+    """rosbags' writer: the sample's first ``count`` joint states and a topic of a type not installed."""
+    source = sample()
+    writer = RosbagsWriter(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    topic = next(t for t in _topics(source) if t["name"] == "/smm/joint_states")
+    channel = next(c for c in source.channels if c.topic == topic["name"])
+    schema = next(s for s in source.schemas if s.id == channel.schema_id)
+    states = writer.add_connection(
+        topic["name"],
+        topic["type"],
+        msgdef=schema.data.decode(),
+        rihs01=topic["type_description_hash"],
+        offered_qos_profiles=parse_qos(topic["offered_qos_profiles"]),
+    )
+    other = writer.add_connection(*NOT_INSTALLED, msgdef="float64 x\n", rihs01="RIHS01_" + "0" * 64)
+    written = 0
+    for message in source.messages:
+        if message.channel_id == channel.id and written < count:
+            writer.write(states, message.log_time, message.data)
+            if written % 4 == 0:
+                writer.write(other, message.log_time, b"\x00\x01\x00\x00" + bytes(8))
+            written += 1
+    writer.close()
+    return path
