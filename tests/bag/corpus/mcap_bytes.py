@@ -2,8 +2,9 @@
 
 The encoder builds the conformance shapes (padding, CRC 0, repeated schemas/channels, ...); the sequential
 reader is the oracle of the damaged copies: records in order from the magic, a record whose framing checks
-but whose present CRC fails is skipped whole, and after a record whose framing fails the next offset where a
-record's framing (and present CRC) checks is where reading resumes.
+but whose present CRC (or, for a chunk, its contents) fails is skipped whole, and after a record whose
+framing fails reading resumes at the next offset where a record checks and the record after it is framed
+too (or it ends the file): the rule of docs/BAGS.md's repair section (smm_bag.mcap_scan).
 """
 
 from __future__ import annotations
@@ -182,17 +183,21 @@ class _Reader:
             _, _, size, crc = cursor.unpack("<QQQI")
             compression = cursor.string()
             payload = cursor.blob("<Q")
-            inner = _decompress(compression, payload, size)
-            if len(inner) != size:
-                raise _BadRecordError("uncompressed size differs")
-            if crc and zlib.crc32(inner) != crc:
-                raise _CrcFailedError("chunk CRC mismatch")
-            sub = _Reader(inner)
-            sub.schemas, sub.topics = self.schemas.copy(), self.topics.copy()
-            at = 0
-            while at < len(inner):
-                at, messages = sub.parse(at, len(inner), inside_chunk=True)
-                found.extend(messages)
+            # The chunk's own fields are framed: whatever fails inside it skips it whole.
+            try:
+                inner = _decompress(compression, payload, size)
+                if len(inner) != size:
+                    raise _BadRecordError("uncompressed size differs")
+                if crc and zlib.crc32(inner) != crc:
+                    raise _CrcFailedError("chunk CRC mismatch")
+                sub = _Reader(inner)
+                sub.schemas, sub.topics = self.schemas.copy(), self.topics.copy()
+                at = 0
+                while at < len(inner):
+                    at, messages = sub.parse(at, len(inner), inside_chunk=True)
+                    found.extend(messages)
+            except (_BadRecordError, struct.error) as error:
+                raise _CrcFailedError(f"chunk records: {error}") from error
             self.schemas, self.topics = sub.schemas, sub.topics
         elif opcode == MESSAGE_INDEX:
             cursor.unpack("<H")
@@ -263,17 +268,31 @@ class _Reader:
             at = match.start()
             snapshot = (self.schemas.copy(), self.topics.copy())
             try:
-                self.parse(at, len(self.data))
+                end, _ = self.parse(at, len(self.data))
             except (_BadRecordError, _CrcFailedError, struct.error):
                 continue
             finally:
                 self.schemas, self.topics = snapshot
-            return at
+            if end == len(self.data) or _framed(self.data, end):
+                return at
         return len(self.data)
 
 
 class _CrcFailedError(Exception):
-    pass
+    """A record whose own framing checks but whose CRC or contents fail: skipped whole."""
+
+
+def _framed(data: bytes, pos: int) -> bool:
+    """Whether a data-section record (no Header; a Message at least its fixed fields) is framed at ``pos``."""
+    if pos + 9 > len(data):
+        return False
+    opcode, length = struct.unpack_from("<BQ", data, pos)
+    return (
+        opcode in OPCODES
+        and opcode != HEADER
+        and length <= len(data) - pos - 9
+        and (opcode != MESSAGE or length >= 22)
+    )
 
 
 # An opcode, then a length below 2^32: the only offsets worth parsing when resynchronising.
