@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bag.corpus import writers as w
+from rosbags.rosbag2.enums import StoragePlugin
 
 COMMANDS = ("info", "repair", "analyze", "rerun")
 Outcome = tuple[int, str]
@@ -24,6 +25,7 @@ INTACT: Outcome = (0, "intact")
 SAME: Outcome = (0, "same metrics")
 REPRODUCES: Outcome = (0, "reproduces")
 NOT_OURS: Outcome = (6, "not the stack's topics")
+OTHER_STORAGE: Outcome = (9, "other storage")
 SKIP: Outcome = (-1, "-")
 
 
@@ -82,6 +84,16 @@ def _rosbags() -> list[Entry]:
                 fast=fast,
             )
         )
+    entries.append(
+        Entry(
+            "rosbags-sqlite3",
+            "rosbags 0.11.9",
+            "sqlite3 storage (.db3)",
+            lambda root: w.rosbags_bag(root / "rosbags-sqlite3", storage=StoragePlugin.SQLITE3),
+            {"info": OTHER_STORAGE, "repair": OTHER_STORAGE, "analyze": OTHER_STORAGE, "rerun": SKIP},
+            fast=True,
+        )
+    )
     entries.append(
         Entry(
             "rosbags-3files",
@@ -289,6 +301,7 @@ def entries() -> list[Entry]:
         ("shape-plain", False),
         ("mcap-chunk64k-none", False),
         ("mcap-lz4", False),
+        ("rosbags-none", False),
     ):
         damaged += [_damaged(by_name[name], kind, fast and kind != "cut-summary") for kind in DAMAGES]
     return every + damaged

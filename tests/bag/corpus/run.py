@@ -33,6 +33,7 @@ EXIT_NAMES = {
     6: "missing topics",
     7: "bad parameters",
     8: "unsalvageable",
+    9: "other storage",
 }
 
 

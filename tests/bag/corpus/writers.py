@@ -55,6 +55,7 @@ def rosbags_bag(
     compression: str = "none",
     files: int = 1,
     manifest: bool = True,
+    storage: StoragePlugin = StoragePlugin.MCAP,
 ) -> Path:
     """rosbags' rosbag2 writer (MCAP storage); versions 4-7 are its version 8 bag with metadata.yaml
     rewritten as rosbag2 writes that version; ``compression``: none, storage (zstd chunks), file, message;
@@ -67,7 +68,7 @@ def rosbags_bag(
     for index in range(files):
         part = path.parent / f".{path.name}.part{index}"
         shutil.rmtree(part, ignore_errors=True)
-        writer = RosbagsWriter(part, version=9 if version >= 9 else 8, storage_plugin=StoragePlugin.MCAP)
+        writer = RosbagsWriter(part, version=9 if version >= 9 else 8, storage_plugin=storage)
         if compression != "none":
             writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
         if manifest:
