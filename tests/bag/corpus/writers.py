@@ -75,17 +75,7 @@ def rosbags_bag(
             for key, value in source.custom_data.items():
                 writer.set_custom_data(key, value)
         writer.open()
-        connections = {}
-        for topic in _topics(source):
-            channel = next(c for c in source.channels if c.topic == topic["name"])
-            schema = next(s for s in source.schemas if s.id == channel.schema_id)
-            connections[channel.id] = writer.add_connection(
-                topic["name"],
-                topic["type"],
-                msgdef=schema.data.decode(),
-                rihs01=topic["type_description_hash"],
-                offered_qos_profiles=parse_qos(topic["offered_qos_profiles"]),
-            )
+        connections = dict(_connection(writer, source, topic["name"]) for topic in _topics(source))
         for message in messages[bounds[index] : bounds[index + 1]]:
             writer.write(connections[message.channel_id], message.log_time, message.data)
         writer.close()
@@ -100,6 +90,21 @@ def rosbags_bag(
         yaml.safe_dump({"rosbag2_bagfile_information": as_version(info, version)})
     )
     return path
+
+
+def _connection(writer: RosbagsWriter, source: Sample, name: str) -> tuple[int, Any]:
+    """(sample channel id, rosbags connection) of the sample's topic ``name``, as its metadata.yaml has it."""
+    topic = next(t for t in _topics(source) if t["name"] == name)
+    channel = next(c for c in source.channels if c.topic == name)
+    schema = next(s for s in source.schemas if s.id == channel.schema_id)
+    connection = writer.add_connection(
+        name,
+        topic["type"],
+        msgdef=schema.data.decode(),
+        rihs01=topic["type_description_hash"],
+        offered_qos_profiles=parse_qos(topic["offered_qos_profiles"]),
+    )
+    return channel.id, connection
 
 
 def _join(documents: list[tuple[str, dict[str, Any]]]) -> dict[str, Any]:
@@ -452,20 +457,11 @@ def not_installed_bag(path: Path, count: int = 200) -> Path:
     source = sample()
     writer = RosbagsWriter(path, version=9, storage_plugin=StoragePlugin.MCAP)
     writer.open()
-    topic = next(t for t in _topics(source) if t["name"] == "/smm/joint_states")
-    channel = next(c for c in source.channels if c.topic == topic["name"])
-    schema = next(s for s in source.schemas if s.id == channel.schema_id)
-    states = writer.add_connection(
-        topic["name"],
-        topic["type"],
-        msgdef=schema.data.decode(),
-        rihs01=topic["type_description_hash"],
-        offered_qos_profiles=parse_qos(topic["offered_qos_profiles"]),
-    )
+    channel_id, states = _connection(writer, source, "/smm/joint_states")
     other = writer.add_connection(*NOT_INSTALLED, msgdef="float64 x\n", rihs01="RIHS01_" + "0" * 64)
     written = 0
     for message in source.messages:
-        if message.channel_id == channel.id and written < count:
+        if message.channel_id == channel_id and written < count:
             writer.write(states, message.log_time, message.data)
             if written % 4 == 0:
                 writer.write(other, message.log_time, b"\x00\x01\x00\x00" + bytes(8))
