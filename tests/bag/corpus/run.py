@@ -206,6 +206,7 @@ def run_entry(
     if entry.damage:
         damaged_bytes = file_bytes(damage(target, entry.damage))
         expected = mb.sequential_read(damaged_bytes).messages
+        spare = _copy(target, work / "no-backup")
     else:
         expected = independent_messages(target, entry.padded_chunks)
     before = hashes(target)
@@ -256,7 +257,16 @@ def run_entry(
     if entry.damage:
         kept = independent_messages(target, entry.padded_chunks) if repaired.code == 0 else []
         missing = Counter(expected) - Counter(kept)
-        if repaired.code == 0 and not missing:
+        alone = smm_bag(["repair", "--no-backup", str(spare)])
+        kept_alone = independent_messages(spare, entry.padded_chunks) if alone.code == 0 else []
+        if alone.code != repaired.code or Counter(kept_alone) != Counter(kept):
+            record(
+                "repair",
+                alone,
+                (alone.code, "--no-backup kept less"),
+                f"--no-backup kept {len(kept_alone)}, with backups {len(kept)}",
+            )
+        elif repaired.code == 0 and not missing:
             record(
                 "repair",
                 repaired,
