@@ -172,11 +172,23 @@ def _mcap() -> list[Entry]:
     )
     entries.append(
         Entry(
+            "mcap-service-events",
+            "mcap 1.6.0 (Python)",
+            "bare .mcap file: a service's event topic",
+            _file(
+                "mcap-service-events", lambda p: w.mcap_file(p, w.McapOptions(extra_topic=w.SERVICE_EVENTS))
+            ),
+            valid(manifest=False),
+        )
+    )
+    entries.append(
+        Entry(
             "mcap-not-installed",
             "mcap 1.6.0 (Python)",
             "an extra topic of a type not installed",
             _file(
-                "mcap-not-installed", lambda p: w.mcap_file(p, w.McapOptions(manifest=True, extra_topic=True))
+                "mcap-not-installed",
+                lambda p: w.mcap_file(p, w.McapOptions(manifest=True, extra_topic=w.NOT_INSTALLED)),
             ),
             valid(),
             fast=True,

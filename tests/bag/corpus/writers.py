@@ -179,7 +179,16 @@ class McapOptions:
     data_crc: bool = False
     summary: bool = True
     manifest: bool = False
-    extra_topic: bool = False
+    extra_topic: tuple[str, str] | None = None
+    """(topic, type) of an extra topic, one message per 100 of the sample's."""
+
+
+NOT_INSTALLED = ("/corpus/not_installed", "smm_corpus_msgs/msg/NotInstalled")
+"""A topic whose type no installed package defines (what ``ros2 bag play`` skips with a warning)."""
+
+
+SERVICE_EVENTS = ("/corpus/add_two_ints/_service_event", "example_interfaces/srv/AddTwoInts_Event")
+"""A service's event topic as rosbag2 Jazzy records it (``ros2 bag info`` lists it as a service)."""
 
 
 def mcap_file(path: Path, options: McapOptions, source: Sample | None = None) -> Path:
@@ -211,8 +220,10 @@ def mcap_file(path: Path, options: McapOptions, source: Sample | None = None) ->
         if options.manifest:
             writer.add_metadata(source.metadata_records[0].name, source.metadata_records[0].metadata)
         if options.extra_topic:
-            unknown = writer.register_schema("smm_corpus_msgs/msg/NotInstalled", "ros2msg", b"float64 x\n")
-            extra = writer.register_channel("/corpus/not_installed", "cdr", unknown, {})
+            topic, kind = options.extra_topic
+            extra = writer.register_channel(
+                topic, "cdr", writer.register_schema(kind, "ros2msg", b"float64 x\n"), {}
+            )
         for index, m in enumerate(source.messages):
             writer.add_message(channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
             if options.extra_topic and index % 100 == 0:
@@ -446,10 +457,6 @@ def zstd_file(path: Path) -> Path:
     target.write_bytes(zstandard.ZstdCompressor().compress(path.read_bytes()))
     path.unlink()
     return target
-
-
-NOT_INSTALLED = ("/corpus/not_installed", "smm_corpus_msgs/msg/NotInstalled")
-"""A topic whose type no installed package defines (what ``ros2 bag play`` skips with a warning)."""
 
 
 def not_installed_bag(path: Path, count: int = 200) -> Path:
