@@ -42,7 +42,7 @@ SHAPES = "shape-*"
 
 def grouped(entry: Entry) -> bool:
     """Whether ``entry`` is one of the conformance shapes summed up in the ``shape-*`` row."""
-    return entry.name.startswith("shape-") and not entry.damage and entry.name != "shape-other-topics"
+    return entry.writer.startswith("conformance") and not entry.damage and entry.name != "shape-other-topics"
 
 
 def rows(observed: list[tuple[Entry, Mapping[str, Outcome]]]) -> list[str]:

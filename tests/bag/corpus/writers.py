@@ -324,6 +324,7 @@ def shape_file(
     shape ``features`` names, by this module's encoder."""
     source = sample()
     pad = 3 if "pad" in features else 0
+    inner_pad = 3 if "inner-pad" in features else 0  # the suite pads top-level records only
     crc0 = "crc0" in features
     rename = (lambda t: t) if topics_of == "smm" else (lambda t: "/other" + t)
     out = bytearray(mb.MAGIC)
@@ -356,13 +357,15 @@ def shape_file(
             index: dict[int, list[tuple[int, int]]] = {}
             if first == 0:
                 for content in schemas:
-                    inner += mb.record(mb.SCHEMA, content, pad)
+                    inner += mb.record(mb.SCHEMA, content, inner_pad)
                 for content in channels:
-                    inner += mb.record(mb.CHANNEL, content, pad)
+                    inner += mb.record(mb.CHANNEL, content, inner_pad)
             for m in group:
                 index.setdefault(m.channel_id, []).append((m.log_time, len(inner)))
                 inner += mb.record(
-                    mb.MESSAGE, mb.message(m.channel_id, m.sequence, m.log_time, m.publish_time, m.data), pad
+                    mb.MESSAGE,
+                    mb.message(m.channel_id, m.sequence, m.log_time, m.publish_time, m.data),
+                    inner_pad,
                 )
             start, end = min(m.log_time for m in group), max(m.log_time for m in group)
             crc = 0 if crc0 else mb.zlib.crc32(inner)
