@@ -295,7 +295,7 @@ def _damaged(base: Entry, kind: str, fast: bool) -> Entry:
     return Entry(
         f"{base.name}+{kind}",
         base.writer,
-        f"{base.options}; {DAMAGES[kind]}",
+        f"{base.options.replace('bare .mcap file: ', '')} (in a folder); {DAMAGES[kind]}",
         build,
         expect,
         fast=fast,
