@@ -11,6 +11,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import yaml
+
 if __package__ in (None, ""):
     import sys
 
@@ -49,6 +51,7 @@ def check(bag: Path, work: Path) -> Checked:
         shutil.copy2(bag, target)
     files = storage_files(target)
     messages: Counter[str] = Counter()
+    times: list[int] = []
     readable = True
     for path in files:
         try:
@@ -56,10 +59,13 @@ def check(bag: Path, work: Path) -> Checked:
             if path.name.endswith(".zstd"):
                 readable_path = work / "scratch.mcap"
                 readable_path.write_bytes(file_bytes(path))
-            messages.update(m.topic for m in file_messages(readable_path))
+            found = file_messages(readable_path)
+            messages.update(m.topic for m in found)
+            times += [m.log_time for m in found]
         except Exception as error:  # the independent reader refuses it: not a valid bag by mcap
             readable = False
             seen.outcomes["mcap"] = f"mcap reader: {type(error).__name__}"
+    stale = metadata_disagrees(target, messages, times, files) if readable and files else ""
     before = hashes(target)
     info = smm_bag(["info", str(target)])
     repair = smm_bag(["repair", str(target)])
@@ -85,12 +91,36 @@ def check(bag: Path, work: Path) -> Checked:
             seen.problems.append(
                 f"info: {info.code} {total} {dict(topics)} vs files {dict(messages)}; {info.stderr[-300:]}"
             )
-        if repair.code != 0 or after != before or "damaged" in repair.stdout:
+        stored = {path.name for path in files}
+        if stale:  # rebuilding metadata.yaml is right; the storage files stay as they were
+            seen.outcomes["metadata.yaml"] = f"disagrees with the files ({stale})"
+            before = {k: v for k, v in before.items() if k in stored}
+            after = {k: v for k, v in after.items() if k in stored}
+        if repair.code != 0 or after != before or "intact" not in repair.stdout:
             seen.problems.append(
                 f"repair of a valid bag: exit {repair.code}, changed {after != before}: "
                 f"{repair.stdout[-400:]} {repair.stderr[-300:]}"
             )
     return seen
+
+
+def metadata_disagrees(folder: Path, counts: Counter[str], times: list[int], files: list[Path]) -> str:
+    """What of a folder's metadata.yaml disagrees with its files (counts, time range, file list), or ""."""
+    path = folder / "metadata.yaml"
+    if not path.is_file():
+        return ""
+    info = yaml.safe_load(path.read_text())["rosbag2_bagfile_information"]
+    listed = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
+    if {k: v for k, v in listed.items() if v} != {k: v for k, v in counts.items() if v}:
+        return "counts per topic"
+    if info["message_count"] != sum(counts.values()):
+        return "message count"
+    if sorted(info["relative_file_paths"]) != sorted(p.name for p in files):
+        return "file list"
+    start, duration = info["starting_time"]["nanoseconds_since_epoch"], info["duration"]["nanoseconds"]
+    if times and (start, duration) != (min(times), max(times) - min(times)):
+        return "time range"
+    return ""
 
 
 def main(directory: str) -> int:
