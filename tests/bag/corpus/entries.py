@@ -134,6 +134,10 @@ def _mcap() -> list[Entry]:
             w.McapOptions(summary=False),
             False,
         ),
+        ("mcap-noindex", "no chunk or message index", w.McapOptions(indexes=False), False),
+        ("mcap-norepeat", "no schemas or channels in the summary", w.McapOptions(repeat=False), False),
+        ("mcap-nostatistics", "no statistics", w.McapOptions(statistics=False), False),
+        ("mcap-nooffsets", "no summary offsets", w.McapOptions(offsets=False), False),
         (
             "mcap-nocrc-nosummary-lz4",
             "lz4, CRCs off, no summary",

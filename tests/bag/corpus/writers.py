@@ -178,6 +178,11 @@ class McapOptions:
     crcs: bool = True
     data_crc: bool = False
     summary: bool = True
+    """The whole summary; ``indexes``, ``repeat``, ``statistics``, ``offsets`` leave out one part."""
+    indexes: bool = True
+    repeat: bool = True
+    statistics: bool = True
+    offsets: bool = True
     manifest: bool = False
     extra_topic: tuple[str, str] | None = None
     """(topic, type) of an extra topic, one message per 100 of the sample's."""
@@ -202,12 +207,12 @@ def mcap_file(path: Path, options: McapOptions, source: Sample | None = None) ->
             stream,
             chunk_size=options.chunk_size,
             compression=CompressionType[options.compression.upper()],
-            index_types=IndexType.ALL if summary else IndexType.NONE,
-            repeat_channels=summary,
-            repeat_schemas=summary,
+            index_types=IndexType.ALL if summary and options.indexes else IndexType.NONE,
+            repeat_channels=summary and options.repeat,
+            repeat_schemas=summary and options.repeat,
             use_chunking=options.chunked,
-            use_statistics=summary,
-            use_summary_offsets=summary,
+            use_statistics=summary and options.statistics,
+            use_summary_offsets=summary and options.offsets,
             enable_crcs=options.crcs,
             enable_data_crcs=options.data_crc,
         )
