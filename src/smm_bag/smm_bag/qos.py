@@ -22,7 +22,14 @@ _NS = 1_000_000_000
 _HISTORY = ("system_default", "keep_last", "keep_all", "unknown")
 _RELIABILITY = ("system_default", "reliable", "best_effort", "unknown", "best_available")
 _DURABILITY = ("system_default", "transient_local", "volatile", "unknown", "best_available")
-_LIVELINESS = ("system_default", "automatic", "manual_by_node", "manual_by_topic", "unknown", "best_available")
+_LIVELINESS = (
+    "system_default",
+    "automatic",
+    "manual_by_node",
+    "manual_by_topic",
+    "unknown",
+    "best_available",
+)
 _FOXY_INFINITE = ((0x7FFFFFFF, 0xFFFFFFFF), (0x7FFFFFFF, 0x7FFFFFFF))
 """Infinite durations of Foxy-era RMWs, read as infinite (rosbag2_storage qos.cpp does the same)."""
 
@@ -80,6 +87,8 @@ class QosProfile:
         Raises:
             CorruptBagError: A field is missing or invalid.
         """
+        if not isinstance(node, Mapping):
+            raise CorruptBagError(f"invalid QoS profile {node!r}: not a mapping")
         try:
             return cls(
                 history=_policy(node["history"], _HISTORY),
