@@ -27,6 +27,8 @@ REPRODUCES: Outcome = (0, "reproduces")
 NOT_OURS: Outcome = (6, "not the stack's topics")
 OTHER_STORAGE: Outcome = (9, "other storage")
 SKIP: Outcome = (-1, "-")
+SHOWN: Outcome = (-2, "shown")
+"""Shown in the table, not checked (info on a framing-damaged copy: an error, or the counts indexes give)."""
 
 
 @dataclass(frozen=True)
@@ -286,7 +288,7 @@ def _shapes() -> list[Entry]:
 
 def _damaged(base: Entry, kind: str, fast: bool) -> Entry:
     expect = {
-        "info": (4, "truncated") if kind.startswith("cut") else (5, "corrupt"),
+        "info": (4, "truncated") if kind.startswith("cut") else SHOWN,
         "repair": (0, "repaired"),
         "analyze": SKIP,
         "rerun": SKIP,
@@ -312,6 +314,7 @@ DAMAGES = {
     "cut-mid": "cut at 45 % of the data section",
     "cut-summary": "cut in the summary",
     "length": "the length of a record in mid-file overwritten (framing)",
+    "opcode": "the opcode of a record in mid-file zeroed (framing)",
 }
 
 
@@ -330,7 +333,7 @@ def entries() -> list[Entry]:
         ("mcap-lz4", False),
         ("rosbags-none", False),
     ):
-        damaged += [_damaged(by_name[name], kind, fast and kind != "cut-summary") for kind in DAMAGES]
+        damaged += [_damaged(by_name[name], kind, fast and kind in ("cut-mid", "length")) for kind in DAMAGES]
     return every + damaged
 
 

@@ -143,10 +143,13 @@ def damage(bag: Path, kind: str) -> Path:
     elif kind == "cut-summary":
         footer = next(offset for offset, opcode, _ in records if opcode == mb.FOOTER)
         data = data[: (data_end + footer) // 2 + 1] if footer - data_end > 20 else data[: len(data) - 20]
-    elif kind == "length":
+    elif kind in ("length", "opcode"):
         body = [offset for offset, opcode, _ in records if opcode in (mb.CHUNK, mb.MESSAGE)]
         target = body[len(body) // 2]
-        data[target + 1 : target + 9] = struct.pack("<Q", 0x7FFF_FFFF_FFFF_0000)
+        if kind == "length":
+            data[target + 1 : target + 9] = struct.pack("<Q", 0x7FFF_FFFF_FFFF_0000)
+        else:
+            data[target] = 0
     else:
         raise ValueError(kind)
     path.write_bytes(bytes(data))
