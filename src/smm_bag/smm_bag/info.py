@@ -9,7 +9,7 @@ import json
 import time
 from pathlib import Path
 
-from smm_bag.metadata import METADATA_FILE, BagMetadata
+from smm_bag.metadata import METADATA_FILE, BagMetadata, service_event
 from smm_bag.reader import BagReader
 from smm_bag.repair import BACKUP_SUFFIX, repair_backups
 
@@ -17,8 +17,6 @@ __all__ = ["bag_size", "format_info"]
 
 _INDENT = " " * 19
 _NS = 1_000_000_000
-_EVENT_TOPIC = "/_service_event"
-_EVENT_TYPE = "_Event"
 
 
 def bag_size(path: Path, metadata: BagMetadata) -> int:
@@ -30,15 +28,6 @@ def bag_size(path: Path, metadata: BagMetadata) -> int:
         return path.stat().st_size
     paths = [path / METADATA_FILE, *(path / name for name in metadata.relative_file_paths)]
     return sum(item.stat().st_size for item in paths if item.is_file())
-
-
-def _service(name: str, type_name: str) -> tuple[str, str] | None:
-    """``(service, service type)`` of a service-event topic (rosbag2_cpp service_utils), else None."""
-    if len(name) <= len(_EVENT_TOPIC) or not name.endswith(_EVENT_TOPIC):
-        return None
-    if len(type_name) <= len(_EVENT_TYPE) or "/srv/" not in type_name or not type_name.endswith(_EVENT_TYPE):
-        return None
-    return name[: -len(_EVENT_TOPIC)], type_name[: -len(_EVENT_TYPE)]
 
 
 def _backups_line(directory: Path) -> str | None:
@@ -84,14 +73,14 @@ def format_metadata(metadata: BagMetadata, size: int) -> str:
     lines.append(f"Duration:          {_seconds(metadata.duration_ns)}s")
     lines.append(f"Start:             {_time_point(metadata.starting_time_ns)}")
     lines.append(f"End:               {_time_point(metadata.starting_time_ns + metadata.duration_ns)}")
-    services = [(t, found) for t in metadata.topics if (found := _service(t.name, t.type)) is not None]
+    services = [(t, found) for t in metadata.topics if (found := service_event(t.name, t.type)) is not None]
     events = sum(t.message_count for t, _ in services)
     lines.append(f"Messages:          {metadata.message_count - events}")
     topics = [
         f"Topic: {t.name} | Type: {t.type} | Count: {t.message_count} | "
         f"Serialization Format: {t.serialization_format}"
         for t in metadata.topics
-        if _service(t.name, t.type) is None
+        if service_event(t.name, t.type) is None
     ]
     lines.append("Topic information: " + (topics[0] if topics else ""))
     lines.extend(_INDENT + line for line in topics[1:])

@@ -142,7 +142,7 @@ def chunk_fields(data: bytes, offset: int, limit: int) -> tuple[int, int, int, s
         return None
     (records_length,) = struct.unpack_from("<Q", data, body + CHUNK_FIXED.size + name_length)
     records_start = body + CHUNK_FIXED.size + name_length + 8
-    if compression not in _COMPRESSIONS or records_start + records_length != body + length:
+    if compression not in _COMPRESSIONS or records_start + records_length > body + length:  # may be padded
         return None
     return 9 + length, size, crc, compression, records_start, records_length
 

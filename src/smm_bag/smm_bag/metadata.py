@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 
-from smm_bag.errors import CorruptBagError, NotABagError
+from smm_bag.errors import CorruptBagError, NotABagError, OtherStorageError
 from smm_bag.qos import QosProfile, dump_profiles, load_profiles
 
 __all__ = [
@@ -25,6 +25,7 @@ __all__ = [
     "FileInfo",
     "TopicInfo",
     "read_metadata",
+    "service_event",
     "write_metadata",
 ]
 
@@ -34,6 +35,19 @@ OLDEST_VERSION = 4
 """The oldest metadata version read (the first with offered QoS profiles; rosbag2 Jazzy reads it)."""
 NO_START_NS = 9_223_372_036_854_775_807
 """``starting_time`` rosbag2 writes before the first message (nanoseconds::max())."""
+
+
+_EVENT_TOPIC = "/_service_event"
+_EVENT_TYPE = "_Event"
+
+
+def service_event(name: str, type_name: str) -> tuple[str, str] | None:
+    """``(service, service type)`` of a service-event topic (rosbag2_cpp service_utils), else None."""
+    if len(name) <= len(_EVENT_TOPIC) or not name.endswith(_EVENT_TOPIC):
+        return None
+    if len(type_name) <= len(_EVENT_TYPE) or "/srv/" not in type_name or not type_name.endswith(_EVENT_TYPE):
+        return None
+    return name[: -len(_EVENT_TOPIC)], type_name[: -len(_EVENT_TYPE)]
 
 
 @dataclass(frozen=True)
@@ -235,6 +249,7 @@ def read_metadata(directory: Path) -> BagMetadata:
 
     Raises:
         NotABagError: No directory or no ``metadata.yaml``.
+        OtherStorageError: The bag's storage is not MCAP.
         CorruptBagError: The file is not valid rosbag2 metadata.
     """
     if not directory.is_dir():
@@ -248,4 +263,8 @@ def read_metadata(directory: Path) -> BagMetadata:
         raise CorruptBagError(f"{path} is not valid YAML: {error}") from None
     if not isinstance(document, Mapping) or "rosbag2_bagfile_information" not in document:
         raise CorruptBagError(f"{path} has no rosbag2_bagfile_information")
+    node = document["rosbag2_bagfile_information"]
+    storage = node.get("storage_identifier", "mcap") if isinstance(node, Mapping) else "mcap"
+    if storage != "mcap":
+        raise OtherStorageError(f"{directory}: {storage} storage, not MCAP (smm-bag reads only MCAP bags)")
     return parse_metadata(document["rosbag2_bagfile_information"], str(path))
