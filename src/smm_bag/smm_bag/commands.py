@@ -96,7 +96,7 @@ def play_command(
                 options,
                 should_stop=lambda: stop["requested"],
                 progress=progress,
-                warn=lambda text: err.write(f"smm-bag: warning: {text}\n"),
+                warn=lambda text: print(f"smm-bag: warning: {text}", file=err),
             )
     except BagError as error:
         return _fail(error, err)
