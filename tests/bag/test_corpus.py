@@ -21,7 +21,7 @@ from bag.corpus.run import Observed, original_metrics, run_entry, smm_bag
 pytestmark = pytest.mark.slow
 
 ENTRIES = selected()
-SUBPROCESS = {"mcap-unchunked", "rosbags-file", "js-default", "shape-other-topics", "mcap-nocrc+length"}
+SUBPROCESS = {"mcap-unchunked", "rosbags-file", "js-default", "shape-other-topics", "mcap-unchunked+length"}
 """Entries run through the installed ``smm-bag`` (the rest in-process, faster)."""
 
 

@@ -325,7 +325,7 @@ def entries() -> list[Entry]:
     damaged = []
     for name, fast in (
         ("mcap-unchunked", True),
-        ("mcap-nocrc", True),
+        ("mcap-nocrc", False),
         ("js-default", False),
         ("shape-ch-crc0", True),
         ("shape-plain", False),

@@ -183,14 +183,16 @@ def _note(result: Result) -> str:
     )[0][:300]
 
 
-def metrics_values(document: dict[str, Any]) -> Any:
-    """metrics.json without what names the bag (its path) or comes from its manifest."""
+def metrics_values(document: dict[str, Any]) -> str:
+    """metrics.json without what names the bag (its path) or comes from its manifest, as JSON text (floats
+    as their shortest repr: equal text is equal bits, NaN included)."""
     meta = document.get("meta", {})
     bags = list(meta.get("bags", {}).values())
     numbers = [value for key, value in document.items() if key != "meta"]
     flat = [controllers for scenario in numbers for controllers in scenario.values()]
     ignore = {"scenario", "controller", "seed", "plant", "version"}
-    return flat, [{k: v for k, v in bag.items() if k not in ignore} for bag in bags]
+    kept = [{k: v for k, v in bag.items() if k not in ignore} for bag in bags]
+    return json.dumps([flat, kept], sort_keys=True)
 
 
 def run_entry(
