@@ -144,7 +144,7 @@ class FileScan:
 
     @property
     def intact(self) -> bool:
-        """No framing check, written CRC or summary consistency check fails (absent optional parts are fine)."""
+        """No framing check, written CRC or summary consistency check fails (absent parts are fine)."""
         return (
             not self.damage
             and not self.inconsistencies
@@ -172,7 +172,7 @@ def chunk_data(data: bytes, chunk: GoodChunk) -> bytes:
 
 
 def _counted(messages: list[tuple[int, int]]) -> tuple[dict[int, int], dict[int, tuple[int, int]], bool]:
-    """Counts and log-time spans per channel of ``(channel, log time)`` pairs, and whether they are ordered."""
+    """Counts and log-time spans per channel of ``(channel, log time)`` pairs; whether they are ordered."""
     counts: dict[int, int] = {}
     spans: dict[int, tuple[int, int]] = {}
     ordered, last = True, -1
@@ -222,25 +222,39 @@ def _record(data: bytes, offset: int, limit: int) -> tuple[int, int] | None:
     return opcode, offset + 9 + length
 
 
-def _resync(data: bytes, start: int, limit: int) -> int:
+def _resync(data: bytes, start: int, limit: int, chunks_only: bool) -> int:
     """The first offset at or after ``start`` where a record checks (``limit`` if none): docs/BAGS.md.
 
     A record checks if it is framed as a data-section record (not a Header), a Chunk's fields parse, its
     CRC checks where written and its records parse, and the record after it is framed too (or it ends
-    at ``limit``).
+    at ``limit``). ``chunks_only``: only a Chunk whose CRC is written and checks.
     """
     for match in _CANDIDATE.finditer(data, start, limit):
         position = match.start()
         framed = _record(data, position, limit)
-        if framed is None or framed[0] == Opcode.HEADER:
+        if framed is None or framed[0] == Opcode.HEADER or (chunks_only and framed[0] != Opcode.CHUNK):
             continue
         opcode, end = framed
         if end != limit and _record(data, end, limit) is None:
             continue
-        if opcode == Opcode.CHUNK and isinstance(_check_chunk(data, position, limit), str):
-            continue
+        if opcode == Opcode.CHUNK:
+            found = _check_chunk(data, position, limit)
+            if isinstance(found, str) or (chunks_only and not found[0].crc_checked):
+                continue
         return position
     return limit
+
+
+def _chunks_carry_crcs(scan: FileScan, data: bytes, start: int, limit: int) -> bool:
+    """Whether the file's chunks carry CRCs: those read so far, else the next chunk that checks."""
+    if scan.chunks:
+        return any(chunk.crc_checked for chunk in scan.chunks)
+    for match in _CANDIDATE.finditer(data, start, limit):
+        if data[match.start()] == Opcode.CHUNK:
+            found = _check_chunk(data, match.start(), limit)
+            if not isinstance(found, str):
+                return found[0].crc_checked
+    return False
 
 
 def _read_summary(scan: FileScan, data: bytes) -> int:
@@ -290,7 +304,7 @@ def scan_mcap(data: bytes) -> FileScan:
         framed = _record(data, position, limit)
         if framed is None or (framed[0] == Opcode.HEADER) != (position == len(MCAP_MAGIC)):
             close_run()
-            after = _resync(data, position + 1, limit)
+            after = _resync(data, position + 1, limit, _chunks_carry_crcs(scan, data, position + 1, limit))
             scan.damage.append(Damage(position, after, "unreadable bytes (record framing damaged)"))
             position = after
             continue
@@ -312,7 +326,8 @@ def scan_mcap(data: bytes) -> FileScan:
                     # checks (its length may be what is damaged).
                     scan.bad_chunks += 1
                     if chunk_fields(data, position, limit) is None:
-                        end = _resync(data, position + 1, limit)
+                        crcs = _chunks_carry_crcs(scan, data, position + 1, limit)
+                        end = _resync(data, position + 1, limit, crcs)
                     scan.damage.append(Damage(position, end, found))
                 else:
                     chunk, records = found

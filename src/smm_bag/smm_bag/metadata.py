@@ -7,7 +7,7 @@ YAML list with policy names; a file is written back in the version it was read i
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -25,7 +25,9 @@ __all__ = [
     "FileInfo",
     "TopicInfo",
     "read_metadata",
+    "recorded_metadata",
     "service_event",
+    "topic_from_channel",
     "write_metadata",
 ]
 
@@ -158,6 +160,27 @@ class BagMetadata:
             duration_ns=end - start if started else 0,
             message_count=sum(topic.message_count for topic in topics),
         )
+
+
+def topic_from_channel(name: str, type_name: str, encoding: str, metadata: Mapping[str, str]) -> TopicInfo:
+    """A topic's entry from an MCAP channel (QoS and type hash as rosbag2's MCAP plugin stores them)."""
+    try:
+        profiles = tuple(load_profiles(metadata.get("offered_qos_profiles")))
+    except CorruptBagError:
+        profiles = ()
+    return TopicInfo(name, type_name, encoding, profiles, metadata.get("topic_type_hash", ""))
+
+
+def recorded_metadata(records: Sequence[tuple[str, Mapping[str, str]]]) -> BagMetadata | None:
+    """The last ``rosbag2`` metadata record (name, fields) that parses (rosbag2 writes one into each file)."""
+    for name, fields in reversed(records):
+        text = fields.get("serialized_metadata") if name == "rosbag2" else None
+        if text:
+            try:
+                return parse_metadata(yaml.safe_load(text), "rosbag2 metadata record")
+            except (CorruptBagError, yaml.YAMLError):
+                continue
+    return None
 
 
 def write_metadata(directory: Path, metadata: BagMetadata) -> None:

@@ -12,12 +12,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from types import TracebackType
 
-import yaml
-
 from smm_bag.errors import CorruptBagError, MissingTopicsError, TruncatedBagError
 from smm_bag.mcap_file import McapFile
-from smm_bag.metadata import BagMetadata, FileInfo, TopicInfo, parse_metadata
-from smm_bag.qos import load_profiles
+from smm_bag.metadata import BagMetadata, FileInfo, TopicInfo, recorded_metadata, topic_from_channel
 from smm_bag.storage import MCAP_MAGIC, is_file_compressed, locate, mapped_file
 
 __all__ = ["MCAP_MAGIC", "BagMessage", "BagReader"]
@@ -145,7 +142,7 @@ class BagReader:
             progress(read)
 
     def raw_messages(self, topics: Iterable[str]) -> Iterator[tuple[str, int, bytes]]:
-        """``(topic, log time ns, CDR bytes)`` of ``topics`` in stored order (no record objects; the analysis).
+        """``(topic, log time ns, CDR bytes)`` of ``topics`` in stored order (no record objects).
 
         Raises:
             CorruptBagError: A chunk fails its CRC, cannot be decompressed or is malformed.
@@ -171,40 +168,19 @@ class BagReader:
         self.close()
 
 
-def _recorded_metadata(files: list[McapFile]) -> BagMetadata | None:
-    """The last readable ``rosbag2`` metadata record of the files (what rosbag2 writes into each file)."""
-    for file in reversed(files):
-        for record in reversed(file.metadata):
-            text = record.metadata.get("serialized_metadata") if record.name == "rosbag2" else None
-            if text:
-                try:
-                    return parse_metadata(yaml.safe_load(text), f"{file.path} rosbag2 metadata record")
-                except (CorruptBagError, yaml.YAMLError):
-                    continue
-    return None
-
-
 def _derived_metadata(files: list[McapFile]) -> BagMetadata:
     """Metadata of bare storage files, from their channels and counts (what ``ros2 bag info file`` shows)."""
-    recorded = _recorded_metadata(files)
+    recorded = recorded_metadata([(r.name, r.metadata) for file in files for r in file.metadata])
     base = recorded if recorded is not None else BagMetadata(ros_distro="")
     topics: dict[str, TopicInfo] = {}
     counts: dict[str, int] = {}
     infos = []
     for file in files:
         for key, channel in file.channels.items():
-            try:
-                profiles = tuple(load_profiles(channel.metadata.get("offered_qos_profiles")))
-            except CorruptBagError:
-                profiles = ()
             topics.setdefault(
                 channel.topic,
-                TopicInfo(
-                    channel.topic,
-                    file.type_name(channel),
-                    channel.message_encoding,
-                    profiles,
-                    channel.metadata.get("topic_type_hash", ""),
+                topic_from_channel(
+                    channel.topic, file.type_name(channel), channel.message_encoding, channel.metadata
                 ),
             )
             counts[channel.topic] = counts.get(channel.topic, 0) + file.counts.get(key, 0)

@@ -14,7 +14,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-import yaml
 import zstandard
 from mcap.records import Channel, Message, Schema
 from mcap.writer import CompressionType, Writer
@@ -27,11 +26,11 @@ from smm_bag.metadata import (
     BagMetadata,
     FileInfo,
     TopicInfo,
-    parse_metadata,
     read_metadata,
+    recorded_metadata,
+    topic_from_channel,
     write_metadata,
 )
-from smm_bag.qos import load_profiles
 from smm_bag.repair_report import FileRepair, RepairReport
 from smm_bag.storage import is_file_compressed, locate, mapped_file, other_storage
 
@@ -221,33 +220,6 @@ def _old_metadata(bag: Path) -> tuple[BagMetadata | None, str]:
         return None, f"unreadable ({error})"
 
 
-def _record_metadata(files: list[_File]) -> BagMetadata | None:
-    for item in reversed(files):
-        for _, _, record in reversed(item.scan.metadata):
-            text = record.metadata.get("serialized_metadata") if record.name == "rosbag2" else None
-            if text:
-                try:
-                    return parse_metadata(yaml.safe_load(text), "rosbag2 metadata record")
-                except (CorruptBagError, yaml.YAMLError):
-                    continue
-    return None
-
-
-def _topic(channel: Channel, schema: Schema | None) -> TopicInfo:
-    """A topic's metadata from its channel record (QoS as rosbag2's MCAP plugin stores them)."""
-    try:
-        profiles = tuple(load_profiles(channel.metadata.get("offered_qos_profiles")))
-    except CorruptBagError:
-        profiles = ()
-    return TopicInfo(
-        name=channel.topic,
-        type=schema.name if schema is not None else "",
-        serialization_format=channel.message_encoding,
-        offered_qos_profiles=profiles,
-        type_description_hash=channel.metadata.get("topic_type_hash", ""),
-    )
-
-
 def _metadata_from(base: BagMetadata, files: list[_File]) -> BagMetadata:
     """``base`` with the counts, times and files of ``files``; known topics keep their entries as written."""
     known: Mapping[str, TopicInfo] = {topic.name: topic for topic in base.topics}
@@ -258,7 +230,10 @@ def _metadata_from(base: BagMetadata, files: list[_File]) -> BagMetadata:
         for key, channel in item.usable.items():
             previous = known.get(channel.topic)
             schema = item.scan.schemas.get(channel.schema_id)
-            topics.setdefault(channel.topic, previous if previous is not None else _topic(channel, schema))
+            topic = topic_from_channel(
+                channel.topic, schema.name if schema else "", channel.message_encoding, channel.metadata
+            )
+            topics.setdefault(channel.topic, previous if previous is not None else topic)
             counts[channel.topic] = counts.get(channel.topic, 0) + file_counts.get(key, 0)
     for name, topic in known.items():
         topics.setdefault(name, topic)
@@ -321,7 +296,8 @@ def repair_bag(
         raise first
     # Without a readable metadata.yaml, the last rosbag2 record of the files is the base.
     agrees = old is not None and _agrees(old, _metadata_from(old, files))
-    base = old or _record_metadata(files) or BagMetadata()
+    records = [(record.name, record.metadata) for item in files for _, _, record in item.scan.metadata]
+    base = old or recorded_metadata(records) or BagMetadata()
     metadata = _metadata_from(base, files)
     results: dict[str, FileRepair] = {item.path: item for item in failed}
     for item in files:
