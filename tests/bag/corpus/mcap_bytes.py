@@ -23,6 +23,8 @@ MAGIC = b"\x89MCAP0\r\n"
 HEADER, FOOTER, SCHEMA, CHANNEL, MESSAGE, CHUNK, MESSAGE_INDEX, CHUNK_INDEX = 1, 2, 3, 4, 5, 6, 7, 8
 ATTACHMENT, ATTACHMENT_INDEX, STATISTICS, METADATA, METADATA_INDEX, SUMMARY_OFFSET, DATA_END = range(9, 16)
 OPCODES = range(1, 16)
+_DATA_SECTION = {SCHEMA, CHANNEL, MESSAGE, CHUNK, MESSAGE_INDEX, ATTACHMENT, METADATA, DATA_END}
+"""What a resynchronisation may land on (docs/BAGS.md, "Reading on after damage")."""
 
 
 # ------------------------------------------------------------------------------------------------ encoding
@@ -266,6 +268,8 @@ class _Reader:
         """The next offset >= start where a record's framing and present CRC check (len(data) if none)."""
         for match in _CANDIDATE.finditer(self.data, start):
             at = match.start()
+            if self.data[at] not in _DATA_SECTION:
+                continue
             snapshot = (self.schemas.copy(), self.topics.copy())
             try:
                 end, _ = self.parse(at, len(self.data))
