@@ -269,6 +269,17 @@ def _shapes() -> list[Entry]:
             padded_chunks=True,
         )
     )
+    schemaless = frozenset({"ch", "mx", "chx", "st", "sum", "rch", "rsh", "schemaless"})
+    entries.append(
+        Entry(
+            w.shape_name(schemaless),
+            "own generator (beyond the suite)",
+            "an extra channel without schema (schema id 0, JSON), as the conformance suite's "
+            "OneSchemalessMessage",
+            _file(w.shape_name(schemaless), lambda p: w.shape_file(p, schemaless)),
+            valid(manifest=False),
+        )
+    )
     other = frozenset({"ch", "mx", "chx", "st", "rch", "rsh"})
     entries.append(
         Entry(

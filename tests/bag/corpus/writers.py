@@ -11,7 +11,7 @@ import copy
 import json
 import shutil
 import subprocess
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +20,7 @@ import yaml
 import zstandard
 from bag.corpus import mcap_bytes as mb
 from bag.corpus.sample import Sample, sample
+from mcap.records import Message
 from mcap.writer import CompressionType, IndexType, Writer
 from rosbags.rosbag2 import Writer as RosbagsWriter
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
@@ -297,6 +298,9 @@ def js_file(path: Path, options: Mapping[str, Any]) -> Path:
 
 # ------------------------------------------------------------------------------ conformance-suite shapes
 
+SCHEMALESS = 99
+"""Channel id of the schemaless channel of the ``schemaless`` shape."""
+
 SHAPE_FEATURES = ("ch", "mx", "chx", "st", "sum", "rch", "rsh", "pad", "crc0")
 """The conformance suite's features (foxglove/mcap tests/conformance/variants/types.ts: chunks, message
 index, chunk index, statistics, summary offsets, repeated channels, repeated schemas, padded records), and
@@ -345,9 +349,18 @@ def shape_file(
         mb.channel(c.id, c.schema_id, rename(c.topic), c.message_encoding, c.metadata)
         for c in source.channels
     ]
+    messages: Sequence[Message] = source.messages
+    if "schemaless" in features:  # a channel without schema (schema id 0), as the MCAP specification allows
+        channels.append(mb.channel(SCHEMALESS, 0, "/corpus/schemaless", "json", {}))
+        messages = [
+            extra
+            for k, m in enumerate(source.messages)
+            for extra in (m, Message(SCHEMALESS, m.log_time, b'{"k": %d}' % k, m.log_time, k))[
+                : 1 + (k % 100 == 0)
+            ]
+        ]
     chunk_indexes: list[bytes] = []
     stats_counts: dict[int, int] = {}
-    messages = source.messages
     if "ch" not in features:
         for content in schemas:
             put(mb.SCHEMA, content)
