@@ -177,8 +177,8 @@ def _losses(item: _File) -> tuple[int | None, dict[str, int], tuple[tuple[int | 
     topics = {key: channel.topic for key, channel in scan.channels.items()}
     lost: dict[str, int] = {}
     counts = item.counts()
-    for chunk in scan.chunks:
-        for channel, count in chunk.counts.items():
+    for block in scan.blocks:
+        for channel, count in block.counts.items():
             if channel not in item.usable:
                 name = f"{topics.get(channel, f'channel {channel}')} (no channel or schema record survives)"
                 lost[name] = lost.get(name, 0) + count
@@ -189,18 +189,15 @@ def _losses(item: _File) -> tuple[int | None, dict[str, int], tuple[tuple[int | 
             name = topics.get(channel, f"channel {channel}")
             if missing > 0 and channel in item.usable:
                 lost[name] = lost.get(name, 0) + missing
-    if summary is not None:
+    if summary is not None and summary.chunk_indexes:
         gone = [entry for entry in summary.chunk_indexes if entry.chunk_start_offset not in kept]
-        ranges: list[tuple[int | None, int | None]] = [
-            (entry.message_start_time, entry.message_end_time) for entry in gone
-        ]
-        return len(gone), lost, tuple(ranges)
-    ranges = []
+        return len(gone), lost, tuple((entry.message_start_time, entry.message_end_time) for entry in gone)
+    ranges: list[tuple[int | None, int | None]] = []
     places = [damage.start for damage in scan.damage] + ([scan.size] if scan.truncated else [])
-    kept_spans = [  # (offset, first, last log time) of the kept messages of each chunk
-        (c.offset, min(s[0] for s in spans), max(s[1] for s in spans))
-        for c in scan.chunks
-        if (spans := [span for key, span in c.spans.items() if key in item.usable])
+    kept_spans = [  # (offset, first, last log time) of the kept messages of each chunk or run
+        (block.offset, min(s[0] for s in spans), max(s[1] for s in spans))
+        for block in scan.blocks
+        if (spans := [span for key, span in block.spans.items() if key in item.usable])
     ]
     for place in places:
         before = [last for offset, _, last in kept_spans if offset < place]
