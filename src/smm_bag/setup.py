@@ -22,7 +22,7 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
     ],
-    install_requires=["setuptools", "numpy", "PyYAML", "mcap", "mcap-ros2-support", "rosbags"],
+    install_requires=["setuptools", "numpy", "PyYAML", "mcap", "mcap-ros2-support", "rosbags", "zstandard", "lz4"],
     zip_safe=True,
     maintainer="SMM control stack maintainers",
     maintainer_email="smm-maintainers@example.org",
