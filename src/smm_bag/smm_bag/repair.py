@@ -350,7 +350,7 @@ def repair_bag(
             current.replace(target)
             metadata_backup = target.name
         write_metadata(bag, metadata)
-    return RepairReport(reports, metadata, note, rewrite, metadata_backup, lost_total)
+    return RepairReport(reports, metadata, note, rewrite, metadata_backup, lost_total, bare)
 
 
 def _agrees(old: BagMetadata, derived: BagMetadata) -> bool:
