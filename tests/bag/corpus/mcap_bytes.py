@@ -3,8 +3,9 @@
 The encoder builds the conformance shapes (padding, CRC 0, repeated schemas/channels, ...); the sequential
 reader is the oracle of the damaged copies: records in order from the magic, a record whose framing checks
 but whose present CRC (or, for a chunk, its contents) fails is skipped whole, and after a record whose
-framing fails reading resumes at the next offset where a record checks and the record after it is framed
-too (or it ends the file): the rule of docs/BAGS.md's repair section (smm_bag.mcap_scan).
+framing fails reading resumes at the next offset where a data-section record checks and the record after
+it is framed too (or it ends the file), and only at a Chunk whose CRC is written and checks in a file whose
+chunks carry CRCs: the rule of docs/BAGS.md, "Reading on after damage".
 """
 
 from __future__ import annotations
@@ -148,6 +149,8 @@ class _Reader:
         self.schemas: set[int] = set()
         self.topics: dict[int, str] = {}
         self.out = SequentialRead()
+        self.chunk_crcs: bool | None = None
+        """Whether the file's chunks carry CRCs, from the first chunk that checked (None: none yet)."""
 
     def parse(self, pos: int, end_limit: int, inside_chunk: bool = False) -> tuple[int, list[Message]]:
         """Checks the record at ``pos``; returns its end and its messages (raises if it fails)."""
@@ -201,6 +204,8 @@ class _Reader:
             except (_BadRecordError, struct.error) as error:
                 raise _CrcFailedError(f"chunk records: {error}") from error
             self.schemas, self.topics = sub.schemas, sub.topics
+            if self.chunk_crcs is None and not inside_chunk:
+                self.chunk_crcs = crc != 0
         elif opcode == MESSAGE_INDEX:
             cursor.unpack("<H")
             if len(cursor.blob("<I")) % 16:
@@ -264,19 +269,30 @@ class _Reader:
             pos = end
         return self.out
 
-    def _resync(self, start: int) -> int:
-        """The next offset >= start where a record's framing and present CRC check (len(data) if none)."""
+    def _resync(self, start: int, crc_chunks_only: bool | None = None) -> int:
+        """The next offset >= start where a record's framing and present CRC check (len(data) if none); in
+        a file whose chunks carry CRCs (those read so far, else the next chunk that checks) only a Chunk
+        whose CRC is written and checks."""
+        if crc_chunks_only is None:
+            crc_chunks_only = self.chunk_crcs
+            if crc_chunks_only is None:
+                after = self._resync(start, crc_chunks_only=False)
+                while after < len(self.data) and self.data[after] != CHUNK:
+                    after = self._resync(after + 1, crc_chunks_only=False)
+                crc_chunks_only = after < len(self.data) and _chunk_crc(self.data, after) != 0
         for match in _CANDIDATE.finditer(self.data, start):
             at = match.start()
             if self.data[at] not in _DATA_SECTION:
                 continue
-            snapshot = (self.schemas.copy(), self.topics.copy())
+            if crc_chunks_only and (self.data[at] != CHUNK or _chunk_crc(self.data, at) == 0):
+                continue
+            snapshot = (self.schemas.copy(), self.topics.copy(), self.chunk_crcs)
             try:
                 end, _ = self.parse(at, len(self.data))
             except (_BadRecordError, _CrcFailedError, struct.error):
                 continue
             finally:
-                self.schemas, self.topics = snapshot
+                self.schemas, self.topics, self.chunk_crcs = snapshot
             if end == len(self.data) or _framed(self.data, end):
                 return at
         return len(self.data)
@@ -284,6 +300,11 @@ class _Reader:
 
 class _CrcFailedError(Exception):
     """A record whose own framing checks but whose CRC or contents fail: skipped whole."""
+
+
+def _chunk_crc(data: bytes, pos: int) -> int:
+    """The uncompressed CRC field of the Chunk record at ``pos`` (0 if the file ends first)."""
+    return struct.unpack_from("<I", data, pos + 33)[0] if pos + 37 <= len(data) else 0
 
 
 def _framed(data: bytes, pos: int) -> bool:
