@@ -55,6 +55,7 @@ class Shape:
     summary_channels: bool = True
     files: int = 1
     file_compression: bool = False
+    message_compression: bool = False
 
     @property
     def name(self) -> str:
@@ -65,6 +66,7 @@ class Shape:
         parts += [] if self.summary_channels else ["no-summary-channels"]
         parts += [f"{self.files}-files"] if self.files > 1 else []
         parts += ["zstd-file"] if self.file_compression else []
+        parts += ["zstd-messages"] if self.message_compression else []
         return "+".join(parts)
 
 
@@ -105,7 +107,10 @@ def _write_mcap(path: Path, items: list[tuple[Channel, Any, Message]], shape: Sh
                 channels[channel.id] = writer.register_channel(
                     channel.topic, channel.message_encoding, schemas[schema.id], metadata
                 )
-            writer.add_message(channels[channel.id], message.log_time, message.data, message.publish_time)
+            data = message.data
+            if shape.message_compression:  # rosbag2's compression_mode "message": each message a zstd frame
+                data = zstandard.ZstdCompressor().compress(data)
+            writer.add_message(channels[channel.id], message.log_time, data, message.publish_time)
         writer.finish()  # type: ignore[no-untyped-call]
     if shape.file_compression:
         packed = path.with_name(path.name + ".zstd")
@@ -118,7 +123,11 @@ def _qos(version: int) -> Any:
 
 
 def metadata_yaml(
-    version: int, files: list[tuple[str, list[Key]]], types: dict[str, str], custom: dict[str, str]
+    version: int,
+    files: list[tuple[str, list[Key]]],
+    types: dict[str, str],
+    custom: dict[str, str],
+    mode: str = "",
 ) -> dict[str, Any]:
     """``metadata.yaml`` as rosbag2 writes the given version (fields of later versions left out)."""
     every = [key for _, keys in files for key in keys]
@@ -144,8 +153,8 @@ def metadata_yaml(
         "starting_time": {"nanoseconds_since_epoch": start},
         "message_count": len(every),
         "topics_with_message_count": topics,
-        "compression_format": "zstd" if files[0][0].endswith(".zstd") else "",
-        "compression_mode": "FILE" if files[0][0].endswith(".zstd") else "",
+        "compression_format": "zstd" if mode else "",
+        "compression_mode": mode,
         "relative_file_paths": [name for name, _ in files],
     }
     if version >= 5:
@@ -179,11 +188,12 @@ def rewrite(source: Path, target: Path, shape: Shape, version: int | None = 9) -
         path = target / f"{target.name}_{number}.mcap"
         _write_mcap(path, part, shape)
         name = path.name + (".zstd" if shape.file_compression else "")
-        names.append((name, [(c.topic, m.log_time, m.data) for c, _, m in part]))
+        names.append((name, [(c.topic, m.log_time, m.data) for c, _, m in part]))  # uncompressed
     if version is None:
         return target / names[0][0]
     types = {channel.topic: schema.name for channel, schema, _ in items}
-    document = metadata_yaml(version, names, types, custom)
+    mode = "FILE" if shape.file_compression else "MESSAGE" if shape.message_compression else ""
+    document = metadata_yaml(version, names, types, custom, mode)
     (target / "metadata.yaml").write_text(yaml.safe_dump(document, sort_keys=False))
     return target
 

@@ -222,27 +222,34 @@ def _record(data: bytes, offset: int, limit: int) -> tuple[int, int] | None:
     return opcode, offset + 9 + length
 
 
-def _resync(data: bytes, start: int, limit: int, chunks_only: bool) -> int:
+def _resync(data: bytes, start: int, limit: int) -> int:
     """The first offset at or after ``start`` where a record checks (``limit`` if none): docs/BAGS.md.
 
     A record checks if it is framed as a data-section record (not a Header), a Chunk's fields parse, its
     CRC checks where written and its records parse, and the record after it is framed too (or it ends
-    at ``limit``). ``chunks_only``: only a Chunk whose CRC is written and checks.
+    at ``limit``).
     """
     for match in _CANDIDATE.finditer(data, start, limit):
         position = match.start()
         framed = _record(data, position, limit)
-        if framed is None or framed[0] == Opcode.HEADER or (chunks_only and framed[0] != Opcode.CHUNK):
+        if framed is None or framed[0] == Opcode.HEADER:
             continue
         opcode, end = framed
         if end != limit and _record(data, end, limit) is None:
             continue
-        if opcode == Opcode.CHUNK:
-            found = _check_chunk(data, position, limit)
-            if isinstance(found, str) or (chunks_only and not found[0].crc_checked):
-                continue
+        if opcode == Opcode.CHUNK and isinstance(_check_chunk(data, position, limit), str):
+            continue
         return position
     return limit
+
+
+def _continues(data: bytes, end: int, limit: int) -> bool:
+    """Whether a record follows ``end``: the data end, a framed record, or one cut by the file end."""
+    if end == limit or _record(data, end, limit) is not None:
+        return True
+    if limit != len(data) or data[end] not in _DATA_OPCODES:
+        return False
+    return end + 9 > limit or PREFIX.unpack_from(data, end)[1] > limit - end - 9
 
 
 def _chunks_carry_crcs(scan: FileScan, data: bytes, start: int, limit: int) -> bool:
@@ -288,6 +295,7 @@ def scan_mcap(data: bytes) -> FileScan:
     expected_indexes: dict[int, dict[int, list[tuple[int, int]]]] = {}
     run: list[tuple[int, int]] = []
     run_start = run_end = 0
+    unverified = False  # reading on after damage, in a file whose chunks carry CRCs
     position = len(MCAP_MAGIC)
     if bytes(data[: len(MCAP_MAGIC)]) != MCAP_MAGIC:
         scan.damage.append(Damage(0, len(MCAP_MAGIC), "MCAP magic damaged"))
@@ -304,11 +312,19 @@ def scan_mcap(data: bytes) -> FileScan:
         framed = _record(data, position, limit)
         if framed is None or (framed[0] == Opcode.HEADER) != (position == len(MCAP_MAGIC)):
             close_run()
-            after = _resync(data, position + 1, limit, _chunks_carry_crcs(scan, data, position + 1, limit))
+            after = _resync(data, position + 1, limit)
+            unverified = _chunks_carry_crcs(scan, data, after, limit)
             scan.damage.append(Damage(position, after, "unreadable bytes (record framing damaged)"))
             position = after
             continue
         opcode, end = framed
+        if unverified and opcode != Opcode.CHUNK and not _continues(data, end, limit):
+            # Read where no CRC vouches in a file that has CRCs: no record follows it, so it was cut short.
+            close_run()
+            after = _resync(data, position + 1, limit)
+            scan.damage.append(Damage(position, after, "record not followed by a record (damaged)"))
+            position = after
+            continue
         if opcode != Opcode.MESSAGE or len(run) >= _RUN_LENGTH:
             close_run()
         body = bytes(data[position + 9 : end]) if opcode != Opcode.CHUNK else b""
@@ -326,12 +342,13 @@ def scan_mcap(data: bytes) -> FileScan:
                     # checks (its length may be what is damaged).
                     scan.bad_chunks += 1
                     if chunk_fields(data, position, limit) is None:
-                        crcs = _chunks_carry_crcs(scan, data, position + 1, limit)
-                        end = _resync(data, position + 1, limit, crcs)
+                        end = _resync(data, position + 1, limit)
+                        unverified = _chunks_carry_crcs(scan, data, end, limit)
                     scan.damage.append(Damage(position, end, found))
                 else:
                     chunk, records = found
                     scan.chunks.append(chunk)
+                    unverified = unverified and not chunk.crc_checked
                     expected = expected_indexes.setdefault(position, {})
                     for offset, record in chunk_records(records):
                         if isinstance(record, Message):

@@ -12,6 +12,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from types import TracebackType
 
+import zstandard
+
 from smm_bag.errors import CorruptBagError, MissingTopicsError, TruncatedBagError
 from smm_bag.mcap_file import McapFile
 from smm_bag.metadata import BagMetadata, FileInfo, TopicInfo, recorded_metadata, topic_from_channel
@@ -62,6 +64,7 @@ class BagReader:
             else:
                 self.metadata = location.metadata
                 self._check_counts()
+            self._decode = _message_decoder(self.metadata)
         except BaseException:
             self.close()
             raise
@@ -134,7 +137,7 @@ class BagReader:
             }
             for key, log_time, publish_time, data in file.messages(set(channels), ordered):
                 topic, type_name = channels[key]
-                yield BagMessage(topic, type_name, log_time, publish_time, data)
+                yield BagMessage(topic, type_name, log_time, publish_time, self._decode(data))
                 read += 1
                 if progress is not None and read % 10_000 == 0:
                     progress(read)
@@ -152,7 +155,7 @@ class BagReader:
             names = {key: c.topic for key, c in file.channels.items() if c.topic in wanted}
             if names:
                 for key, log_time, _, data in file.messages(set(names), ordered=False):
-                    yield names[key], log_time, data
+                    yield names[key], log_time, self._decode(data)
 
     def close(self) -> None:
         """Closes the storage files (and removes their decompressed copies)."""
@@ -166,6 +169,27 @@ class BagReader:
         self, kind: type[BaseException] | None, value: BaseException | None, trace: TracebackType | None
     ) -> None:
         self.close()
+
+
+def _message_decoder(metadata: BagMetadata) -> Callable[[bytes], bytes]:
+    """What turns a stored message into its CDR bytes: rosbag2's message compression undone (zstd only).
+
+    Raises:
+        CorruptBagError: A message compression other than zstd.
+    """
+    if metadata.compression_mode.lower() != "message":
+        return bytes
+    if metadata.compression_format != "zstd":
+        raise CorruptBagError(f"message compression {metadata.compression_format!r} is not supported (zstd)")
+    decompressor = zstandard.ZstdDecompressor()
+
+    def decode(data: bytes) -> bytes:
+        try:
+            return bytes(decompressor.decompressobj().decompress(data))
+        except zstandard.ZstdError as error:
+            raise CorruptBagError(f"a compressed message does not decompress ({error})") from None
+
+    return decode
 
 
 def _derived_metadata(files: list[McapFile]) -> BagMetadata:
