@@ -17,6 +17,8 @@ __all__ = ["bag_size", "format_info"]
 
 _INDENT = " " * 19
 _NS = 1_000_000_000
+_NO_TYPE = "(none)"
+"""Shown for a channel without schema (schema id 0), which rosbag2 cannot read at all."""
 
 
 def bag_size(path: Path, metadata: BagMetadata) -> int:
@@ -77,7 +79,7 @@ def format_metadata(metadata: BagMetadata, size: int) -> str:
     events = sum(t.message_count for t, _ in services)
     lines.append(f"Messages:          {metadata.message_count - events}")
     topics = [
-        f"Topic: {t.name} | Type: {t.type} | Count: {t.message_count} | "
+        f"Topic: {t.name} | Type: {t.type or _NO_TYPE} | Count: {t.message_count} | "
         f"Serialization Format: {t.serialization_format}"
         for t in metadata.topics
         if service_event(t.name, t.type) is None
