@@ -1,4 +1,4 @@
-"""Where a bag's MCAP bytes are: a rosbag2 folder or a bare ``.mcap`` file, rosbag2 file compression, other storage.
+"""Where a bag's MCAP bytes are: a rosbag2 folder or a bare ``.mcap`` file, file compression, other storage.
 
 rosbag2's file compression (``compression_mode: file``) stores each file as ``<name>.mcap.zstd``; its bytes
 are decompressed into a temporary file (never next to the bag) and mapped from there.
@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import mmap
 import os
-import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -93,7 +92,9 @@ def locate(path: Path) -> BagLocation:
             raise NotABagError(f"{path} is not a directory (a rosbag2 bag folder) nor an MCAP file")
         return BagLocation(path.parent, None, (path,))
     if not path.is_dir():
-        raise NotABagError(f"{path} is not a directory (a rosbag2 bag is a folder with metadata.yaml) nor a file")
+        raise NotABagError(
+            f"{path} is not a directory (a rosbag2 bag is a folder with metadata.yaml) nor a file"
+        )
     if not (path / METADATA_FILE).is_file():
         for candidate in sorted(path.iterdir()):
             kind = other_storage(candidate) if candidate.is_file() else None
@@ -126,7 +127,7 @@ def _mapped(path: Path) -> Iterator[bytes]:
 
 
 def _decompress(source: Path, target: Path) -> bool:
-    """Decompresses the zstd file ``source`` into ``target``; False if it ends inside a frame or is damaged."""
+    """Decompresses the zstd file ``source`` into ``target``; False if it ends in a frame or is damaged."""
     complete = True
     with source.open("rb") as raw, target.open("wb") as out:
         decompressor = zstandard.ZstdDecompressor().decompressobj()
