@@ -5,6 +5,8 @@
 #   make test-realtime  the tests that need the wall clock kept (1 kHz / 100 Hz runs): a quiet machine only
 #   make test-other-cpu  the tests against data made on another machine, under other numeric paths
 #   make bench  benchmarks: figures and ratios, never pass/fail on a shared machine's timing
+#   make test-bags  the whole corpus of bags of other writers (make test runs a subset); UPSTREAM=DIR adds
+#               every bag under DIR (rosbag2's test bags, MCAP conformance files: never committed)
 # Re-running a target is quick: the virtual environment is rebuilt only when a requirements file or a
 # package's setup.py/package.xml changes.
 
@@ -19,7 +21,14 @@ PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg sr
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export PYTHONDONTWRITEBYTECODE := 1
 
-.PHONY: setup test test-realtime test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
+# The corpus's writer in another language: npm's @mcap/core (tests/bag/corpus/js), node and npm from apt if missing.
+CORPUS_JS := tests/bag/corpus/js/.installed
+$(CORPUS_JS): tests/bag/corpus/js/package.json tests/bag/corpus/js/package-lock.json
+	@command -v npm >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq nodejs npm; }
+	cd tests/bag/corpus/js && npm ci --no-audit --no-fund --silent
+	@touch $@
+
+.PHONY: setup test test-realtime test-bags corpus-table test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
 
 setup: $(STAMP)
 
@@ -30,13 +39,21 @@ $(STAMP): requirements.txt requirements-dev.txt $(PACKAGE_FILES)
 		$(foreach p,$(PACKAGES),-e src/$(p))
 	@touch $@
 
-test: $(STAMP)
+test: $(STAMP) $(CORPUS_JS)
 	$(PY) -m pytest tests
 
 # The real-time versions of the hardware tests (marker realtime, deselected by pyproject's addopts): they need
 # a quiet machine, as a bench run does (docs/TESTING.md, "Real-time tests").
 test-realtime: $(STAMP)
 	$(PY) -m pytest tests -m realtime
+
+# Every corpus entry (docs/BAGS.md, "Bags of other writers"); make test-bags UPSTREAM=/path/to/bags
+test-bags: $(STAMP) $(CORPUS_JS)
+	SMM_BAG_CORPUS=full SMM_BAG_UPSTREAM="$(UPSTREAM)" $(PY) -m pytest tests/bag/test_corpus.py $(PYTEST_ARGS)
+
+# Rewrites docs/BAGS.md's writer x command table from what the whole corpus gives.
+corpus-table: $(STAMP) $(CORPUS_JS)
+	$(PY) tests/bag/corpus/table.py
 
 # The cross_machine tests (data made on another machine) once per forced numeric path (OpenBLAS kernel,
 # numpy SIMD, libm), after a table of the sample-bag rerun under each: see docs/TESTING.md.

@@ -82,3 +82,36 @@ def test_play_options_are_validated() -> None:
             PlayOptions(**bad)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="/old:=/new"):
         parse_remaps(["joint_states:=/x"])
+
+
+def test_topics_of_uninstalled_types_are_skipped_with_one_warning_and_the_rest_play(
+    ros_context: Any, tmp_path: Path
+) -> None:
+    import rclpy
+    from mcap.writer import Writer
+
+    path = tmp_path / "foreign.mcap"  # a bare file, as `ros2 bag record` users pass them
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start("ros2", "tests")
+        kinds = {
+            "/smm/joint_states": ("sensor_msgs/msg/JointState", "cdr"),
+            "/lidar": ("no_such_pkg/msg/Scan", "cdr"),
+            "/status": ("std_msgs/msg/String", "json"),
+        }
+        channels = {}
+        for topic, (kind, encoding) in kinds.items():
+            schema = writer.register_schema(kind, "ros2msg", b"")
+            channels[topic] = writer.register_channel(topic, encoding, schema)
+        for k in range(50):
+            for channel in channels.values():
+                writer.add_message(channel, T0 + k * 1_000_000, joint_state(k), T0 + k * 1_000_000)
+        writer.finish()  # type: ignore[no-untyped-call]
+    warnings: list[str] = []
+    player = rclpy.create_node("player", context=ros_context)
+    result = play(path, player, PlayOptions(rate=50.0), warn=warnings.append)
+    assert result.published == {"/smm/joint_states": 50}
+    assert set(result.skipped) == {"/lidar", "/status"}
+    assert len(warnings) == 2
+    assert any("no_such_pkg/msg/Scan is not installed" in text for text in warnings)
+    assert any("not CDR" in text for text in warnings)

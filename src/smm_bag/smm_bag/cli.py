@@ -29,7 +29,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="smm-bag",
         description="Inspect, analyse, re-run and repair rosbag2 MCAP bags of the SMM stack.",
         epilog="Exit codes: 0 ok, 1 check failed, 2 usage, 3 not a bag, 4 truncated (run repair), "
-        "5 corrupt, 6 missing topics, 7 bad parameters file, 8 repair saved nothing of a file.",
+        "5 corrupt, 6 missing topics, 7 bad parameters file, 8 repair saved nothing of a file, "
+        "9 not MCAP storage (sqlite3, ROS 1).",
     )
     parser.set_defaults(handler=None)
     sub = parser.add_subparsers(dest="command", required=True)

@@ -90,7 +90,14 @@ def play_command(
                 bag, node, executor, options, should_stop=lambda: stop["requested"], progress=progress
             )
         else:
-            result = play(bag, node, options, should_stop=lambda: stop["requested"], progress=progress)
+            result = play(
+                bag,
+                node,
+                options,
+                should_stop=lambda: stop["requested"],
+                progress=progress,
+                warn=lambda text: print(f"smm-bag: warning: {text}", file=err),
+            )
     except BagError as error:
         return _fail(error, err)
     finally:
@@ -101,6 +108,8 @@ def play_command(
             signal.signal(sig, handler)
     for topic, count in result.published.items():
         err.write(f"{topic}: {count} messages published\n")
+    if isinstance(result, PlayResult) and result.skipped:
+        err.write(f"{len(result.skipped)} topics skipped: {', '.join(result.skipped)}\n")
     if isinstance(result, LockstepResult):
         answered = sum(stamp in result.answers for stamp in result.stamps)
         err.write(

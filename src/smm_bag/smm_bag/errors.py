@@ -6,6 +6,7 @@ __all__ = [
     "CorruptBagError",
     "MissingTopicsError",
     "NotABagError",
+    "OtherStorageError",
     "TruncatedBagError",
     "UnknownTypeError",
     "UnsalvageableFileError",
@@ -19,6 +20,10 @@ class BagError(ValueError):
 
 class NotABagError(BagError):
     """The path is not a rosbag2 directory: missing or unreadable ``metadata.yaml``, or no storage file."""
+
+
+class OtherStorageError(BagError):
+    """The bag uses a storage other than MCAP (sqlite3 ``.db3``, ROS 1 ``.bag``): the message names it."""
 
 
 class TruncatedBagError(BagError):

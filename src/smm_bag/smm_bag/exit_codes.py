@@ -9,6 +9,7 @@ from smm_bag.errors import (
     CorruptBagError,
     MissingTopicsError,
     NotABagError,
+    OtherStorageError,
     TruncatedBagError,
     UnsalvageableFileError,
 )
@@ -19,6 +20,7 @@ __all__ = [
     "EXIT_MISSING_TOPICS",
     "EXIT_NOT_A_BAG",
     "EXIT_OK",
+    "EXIT_OTHER_STORAGE",
     "EXIT_PARAMS",
     "EXIT_TRUNCATED",
     "EXIT_UNSALVAGEABLE",
@@ -38,11 +40,14 @@ EXIT_PARAMS = 7
 """A parameters file of ``smm-bag rerun`` is unreadable or invalid (``smm_analysis.errors``)."""
 EXIT_UNSALVAGEABLE = 8
 """``smm-bag repair`` could save nothing of a storage file (the file is left as it was)."""
+EXIT_OTHER_STORAGE = 9
+"""The bag uses a storage other than MCAP (sqlite3 ``.db3``, ROS 1 ``.bag``); nothing was read."""
 
 
 def exit_code(error: BagError) -> int:
     """The exit code of a library error."""
     for kind, code in (
+        (OtherStorageError, EXIT_OTHER_STORAGE),
         (NotABagError, EXIT_NOT_A_BAG),
         (TruncatedBagError, EXIT_TRUNCATED),
         (CorruptBagError, EXIT_CORRUPT),

@@ -9,7 +9,7 @@ import json
 import time
 from pathlib import Path
 
-from smm_bag.metadata import METADATA_FILE, BagMetadata
+from smm_bag.metadata import METADATA_FILE, BagMetadata, service_event
 from smm_bag.reader import BagReader
 from smm_bag.repair import BACKUP_SUFFIX, repair_backups
 
@@ -17,12 +17,19 @@ __all__ = ["bag_size", "format_info"]
 
 _INDENT = " " * 19
 _NS = 1_000_000_000
+_NO_TYPE = "(none)"
+"""Shown for a channel without schema (schema id 0), which rosbag2 cannot read at all."""
 
 
-def bag_size(directory: Path, metadata: BagMetadata) -> int:
-    """Bytes of the bag's own files: ``metadata.yaml`` and the storage files it lists (no backups)."""
-    paths = [directory / METADATA_FILE, *(directory / name for name in metadata.relative_file_paths)]
-    return sum(path.stat().st_size for path in paths if path.is_file())
+def bag_size(path: Path, metadata: BagMetadata) -> int:
+    """Bytes of the bag's own files: ``metadata.yaml`` and the storage files it lists (no backups).
+
+    ``path`` is the bag folder, or the one storage file given instead of it.
+    """
+    if path.is_file():
+        return path.stat().st_size
+    paths = [path / METADATA_FILE, *(path / name for name in metadata.relative_file_paths)]
+    return sum(item.stat().st_size for item in paths if item.is_file())
 
 
 def _backups_line(directory: Path) -> str | None:
@@ -68,16 +75,25 @@ def format_metadata(metadata: BagMetadata, size: int) -> str:
     lines.append(f"Duration:          {_seconds(metadata.duration_ns)}s")
     lines.append(f"Start:             {_time_point(metadata.starting_time_ns)}")
     lines.append(f"End:               {_time_point(metadata.starting_time_ns + metadata.duration_ns)}")
-    lines.append(f"Messages:          {metadata.message_count}")
+    services = [(t, found) for t in metadata.topics if (found := service_event(t.name, t.type)) is not None]
+    events = sum(t.message_count for t, _ in services)
+    lines.append(f"Messages:          {metadata.message_count - events}")
     topics = [
-        f"Topic: {t.name} | Type: {t.type} | Count: {t.message_count} | "
+        f"Topic: {t.name} | Type: {t.type or _NO_TYPE} | Count: {t.message_count} | "
         f"Serialization Format: {t.serialization_format}"
         for t in metadata.topics
+        if service_event(t.name, t.type) is None
     ]
     lines.append("Topic information: " + (topics[0] if topics else ""))
     lines.extend(_INDENT + line for line in topics[1:])
-    lines.append("Service:           0")
-    lines.append("Service information: ")
+    lines.append(f"Service:           {len(services)}")
+    described = [
+        f"Service: {name} | Type: {kind} | Event Count: {t.message_count} | "
+        f"Serialization Format: {t.serialization_format}"
+        for t, (name, kind) in services
+    ]
+    lines.append("Service information: " + (described[0] if described else ""))
+    lines.extend(_INDENT + "  " + line for line in described[1:])
     return "\n".join(lines)
 
 
@@ -93,7 +109,7 @@ def format_info(path: Path) -> str:
     custom = {
         key: value for key, value in metadata.custom_data.items() if key not in ("smm.parameters", "smm.loss")
     }
-    backups = _backups_line(path)
+    backups = _backups_line(path) if path.is_dir() else None
     extra = [backups] if backups else []
     if custom:
         extra.append("Custom data:")

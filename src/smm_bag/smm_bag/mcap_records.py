@@ -19,10 +19,11 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Channel, ChunkIndex, Footer, Message, MetadataIndex, Schema, Statistics
 
-from smm_bag.reader import MCAP_MAGIC
+from smm_bag.storage import MCAP_MAGIC
 
 __all__ = [
     "CHUNK_FIXED",
+    "MESSAGE_FIXED",
     "PARSE_ERRORS",
     "PREFIX",
     "TAIL",
@@ -37,7 +38,7 @@ __all__ = [
 
 PREFIX = struct.Struct("<BQ")
 CHUNK_FIXED = struct.Struct("<QQQII")  # start, end, uncompressed size, crc, compression length
-_MESSAGE = struct.Struct("<HIQQ")
+MESSAGE_FIXED = struct.Struct("<HIQQ")  # channel, sequence, log time, publish time
 _FOOTER_RECORD = 9 + 20
 TAIL = _FOOTER_RECORD + len(MCAP_MAGIC)
 _COMPRESSIONS = ("", "zstd", "lz4")
@@ -107,7 +108,7 @@ def chunk_records(records: bytes) -> Iterator[tuple[int, Schema | Channel | Mess
             raise ValueError(f"record at {position} runs past the chunk's end")
         item: Schema | Channel | Message | None = None
         if opcode == Opcode.MESSAGE:
-            channel, sequence, log_time, publish_time = _MESSAGE.unpack_from(records, body)
+            channel, sequence, log_time, publish_time = MESSAGE_FIXED.unpack_from(records, body)
             item = Message(
                 channel, log_time, bytes(records[body + 22 : body + length]), publish_time, sequence
             )
@@ -141,7 +142,7 @@ def chunk_fields(data: bytes, offset: int, limit: int) -> tuple[int, int, int, s
         return None
     (records_length,) = struct.unpack_from("<Q", data, body + CHUNK_FIXED.size + name_length)
     records_start = body + CHUNK_FIXED.size + name_length + 8
-    if compression not in _COMPRESSIONS or records_start + records_length != body + length:
+    if compression not in _COMPRESSIONS or records_start + records_length > body + length:  # may be padded
         return None
     return 9 + length, size, crc, compression, records_start, records_length
 
@@ -163,10 +164,10 @@ def read_footer(data: bytes) -> Footer | None:
 
 
 def read_summary(data: bytes, footer: Footer) -> Summary | None:
-    """The summary section's records and whether its CRC checks (records past a damaged one are left out).
+    """The summary section's records and whether its CRC was written and checks.
 
     Raises:
-        ValueError: (or another of ``PARSE_ERRORS``) a summary whose CRC checks does not parse.
+        ValueError: (or another of ``PARSE_ERRORS``) the summary does not parse.
     """
     if footer.summary_start == 0:
         return None
@@ -177,28 +178,24 @@ def read_summary(data: bytes, footer: Footer) -> Summary | None:
     )
     position = footer.summary_start
     end = footer.summary_offset_start or footer_at
-    try:
-        while position < end:
-            opcode, length = PREFIX.unpack_from(data, position)
-            if length > end - position - 9:
-                raise ValueError("summary record runs past the summary")
-            body = stream(bytes(data[position + 9 : position + 9 + length]))
-            if opcode == Opcode.SCHEMA:
-                schema = Schema.read(body)
-                summary.schemas[schema.id] = schema
-            elif opcode == Opcode.CHANNEL:
-                channel = Channel.read(body)
-                summary.channels[channel.id] = channel
-            elif opcode == Opcode.CHUNK_INDEX:
-                summary.chunk_indexes.append(ChunkIndex.read(body))
-            elif opcode == Opcode.METADATA_INDEX:
-                summary.metadata_indexes.append(MetadataIndex.read(body))
-            elif opcode == Opcode.STATISTICS:
-                summary.statistics = Statistics.read(body)
-            else:
-                summary.other += 1
-            position += 9 + length
-    except PARSE_ERRORS:
-        if summary.checked:
-            raise
+    while position < end:
+        opcode, length = PREFIX.unpack_from(data, position)
+        if length > end - position - 9:
+            raise ValueError("summary record runs past the summary")
+        body = stream(bytes(data[position + 9 : position + 9 + length]))
+        if opcode == Opcode.SCHEMA:
+            schema = Schema.read(body)
+            summary.schemas[schema.id] = schema
+        elif opcode == Opcode.CHANNEL:
+            channel = Channel.read(body)
+            summary.channels[channel.id] = channel
+        elif opcode == Opcode.CHUNK_INDEX:
+            summary.chunk_indexes.append(ChunkIndex.read(body))
+        elif opcode == Opcode.METADATA_INDEX:
+            summary.metadata_indexes.append(MetadataIndex.read(body))
+        elif opcode == Opcode.STATISTICS:
+            summary.statistics = Statistics.read(body)
+        else:
+            summary.other += 1
+        position += 9 + length
     return summary

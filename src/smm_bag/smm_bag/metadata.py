@@ -1,17 +1,21 @@
-"""``metadata.yaml`` of a rosbag2 folder, version 9 as rosbag2 Jazzy writes it (rosbag2_storage/yaml.hpp)."""
+"""``metadata.yaml`` of a rosbag2 folder, versions 4 to 9 as rosbag2 Jazzy reads and writes them (yaml.hpp).
+
+Versions <= 8 hold each topic's offered QoS profiles as one YAML string with enum integers, version 9 as a
+YAML list with policy names; a file is written back in the version it was read in.
+"""
 
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from smm_bag.errors import CorruptBagError, NotABagError
-from smm_bag.qos import QosProfile, load_profiles
+from smm_bag.errors import CorruptBagError, NotABagError, OtherStorageError
+from smm_bag.qos import QosProfile, dump_profiles, load_profiles
 
 __all__ = [
     "METADATA_FILE",
@@ -21,13 +25,31 @@ __all__ = [
     "FileInfo",
     "TopicInfo",
     "read_metadata",
+    "recorded_metadata",
+    "service_event",
+    "topic_from_channel",
     "write_metadata",
 ]
 
 METADATA_FILE = "metadata.yaml"
 METADATA_VERSION = 9
+OLDEST_VERSION = 4
+"""The oldest metadata version read (the first with offered QoS profiles; rosbag2 Jazzy reads it)."""
 NO_START_NS = 9_223_372_036_854_775_807
 """``starting_time`` rosbag2 writes before the first message (nanoseconds::max())."""
+
+
+_EVENT_TOPIC = "/_service_event"
+_EVENT_TYPE = "_Event"
+
+
+def service_event(name: str, type_name: str) -> tuple[str, str] | None:
+    """``(service, service type)`` of a service-event topic (rosbag2_cpp service_utils), else None."""
+    if len(name) <= len(_EVENT_TOPIC) or not name.endswith(_EVENT_TOPIC):
+        return None
+    if len(type_name) <= len(_EVENT_TYPE) or "/srv/" not in type_name or not type_name.endswith(_EVENT_TYPE):
+        return None
+    return name[: -len(_EVENT_TOPIC)], type_name[: -len(_EVENT_TYPE)]
 
 
 @dataclass(frozen=True)
@@ -41,14 +63,19 @@ class TopicInfo:
     type_description_hash: str = ""
     message_count: int = 0
 
-    def to_yaml_node(self) -> dict[str, Any]:
-        """``topics_with_message_count`` entry."""
+    def to_yaml_node(self, version: int = METADATA_VERSION) -> dict[str, Any]:
+        """``topics_with_message_count`` entry, QoS encoded as metadata ``version`` holds it."""
+        profiles: Any = (
+            [profile.to_yaml_node(version) for profile in self.offered_qos_profiles]
+            if version >= 9
+            else dump_profiles(self.offered_qos_profiles, version)
+        )
         return {
             "topic_metadata": {
                 "name": self.name,
                 "type": self.type,
                 "serialization_format": self.serialization_format,
-                "offered_qos_profiles": [profile.to_yaml_node() for profile in self.offered_qos_profiles],
+                "offered_qos_profiles": profiles,
                 "type_description_hash": self.type_description_hash,
             },
             "message_count": self.message_count,
@@ -107,7 +134,7 @@ class BagMetadata:
             "duration": {"nanoseconds": self.duration_ns},
             "starting_time": {"nanoseconds_since_epoch": self.starting_time_ns},
             "message_count": self.message_count,
-            "topics_with_message_count": [topic.to_yaml_node() for topic in self.topics],
+            "topics_with_message_count": [topic.to_yaml_node(self.version) for topic in self.topics],
             "compression_format": self.compression_format,
             "compression_mode": self.compression_mode,
             "relative_file_paths": list(self.relative_file_paths),
@@ -133,6 +160,27 @@ class BagMetadata:
             duration_ns=end - start if started else 0,
             message_count=sum(topic.message_count for topic in topics),
         )
+
+
+def topic_from_channel(name: str, type_name: str, encoding: str, metadata: Mapping[str, str]) -> TopicInfo:
+    """A topic's entry from an MCAP channel (QoS and type hash as rosbag2's MCAP plugin stores them)."""
+    try:
+        profiles = tuple(load_profiles(metadata.get("offered_qos_profiles")))
+    except CorruptBagError:
+        profiles = ()
+    return TopicInfo(name, type_name, encoding, profiles, metadata.get("topic_type_hash", ""))
+
+
+def recorded_metadata(records: Sequence[tuple[str, Mapping[str, str]]]) -> BagMetadata | None:
+    """The last ``rosbag2`` metadata record (name, fields) that parses (rosbag2 writes one into each file)."""
+    for name, fields in reversed(records):
+        text = fields.get("serialized_metadata") if name == "rosbag2" else None
+        if text:
+            try:
+                return parse_metadata(yaml.safe_load(text), "rosbag2 metadata record")
+            except (CorruptBagError, yaml.YAMLError):
+                continue
+    return None
 
 
 def write_metadata(directory: Path, metadata: BagMetadata) -> None:
@@ -161,7 +209,7 @@ def _int(node: Mapping[str, Any], *keys: str) -> int:
 
 
 def parse_metadata(node: Any, source: str = METADATA_FILE) -> BagMetadata:
-    """Parses the mapping under ``rosbag2_bagfile_information`` (versions 5 to 9).
+    """Parses the mapping under ``rosbag2_bagfile_information`` (versions 4 to 9).
 
     Raises:
         CorruptBagError: A field is missing or of the wrong kind.
@@ -169,8 +217,10 @@ def parse_metadata(node: Any, source: str = METADATA_FILE) -> BagMetadata:
     if not isinstance(node, Mapping):
         raise CorruptBagError(f"{source}: rosbag2_bagfile_information must be a mapping")
     version = _int(node, "version")
-    if not 5 <= version <= METADATA_VERSION:
-        raise CorruptBagError(f"{source}: metadata version {version} not supported (5 to {METADATA_VERSION})")
+    if not OLDEST_VERSION <= version <= METADATA_VERSION:
+        raise CorruptBagError(
+            f"{source}: metadata version {version} not supported ({OLDEST_VERSION} to {METADATA_VERSION})"
+        )
     try:
         topics = []
         for entry in node.get("topics_with_message_count") or []:
@@ -222,6 +272,7 @@ def read_metadata(directory: Path) -> BagMetadata:
 
     Raises:
         NotABagError: No directory or no ``metadata.yaml``.
+        OtherStorageError: The bag's storage is not MCAP.
         CorruptBagError: The file is not valid rosbag2 metadata.
     """
     if not directory.is_dir():
@@ -235,4 +286,8 @@ def read_metadata(directory: Path) -> BagMetadata:
         raise CorruptBagError(f"{path} is not valid YAML: {error}") from None
     if not isinstance(document, Mapping) or "rosbag2_bagfile_information" not in document:
         raise CorruptBagError(f"{path} has no rosbag2_bagfile_information")
+    node = document["rosbag2_bagfile_information"]
+    storage = node.get("storage_identifier", "mcap") if isinstance(node, Mapping) else "mcap"
+    if storage != "mcap":
+        raise OtherStorageError(f"{directory}: {storage} storage, not MCAP (smm-bag reads only MCAP bags)")
     return parse_metadata(document["rosbag2_bagfile_information"], str(path))

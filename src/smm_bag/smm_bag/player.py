@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from smm_bag.errors import MissingTopicsError
+from smm_bag.errors import MissingTopicsError, UnknownTypeError
+from smm_bag.metadata import TopicInfo, service_event
 from smm_bag.qos import QosProfile
 from smm_bag.reader import BagReader
 
@@ -55,10 +56,11 @@ class PlayOptions:
 
 @dataclass(frozen=True)
 class PlayResult:
-    """Messages published per (published) topic, and how often the bag was played."""
+    """Messages published per (published) topic, how often the bag was played, topics skipped and why."""
 
     published: Mapping[str, int]
     passes: int
+    skipped: Mapping[str, str] = field(default_factory=dict)
 
 
 def parse_remaps(items: Sequence[str]) -> dict[str, str]:
@@ -90,6 +92,20 @@ def rclpy_qos(profiles: Sequence[QosProfile]) -> Any:
     )
 
 
+def playable(topic: TopicInfo) -> tuple[Any, str]:
+    """The message class of a topic, or None and why it cannot be played (as ``ros2 bag play`` skips it)."""
+    from smm_bag.recorder_node import message_class  # noqa: PLC0415
+
+    if service_event(topic.name, topic.type) is not None:
+        return None, "service events are not played (ros2 bag play without --publish-service-requests)"
+    if topic.serialization_format != "cdr":
+        return None, f"serialization format {topic.serialization_format!r} is not CDR"
+    try:
+        return message_class(topic.type), ""
+    except UnknownTypeError as error:
+        return None, str(error)
+
+
 def play(
     bag: Path,
     node: Any,
@@ -97,16 +113,18 @@ def play(
     *,
     should_stop: Callable[[], bool] = lambda: False,
     progress: Callable[[int, int], None] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> PlayResult:
     """Publishes the bag through ``node`` (an rclpy node); returns what was published.
+
+    Topics that cannot be played (type not installed, not CDR, service events) are skipped, each with one
+    call of ``warn``, and listed in the result.
 
     Raises:
         BagError: The bag cannot be read.
         MissingTopicsError: A requested topic is not in the bag.
     """
     from rosgraph_msgs.msg import Clock  # noqa: PLC0415
-
-    from smm_bag.recorder_node import message_class  # noqa: PLC0415
 
     with BagReader(bag) as reader:
         available = {topic.name: topic for topic in reader.metadata.topics if topic.message_count > 0}
@@ -116,9 +134,15 @@ def play(
             raise MissingTopicsError(f"{bag} has no messages on {', '.join(missing)}")
         if options.clock:
             chosen = [topic for topic in chosen if topic != "/clock"]
+        classes = {topic: playable(available[topic]) for topic in chosen}
+        skipped = {topic: why for topic, (kind, why) in classes.items() if kind is None}
+        for topic, why in skipped.items():
+            if warn is not None:
+                warn(f"skipping {topic}: {why}")
+        chosen = [topic for topic in chosen if topic not in skipped]
         publishers = {
             topic: node.create_publisher(
-                message_class(available[topic].type),
+                classes[topic][0],
                 options.remaps.get(topic, topic),
                 rclpy_qos(available[topic].offered_qos_profiles),
             )
@@ -156,7 +180,7 @@ def play(
                         break
                     time.sleep(min(due - now, max(next_clock - now, 0) or due - now) / 1e9)
                 if should_stop():
-                    return PlayResult(published, passes)
+                    return PlayResult(published, passes, skipped)
                 publishers[message.topic].publish(message.data)
                 published[options.remaps.get(message.topic, message.topic)] += 1
                 sent += 1
@@ -165,4 +189,4 @@ def play(
             if progress is not None:
                 progress(sent, total)
             if not options.loop or should_stop():
-                return PlayResult(published, passes)
+                return PlayResult(published, passes, skipped)

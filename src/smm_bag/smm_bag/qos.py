@@ -1,4 +1,7 @@
-"""Offered QoS profiles as rosbag2 (metadata version 9) writes them: policy names, durations as sec/nsec."""
+"""Offered QoS profiles as rosbag2 writes them: version 9 policy names, version <= 8 rmw enum integers.
+
+Policies are kept as names; the integer of a policy is its index in the rmw enum (rmw/types.h, Jazzy).
+"""
 
 from __future__ import annotations
 
@@ -19,7 +22,16 @@ _NS = 1_000_000_000
 _HISTORY = ("system_default", "keep_last", "keep_all", "unknown")
 _RELIABILITY = ("system_default", "reliable", "best_effort", "unknown", "best_available")
 _DURABILITY = ("system_default", "transient_local", "volatile", "unknown", "best_available")
-_LIVELINESS = ("system_default", "automatic", "manual_by_topic", "unknown", "best_available")
+_LIVELINESS = (
+    "system_default",
+    "automatic",
+    "manual_by_node",
+    "manual_by_topic",
+    "unknown",
+    "best_available",
+)
+_FOXY_INFINITE = ((0x7FFFFFFF, 0xFFFFFFFF), (0x7FFFFFFF, 0x7FFFFFFF))
+"""Infinite durations of Foxy-era RMWs, read as infinite (rosbag2_storage qos.cpp does the same)."""
 
 
 @dataclass(frozen=True)
@@ -50,16 +62,20 @@ class QosProfile:
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise CorruptBagError(f"QoS {name} must be an integer >= 0, got {value!r}")
 
-    def to_yaml_node(self) -> dict[str, Any]:
-        """The mapping rosbag2 writes for this profile."""
+    def to_yaml_node(self, version: int = 9) -> dict[str, Any]:
+        """The mapping rosbag2 writes for this profile in metadata ``version`` (<= 8: enum integers)."""
+
+        def policy(value: str, allowed: Sequence[str]) -> str | int:
+            return value if version >= 9 else allowed.index(value)
+
         return {
-            "history": self.history,
+            "history": policy(self.history, _HISTORY),
             "depth": self.depth,
-            "reliability": self.reliability,
-            "durability": self.durability,
+            "reliability": policy(self.reliability, _RELIABILITY),
+            "durability": policy(self.durability, _DURABILITY),
             "deadline": _duration(self.deadline_ns),
             "lifespan": _duration(self.lifespan_ns),
-            "liveliness": self.liveliness,
+            "liveliness": policy(self.liveliness, _LIVELINESS),
             "liveliness_lease_duration": _duration(self.liveliness_lease_duration_ns),
             "avoid_ros_namespace_conventions": self.avoid_ros_namespace_conventions,
         }
@@ -71,6 +87,8 @@ class QosProfile:
         Raises:
             CorruptBagError: A field is missing or invalid.
         """
+        if not isinstance(node, Mapping):
+            raise CorruptBagError(f"invalid QoS profile {node!r}: not a mapping")
         try:
             return cls(
                 history=_policy(node["history"], _HISTORY),
@@ -100,6 +118,8 @@ def _duration(ns: int) -> dict[str, int]:
 def _parse_duration(node: Any) -> int:
     if node is None:
         return INFINITE_NS
+    if (int(node["sec"]), int(node["nsec"])) in _FOXY_INFINITE:
+        return INFINITE_NS
     return min(int(node["sec"]) * _NS + int(node["nsec"]), INFINITE_NS)
 
 
@@ -111,9 +131,9 @@ def _policy(value: Any, allowed: Sequence[str]) -> str:
     return str(value)
 
 
-def dump_profiles(profiles: Sequence[QosProfile]) -> str:
-    """The YAML string stored in an MCAP channel's ``offered_qos_profiles`` metadata."""
-    return str(yaml.safe_dump([profile.to_yaml_node() for profile in profiles], sort_keys=False))
+def dump_profiles(profiles: Sequence[QosProfile], version: int = 9) -> str:
+    """The YAML string of an MCAP channel's ``offered_qos_profiles`` (and of metadata.yaml version <= 8)."""
+    return str(yaml.safe_dump([profile.to_yaml_node(version) for profile in profiles], sort_keys=False))
 
 
 def load_profiles(node: Any) -> list[QosProfile]:

@@ -1,30 +1,25 @@
-"""rosbag2 MCAP bag reader with typed errors: not a bag, truncated, corrupt, missing topics."""
+"""rosbag2 MCAP bag reader with typed errors: not a bag, other storage, truncated, corrupt, missing topics.
+
+Reads a bag folder or a bare ``.mcap`` / ``.mcap.zstd`` file (:mod:`smm_bag.storage`), every valid MCAP
+file shape (:mod:`smm_bag.mcap_file`), and checks ``metadata.yaml``'s counts against the files.
+"""
 
 from __future__ import annotations
 
-import struct
-import zlib
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
+from contextlib import ExitStack
+from dataclasses import dataclass, replace
 from pathlib import Path
 from types import TracebackType
-from typing import IO
 
 import zstandard
-from mcap.data_stream import ReadDataStream
-from mcap.exceptions import McapError
-from mcap.opcode import Opcode
-from mcap.reader import SeekingReader
-from mcap.records import Channel, Chunk, Schema
-from mcap.summary import Summary
 
-from smm_bag.errors import CorruptBagError, MissingTopicsError, NotABagError, TruncatedBagError
-from smm_bag.metadata import BagMetadata, read_metadata
+from smm_bag.errors import CorruptBagError, MissingTopicsError, TruncatedBagError
+from smm_bag.mcap_file import McapFile
+from smm_bag.metadata import BagMetadata, FileInfo, TopicInfo, recorded_metadata, topic_from_channel
+from smm_bag.storage import MCAP_MAGIC, is_file_compressed, locate, mapped_file
 
-__all__ = ["MCAP_MAGIC", "BagMessage", "BagReader", "check_mcap_file"]
-
-MCAP_MAGIC = b"\x89MCAP0\r\n"
-_MESSAGE_OPCODE = int(Opcode.MESSAGE)
+__all__ = ["MCAP_MAGIC", "BagMessage", "BagReader"]
 
 
 @dataclass(frozen=True)
@@ -38,91 +33,53 @@ class BagMessage:
     data: bytes
 
 
-def check_mcap_file(path: Path) -> None:
-    """Checks the magic at both ends of an MCAP file.
-
-    Raises:
-        CorruptBagError: Missing file or no MCAP magic at the start.
-        TruncatedBagError: No magic at the end (the writer never closed the file).
-    """
-    if not path.is_file():
-        raise CorruptBagError(f"storage file {path} listed in metadata.yaml is missing")
-    size = path.stat().st_size
-    with path.open("rb") as stream:
-        head = stream.read(len(MCAP_MAGIC))
-        if head != MCAP_MAGIC:
-            raise CorruptBagError(f"{path} is not an MCAP file (bad magic {head[:8]!r})")
-        if size < 2 * len(MCAP_MAGIC):
-            raise TruncatedBagError(f"{path} is truncated ({size} bytes): run `smm-bag repair` on the bag")
-        stream.seek(size - len(MCAP_MAGIC))
-        if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
-            raise TruncatedBagError(
-                f"{path} ends without the MCAP footer (recording killed before it closed the file): "
-                "run `smm-bag repair` on the bag"
-            )
-
-
-class _File:
-    def __init__(self, path: Path) -> None:
-        check_mcap_file(path)
-        self.path = path
-        self.stream: IO[bytes] = path.open("rb")
-        try:
-            self.reader = SeekingReader(self.stream, validate_crcs=True)
-            summary = self.reader.get_summary()
-        except (McapError, ValueError, EOFError, OSError, struct.error) as error:
-            self.stream.close()
-            raise CorruptBagError(f"{path}: unreadable MCAP summary ({error})") from None
-        if summary is None or summary.statistics is None:
-            self.stream.close()
-            raise CorruptBagError(f"{path} has no MCAP summary/statistics: run `smm-bag repair` on the bag")
-        self.summary: Summary = summary
-
-    def channel_counts(self) -> dict[str, int]:
-        assert self.summary.statistics is not None
-        counts: dict[str, int] = {}
-        for channel_id, count in self.summary.statistics.channel_message_counts.items():
-            channel = self.summary.channels.get(channel_id)
-            if channel is not None:
-                counts[channel.topic] = counts.get(channel.topic, 0) + count
-        return counts
-
-
 class BagReader:
-    """Opens a rosbag2 MCAP bag folder and checks it against its ``metadata.yaml``.
+    """Opens a rosbag2 MCAP bag (folder or bare file) and checks it against its ``metadata.yaml``.
 
     Args:
-        path: The bag folder.
+        path: The bag folder, or one ``.mcap`` / ``.mcap.zstd`` file.
 
     Raises:
-        NotABagError: Not a folder with ``metadata.yaml``, or a storage other than MCAP.
+        NotABagError: Neither a bag folder nor an MCAP file.
+        OtherStorageError: A storage other than MCAP (sqlite3, ROS 1).
         TruncatedBagError: A file lacks its footer (``smm-bag repair`` rebuilds it).
-        CorruptBagError: Bad magic, unreadable summary, or counts differing from ``metadata.yaml``.
+        CorruptBagError: Bad magic, damaged records, or counts differing from ``metadata.yaml``.
     """
 
     def __init__(self, path: Path | str) -> None:
         self.path = Path(path)
-        self.metadata: BagMetadata = read_metadata(self.path)
-        if self.metadata.storage_identifier != "mcap":
-            raise NotABagError(
-                f"{self.path}: storage {self.metadata.storage_identifier!r} is not supported (only mcap)"
-            )
-        if not self.metadata.files:
-            raise NotABagError(f"{self.path}: metadata.yaml lists no storage file")
-        self._files: list[_File] = []
+        location = locate(self.path)
+        self._stack = ExitStack()
+        self._files: list[McapFile] = []
         try:
-            for info in self.metadata.files:
-                self._files.append(_File(self.path / info.path))
-            self._check_counts()
+            for file in location.files:
+                if not file.is_file():
+                    raise CorruptBagError(f"storage file {file} listed in metadata.yaml is missing")
+                mapped = self._stack.enter_context(mapped_file(file))
+                if not mapped.complete:
+                    raise TruncatedBagError(f"{file}: its zstd file compression ends early (file cut)")
+                self._files.append(McapFile(mapped.data, file))
+            if location.metadata is None:
+                self.metadata = _derived_metadata(self._files)
+            else:
+                self.metadata = location.metadata
+                self._check_counts()
+            self._decode = _message_decoder(self.metadata)
         except BaseException:
             self.close()
             raise
 
-    def _check_counts(self) -> None:
+    def _stored(self) -> dict[str, int]:
         stored: dict[str, int] = {}
         for file in self._files:
-            for topic, count in file.channel_counts().items():
+            for key, count in file.counts.items():
+                channel = file.channels.get(key)
+                topic = channel.topic if channel is not None else f"channel {key}"
                 stored[topic] = stored.get(topic, 0) + count
+        return stored
+
+    def _check_counts(self) -> None:
+        stored = self._stored()
         for info in self.metadata.topics:
             if stored.get(info.name, 0) != info.message_count:
                 raise CorruptBagError(
@@ -173,52 +130,37 @@ class BagReader:
         wanted = None if topics is None else set(topics)
         read = 0
         for file in self._files:
-            try:
-                for schema, channel, message in file.reader.iter_messages(
-                    topics=None if wanted is None else list(wanted), log_time_order=ordered
-                ):
-                    yield BagMessage(
-                        topic=channel.topic,
-                        type=_type_name(schema, channel),
-                        log_time_ns=message.log_time,
-                        publish_time_ns=message.publish_time,
-                        data=message.data,
-                    )
-                    read += 1
-                    if progress is not None and read % 10_000 == 0:
-                        progress(read)
-            except (McapError, ValueError, EOFError, struct.error) as error:
-                raise CorruptBagError(f"{file.path}: damaged data ({error})") from None
+            channels = {
+                key: (channel.topic, file.type_name(channel))
+                for key, channel in file.channels.items()
+                if wanted is None or channel.topic in wanted
+            }
+            for key, log_time, publish_time, data in file.messages(set(channels), ordered):
+                topic, type_name = channels[key]
+                yield BagMessage(topic, type_name, log_time, publish_time, self._decode(data))
+                read += 1
+                if progress is not None and read % 10_000 == 0:
+                    progress(read)
         if progress is not None:
             progress(read)
 
     def raw_messages(self, topics: Iterable[str]) -> Iterator[tuple[str, int, bytes]]:
-        """``(topic, log time ns, CDR bytes)`` of ``topics`` in stored order, parsed straight from the chunks.
-
-        About five times faster than :meth:`messages` (no record objects); used by the analysis.
+        """``(topic, log time ns, CDR bytes)`` of ``topics`` in stored order (no record objects).
 
         Raises:
             CorruptBagError: A chunk fails its CRC, cannot be decompressed or is malformed.
         """
         wanted = set(topics)
         for file in self._files:
-            names = {cid: c.topic for cid, c in file.summary.channels.items() if c.topic in wanted}
-            if not names:
-                continue
-            for index in file.summary.chunk_indexes:
-                try:
-                    file.stream.seek(index.chunk_start_offset + 9)
-                    chunk = Chunk.read(ReadDataStream(file.stream))
-                    data = _chunk_data(chunk)
-                except (McapError, ValueError, EOFError, struct.error, zstandard.ZstdError) as error:
-                    raise CorruptBagError(f"{file.path}: damaged chunk ({error})") from None
-                yield from _chunk_messages(data, names, file.path)
+            names = {key: c.topic for key, c in file.channels.items() if c.topic in wanted}
+            if names:
+                for key, log_time, _, data in file.messages(set(names), ordered=False):
+                    yield names[key], log_time, self._decode(data)
 
     def close(self) -> None:
-        """Closes the storage files."""
-        for file in self._files:
-            file.stream.close()
+        """Closes the storage files (and removes their decompressed copies)."""
         self._files = []
+        self._stack.close()
 
     def __enter__(self) -> BagReader:
         return self
@@ -229,37 +171,50 @@ class BagReader:
         self.close()
 
 
-def _chunk_data(chunk: Chunk) -> bytes:
-    if chunk.compression == "zstd":
-        data = zstandard.decompress(chunk.data, max_output_size=chunk.uncompressed_size)
-    elif chunk.compression == "":
-        data = chunk.data
-    else:
-        raise CorruptBagError(f"unsupported chunk compression {chunk.compression!r}")
-    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
-        raise CorruptBagError("chunk CRC mismatch")
-    return bytes(data)
+def _message_decoder(metadata: BagMetadata) -> Callable[[bytes], bytes]:
+    """What turns a stored message into its CDR bytes: rosbag2's message compression undone (zstd only).
+
+    Raises:
+        CorruptBagError: A message compression other than zstd.
+    """
+    if metadata.compression_mode.lower() != "message":
+        return bytes
+    if metadata.compression_format != "zstd":
+        raise CorruptBagError(f"message compression {metadata.compression_format!r} is not supported (zstd)")
+    decompressor = zstandard.ZstdDecompressor()
+
+    def decode(data: bytes) -> bytes:
+        try:
+            return bytes(decompressor.decompressobj().decompress(data))
+        except zstandard.ZstdError as error:
+            raise CorruptBagError(f"a compressed message does not decompress ({error})") from None
+
+    return decode
 
 
-def _chunk_messages(data: bytes, names: dict[int, str], path: Path) -> Iterator[tuple[str, int, bytes]]:
-    unpack_header = struct.Struct("<BQ").unpack_from
-    unpack_message = struct.Struct("<HIQQ").unpack_from
-    position, end = 0, len(data)
-    while position < end:
-        if end - position < 9:
-            raise CorruptBagError(f"{path}: chunk record header past the end")
-        opcode, length = unpack_header(data, position)
-        body = position + 9
-        position = body + length
-        if position > end:
-            raise CorruptBagError(f"{path}: chunk record past the end")
-        if opcode != _MESSAGE_OPCODE:
-            continue
-        channel, _, log_time, _ = unpack_message(data, body)
-        topic = names.get(channel)
-        if topic is not None:
-            yield topic, log_time, data[body + 22 : position]
-
-
-def _type_name(schema: Schema | None, channel: Channel) -> str:
-    return schema.name if schema is not None else channel.metadata.get("type", "")
+def _derived_metadata(files: list[McapFile]) -> BagMetadata:
+    """Metadata of bare storage files, from their channels and counts (what ``ros2 bag info file`` shows)."""
+    recorded = recorded_metadata([(r.name, r.metadata) for file in files for r in file.metadata])
+    base = recorded if recorded is not None else BagMetadata(ros_distro="")
+    topics: dict[str, TopicInfo] = {}
+    counts: dict[str, int] = {}
+    infos = []
+    for file in files:
+        for key, channel in file.channels.items():
+            topics.setdefault(
+                channel.topic,
+                topic_from_channel(
+                    channel.topic, file.type_name(channel), channel.message_encoding, channel.metadata
+                ),
+            )
+            counts[channel.topic] = counts.get(channel.topic, 0) + file.counts.get(key, 0)
+        start, end = file.span if file.span is not None else (0, 0)
+        messages = sum(file.counts.values())
+        name = file.path.name
+        infos.append(FileInfo(name, start, end - start, messages) if messages else FileInfo(name))
+    final = tuple(replace(topic, message_count=counts[name]) for name, topic in topics.items())
+    compressed = any(is_file_compressed(file.path) for file in files)
+    metadata = base.with_counts(final, tuple(infos))
+    if compressed:
+        metadata = replace(metadata, compression_format="zstd", compression_mode="FILE")
+    return metadata

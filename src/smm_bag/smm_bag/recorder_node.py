@@ -26,6 +26,7 @@ from smm_msgs_py.qos import qos_for_topic
 from smm_node_runtime.node import NodeOptions
 from std_srvs.srv import Trigger
 
+from smm_bag.errors import UnknownTypeError
 from smm_bag.manifest import RunManifest, git_describe
 from smm_bag.qos import QosProfile, profiles_from_rclpy
 from smm_bag.writer import BagWriter, WriterOptions
@@ -61,9 +62,18 @@ _STAMPED = ("joint_states", "ground_truth", "reference", "torque_command", stack
 
 
 def message_class(type_name: str) -> Any:
-    """The Python class of ``pkg/msg/Type`` (what rosidl_runtime_py's get_message does)."""
-    package, _, name = type_name.partition("/msg/")
-    return getattr(importlib.import_module(f"{package}.msg"), name)
+    """The Python class of ``pkg/msg/Type`` (what rosidl_runtime_py's get_message does).
+
+    Raises:
+        UnknownTypeError: Not a ``pkg/msg/Type`` name, or the type is not installed.
+    """
+    package, separator, name = type_name.partition("/msg/")
+    if not separator or not package or not name:
+        raise UnknownTypeError(f"{type_name!r} is not a message type (pkg/msg/Type)")
+    try:
+        return getattr(importlib.import_module(f"{package}.msg"), name)
+    except (ImportError, AttributeError):
+        raise UnknownTypeError(f"message type {type_name} is not installed") from None
 
 
 def default_topics(namespace: str = stack.DEFAULT_NAMESPACE) -> tuple[str, ...]:

@@ -1,38 +1,38 @@
 """``smm-bag repair``: rebuild a bag's damaged MCAP files and ``metadata.yaml`` from the records that check.
 
-Each file is scanned record by record (:mod:`smm_bag.mcap_scan`). A file is intact only if every CRC it
-holds checks and its summary agrees with its data; it is then left untouched. Any other file is rewritten
-from the chunks whose CRC checks, with the schemas and channels of whichever copy checks, and the original
-kept as ``<file>.damaged``. docs/BAGS.md ("smm-bag repair") says what is kept and why.
+Each file is read record by record (:mod:`smm_bag.mcap_scan`). A file is intact if no framing check,
+written CRC or summary consistency check fails (absent optional parts are not damage); it is then left
+byte for byte. Any other file is rewritten from every record that checks, in order, the original kept as
+``<file>.damaged``. docs/BAGS.md ("smm-bag repair") says what is kept and why.
 """
 
 from __future__ import annotations
 
-import mmap
+import os
 import re
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-import yaml
+import zstandard
 from mcap.records import Channel, Message, Schema
 from mcap.writer import CompressionType, Writer
 
-from smm_bag.errors import CorruptBagError, NotABagError, UnsalvageableFileError
+from smm_bag.errors import CorruptBagError, NotABagError, OtherStorageError, UnsalvageableFileError
 from smm_bag.mcap_records import chunk_records
-from smm_bag.mcap_scan import FileScan, chunk_data, scan_mcap
+from smm_bag.mcap_scan import Damage, FileScan, GoodChunk, chunk_data, scan_mcap
 from smm_bag.metadata import (
     METADATA_FILE,
     BagMetadata,
     FileInfo,
     TopicInfo,
-    parse_metadata,
     read_metadata,
+    recorded_metadata,
+    topic_from_channel,
     write_metadata,
 )
-from smm_bag.qos import load_profiles
 from smm_bag.repair_report import FileRepair, RepairReport
+from smm_bag.storage import is_file_compressed, locate, mapped_file, other_storage
 
 __all__ = ["BACKUP_SUFFIX", "FileRepair", "RepairReport", "repair_backups", "repair_bag"]
 
@@ -50,8 +50,8 @@ class _File:
 
     def counts(self) -> dict[int, int]:
         counts: dict[int, int] = {}
-        for chunk in self.scan.chunks:
-            for channel, count in chunk.counts.items():
+        for block in self.scan.blocks:
+            for channel, count in block.counts.items():
                 if channel in self.usable:
                     counts[channel] = counts.get(channel, 0) + count
         return counts
@@ -59,24 +59,14 @@ class _File:
     def info(self) -> FileInfo:
         spans = [
             span
-            for chunk in self.scan.chunks
-            for channel, span in chunk.spans.items()
+            for block in self.scan.blocks
+            for channel, span in block.spans.items()
             if channel in self.usable
         ]
         if not spans:
             return FileInfo(path=self.path.name)
         start, end = min(low for low, _ in spans), max(high for _, high in spans)
         return FileInfo(self.path.name, start, end - start, sum(self.counts().values()))
-
-
-@contextmanager
-def _mapped(path: Path) -> Iterator[bytes]:
-    with path.open("rb") as stream:
-        if path.stat().st_size == 0:
-            yield b""
-            return
-        with mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ) as data:
-            yield data  # type: ignore[misc]
 
 
 def _usable(scan: FileScan) -> dict[int, Channel]:
@@ -90,10 +80,11 @@ def _usable(scan: FileScan) -> dict[int, Channel]:
 
 def _storage_files(bag: Path, metadata: BagMetadata | None) -> list[Path]:
     def index(path: Path) -> tuple[int, str]:
-        tail = path.stem.rsplit("_", 1)[-1]
+        tail = path.name.split(".", 1)[0].rsplit("_", 1)[-1]
         return (int(tail) if tail.isdigit() else 0, path.name)
 
-    on_disk = sorted((path for path in bag.glob("*.mcap") if path.is_file()), key=index)
+    found = [*bag.glob("*.mcap"), *bag.glob("*.mcap.zstd")]
+    on_disk = sorted((path for path in found if path.is_file()), key=index)
     listed = [bag / name for name in metadata.relative_file_paths] if metadata is not None else []
     return listed + [path for path in on_disk if path not in listed]
 
@@ -112,8 +103,17 @@ def repair_backups(bag: Path) -> list[Path]:
     return sorted(path for path in bag.iterdir() if name.fullmatch(path.name) and path.is_file())
 
 
+def _fsynced(path: Path) -> None:
+    with path.open("rb+") as stream:
+        os.fsync(stream.fileno())
+
+
 def _rewrite(item: _File, data: bytes, serialized: str) -> Path:
-    """Writes the kept records of ``item`` to a temporary file next to it and returns that file."""
+    """Writes the kept records of ``item`` to a temporary file next to it, fsynced; returns that file.
+
+    Raises:
+        CorruptBagError: The new file does not hold every kept message (the original is then left alone).
+    """
     scan = item.scan
     temporary = item.path.with_name(item.path.name + ".repairing")
     kinds = [chunk.compression for chunk in scan.chunks]
@@ -139,8 +139,11 @@ def _rewrite(item: _File, data: bytes, serialized: str) -> Path:
             if record.name != "rosbag2":
                 writer.add_metadata(record.name, dict(record.metadata))
         writer.add_metadata("rosbag2", {"serialized_metadata": serialized})
-        for chunk in scan.chunks:
-            for _, message in chunk_records(chunk_data(data, chunk)):
+        for block in scan.blocks:
+            records = (
+                chunk_data(data, block) if isinstance(block, GoodChunk) else data[block.offset : block.end]
+            )
+            for _, message in chunk_records(records):
                 if isinstance(message, Message) and message.channel_id in channels:
                     writer.add_message(
                         channels[message.channel_id],
@@ -150,6 +153,21 @@ def _rewrite(item: _File, data: bytes, serialized: str) -> Path:
                         message.sequence,
                     )
         writer.finish()  # type: ignore[no-untyped-call]
+        stream.flush()
+        os.fsync(stream.fileno())
+    if is_file_compressed(item.path):
+        packed = temporary.with_name(temporary.name + ".zstd")
+        with temporary.open("rb") as source, packed.open("wb") as target:
+            zstandard.ZstdCompressor().copy_stream(source, target)
+        temporary.unlink()
+        temporary = packed
+        _fsynced(temporary)
+    with mapped_file(temporary) as written:
+        check = scan_mcap(written.data)
+    kept = sum(sum(block.counts.values()) for block in check.blocks)
+    if not check.intact or kept != sum(item.counts().values()):
+        temporary.unlink()
+        raise CorruptBagError(f"{item.path}: the rewritten file does not check; the original is left alone")
     return temporary
 
 
@@ -159,8 +177,8 @@ def _losses(item: _File) -> tuple[int | None, dict[str, int], tuple[tuple[int | 
     topics = {key: channel.topic for key, channel in scan.channels.items()}
     lost: dict[str, int] = {}
     counts = item.counts()
-    for chunk in scan.chunks:
-        for channel, count in chunk.counts.items():
+    for block in scan.blocks:
+        for channel, count in block.counts.items():
             if channel not in item.usable:
                 name = f"{topics.get(channel, f'channel {channel}')} (no channel or schema record survives)"
                 lost[name] = lost.get(name, 0) + count
@@ -171,18 +189,15 @@ def _losses(item: _File) -> tuple[int | None, dict[str, int], tuple[tuple[int | 
             name = topics.get(channel, f"channel {channel}")
             if missing > 0 and channel in item.usable:
                 lost[name] = lost.get(name, 0) + missing
-    if summary is not None:
+    if summary is not None and summary.chunk_indexes:
         gone = [entry for entry in summary.chunk_indexes if entry.chunk_start_offset not in kept]
-        ranges: list[tuple[int | None, int | None]] = [
-            (entry.message_start_time, entry.message_end_time) for entry in gone
-        ]
-        return len(gone), lost, tuple(ranges)
-    ranges = []
+        return len(gone), lost, tuple((entry.message_start_time, entry.message_end_time) for entry in gone)
+    ranges: list[tuple[int | None, int | None]] = []
     places = [damage.start for damage in scan.damage] + ([scan.size] if scan.truncated else [])
-    kept_spans = [  # (offset, first, last log time) of the kept messages of each chunk
-        (c.offset, min(s[0] for s in spans), max(s[1] for s in spans))
-        for c in scan.chunks
-        if (spans := [span for key, span in c.spans.items() if key in item.usable])
+    kept_spans = [  # (offset, first, last log time) of the kept messages of each chunk or run
+        (block.offset, min(s[0] for s in spans), max(s[1] for s in spans))
+        for block in scan.blocks
+        if (spans := [span for key, span in block.spans.items() if key in item.usable])
     ]
     for place in places:
         before = [last for offset, _, last in kept_spans if offset < place]
@@ -202,42 +217,20 @@ def _old_metadata(bag: Path) -> tuple[BagMetadata | None, str]:
         return None, f"unreadable ({error})"
 
 
-def _record_metadata(files: list[_File]) -> BagMetadata | None:
-    for item in reversed(files):
-        for _, _, record in reversed(item.scan.metadata):
-            text = record.metadata.get("serialized_metadata") if record.name == "rosbag2" else None
-            if text:
-                try:
-                    return parse_metadata(yaml.safe_load(text), "rosbag2 metadata record")
-                except (CorruptBagError, yaml.YAMLError):
-                    continue
-    return None
-
-
 def _metadata_from(base: BagMetadata, files: list[_File]) -> BagMetadata:
+    """``base`` with the counts, times and files of ``files``; known topics keep their entries as written."""
     known: Mapping[str, TopicInfo] = {topic.name: topic for topic in base.topics}
     topics: dict[str, TopicInfo] = {}
     counts: dict[str, int] = {}
     for item in files:
         file_counts = item.counts()
         for key, channel in item.usable.items():
-            schema = item.scan.schemas.get(channel.schema_id)
             previous = known.get(channel.topic)
-            qos = channel.metadata.get("offered_qos_profiles")
-            topics.setdefault(
-                channel.topic,
-                TopicInfo(
-                    name=channel.topic,
-                    type=schema.name if schema is not None else (previous.type if previous else ""),
-                    serialization_format=channel.message_encoding,
-                    offered_qos_profiles=tuple(load_profiles(qos))
-                    if qos is not None
-                    else (previous.offered_qos_profiles if previous else ()),
-                    type_description_hash=channel.metadata.get(
-                        "topic_type_hash", previous.type_description_hash if previous else ""
-                    ),
-                ),
+            schema = item.scan.schemas.get(channel.schema_id)
+            topic = topic_from_channel(
+                channel.topic, schema.name if schema else "", channel.message_encoding, channel.metadata
             )
+            topics.setdefault(channel.topic, previous if previous is not None else topic)
             counts[channel.topic] = counts.get(channel.topic, 0) + file_counts.get(key, 0)
     for name, topic in known.items():
         topics.setdefault(name, topic)
@@ -258,9 +251,11 @@ def _scan_files(
                 FileRepair(path.name, "missing", findings=("listed in metadata.yaml, not on disk",))
             )
             continue
-        with _mapped(path) as data:
-            scan = scan_mcap(data)
-        if scan.header is None and not scan.chunks and not scan.channels:
+        with mapped_file(path) as mapped:
+            scan = scan_mcap(mapped.data)
+        if not mapped.complete:
+            scan.damage.append(Damage(scan.size, scan.size, "zstd file compression ends early (file cut)"))
+        if scan.header is None and not scan.blocks and not scan.channels:
             error = UnsalvageableFileError(
                 f"{path}: no MCAP record in it checks ({'; '.join(scan.findings) or 'not MCAP'}); "
                 "nothing can be saved, the file is left as it was"
@@ -290,46 +285,35 @@ def repair_bag(
         NotABagError: Not a folder, or no MCAP file in it.
         UnsalvageableFileError: No file of the bag holds anything that checks (nothing is changed).
     """
-    bag = Path(path)
-    if not bag.is_dir():
-        raise NotABagError(f"{bag} is not a directory (a rosbag2 bag is a folder)")
-    old, old_problem = _old_metadata(bag)
-    paths = _storage_files(bag, old)
-    if not any(p.is_file() for p in paths):
-        raise NotABagError(f"{bag} holds no .mcap file: nothing to repair")
+    bag, bare = Path(path), Path(path).is_file()
+    old, old_problem, paths = _bag_files(bag)
     files, failed = _scan_files(paths, progress)
     if not files:
         first = next(item.error for item in failed if item.error is not None)
         raise first
-    # A metadata.yaml that disagrees with the files may be damaged itself: the last rosbag2 record wins then.
-    recorded = _record_metadata(files)
-    agrees = old is not None and _agrees(old, _metadata_from(old, files), recorded)
-    base = old if agrees and old is not None else recorded or old or BagMetadata()
+    # Without a readable metadata.yaml, the last rosbag2 record of the files is the base.
+    agrees = old is not None and _agrees(old, _metadata_from(old, files))
+    records = [(record.name, record.metadata) for item in files for _, _, record in item.scan.metadata]
+    base = old or recorded_metadata(records) or BagMetadata()
     metadata = _metadata_from(base, files)
     results: dict[str, FileRepair] = {item.path: item for item in failed}
     for item in files:
         counts = item.counts()
         messages = sum(counts.values())
         if item.scan.intact and len(item.usable) == len(item.scan.channels):
-            data_crc = (
-                "data section CRC checks" if item.scan.data_crc == "checks" else "no data section CRC written"
-            )
             results[item.path.name] = FileRepair(
-                item.path.name,
-                "intact",
-                messages,
-                len(item.scan.chunks),
-                checked=f"every chunk CRC and the summary CRC check, {data_crc}",
+                item.path.name, "intact", messages, len(item.scan.chunks), checked=_checked(item.scan)
             )
             continue
-        with _mapped(item.path) as data:
-            temporary = _rewrite(item, data, metadata.serialized())
+        with mapped_file(item.path) as mapped:
+            temporary = _rewrite(item, mapped.data, metadata.serialized())
         kept = ""
         if backup:
             target = _free_name(item.path)
             item.path.replace(target)
             kept = target.name
-        temporary.replace(item.path)
+        temporary.replace(item.path)  # the new file is complete and fsynced before the original goes
+        _sync_directory(item.path.parent)
         lost_chunks, lost, ranges = _losses(item)
         results[item.path.name] = FileRepair(
             item.path.name,
@@ -352,7 +336,7 @@ def repair_bag(
         lost_total = {t.name: t.message_count - now.get(t.name, 0) for t in old.topics}
         lost_total = {name: count for name, count in lost_total.items() if count > 0}
     metadata_backup = ""
-    rewrite = bool(rebuilt) or not agrees
+    rewrite = not bare and not agrees
     if rewrite:
         custom = dict(metadata.custom_data)
         if rebuilt:
@@ -366,15 +350,72 @@ def repair_bag(
             current.replace(target)
             metadata_backup = target.name
         write_metadata(bag, metadata)
-    return RepairReport(reports, metadata, note, rewrite, metadata_backup, lost_total)
+    return RepairReport(reports, metadata, note, rewrite, metadata_backup, lost_total, bare)
 
 
-def _agrees(old: BagMetadata, derived: BagMetadata, recorded: BagMetadata | None) -> bool:
-    """True if ``metadata.yaml`` says what the files hold and what their last ``rosbag2`` record says."""
-    if old != derived:
+def _agrees(old: BagMetadata, derived: BagMetadata) -> bool:
+    """True if ``metadata.yaml``'s message counts, time range and file list are those of the files."""
+
+    def counts(metadata: BagMetadata) -> dict[str, int]:
+        return {topic.name: topic.message_count for topic in metadata.topics if topic.message_count}
+
+    def files(metadata: BagMetadata) -> list[tuple[str, int, int, int]]:
+        return [
+            (
+                info.path,
+                info.message_count,
+                *((info.starting_time_ns, info.duration_ns) if info.message_count else (0, 0)),
+            )
+            for info in metadata.files
+        ]
+
+    if counts(old) != counts(derived) or old.message_count != derived.message_count:
         return False
-    if recorded is None:
-        return True
-    own = {key: value for key, value in old.custom_data.items() if key != "smm.repaired"}
-    written = {key: value for key, value in recorded.custom_data.items() if key != "smm.repaired"}
-    return own == written and old.ros_distro == recorded.ros_distro
+    if old.relative_file_paths != derived.relative_file_paths:
+        return False
+    if old.version >= 5 and files(old) != files(derived):
+        return False
+    span = (old.starting_time_ns, old.duration_ns)
+    return not derived.message_count or span == (derived.starting_time_ns, derived.duration_ns)
+
+
+def _checked(scan: FileScan) -> str:
+    """Which checks an intact file passed (what it holds to check)."""
+    crcs = sum(chunk.crc_checked for chunk in scan.chunks)
+    parts = [f"{crcs} of {len(scan.chunks)} chunk CRCs written and checking" if scan.chunks else "unchunked"]
+    parts.append("summary consistent" if scan.summary is not None else "no summary")
+    parts.append("data section CRC checks" if scan.data_crc == "checks" else "no data section CRC written")
+    return ", ".join(parts)
+
+
+def _sync_directory(directory: Path) -> None:
+    handle = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(handle)
+    finally:
+        os.close(handle)
+
+
+def _bag_files(bag: Path) -> tuple[BagMetadata | None, str, list[Path]]:
+    """The old metadata (None: missing, unreadable or a bare file), what is wrong with it, the storage files.
+
+    Raises:
+        NotABagError: Not a folder or MCAP file, or no MCAP file in the folder.
+        OtherStorageError: Another storage (sqlite3, ROS 1).
+    """
+    if bag.is_file():
+        return None, "", list(locate(bag).files)
+    if not bag.is_dir():
+        raise NotABagError(f"{bag} is not a directory (a rosbag2 bag is a folder) nor an MCAP file")
+    old, old_problem = _old_metadata(bag)
+    if old is not None and old.storage_identifier != "mcap":
+        locate(bag)  # raises OtherStorageError naming it
+    paths = _storage_files(bag, old)
+    if not any(p.is_file() for p in paths):
+        kinds = {kind for item in bag.iterdir() if item.is_file() and (kind := other_storage(item))}
+        if kinds:
+            raise OtherStorageError(
+                f"{bag}: {', '.join(sorted(kinds))} storage, not MCAP (smm-bag reads only MCAP bags)"
+            )
+        raise NotABagError(f"{bag} holds no .mcap file: nothing to repair")
+    return old, old_problem, paths

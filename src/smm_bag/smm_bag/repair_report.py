@@ -68,6 +68,7 @@ class RepairReport:
         metadata_rewritten: True if ``metadata.yaml`` was written.
         metadata_backup: Name of the kept old ``metadata.yaml``, if any.
         lost_messages: Messages per topic the old ``metadata.yaml`` listed and the files no longer hold.
+        bare: One storage file was repaired, not a bag folder (no ``metadata.yaml`` is read or written).
     """
 
     files: tuple[FileRepair, ...]
@@ -76,6 +77,7 @@ class RepairReport:
     metadata_rewritten: bool = False
     metadata_backup: str = ""
     lost_messages: Mapping[str, int] = field(default_factory=dict)
+    bare: bool = False
 
     @property
     def changed(self) -> bool:
@@ -101,12 +103,15 @@ def _file_lines(item: FileRepair) -> list[str]:
         return [f"{item.path}: intact ({item.messages} messages in {item.chunks} chunks; {item.checked})"]
     if item.status in ("missing", "unsalvageable"):
         return [f"{item.path}: {item.status}: {item.reason or 'nothing checks'}; left as it was"]
+    unchunked = not item.chunks and not item.lost_chunks
     lines = [
         f"{item.path}: damaged: {item.reason}",
-        f"  kept {item.messages} messages in {item.chunks} chunks",
+        f"  kept {item.messages} messages " + ("(no chunks)" if unchunked else f"in {item.chunks} chunks"),
     ]
     chunks = (
-        f"{item.lost_chunks} chunks"
+        "no chunk"
+        if unchunked
+        else f"{item.lost_chunks} chunks"
         if item.lost_chunks_exact
         else (f"at least {item.lost_chunks} chunks (no chunk index that checks)")
     )
@@ -128,6 +133,8 @@ def _file_lines(item: FileRepair) -> list[str]:
 def format_repair(report: RepairReport) -> str:
     """The report as printed by ``smm-bag repair``."""
     lines = [line for item in report.files for line in _file_lines(item)]
+    if report.bare:
+        return "\n".join([*lines, "metadata.yaml: none (a storage file given alone; nothing written)"])
     metadata = report.metadata
     summary = (
         f"{metadata.message_count} messages on {len(metadata.topics)} topics in {len(metadata.files)} file(s)"
