@@ -20,10 +20,12 @@ pytestmark = pytest.mark.ros
 
 COUNT = 1500
 PERIOD_S = 0.002
+ACK_BLOCK = 250
 
 
 def _publish(context: Any, count: int) -> None:
     import rclpy
+    from rclpy.duration import Duration
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
     from smm_msgs_py.conversions import JointSample, clock_msg, sample_to_joint_state, torque_to_msg
@@ -52,12 +54,15 @@ def _publish(context: Any, count: int) -> None:
         )
         joint_states.publish(sample_to_joint_state(sample))
         commands.publish(torque_to_msg(np.array([float(k), 0.5]), stamp))
-        # 500 Hz, the stack's publisher depth (1000): the recorder may stall up to 2 s on this shared machine;
-        # recording at the graph's 1 kHz is measured by bench/bench_bag.py.
+        # 500 Hz; every ACK_BLOCK samples the publishers wait until the recorder has acknowledged them, so a
+        # recorder stalled by a busy machine never lets the history (depth 1000) overwrite an unread sample:
+        # what the test checks is the finish, not the machine's speed (1 kHz figures: bench/bench_bag.py).
+        if (k + 1) % ACK_BLOCK == 0:
+            for publisher in (joint_states, commands, clock):
+                assert publisher.wait_for_all_acked(Duration(seconds=60))
         pause = start + (k + 1) * PERIOD_S - time.monotonic()
         if pause > 0:
             time.sleep(pause)
-    from rclpy.duration import Duration
 
     for publisher in (joint_states, commands, clock):  # delivered (acknowledged) before the stop signal
         assert publisher.wait_for_all_acked(Duration(seconds=10))
