@@ -106,6 +106,19 @@ class NodeProcess:
         """True while the process runs."""
         return self.popen.poll() is None
 
+    def wait(self, timeout_s: float) -> int:
+        """The exit code; still running after ``timeout_s`` (s): aborted, failing with its threads' stacks."""
+        try:
+            return self.popen.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.popen.pid, signal.SIGABRT)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self.popen.wait(timeout=10.0)
+            raise AssertionError(
+                f"{self.name} still running {timeout_s:g} s later; aborted, its threads:\n{self.logs()}"
+            ) from None
+
     def logs(self) -> str:
         """stdout and stderr so far, for failure messages."""
         out = self.stdout_path.read_text(errors="replace") if self.stdout_path.exists() else ""
@@ -126,6 +139,7 @@ class ProcessGroup:
         full_env = dict(os.environ)
         full_env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         full_env["PYTHONUNBUFFERED"] = "1"
+        full_env["PYTHONFAULTHANDLER"] = "1"  # a stuck process shows its threads when aborted
         if env:
             full_env.update(env)
         stdout_path = self.log_dir / f"{name}.out"

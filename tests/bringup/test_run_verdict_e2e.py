@@ -92,10 +92,10 @@ def test_a_bridge_that_never_arms_exits_3_and_both_sides_say_so(ros_processes: A
          "-p", "autostart:=true", "-p", f"link.bind_port:={host}", "-p", f"link.board_port:={board}"],
     )  # fmt: skip
     # no controller: autostart waits for a torque_command publisher, so nothing ever arms
-    assert emulator.popen.wait(timeout=120) == 3, emulator.logs()
+    assert emulator.wait(120) == 3, emulator.logs()
     assert "the run did not control: the bridge never armed" in emulator.logs()
     os.killpg(bridge.popen.pid, signal.SIGINT)
-    assert bridge.popen.wait(timeout=60) == 3, bridge.logs()
+    assert bridge.wait(60) == 3, bridge.logs()
     reason = "the bridge never armed: autostart waited for the controller to the end"
     assert f"hw_bridge_node: the run did not control: {reason}" in bridge.logs()
     assert f"[hw_bridge_node] host: no feedback frame counted; did not control: {reason}" in bridge.logs()
