@@ -13,7 +13,6 @@ import secrets
 from dataclasses import dataclass, field
 
 import numpy as np
-from smm_dynamics.validation import check_pair, check_scalar
 from smm_hw_bridge.protocol import (
     ADC_MAX,
     CODE_MAX,
@@ -30,6 +29,7 @@ from smm_hw_bridge.protocol import (
     seq_newer,
     u32_diff,
 )
+from smm_schema.ranges import check_pair, check_scalar
 from smm_sim.plant import PlantConfig, SimulatedPlant
 
 __all__ = ["BoardConfig", "BoardCore"]

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import above, bounds, check_pair, check_scalar
+from smm_schema.ranges import above, bounds, check_pair, check_scalar
 
 from smm_hw_bridge.encoder import EncoderConfig, EncoderDecoder
 from smm_hw_bridge.link import AdmissionConfig, FeedbackAdmission, LinkStats

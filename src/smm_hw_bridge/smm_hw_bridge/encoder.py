@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import bounds
+from smm_schema.ranges import bounds
 
 __all__ = ["EncoderConfig", "EncoderDecoder"]
 

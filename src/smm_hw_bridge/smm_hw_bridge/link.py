@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-from smm_dynamics.validation import bounds
+from smm_schema.ranges import bounds
 
 from smm_hw_bridge.protocol import FeedbackFrame, Reason, u32_diff
 

@@ -19,7 +19,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Final, Literal
 
-from smm_dynamics.validation import bounds
+from smm_schema.ranges import bounds
 
 __all__ = [
     "MAX_FRAME",

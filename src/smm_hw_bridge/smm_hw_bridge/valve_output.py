@@ -8,12 +8,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import above, at_least, bounds, check_pair, check_scalar
 from smm_dynamics.valve import (
     PAPER_VALVE_RESPONSE_TIMES,
     valve_lag_step,
     valve_time_constants_from_response_times,
 )
+from smm_schema.ranges import above, at_least, bounds, check_pair, check_scalar
 
 from smm_hw_bridge.protocol import CODE_MAX
 

@@ -15,12 +15,12 @@ from typing import Final, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from smm_dynamics.validation import check_pair
 from smm_dynamics.valve import (
     PAPER_VALVE_RESPONSE_TIMES,
     valve_lag_step,
     valve_time_constants_from_response_times,
 )
+from smm_schema.ranges import check_pair
 
 from smm_dynamics import SMMParameters, rk4_step_floats
 

@@ -1,8 +1,8 @@
 """Ranges of config fields as data, and the checks every config shares (ValueError naming field and value).
 
 A numeric field declares its range once, in its dataclass field metadata (:func:`bounds`, :func:`above`,
-:func:`at_least`, or :func:`no_range`); :func:`check_bounds` checks it in ``__post_init__`` and
-``smm_node_runtime`` mirrors it as the ROS parameter's range (docs/DESIGN.md, "Ranges of config fields").
+:func:`at_least`, or :func:`no_range`); :func:`check_bounds` checks it in ``__post_init__``,
+:mod:`smm_schema.fields` carries it to the parameters (docs/DESIGN.md, "Ranges of config fields").
 """
 
 from __future__ import annotations
