@@ -241,10 +241,12 @@ def test_the_walk_finds_the_configs_of_every_layer() -> None:
 
 
 def numeric_fields(cls: type) -> list[dataclasses.Field[object]]:
-    """The fields of ``cls`` that hold a number or a tuple of numbers (optional ones too)."""
+    """The fields of ``cls`` given to it that hold a number or a tuple of numbers (optional ones too)."""
     hints = typing.get_type_hints(cls)
     found = []
     for item in dataclasses.fields(cls):
+        if not item.init:
+            continue  # derived from the others
         hint = numeric_hint(hints[item.name])
         elements = set(typing.get_args(hint)) - {Ellipsis} if typing.get_origin(hint) is tuple else {hint}
         if elements and elements <= {int, float}:
