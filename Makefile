@@ -14,7 +14,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.smm-installed
-PACKAGES := smm_msgs_py smm_node_runtime smm_dynamics smm_controller smm_sim smm_hw_bridge smm_bench_emulator smm_bag smm_analysis smm_direct_loop smm_bringup
+PACKAGES := smm_schema smm_msgs_py smm_node_runtime smm_dynamics smm_controller smm_sim smm_hw_bridge smm_bench_emulator smm_bag smm_analysis smm_direct_loop smm_bringup
 PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg src/$(p)/package.xml) src/user_commands.py
 
 # Keep DDS discovery on this machine unless the caller chose otherwise.
@@ -28,7 +28,7 @@ $(CORPUS_JS): tests/bag/corpus/js/package.json tests/bag/corpus/js/package-lock.
 	cd tests/bag/corpus/js && npm ci --no-audit --no-fund --silent
 	@touch $@
 
-.PHONY: setup test test-realtime test-bags corpus-table test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
+.PHONY: setup test test-realtime test-bags corpus-table parameter-tables test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
 
 setup: $(STAMP)
 
@@ -54,6 +54,10 @@ test-bags: $(STAMP) $(CORPUS_JS)
 # Rewrites docs/BAGS.md's writer x command table from what the whole corpus gives.
 corpus-table: $(STAMP) $(CORPUS_JS)
 	$(PY) tests/bag/corpus/table.py
+
+# Rewrites docs/NODES.md's parameter tables from the configs each node binds (smm_schema).
+parameter-tables: $(STAMP)
+	$(PY) tools/parameter_tables.py
 
 # The cross_machine tests (data made on another machine) once per forced numeric path (OpenBLAS kernel,
 # numpy SIMD, libm), after a table of the sample-bag rerun under each: see docs/TESTING.md.

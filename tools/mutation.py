@@ -31,6 +31,7 @@ EQUIVALENT_FILE = Path(__file__).resolve().with_name("mutation_equivalent.txt")
 
 CONTROLLER_TESTS = ("tests/controller",)
 DYNAMICS_TESTS = ("tests/dynamics",)
+SCHEMA_TESTS = ("tests/schema", "tests/dynamics/test_dynamics_arguments.py")
 #: The fuzzy engine is called by nearly every controller test; its own tests judge it (and keep it fast).
 FUZZY_TESTS = tuple(
     f"tests/controller/test_{name}.py"
@@ -64,8 +65,8 @@ class Module:
 MODULES: tuple[Module, ...] = (
     Module("smm_dynamics/model.py", DYNAMICS_TESTS, "ci"),
     Module("smm_dynamics/parameters.py", DYNAMICS_TESTS, "ci"),
-    Module("smm_dynamics/validation.py", DYNAMICS_TESTS, "ci"),
     Module("smm_dynamics/valve.py", DYNAMICS_TESTS, "ci"),
+    Module("smm_schema/ranges.py", SCHEMA_TESTS, "ci"),
     Module("smm_controller/td.py", CONTROLLER_TESTS),
     Module("smm_controller/fleso.py", CONTROLLER_TESTS),
     Module("smm_controller/fuzzy.py", FUZZY_TESTS),

@@ -20,7 +20,7 @@ from smm_controller.fleso import FLESOConfig
 from smm_controller.fleso_node import FlesoNode
 from smm_controller.fpdeso import FPDESOConfig
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, PAPER_FPDESO_FUZZY
-from smm_node_runtime.parameters import config_fields, config_from_parameters, config_to_parameters
+from smm_schema.fields import config_fields, config_from_parameters, config_to_parameters
 
 PAPER = {
     "fpdeso": FPDESOConfig(fuzzy=PAPER_FPDESO_FUZZY),

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 from smm_dynamics.parameters import BodyData
-from smm_dynamics.validation import check_pair, check_scalar
+from smm_schema.ranges import check_pair, check_scalar
 
 from smm_dynamics import SMMParameters, model
 

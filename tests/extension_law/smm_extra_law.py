@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from smm_controller.laws import Law
 from smm_controller.torque_law import TorqueLaw
-from smm_dynamics.validation import above, check_bounds
+from smm_schema.ranges import above, check_bounds
 
 from smm_dynamics import SMMParameters
 

@@ -1,4 +1,4 @@
-"""Ranges as data: every numeric config field declares one (smm_dynamics.validation), checked by the config,
+"""Ranges as data: every numeric config field declares one (smm_schema.ranges), checked by the config,
 carried by the schema and turned into the ROS descriptor; a field without one is found."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from rcl_interfaces.msg import ParameterType
-from smm_dynamics.validation import NO_RANGE, Range, above, at_least, bounds, check_bounds, no_range
 from smm_node_runtime.parameters import parameter_descriptor
-from smm_node_runtime.schema import config_fields, unranged_fields
+from smm_schema.fields import config_fields, unranged_fields
+from smm_schema.ranges import NO_RANGE, Range, above, at_least, bounds, check_bounds, no_range
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,9 @@ import pytest
 import rclpy
 from rcl_interfaces.msg import ParameterType
 from rclpy.node import Node
-from smm_dynamics.validation import above
 from smm_node_runtime.parameters import ConfigParameters, parameter_descriptor
-from smm_node_runtime.schema import config_fields, parameter_name, unranged_fields
+from smm_schema.fields import config_fields, parameter_name, unranged_fields
+from smm_schema.ranges import above
 
 pytestmark = pytest.mark.ros
 

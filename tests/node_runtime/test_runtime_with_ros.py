@@ -15,7 +15,8 @@ from rcl_interfaces.msg import ParameterType
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from ros_harness import spin_until
-from smm_node_runtime.parameters import ConfigParameters, above, bounds, check_bounds
+from smm_node_runtime.parameters import ConfigParameters
+from smm_schema.ranges import above, bounds, check_bounds
 
 from smm_node_runtime import SPIN_POLL_S, as_parameter_list, make_executor
 

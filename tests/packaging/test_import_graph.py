@@ -5,8 +5,8 @@ Rules (docs/DESIGN.md, "Packages and their roles"):
   node packages;
 - ``smm_hw_bridge`` imports nothing of ``smm_controller`` (the bridge never knows the control law);
 - ``smm_controller`` imports nothing of ``smm_sim``;
-- ``smm_bag`` (bag storage and ROS I/O) imports nothing of the stack but ``smm_msgs_py`` and
-  ``smm_node_runtime``;
+- ``smm_bag`` (bag storage and ROS I/O) imports nothing of the stack but ``smm_msgs_py``,
+  ``smm_node_runtime`` and ``smm_schema``;
 - ``smm_msgs_py`` defines no ``Node`` subclass and imports no node runtime (executor, parameters);
 - an algorithm module (every module of an algorithm package but its node modules) reaches no ``rclpy``,
   directly or through the modules it imports.
@@ -35,7 +35,8 @@ ROS_ROOTS = ("rclpy",)
 ALGORITHM_PACKAGES = ("smm_dynamics", "smm_controller", "smm_sim", "smm_analysis", "smm_hw_bridge")
 """Packages whose modules are algorithms (pure numpy), except their node modules."""
 BAG_STORAGE = "smm_bag"
-BAG_STORAGE_MAY_IMPORT = frozenset({MESSAGE_CONTRACT, NODE_RUNTIME})
+SCHEMA = "smm_schema"
+BAG_STORAGE_MAY_IMPORT = frozenset({MESSAGE_CONTRACT, NODE_RUNTIME, SCHEMA})
 """The only packages of the stack that the bag storage layer imports (analysis sits on top of it)."""
 
 
@@ -220,9 +221,10 @@ def test_the_graph_is_read_from_the_code() -> None:
 
 
 PURE_CORES = (
+    "smm_schema.fields",
+    "smm_schema.ranges",
     "smm_node_runtime.health",
     "smm_node_runtime.parameter_files",
-    "smm_node_runtime.schema",
     "smm_node_runtime.stamp_gate",
     "smm_sim.config",
     "smm_sim.core",

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from smm_node_runtime.parameters import config_fields, config_to_parameters
+from smm_schema.fields import config_fields, config_to_parameters
 from smm_sim.plant import PlantConfig
 
 from smm_dynamics import SMMParameters

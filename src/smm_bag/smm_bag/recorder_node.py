@@ -24,6 +24,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.subscription import Subscription
 from smm_msgs_py.qos import qos_for_topic
 from smm_node_runtime.node import NodeOptions
+from smm_schema.ranges import above, at_least, bounds, check_bounds
 from std_srvs.srv import Trigger
 
 from smm_bag.errors import UnknownTypeError
@@ -31,18 +32,7 @@ from smm_bag.manifest import RunManifest, git_describe
 from smm_bag.qos import QosProfile, profiles_from_rclpy
 from smm_bag.writer import BagWriter, WriterOptions
 from smm_msgs_py import topics as stack
-from smm_node_runtime import (
-    ConfigParameters,
-    DiagnosticsPublisher,
-    Health,
-    Level,
-    SmmNode,
-    above,
-    at_least,
-    bounds,
-    check_bounds,
-    node_main,
-)
+from smm_node_runtime import ConfigParameters, DiagnosticsPublisher, Health, Level, SmmNode, node_main
 
 __all__ = [
     "DEFAULT_EXTRA_TOPICS",

@@ -13,7 +13,6 @@ import secrets
 from dataclasses import dataclass, field
 
 import numpy as np
-from smm_dynamics.validation import check_pair, check_scalar
 from smm_hw_bridge.protocol import (
     ADC_MAX,
     CODE_MAX,
@@ -30,6 +29,7 @@ from smm_hw_bridge.protocol import (
     seq_newer,
     u32_diff,
 )
+from smm_schema.ranges import above, at_least, bounds, check_bounds
 from smm_sim.plant import PlantConfig, SimulatedPlant
 
 __all__ = ["BoardConfig", "BoardCore"]
@@ -66,54 +66,27 @@ class BoardConfig:
             encoder_counts_per_rev=1 << 20, valve_time_constants=(0.0217, 0.0109)
         )
     )
-    zero_offset: tuple[int, int] = (0, 0)
-    direction: tuple[int, int] = (1, 1)
-    counter_bits: int = 32
-    full_scale_torque: tuple[float, float] = (10.0, 10.0)
-    valve_deadband: tuple[float, float] = (0.0, 0.0)
-    supply_pressure: float = 10.0
-    nominal_pressure: float = 10.0
-    supply_low: float = 5.0
-    bar_per_code: float = 25.0 / 4095.0
-    adc_noise: float = 2.0
-    ramp_ticks: int = 1
-    seed: int = 0
+    zero_offset: tuple[int, int] = field(default=(0, 0), metadata=bounds(0, (1 << 32) - 1))
+    direction: tuple[int, int] = field(default=(1, 1), metadata=bounds(-1, 1))
+    counter_bits: int = field(default=32, metadata=bounds(8, 32))
+    full_scale_torque: tuple[float, float] = field(default=(10.0, 10.0), metadata=above(0.0))
+    valve_deadband: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
+    supply_pressure: float = field(default=10.0, metadata=at_least(0.0))
+    nominal_pressure: float = field(default=10.0, metadata=above(0.0))
+    supply_low: float = field(default=5.0, metadata=at_least(0.0))
+    bar_per_code: float = field(default=25.0 / 4095.0, metadata=above(0.0))
+    adc_noise: float = field(default=2.0, metadata=at_least(0.0))
+    ramp_ticks: int = field(default=1, metadata=at_least(1))
+    seed: int = field(default=0, metadata=at_least(0))
 
     def __post_init__(self) -> None:
         if not isinstance(self.plant, PlantConfig) or self.plant.encoder_counts_per_rev <= 0:
             raise ValueError("plant must be a PlantConfig with encoder_counts_per_rev > 0")
-        bits = self.counter_bits
-        if isinstance(bits, bool) or not isinstance(bits, int) or not 8 <= bits <= 32:
-            raise ValueError(f"counter_bits must be an int in [8, 32], got {bits!r}")
-        for name, values, low, high in (
-            ("zero_offset", self.zero_offset, 0, (1 << bits) - 1),
-            ("direction", self.direction, -1, 1),
-        ):
-            if (
-                not isinstance(values, tuple)
-                or len(values) != 2
-                or any(isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high for v in values)
-            ):
-                raise ValueError(f"{name} must be 2 ints in [{low}, {high}], got {values!r}")
+        check_bounds(self)
+        if any(offset >= 1 << self.counter_bits for offset in self.zero_offset):
+            raise ValueError(f"zero_offset must be below 2**counter_bits, got {self.zero_offset!r}")
         if 0 in self.direction:
             raise ValueError(f"direction must be +1 or -1, got {self.direction!r}")
-        check_pair("full_scale_torque", self.full_scale_torque, positive=True)
-        check_pair("valve_deadband", self.valve_deadband, non_negative=True)
-        check_scalar("supply_pressure", self.supply_pressure, non_negative=True)
-        check_scalar("nominal_pressure", self.nominal_pressure, positive=True)
-        check_scalar("supply_low", self.supply_low, non_negative=True)
-        check_scalar("bar_per_code", self.bar_per_code, positive=True)
-        check_scalar("adc_noise", self.adc_noise, non_negative=True)
-        for name in ("ramp_ticks", "seed"):
-            value = getattr(self, name)
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, int)
-                or value < (1 if name == "ramp_ticks" else 0)
-            ):
-                raise ValueError(
-                    f"{name} must be an int >= {1 if name == 'ramp_ticks' else 0}, got {value!r}"
-                )
 
     @property
     def period_ns(self) -> int:

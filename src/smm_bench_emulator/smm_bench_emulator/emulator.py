@@ -19,6 +19,7 @@ import numpy as np
 from smm_hw_bridge.protocol import encode
 from smm_hw_bridge.run_verdict import RunTally, VerdictConfig
 from smm_hw_bridge.transport import Transport, UdpTransport
+from smm_schema.ranges import at_least, check_bounds, no_range
 
 from smm_bench_emulator.board import BoardConfig, BoardCore
 from smm_bench_emulator.faults import LinkFault, LinkFaults
@@ -61,31 +62,20 @@ class EmulatorConfig:
     control: tuple[str, int] | None = ("127.0.0.1", 50102)
     mode: Mode = "realtime"
     lockstep_trigger: Literal["any", "enabled"] = "any"
-    resend_ns: int = 50_000_000
-    duration_ticks: int = 0
+    resend_ns: int = field(default=50_000_000, metadata=at_least(1))
+    duration_ticks: int = field(default=0, metadata=at_least(0))
     duration_from_live: bool = False
-    seed: int = 0
+    seed: int = field(default=0, metadata=no_range())
     verdict: VerdictConfig = field(default_factory=VerdictConfig)
-    start_timeout_ns: int = 0
-    min_idle_ns: int = 100_000
+    start_timeout_ns: int = field(default=0, metadata=at_least(0))
+    min_idle_ns: int = field(default=100_000, metadata=at_least(0))
 
     def __post_init__(self) -> None:
         if self.lockstep_trigger not in ("any", "enabled"):
             raise ValueError(f"lockstep_trigger must be 'any' or 'enabled', got {self.lockstep_trigger!r}")
         if self.mode not in ("realtime", "lockstep"):
             raise ValueError(f"mode must be 'realtime' or 'lockstep', got {self.mode!r}")
-        if isinstance(self.resend_ns, bool) or not isinstance(self.resend_ns, int) or self.resend_ns <= 0:
-            raise ValueError(f"resend_ns must be an int > 0, got {self.resend_ns!r}")
-        if (
-            isinstance(self.duration_ticks, bool)
-            or not isinstance(self.duration_ticks, int)
-            or self.duration_ticks < 0
-        ):
-            raise ValueError(f"duration_ticks must be an int >= 0, got {self.duration_ticks!r}")
-        for name in ("start_timeout_ns", "min_idle_ns"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-                raise ValueError(f"{name} must be an int >= 0 (ns), got {value!r}")
+        check_bounds(self)
 
 
 def _percentile_us(values: list[int], q: float) -> float | None:

@@ -9,7 +9,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import check_pair, check_scalar, is_real
+from smm_schema.ranges import check_pair, check_scalar, is_real
 
 __all__ = [
     "FloatArray",

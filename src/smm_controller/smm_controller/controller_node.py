@@ -18,7 +18,6 @@ import numpy as np
 import numpy.typing as npt
 from rclpy.publisher import Publisher
 from sensor_msgs.msg import JointState
-from smm_dynamics.validation import at_least, check_bounds
 from smm_msgs_py.conversions import (
     internals_to_msg,
     joint_state_to_sample,
@@ -31,6 +30,7 @@ from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.layouts import DISTURBANCE_ESTIMATE_ROWS
 from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
 from smm_node_runtime.parameters import ConfigParameters
+from smm_schema.ranges import at_least, check_bounds
 from std_msgs.msg import Float64MultiArray
 
 from smm_controller.chain import ControlChain, JointController

@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from smm_dynamics.validation import above, at_least, check_bounds, no_range
+from smm_schema.ranges import above, at_least, check_bounds, no_range
 
 from smm_controller._sampled import Rows, _Sampled
 from smm_controller._validation import FloatArray

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import above, at_least, check_bounds
+from smm_schema.ranges import above, at_least, check_bounds
 
 from smm_controller._validation import (
     FloatArray,

@@ -11,7 +11,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-from smm_dynamics.validation import at_least, check_bounds
+from smm_schema.ranges import at_least, check_bounds
 
 from smm_controller._validation import (
     FloatArray,

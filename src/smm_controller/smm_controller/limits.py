@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Final, Protocol, runtime_checkable
 
-from smm_dynamics.validation import above, check_bounds
+from smm_schema.ranges import above, check_bounds
 
 from smm_controller._validation import FloatArray, check_instance, internals_view
 

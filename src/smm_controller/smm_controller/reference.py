@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from smm_dynamics.validation import above, at_least, check_bounds, no_range
+from smm_schema.ranges import above, at_least, check_bounds, no_range
 
 from smm_controller._sampled import Reference, Rows, _Sampled
 from smm_controller.excitation import ExcitationReference

@@ -16,7 +16,6 @@ from typing import Unpack
 import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from smm_dynamics.validation import at_least, check_bounds
 from smm_msgs_py.conversions import (
     internals_to_msg,
     joint_state_to_sample,
@@ -24,7 +23,9 @@ from smm_msgs_py.conversions import (
 )
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.qos import diagnostic_qos, qos_for_topic, subscription_qos_for_topic
-from smm_node_runtime.parameters import ConfigParameters, parameter_name
+from smm_node_runtime.parameters import ConfigParameters
+from smm_schema.fields import parameter_name
+from smm_schema.ranges import at_least, check_bounds
 from std_msgs.msg import Float64MultiArray
 
 from smm_controller.reference import REFERENCE_KINDS, ReferenceClock, ReferenceGenerator

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import above, check_bounds
+from smm_schema.ranges import above, check_bounds
 
 from smm_controller._validation import (
     FloatArray,

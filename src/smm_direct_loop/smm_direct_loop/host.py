@@ -24,7 +24,7 @@ from smm_hw_bridge.bridge_node import HwBridgeNode, judged_exit
 from smm_hw_bridge.core import BridgeCore
 from smm_hw_bridge.transport import Transport
 from smm_msgs_py.conversions import JointSample, torque_to_msg
-from smm_node_runtime.parameters import bounds
+from smm_schema.ranges import bounds
 
 from smm_direct_loop.statistics import LoopStatistics, RunningFigures
 from smm_msgs_py import topics

@@ -10,7 +10,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-from smm_dynamics.validation import above, at_least, bounds, check_bounds, no_range
+from smm_schema.ranges import above, at_least, bounds, check_bounds, no_range
 
 __all__ = ["TABLE2_BODIES", "BodyData", "SMMParameters"]
 

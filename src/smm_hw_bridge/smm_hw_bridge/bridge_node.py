@@ -22,10 +22,10 @@ from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.context import Context
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
-from smm_dynamics.validation import at_least, check_bounds
 from smm_msgs_py.conversions import JointSample, internals_to_msg, msg_to_torque, sample_to_joint_state
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
+from smm_schema.ranges import at_least, check_bounds
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 

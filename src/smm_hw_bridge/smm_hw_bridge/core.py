@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import above, bounds, check_pair, check_scalar
+from smm_schema.ranges import above, bounds, check_bounds
 
 from smm_hw_bridge.encoder import EncoderConfig, EncoderDecoder
 from smm_hw_bridge.link import AdmissionConfig, FeedbackAdmission, LinkStats
@@ -66,11 +66,6 @@ class BridgeError(RuntimeError):
     """An operation the bridge's state does not allow (e.g. arming with a board fault)."""
 
 
-def _positive_int(name: str, value: object) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-        raise ValueError(f"{name} must be an int > 0, got {value!r}")
-
-
 @dataclass(frozen=True)
 class BridgeConfig:
     """Everything the bridge logic needs.
@@ -114,18 +109,7 @@ class BridgeConfig:
         ):
             if not isinstance(getattr(self, name), kind):
                 raise ValueError(f"{name} must be a {kind.__name__}, got {getattr(self, name)!r}")
-        for name in (
-            "host_watchdog_ns",
-            "stale_periods",
-            "validity_ticks",
-            "link_timeout_ns",
-            "reboot_frames",
-        ):
-            _positive_int(name, getattr(self, name))
-        if self.validity_ticks > 0xFFFF:
-            raise ValueError(f"validity_ticks must be <= 65535, got {self.validity_ticks!r}")
-        check_pair("soft_limits", self.soft_limits, positive=True)
-        check_scalar("supply_bar_per_code", self.supply_bar_per_code, positive=True)
+        check_bounds(self)
         if not isinstance(self.lockstep, bool):
             raise ValueError(f"lockstep must be a bool, got {self.lockstep!r}")
 

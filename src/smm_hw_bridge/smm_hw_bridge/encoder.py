@@ -8,19 +8,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import bounds
+from smm_schema.ranges import bounds, check_bounds
 
 __all__ = ["EncoderConfig", "EncoderDecoder"]
 
 FloatArray = npt.NDArray[np.float64]
-
-
-def _int_pair(name: str, value: object, low: int, high: int) -> None:
-    if not isinstance(value, tuple) or len(value) != 2:
-        raise ValueError(f"{name} must be a tuple (alpha, beta) of 2 ints, got {value!r}")
-    for element in value:
-        if isinstance(element, bool) or not isinstance(element, int) or not low <= element <= high:
-            raise ValueError(f"{name} must hold ints in [{low}, {high}], got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -40,12 +32,9 @@ class EncoderConfig:
     counter_bits: int = field(default=32, metadata=bounds(8, 32))
 
     def __post_init__(self) -> None:
-        bits = self.counter_bits
-        if isinstance(bits, bool) or not isinstance(bits, int) or not 8 <= bits <= 32:
-            raise ValueError(f"counter_bits must be an int in [8, 32], got {bits!r}")
-        _int_pair("counts_per_rev", self.counts_per_rev, 1, 1 << 31)
-        _int_pair("zero_offset", self.zero_offset, 0, (1 << bits) - 1)
-        _int_pair("direction", self.direction, -1, 1)
+        check_bounds(self)
+        if any(offset >= 1 << self.counter_bits for offset in self.zero_offset):
+            raise ValueError(f"zero_offset must be below 2**counter_bits, got {self.zero_offset!r}")
         if 0 in self.direction:
             raise ValueError(f"direction must be +1 or -1 per joint, got {self.direction!r}")
 

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-from smm_dynamics.validation import bounds
+from smm_schema.ranges import bounds, check_bounds
 
 from smm_hw_bridge.protocol import FeedbackFrame, Reason, u32_diff
 
@@ -25,9 +25,9 @@ class AdmissionConfig:
     """Admission of feedback frames.
 
     Attributes:
-        period_ns: Board tick period (ns), > 0.
-        stale_ns: Delivery delay beyond the fastest seen after which a frame is stale (ns), > 0.
-        drift_ppm: Allowed drift between host and board clocks (parts per million), >= 0.
+        period_ns: Board tick period (ns).
+        stale_ns: Delivery delay beyond the fastest seen after which a frame is stale (ns).
+        drift_ppm: Allowed drift between host and board clocks (parts per million).
     """
 
     period_ns: int = field(default=1_000_000, metadata=bounds(1, 1_000_000_000))
@@ -35,16 +35,7 @@ class AdmissionConfig:
     drift_ppm: float = field(default=200.0, metadata=bounds(0.0, 1e5, high_open=True))
 
     def __post_init__(self) -> None:
-        for name in ("period_ns", "stale_ns"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-                raise ValueError(f"{name} must be an int > 0 (ns), got {value!r}")
-        if (
-            isinstance(self.drift_ppm, bool)
-            or not isinstance(self.drift_ppm, (int, float))
-            or not (0.0 <= self.drift_ppm < 1e5)
-        ):
-            raise ValueError(f"drift_ppm must be a number in [0, 1e5), got {self.drift_ppm!r}")
+        check_bounds(self)
 
 
 class FeedbackAdmission:

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Final
 
-from smm_dynamics.validation import at_least, bounds, check_bounds
+from smm_schema.ranges import at_least, bounds, check_bounds
 
 from smm_hw_bridge.protocol import FeedbackFrame, StatusBit, u32_diff
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import abc
 import ipaddress
-import math
 import select
 import socket
 import struct
@@ -19,7 +18,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Final, Literal
 
-from smm_dynamics.validation import bounds
+from smm_schema.ranges import bounds, check_bounds
 
 __all__ = [
     "MAX_FRAME",
@@ -323,12 +322,12 @@ class LinkConfig:
     Attributes:
         transport: "udp" or "serial".
         bind_address: UDP: IPv4 address the bridge binds (default loopback).
-        bind_port: UDP: port the bridge binds, in [0, 65535] (0 = any free one).
+        bind_port: UDP: port the bridge binds (0 = any free one).
         board_address: UDP: the board's IPv4 address; frames from anywhere else are dropped.
-        board_port: UDP: the board's port, in [1, 65535].
+        board_port: UDP: the board's port.
         serial_port: Serial: device name.
-        baudrate: Serial: line speed (bit/s), > 0.
-        configure_timeout: Time ``configure`` waits for a valid feedback frame (s), > 0.
+        baudrate: Serial: line speed (bit/s).
+        configure_timeout: Time ``configure`` waits for a valid feedback frame (s).
     """
 
     transport: Literal["udp", "serial"] = "udp"
@@ -348,17 +347,9 @@ class LinkConfig:
                 ipaddress.IPv4Address(getattr(self, name))
             except ValueError as error:
                 raise ValueError(f"{name} must be an IPv4 address, got {getattr(self, name)!r}") from error
-        for name, low in (("bind_port", 0), ("board_port", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 65535:
-                raise ValueError(f"{name} must be an int in [{low}, 65535], got {value!r}")
+        check_bounds(self)
         if self.transport == "serial" and not self.serial_port:
             raise ValueError("serial_port must name a device when transport is 'serial'")
-        if isinstance(self.baudrate, bool) or not isinstance(self.baudrate, int) or self.baudrate <= 0:
-            raise ValueError(f"baudrate must be an int > 0, got {self.baudrate!r}")
-        timeout = self.configure_timeout
-        if not (isinstance(timeout, float) and math.isfinite(timeout) and timeout > 0.0):
-            raise ValueError(f"configure_timeout must be a finite number > 0 s, got {timeout!r}")
 
 
 def open_transport(link: LinkConfig) -> Transport:

@@ -8,12 +8,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from smm_dynamics.validation import above, at_least, bounds, check_pair, check_scalar
 from smm_dynamics.valve import (
     PAPER_VALVE_RESPONSE_TIMES,
     valve_lag_step,
     valve_time_constants_from_response_times,
 )
+from smm_schema.ranges import above, at_least, bounds, check_bounds
 
 from smm_hw_bridge.protocol import CODE_MAX
 
@@ -58,28 +58,11 @@ class ValveOutputConfig:
     )
 
     def __post_init__(self) -> None:
-        check_pair("gain", self.gain, positive=True)
-        if (
-            not isinstance(self.polarity, tuple)
-            or len(self.polarity) != 2
-            or any(isinstance(p, bool) or p not in (1, -1) for p in self.polarity)
-        ):
+        check_bounds(self)
+        if 0 in self.polarity:
             raise ValueError(f"polarity must be +1 or -1 per joint, got {self.polarity!r}")
-        check_pair("deadband", self.deadband, non_negative=True)
-        check_scalar("deadband_blend", self.deadband_blend, positive=True)
-        if (
-            not isinstance(self.code_limit, tuple)
-            or len(self.code_limit) != 2
-            or any(
-                isinstance(c, bool) or not isinstance(c, int) or not 1 <= c <= CODE_MAX
-                for c in self.code_limit
-            )
-        ):
-            raise ValueError(f"code_limit must hold ints in [1, {CODE_MAX}], got {self.code_limit!r}")
         if any(self.deadband[j] >= self.code_limit[j] for j in range(2)):
             raise ValueError(f"deadband {self.deadband!r} must be below code_limit {self.code_limit!r}")
-        check_pair("rate_limit", self.rate_limit, positive=True, allow_inf=True)
-        check_pair("time_constants", self.time_constants, non_negative=True)
         if (self.time_constants[0] == 0.0) != (self.time_constants[1] == 0.0):
             raise ValueError(
                 f"time_constants must be both > 0 or both 0 (no lag), got {self.time_constants!r}"

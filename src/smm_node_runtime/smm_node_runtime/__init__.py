@@ -1,6 +1,7 @@
 """What every SMM node runs on: process main, executor, node base classes, parameters, ``/diagnostics``.
 
-Names load on first use, so the pure modules (``schema``, ``parameter_files``) import without rclpy.
+Names load on first use, so the pure modules (``parameter_files``, ``stamp_gate``, ``health``) import without
+rclpy.
 """
 
 from __future__ import annotations
@@ -44,16 +45,7 @@ if TYPE_CHECKING:
         parameters_for,
         read_parameter_file,
     )
-    from smm_node_runtime.parameters import (
-        ConfigParameters,
-        above,
-        at_least,
-        bounds,
-        check_bounds,
-        config_fields,
-        no_range,
-        parameter_name,
-    )
+    from smm_node_runtime.parameters import ConfigParameters, config_bindings
     from smm_node_runtime.process import (
         EXIT_INVALID_PARAMETER,
         EXIT_OK,
@@ -103,13 +95,7 @@ _SOURCES: dict[str, str] = {
     "parameters_for": "smm_node_runtime.parameter_files",
     "read_parameter_file": "smm_node_runtime.parameter_files",
     "ConfigParameters": "smm_node_runtime.parameters",
-    "above": "smm_node_runtime.parameters",
-    "at_least": "smm_node_runtime.parameters",
-    "bounds": "smm_node_runtime.parameters",
-    "check_bounds": "smm_node_runtime.parameters",
-    "config_fields": "smm_node_runtime.parameters",
-    "no_range": "smm_node_runtime.parameters",
-    "parameter_name": "smm_node_runtime.parameters",
+    "config_bindings": "smm_node_runtime.parameters",
     "EXIT_INVALID_PARAMETER": "smm_node_runtime.process",
     "EXIT_OK": "smm_node_runtime.process",
     "SPIN_POLL_S": "smm_node_runtime.process",
@@ -162,21 +148,15 @@ __all__ = [
     "StampGate",
     "StampPolicy",
     "Verdict",
-    "above",
     "as_parameter_list",
-    "at_least",
-    "bounds",
-    "check_bounds",
-    "config_fields",
+    "config_bindings",
     "ensure_localhost_discovery",
     "level_for",
     "load_parameter_file",
     "make_executor",
-    "no_range",
     "node_arguments",
     "node_key_matches",
     "node_main",
-    "parameter_name",
     "parameters_for",
     "read_parameter_file",
     "run_node",

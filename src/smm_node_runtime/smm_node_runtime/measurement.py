@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
-from smm_dynamics.validation import bounds, check_bounds
+from smm_schema.ranges import bounds, check_bounds
 
 from smm_node_runtime.admission import (
     COUNTER_ROWS,

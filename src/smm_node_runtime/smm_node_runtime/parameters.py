@@ -1,6 +1,6 @@
 """Config dataclasses as ROS 2 parameters: descriptors, declaration, and one binding per node config.
 
-Gives rclpy the schema of :mod:`smm_node_runtime.schema`; a number field's range becomes the closed
+Gives rclpy the schema of :mod:`smm_schema.fields`; a number field's range becomes the closed
 ``FloatingPointRange`` / ``IntegerRange`` (open ends and array elements in ``additional_constraints``,
 checked by the config). :class:`ConfigParameters` declares, builds the initial config, and validates each
 change as a whole new config, swapped only on success. docs/DESIGN.md, "Ranges of config fields";
@@ -10,7 +10,7 @@ docs/NODES.md, "Parameters".
 from __future__ import annotations
 
 import dataclasses
-import math
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Generic, TypeVar
 
@@ -24,43 +24,26 @@ from rcl_interfaces.msg import (
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from smm_dynamics.validation import RANGE_METADATA, Range, above, at_least, bounds, check_bounds, no_range
-
-from smm_node_runtime.schema import (
-    PER_JOINT_LENGTH,
+from smm_schema.fields import (
     ConfigField,
     FieldKind,
     config_fields,
     config_from_parameters,
-    config_to_parameters,
-    docstring_attributes,
+    constraints,
+    integer_span,
     parameter_name,
     parameter_value,
     value_at,
 )
 
 __all__ = [
-    "RANGE_METADATA",
-    "ConfigField",
     "ConfigParameters",
-    "FieldKind",
-    "above",
-    "at_least",
-    "bounds",
-    "check_bounds",
-    "config_fields",
-    "config_from_parameters",
-    "config_to_parameters",
+    "config_bindings",
     "declare_config_parameters",
-    "docstring_attributes",
-    "no_range",
     "parameter_descriptor",
-    "parameter_name",
 ]
 
 ConfigT = TypeVar("ConfigT")
-
-_INT64_MAX = 2**63 - 1
 
 _PARAMETER_TYPES = {
     FieldKind.DOUBLE: ParameterType.PARAMETER_DOUBLE,
@@ -72,34 +55,13 @@ _PARAMETER_TYPES = {
 }
 
 
-def _integer_range(value_range: Range) -> IntegerRange:
-    """The closed IntegerRange of the integers in ``value_range`` (an open end moves one inward)."""
-    first, last = -_INT64_MAX - 1, _INT64_MAX
-    if math.isfinite(value_range.low):
-        first = math.floor(value_range.low) + 1 if value_range.low_open else math.ceil(value_range.low)
-    if math.isfinite(value_range.high):
-        last = math.ceil(value_range.high) - 1 if value_range.high_open else math.floor(value_range.high)
-    return IntegerRange(from_value=first, to_value=last, step=1)
+_BINDINGS: weakref.WeakKeyDictionary[Node, list[ConfigParameters[Any]]] = weakref.WeakKeyDictionary()
+"""Every node's :class:`ConfigParameters`, in the order it made them."""
 
 
-def _constraints(field: ConfigField) -> str:
-    """``additional_constraints`` text: the array length, and a range ROS cannot state exactly."""
-    parts = []
-    if field.length == PER_JOINT_LENGTH:
-        parts.append("2 values, per joint (alpha, beta)")
-    elif field.length is not None:
-        parts.append(f"{field.length} values")
-    value_range = field.value_range
-    if value_range is not None and not value_range.unbounded:
-        array = field.kind in (FieldKind.DOUBLE_ARRAY, FieldKind.INTEGER_ARRAY)
-        open_finite_end = (value_range.low_open and math.isfinite(value_range.low)) or (
-            value_range.high_open and math.isfinite(value_range.high)
-        )
-        if array:
-            parts.append(f"each {value_range.requirement()}")
-        elif open_finite_end and field.kind is FieldKind.DOUBLE:
-            parts.append(value_range.requirement())
-    return ", ".join(parts)
+def config_bindings(node: Node) -> tuple[ConfigParameters[Any], ...]:
+    """The configs ``node`` mirrors as parameters (its :class:`ConfigParameters`), in the order made."""
+    return tuple(_BINDINGS.get(node, ()))
 
 
 def parameter_descriptor(field: ConfigField, full_name: str, read_only: bool = False) -> ParameterDescriptor:
@@ -108,7 +70,7 @@ def parameter_descriptor(field: ConfigField, full_name: str, read_only: bool = F
         name=full_name,
         type=_PARAMETER_TYPES[field.kind],
         description=field.description or field.name,
-        additional_constraints=_constraints(field),
+        additional_constraints=constraints(field),
         read_only=read_only,
     )
     value_range = field.value_range
@@ -119,7 +81,8 @@ def parameter_descriptor(field: ConfigField, full_name: str, read_only: bool = F
             FloatingPointRange(from_value=float(value_range.low), to_value=float(value_range.high), step=0.0)
         ]
     elif field.kind is FieldKind.INTEGER:
-        descriptor.integer_range = [_integer_range(value_range)]
+        first, last = integer_span(value_range)
+        descriptor.integer_range = [IntegerRange(from_value=first, to_value=last, step=1)]
     return descriptor
 
 
@@ -208,6 +171,8 @@ class ConfigParameters(Generic[ConfigT]):
     ) -> None:
         self._config_cls: type[ConfigT] = type(default)
         self._prefix = prefix
+        self._default = default
+        self._read_only = read_only
         self._on_change = on_change
         self._check = check
         self._config: ConfigT = declare_config_parameters(
@@ -220,6 +185,7 @@ class ConfigParameters(Generic[ConfigT]):
         # Registered after the declarations: declare_parameter runs these callbacks one parameter at a time.
         node.add_on_set_parameters_callback(self._validate)
         node.add_post_set_parameters_callback(self._commit)
+        _BINDINGS.setdefault(node, []).append(self)
 
     @property
     def config(self) -> ConfigT:
@@ -230,6 +196,21 @@ class ConfigParameters(Generic[ConfigT]):
     def prefix(self) -> str:
         """Parameter name prefix (without trailing dot)."""
         return self._prefix
+
+    @property
+    def default(self) -> ConfigT:
+        """The config the node offered as default (before its parameter overrides)."""
+        return self._default
+
+    @property
+    def read_only(self) -> bool:
+        """True when the parameters are settable only at start-up."""
+        return self._read_only
+
+    @property
+    def fields(self) -> tuple[ConfigField, ...]:
+        """The config's leaf fields, one per parameter (names relative to :attr:`prefix`)."""
+        return config_fields(self._config_cls)
 
     @property
     def parameter_names(self) -> frozenset[str]:

@@ -9,7 +9,7 @@ import enum
 from dataclasses import dataclass, field
 from typing import Final
 
-from smm_dynamics.validation import bounds, check_bounds
+from smm_schema.ranges import bounds, check_bounds
 
 __all__ = ["DEFAULT_CONTROL_PERIOD", "REFUSED", "Admission", "StampGate", "StampPolicy"]
 

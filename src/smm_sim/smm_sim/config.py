@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Final, Literal
 
-from smm_dynamics.validation import above, at_least, bounds, check_bounds, no_range
+from smm_schema.ranges import above, at_least, bounds, check_bounds, no_range
 
 from smm_dynamics import SMMParameters
 from smm_sim.plant import PlantConfig

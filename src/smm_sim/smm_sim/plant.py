@@ -15,12 +15,12 @@ from typing import Final, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from smm_dynamics.validation import check_pair
 from smm_dynamics.valve import (
     PAPER_VALVE_RESPONSE_TIMES,
     valve_lag_step,
     valve_time_constants_from_response_times,
 )
+from smm_schema.ranges import above, at_least, bounds, check_bounds
 
 from smm_dynamics import SMMParameters, rk4_step_floats
 
@@ -110,48 +110,26 @@ class PlantConfig:
     """
 
     params: SMMParameters = field(default_factory=SMMParameters)
-    inertia_scale: float = 1.0
-    noise_std: tuple[float, float] = (0.0, 0.0)
-    encoder_counts_per_rev: int = 0
-    seed: int = 0
+    inertia_scale: float = field(default=1.0, metadata=above(0.0))
+    noise_std: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
+    encoder_counts_per_rev: int = field(default=0, metadata=at_least(0))
+    seed: int = field(default=0, metadata=at_least(0))
     disturbance: DisturbanceModel = "none"
-    joint_limits: tuple[float, float] = (1.3, 1.3)
-    torque_limit: tuple[float, float] = (math.inf, math.inf)
-    torque_quantum: tuple[float, float] = (0.0, 0.0)
-    valve_time_constants: tuple[float, float] | None = None
-    substeps: int = 1
-    control_period: float = 1e-3
+    joint_limits: tuple[float, float] = field(
+        default=(1.3, 1.3), metadata=bounds(0.0, math.pi / 2, low_open=True, high_open=True)
+    )
+    torque_limit: tuple[float, float] = field(default=(math.inf, math.inf), metadata=above(0.0, inf=True))
+    torque_quantum: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
+    valve_time_constants: tuple[float, float] | None = field(default=None, metadata=above(0.0))
+    substeps: int = field(default=1, metadata=at_least(1))
+    control_period: float = field(default=1e-3, metadata=at_least(1e-9))
 
     def __post_init__(self) -> None:
         if not isinstance(self.params, SMMParameters):
             raise ValueError(f"params must be an SMMParameters, got {self.params!r}")
-        scale = self.inertia_scale
-        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale):
-            raise ValueError(f"inertia_scale must be a finite number, got {scale!r}")
-        if scale <= 0.0:
-            raise ValueError(f"inertia_scale must be > 0, got {scale!r}")
-        check_pair("noise_std", self.noise_std, non_negative=True)
-        counts = self.encoder_counts_per_rev
-        if isinstance(counts, bool) or not isinstance(counts, int) or counts < 0:
-            raise ValueError(f"encoder_counts_per_rev must be an int >= 0, got {counts!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"seed must be an int >= 0, got {self.seed!r}")
+        check_bounds(self)
         if self.disturbance not in DISTURBANCE_MODELS:
             raise ValueError(f"disturbance must be one of {DISTURBANCE_MODELS}, got {self.disturbance!r}")
-        check_pair("joint_limits", self.joint_limits, positive=True)
-        if max(self.joint_limits) >= math.pi / 2:
-            raise ValueError(f"joint_limits must be < pi/2 rad (singularity), got {self.joint_limits!r}")
-        check_pair("torque_limit", self.torque_limit, positive=True, allow_inf=True)
-        check_pair("torque_quantum", self.torque_quantum, non_negative=True)
-        if self.valve_time_constants is not None:
-            check_pair("valve_time_constants", self.valve_time_constants, positive=True)
-        if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1:
-            raise ValueError(f"substeps must be an int >= 1, got {self.substeps!r}")
-        period = self.control_period
-        if isinstance(period, bool) or not isinstance(period, (int, float)) or not math.isfinite(period):
-            raise ValueError(f"control_period must be a finite number, got {period!r}")
-        if round(period * _NS_PER_S) <= 0:
-            raise ValueError(f"control_period must be >= 1 ns, got {period!r}")
 
     @property
     def true_params(self) -> SMMParameters:

@@ -22,7 +22,7 @@ from smm_node_runtime.parameter_files import (
     parameters_for,
     read_parameter_file,
 )
-from smm_node_runtime.schema import config_from_parameters
+from smm_schema.fields import config_from_parameters
 
 from smm_analysis.errors import ParamsFileError
 from smm_analysis.runs.recorded import RecordedRun

@@ -20,7 +20,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 from smm_controller.laws import get_law
-from smm_node_runtime.schema import config_to_parameters
+from smm_schema.fields import config_to_parameters
 
 from smm_analysis.batch.loop import RunSettings
 from smm_analysis.parameters_file import write_parameters_file

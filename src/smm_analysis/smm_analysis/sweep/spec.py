@@ -22,7 +22,7 @@ import yaml
 from scipy.stats import qmc
 from smm_controller.laws import PAPER_LAWS, law_names, law_table
 from smm_controller.limits import OutputLimitConfig
-from smm_node_runtime.schema import config_fields, config_from_parameters, config_to_parameters
+from smm_schema.fields import config_fields, config_from_parameters, config_to_parameters
 
 from smm_analysis.acceptance import CASE2_RMS_REDUCTION, STEP_OVERSHOOT_LIMIT, STEP_RISE_TIME_RANGE
 from smm_analysis.batch.loop import INDEX_NAMES, RunSettings

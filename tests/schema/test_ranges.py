@@ -1,4 +1,4 @@
-"""smm_dynamics.validation: the field checks every package's config dataclasses use."""
+"""smm_schema.ranges: the field checks every package's config dataclasses use."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 from typing import Any
 
 import pytest
-from smm_dynamics.validation import check_pair, check_scalar, is_real
+from smm_schema.ranges import check_pair, check_scalar, is_real
 
 
 @pytest.mark.parametrize(

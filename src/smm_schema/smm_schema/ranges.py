@@ -1,14 +1,15 @@
 """Ranges of config fields as data, and the checks every config shares (ValueError naming field and value).
 
 A numeric field declares its range once, in its dataclass field metadata (:func:`bounds`, :func:`above`,
-:func:`at_least`, or :func:`no_range`); :func:`check_bounds` checks it in ``__post_init__`` and
-``smm_node_runtime`` mirrors it as the ROS parameter's range (docs/DESIGN.md, "Ranges of config fields").
+:func:`at_least`, or :func:`no_range`); :func:`check_bounds` checks it in ``__post_init__``,
+:mod:`smm_schema.fields` carries it to the parameters (docs/DESIGN.md, "Ranges of config fields").
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import types
 import typing
 from dataclasses import dataclass
 from typing import Any
@@ -26,6 +27,7 @@ __all__ = [
     "field_range",
     "is_real",
     "no_range",
+    "numeric_hint",
 ]
 
 
@@ -186,6 +188,15 @@ def field_range(item: dataclasses.Field[Any]) -> Range | None:
     return value_range if isinstance(value_range, Range) else None
 
 
+def numeric_hint(hint: Any) -> Any:
+    """``X`` for an optional ``X | None`` field's hint, else the hint itself."""
+    arguments = typing.get_args(hint)
+    if typing.get_origin(hint) in (typing.Union, types.UnionType) and type(None) in arguments:
+        rest = [argument for argument in arguments if argument is not type(None)]
+        return rest[0] if len(rest) == 1 else hint
+    return hint
+
+
 def _problem(value: Any, value_range: Range, integer: bool) -> str | None:
     """What ``value`` must be and is not, or None if it is a number (an int if ``integer``) in range."""
     finite = not (value_range.contains(math.inf) or value_range.contains(-math.inf))
@@ -202,7 +213,8 @@ def check_bounds(config: object) -> None:
     """Check every field of the dataclass ``config`` that declares a :class:`Range` (see :func:`bounds`).
 
     A scalar field must be a real number (an int, not bool, for ``int`` fields) in its range; a tuple field
-    a tuple whose every element is (length and element type as its type hint says).
+    a tuple whose every element is (length and element type as its type hint says); an optional field
+    (``X | None``) may also be None.
 
     Raises:
         ValueError: naming the field, what it must be, and the value.
@@ -213,7 +225,9 @@ def check_bounds(config: object) -> None:
         if value_range is None:
             continue
         value = getattr(config, item.name)
-        hint = hints[item.name]
+        hint = numeric_hint(hints[item.name])
+        if value is None and hint is not hints[item.name]:
+            continue  # an optional field left out ("none")
         if typing.get_origin(hint) is not tuple:
             problem = _problem(value, value_range, hint is int)
             if problem is not None:

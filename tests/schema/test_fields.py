@@ -1,4 +1,4 @@
-"""Generic config dataclass <-> ROS parameter mapping of smm_node_runtime.schema."""
+"""Generic config dataclass <-> parameter mapping of smm_schema.fields."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from smm_controller.fpdeso import FPDESOConfig
 from smm_controller.fuzzy_pd import FuzzyPDConfig
 from smm_controller.reference import RampHoldReference, SineReference, StepReference
 from smm_controller.td import TrackingDifferentiatorConfig
-from smm_node_runtime.schema import (
+from smm_schema.fields import (
     FieldKind,
     config_fields,
     config_from_parameters,

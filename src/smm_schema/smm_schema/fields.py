@@ -3,8 +3,8 @@
 Each leaf field of a frozen config dataclass is one parameter ``<prefix>.<field>`` (nested: dotted,
 ``fpdeso.fuzzy.k_e``). Its kind comes from the type hint (``float``, ``int``, ``bool``, ``str`` or a
 ``Literal``, ``tuple[float, float]`` per joint, ``tuple[float, ...]``, the same of ``int``), its range from
-the field metadata, its description from the dataclass's ``Attributes:`` section. rclpy side:
-:mod:`smm_node_runtime.parameters`.
+the field metadata (:mod:`smm_schema.ranges`), its description from the dataclass's ``Attributes:``
+section. rclpy side: :mod:`smm_node_runtime.parameters`.
 """
 
 from __future__ import annotations
@@ -12,23 +12,29 @@ from __future__ import annotations
 import dataclasses
 import enum
 import inspect
+import math
 import re
 import typing
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, TypeVar
 
-from smm_dynamics.validation import Range, field_range
+from smm_schema.ranges import Range, field_range
 
 __all__ = [
+    "INT64_MAX",
+    "INT64_MIN",
     "NUMERIC_KINDS",
     "PER_JOINT_LENGTH",
     "ConfigField",
     "FieldKind",
+    "choices",
     "config_fields",
     "config_from_parameters",
     "config_to_parameters",
+    "constraints",
     "docstring_attributes",
+    "integer_span",
     "parameter_name",
     "parameter_value",
     "unranged_fields",
@@ -39,6 +45,9 @@ ConfigT = TypeVar("ConfigT")
 
 PER_JOINT_LENGTH = 2
 """Length of a per-joint field ``tuple[float, float]`` (alpha, beta)."""
+
+INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
+"""The ends of a ROS integer parameter."""
 
 
 class FieldKind(enum.Enum):
@@ -60,7 +69,7 @@ class FieldKind(enum.Enum):
 NUMERIC_KINDS = frozenset(
     {FieldKind.DOUBLE, FieldKind.INTEGER, FieldKind.DOUBLE_ARRAY, FieldKind.INTEGER_ARRAY}
 )
-"""Kinds whose fields must declare a range (or :func:`~smm_dynamics.validation.no_range`)."""
+"""Kinds whose fields must declare a range (or :func:`~smm_schema.ranges.no_range`)."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +84,7 @@ class ConfigField:
             variable-length tuples.
         description: Human-readable meaning and unit (from the docstring), may be empty.
         value_range: Range of a number field, of each element for an array (its field metadata), or None.
+        choices: The values a ``Literal`` string field admits, empty for every other field.
     """
 
     name: str
@@ -83,6 +93,7 @@ class ConfigField:
     length: int | None
     description: str
     value_range: Range | None = None
+    choices: tuple[str, ...] = ()
 
 
 def parameter_name(prefix: str, name: str) -> str:
@@ -189,8 +200,18 @@ def _config_fields(config_cls: type, path: tuple[str, ...]) -> tuple[ConfigField
         kind, length = _leaf_kind(hint, ".".join(field_path))
         description = docs.get(field.name, "")
         value_range = field_range(field) if kind.numeric else None
-        result.append(ConfigField(".".join(field_path), field_path, kind, length, description, value_range))
+        result.append(
+            ConfigField(
+                ".".join(field_path), field_path, kind, length, description, value_range, choices(hint)
+            )
+        )
     return tuple(result)
+
+
+def choices(hint: Any) -> tuple[str, ...]:
+    """The strings a ``Literal`` type hint admits, in order (empty for any other hint)."""
+    arguments = typing.get_args(hint) if typing.get_origin(hint) is Literal else ()
+    return tuple(value for value in arguments if isinstance(value, str))
 
 
 def unranged_fields(config_cls: type) -> tuple[str, ...]:
@@ -206,6 +227,40 @@ def value_at(config: object, path: Sequence[str]) -> Any:
     for attribute in path:
         value = getattr(value, attribute)
     return value
+
+
+def integer_span(value_range: Range) -> tuple[int, int]:
+    """The first and last integer in ``value_range`` (an open end moves one inward; int64 for no end)."""
+    first, last = INT64_MIN, INT64_MAX
+    if math.isfinite(value_range.low):
+        first = math.floor(value_range.low) + 1 if value_range.low_open else math.ceil(value_range.low)
+    if math.isfinite(value_range.high):
+        last = math.ceil(value_range.high) - 1 if value_range.high_open else math.floor(value_range.high)
+    return first, last
+
+
+def constraints(field: ConfigField) -> str:
+    """What a closed ROS range cannot say of ``field``: its array length, open ends, element range.
+
+    E.g. ``"2 values, per joint (alpha, beta), each > 0"`` or ``"in (0, 1]"``; empty when the ROS range
+    (or no range) says it all.
+    """
+    parts = []
+    if field.length == PER_JOINT_LENGTH:
+        parts.append("2 values, per joint (alpha, beta)")
+    elif field.length is not None:
+        parts.append(f"{field.length} values")
+    value_range = field.value_range
+    if value_range is not None and not value_range.unbounded:
+        array = field.kind in (FieldKind.DOUBLE_ARRAY, FieldKind.INTEGER_ARRAY)
+        open_finite_end = (value_range.low_open and math.isfinite(value_range.low)) or (
+            value_range.high_open and math.isfinite(value_range.high)
+        )
+        if array:
+            parts.append(f"each {value_range.requirement()}")
+        elif open_finite_end and field.kind is FieldKind.DOUBLE:
+            parts.append(value_range.requirement())
+    return ", ".join(parts)
 
 
 # ------------------------------------------------------------------------------- value conversions

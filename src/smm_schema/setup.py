@@ -1,0 +1,22 @@
+"""Packaging of smm_schema (ament_python: colcon build and pip install -e both work)."""
+
+from setuptools import find_packages, setup
+
+PACKAGE = "smm_schema"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "tests"]),
+    package_data={PACKAGE: ["py.typed"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="SMM control stack maintainers",
+    maintainer_email="smm-maintainers@example.org",
+    description="Config schema of the SMM stack: field ranges, config dataclass to parameter values (pure).",
+    license="Apache-2.0",
+)
