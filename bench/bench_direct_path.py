@@ -52,21 +52,26 @@ def run(observed: bool) -> dict[str, Any]:
         """The emulator's board behind an in-memory link: a new feedback frame each time one is read.
 
         The board ticks when the host asks for the next frame (its lockstep tick once the last feedback is
-        answered, else its own tick), so the host never waits for a clock and no other process runs.
+        answered, else its own tick), so the host never waits for a clock and no other process runs. It
+        reads the frames sent then too, as a board reads its socket: its work stays out of receive -> send.
         """
 
         def __init__(self) -> None:
             super().__init__()
             self.board = BoardCore(BoardConfig())
             self.first: bytes | None = self.board.start()
+            self.sent: list[bytes] = []
 
         def send(self, frame: bytes) -> None:
-            self.board.receive(frame)
+            self.sent.append(frame)
 
         def receive(self, timeout_s: float = 0.0) -> bytes | None:
             first, self.first = self.first, None
             if first is not None:
                 return first
+            sent, self.sent = self.sent, []
+            for frame in sent:
+                self.board.receive(frame)
             return self.board.tick_lockstep() if self.board.answered else self.board.tick_realtime()
 
         def fileno(self) -> int:
@@ -86,8 +91,11 @@ def run(observed: bool) -> dict[str, Any]:
         context=context,
         parameter_overrides={"chain": "internal", "reference_source": "internal", "reference.kind": "sine"},
     )
+    # A busy machine's pauses must not take the in-memory link down (the board waits for the host anyway).
     bridge = DirectBridgeNode(
-        controller, context=context, parameter_overrides={"loop.spin_us": 0}
+        controller,
+        context=context,
+        parameter_overrides={"loop.spin_us": 0, "bridge.link_timeout_ns": 30_000_000_000},
     )
     peer = rclpy.create_node("bench_peer", context=context)
     if observed:
