@@ -52,26 +52,21 @@ def run(observed: bool) -> dict[str, Any]:
         """The emulator's board behind an in-memory link: a new feedback frame each time one is read.
 
         The board ticks when the host asks for the next frame (its lockstep tick once the last feedback is
-        answered, else its own tick), so the host never waits for a clock and no other process runs. It
-        reads the frames sent then too, as a board reads its socket: its work stays out of receive -> send.
+        answered, else its own tick), so the host never waits for a clock and no other process runs.
         """
 
         def __init__(self) -> None:
             super().__init__()
             self.board = BoardCore(BoardConfig())
             self.first: bytes | None = self.board.start()
-            self.sent: list[bytes] = []
 
         def send(self, frame: bytes) -> None:
-            self.sent.append(frame)
+            self.board.receive(frame)
 
         def receive(self, timeout_s: float = 0.0) -> bytes | None:
             first, self.first = self.first, None
             if first is not None:
                 return first
-            sent, self.sent = self.sent, []
-            for frame in sent:
-                self.board.receive(frame)
             return self.board.tick_lockstep() if self.board.answered else self.board.tick_realtime()
 
         def fileno(self) -> int:
