@@ -86,8 +86,11 @@ def run(observed: bool) -> dict[str, Any]:
         context=context,
         parameter_overrides={"chain": "internal", "reference_source": "internal", "reference.kind": "sine"},
     )
+    # A busy machine's pauses must not take the in-memory link down (the board waits for the host anyway).
     bridge = DirectBridgeNode(
-        controller, context=context, parameter_overrides={"loop.spin_us": 0}
+        controller,
+        context=context,
+        parameter_overrides={"loop.spin_us": 0, "bridge.link_timeout_ns": 30_000_000_000},
     )
     peer = rclpy.create_node("bench_peer", context=context)
     if observed:

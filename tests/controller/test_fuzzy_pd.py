@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
+from smm_controller.fuzzy_batch import evaluate_system
 from smm_controller.fuzzy_pd import PAPER_FPD_FUZZY, PAPER_FPDESO_FUZZY, FuzzyPDConfig, FuzzyPDGainSchedule
 from smm_controller.rules import TABLE_1, TABLE_7, pd_gain_system
 
@@ -21,7 +22,7 @@ def test_gains_follow_eq_12(e0: float, e1: float, ed0: float, ed1: float) -> Non
     for j, (table, e, ed) in enumerate(((TABLE_1, e0, ed0), (TABLE_7, e1, ed1))):
         e_n = float(np.clip(config.k_e[j] * e, -1, 1))
         ce_n = float(np.clip(config.k_de[j] * ed, -1, 1))
-        f_ke, f_kde = pd_gain_system(table).evaluate((e_n, ce_n))
+        f_ke, f_kde = evaluate_system(pd_gain_system(table), (e_n, ce_n))
         assert kp[j] == pytest.approx(config.kp0[j] + config.k1[j] * f_ke, rel=1e-13)
         assert kd[j] == pytest.approx(config.kd0[j] + config.k2[j] * f_kde, rel=1e-13)
 

@@ -80,6 +80,35 @@ def test_a_non_finite_law_output_is_not_turned_into_a_finite_torque() -> None:
     assert math.isnan(tau[1])
 
 
+def _clamped(value: float, low: float, high: float) -> float:
+    """The limiter's clamp written plainly: min/max of a finite value; a non-finite one passes."""
+    return min(max(value, low), high) if math.isfinite(value) else value
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(st.tuples(st.floats(width=64), st.floats(width=64)), min_size=1, max_size=20),
+    st.tuples(st.floats(0.1, 1e3), st.floats(0.1, 1e3)),
+    st.tuples(st.floats(1.0, 1e6), st.floats(1.0, 1e6)),
+)
+def test_the_limited_torque_is_the_rate_then_magnitude_clamp_bit_for_bit(
+    taus: list[tuple[float, float]], bounds: tuple[float, float], rates: tuple[float, float]
+) -> None:
+    limiter = OutputLimiter(OutputLimitConfig(torque_limit=bounds, rate_limit=rates))
+    previous: tuple[float, ...] | None = None
+    for tau in taus:
+        expected = []
+        for joint in range(2):
+            value = tau[joint]
+            if previous is not None:
+                step = rates[joint] * 1e-3
+                value = _clamped(value, previous[joint] - step, previous[joint] + step)
+            expected.append(_clamped(value, -bounds[joint], bounds[joint]))
+        out = limiter.limit_floats(tau, 1e-3)
+        assert [v.hex() for v in out] == [v.hex() for v in expected]  # NaN and signed zeros too
+        previous = out
+
+
 @settings(max_examples=100, deadline=None)
 @given(
     st.lists(

@@ -2,7 +2,8 @@
 
 Membership functions, linguistic variables, rule evaluation (min AND, min implication, max aggregation)
 and the exact centroid of the sampled aggregate. The precomputed tables are in :mod:`fuzzy_tables`, the
-batched evaluation every control step uses in :mod:`fuzzy_batch` (docs/DESIGN.md, "The fuzzy engine").
+batched evaluation every control step uses (and :func:`~smm_controller.fuzzy_batch.evaluate_system` for one
+system) in :mod:`fuzzy_batch`, which import this module (docs/DESIGN.md, "The fuzzy engine").
 """
 
 from __future__ import annotations
@@ -453,10 +454,3 @@ class MamdaniSystem:
         strengths = np.reshape(self.label_strengths(x), (len(self.outputs), self.n_labels))
         clipped = np.minimum(strengths.T[:, :, None], self.output_samples)
         return np.asarray(clipped.max(axis=0), dtype=np.float64)
-
-    def evaluate(self, x: Sequence[float]) -> tuple[float, ...]:
-        """Crisp outputs for one crisp input vector (one value per output variable), as the control step."""
-        # The batch evaluates on top of this definition (fuzzy_batch imports this module): imported here.
-        from smm_controller.fuzzy_batch import MamdaniBatch  # noqa: PLC0415
-
-        return tuple(MamdaniBatch([self]).evaluate([x])[0])

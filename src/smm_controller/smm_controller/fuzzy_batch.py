@@ -15,7 +15,7 @@ import numpy.typing as npt
 from smm_controller.fuzzy import ZERO_AREA_FALLBACK, Lattice, MamdaniSystem, centroid_weights
 from smm_controller.fuzzy_tables import LabelPairCentroids, SingleInputCentroids
 
-__all__ = ["MamdaniBatch"]
+__all__ = ["MamdaniBatch", "evaluate_system"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -325,3 +325,8 @@ class MamdaniBatch:
             moment / area if area > 0.0 else ZERO_AREA_FALLBACK
             for area, moment in np.dot(self._aggregated, self._weights).tolist()
         ]
+
+
+def evaluate_system(system: MamdaniSystem, x: Sequence[float]) -> tuple[float, ...]:
+    """Crisp outputs of one system for one crisp input vector, as the control step evaluates them."""
+    return tuple(MamdaniBatch([system]).evaluate([x])[0])

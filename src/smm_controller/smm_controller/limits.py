@@ -158,10 +158,7 @@ def track_saturation(
         law.track_saturation(unlimited, limited, dt)
 
 
-def _limit(value: float, low: float, high: float) -> float:
-    if not math.isfinite(value):
-        return value  # a diverged law must fail the output check, not become a full-scale finite torque
-    return low if value < low else (high if value > high else value)
+_INF = math.inf
 
 
 class OutputLimiter:
@@ -192,12 +189,22 @@ class OutputLimiter:
         config = self.config
         previous = self._previous
         a, b = tau
+        # Clamps inlined (every control step; -inf < x < inf is math.isfinite): a non-finite value passes
+        # unclamped, so a diverged law fails the output check instead of becoming a full-scale torque.
         if previous is not None:
             rate_a, rate_b = config.rate_limit
-            a = _limit(a, previous[0] - rate_a * dt, previous[0] + rate_a * dt)
-            b = _limit(b, previous[1] - rate_b * dt, previous[1] + rate_b * dt)
+            if -_INF < a < _INF:
+                low, high = previous[0] - rate_a * dt, previous[0] + rate_a * dt
+                a = low if a < low else (high if a > high else a)
+            if -_INF < b < _INF:
+                low, high = previous[1] - rate_b * dt, previous[1] + rate_b * dt
+                b = low if b < low else (high if b > high else b)
         bound_a, bound_b = config.torque_limit
-        result = (_limit(a, -bound_a, bound_a), _limit(b, -bound_b, bound_b))
+        if -_INF < a < _INF:
+            a = -bound_a if a < -bound_a else (bound_a if a > bound_a else a)
+        if -_INF < b < _INF:
+            b = -bound_b if b < -bound_b else (bound_b if b > bound_b else b)
+        result = (a, b)
         clamped_a = 0.0 if result[0] == tau[0] or math.isnan(result[0]) else 1.0
         clamped_b = 0.0 if result[1] == tau[1] or math.isnan(result[1]) else 1.0
         if clamped_a or clamped_b:
