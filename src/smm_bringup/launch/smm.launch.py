@@ -29,7 +29,7 @@ from smm_controller.laws import law_names
 ARGUMENTS = (
     ("plant", "sim", f"plant node: {' | '.join(PLANTS)}"),
     ("clock_mode", "lockstep", f"simulator clock: {' | '.join(CLOCK_MODES)}"),
-    ("loop", "topics", f"control loop: {' | '.join(LOOPS)}"),
+    ("loop", "auto", f"control loop: {' | '.join(LOOPS)}"),
     ("chain", "fused", f"chain layout: {' | '.join(CHAIN_LAYOUTS)}"),
     ("reference", "controller", f"who samples the reference: {' | '.join(REFERENCE_PLACEMENTS)}"),
     ("algorithm", "fpdeso", f"controller: {' | '.join(law_names())}"),

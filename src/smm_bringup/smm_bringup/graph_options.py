@@ -8,7 +8,7 @@ from __future__ import annotations
 import ipaddress
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Final, Literal
 
@@ -32,10 +32,12 @@ PLANTS: Final[tuple[str, ...]] = ("sim", "hardware")
 PLANT_ALIASES: Final[Mapping[str, str]] = MappingProxyType({"hw": "hardware"})
 """Other names accepted for a plant (``hw`` = ``hardware``)."""
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
-LOOPS: Final[tuple[str, ...]] = ("topics", "direct")
+LOOPS: Final[tuple[str, ...]] = ("auto", "topics", "direct")
 """``topics``: the plant and ``controller_node`` are separate processes joined by topics (the product's
 shape); ``direct`` (hardware only): one process, ``direct_loop``, steps the chain of ``controller_node`` in
-the bridge's receiving thread and publishes the same topics for observation (docs/LAUNCH.md)."""
+the bridge's receiving thread and publishes the same topics for observation (docs/LAUNCH.md); ``auto``: the
+direct loop for the hardware plant in real time (it holds the deadline best) where the chain and reference
+allow it, the topics loop otherwise."""
 CHAIN_LAYOUTS: Final[tuple[str, ...]] = ("fused", "split")
 """``fused``: TD, FLESO and law in ``controller_node`` (``chain: internal``), two hops per step; ``split``:
 ``td_node`` and ``fleso_node`` as their own nodes (``chain: external``), four hops per step."""
@@ -75,10 +77,14 @@ class GraphOptions:
             ``smm_bench_emulator`` on loopback instead.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
-        loop: ``"topics"`` (default) or ``"direct"`` (``plant="hardware"``, fused chain, reference sampled
-            by the controller): see :data:`LOOPS`.
+        loop: ``"auto"`` (default), ``"topics"`` or ``"direct"`` (``plant="hardware"``, fused chain,
+            reference sampled by the controller): see :data:`LOOPS`. ``"auto"`` is resolved on
+            construction, so the instance holds ``"topics"`` or ``"direct"``.
         late_limit: ``hardware``: percent of the ticks after the first second of live output that may be
             late or not live before the run counts as not controlled (exit 3, docs/LAUNCH.md), in [0, 100].
+        preflight: ``hardware`` in real time: seconds the bridge rehearses the loop with output disabled
+            before arming (``preflight.duration_s``, in [0, 30], 0 skips it); ``None``: its default (3 s).
+        force: ``hardware``: arm even when the preflight finds the control rate is not held (a warning).
         start_timeout: ``hardware``: seconds the emulator waits for the first step (lockstep) or the first
             tick with an enabled command (real time) before the run counts as never started (exit 3), > 0.
         rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
@@ -103,9 +109,14 @@ class GraphOptions:
     board: str | None = None
     record: str | None = None
     rt_priority: int | None = None
-    loop: Literal["topics", "direct"] = "topics"
+    loop: Literal["auto", "topics", "direct"] = "auto"
     late_limit: float = 1.0
     start_timeout: float = 60.0
+    preflight: float | None = None
+    force: bool = False
+    loop_note: str | None = field(default=None, init=False, compare=False)
+    """Why ``auto`` chose the topics loop for a hardware run in real time (the user's chain or reference),
+    in one line; None otherwise."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "plant", PLANT_ALIASES.get(self.plant, self.plant))
@@ -157,8 +168,19 @@ class GraphOptions:
                 or not (0.0 <= value <= 100.0 if name == "late_limit" else value > 0.0)
             ):
                 raise ValueError(f"{name} must be a finite number, {wanted}, got {value!r}")
+        preflight = self.preflight
+        if preflight is not None and (
+            isinstance(preflight, bool)
+            or not isinstance(preflight, (int, float))
+            or not 0.0 <= preflight <= 30.0
+        ):
+            raise ValueError(f"preflight must be a number of seconds in [0, 30] or None, got {preflight!r}")
+        if not isinstance(self.force, bool):
+            raise ValueError(f"force must be a bool, got {self.force!r}")
         if self.loop not in LOOPS:
             raise ValueError(f"loop must be one of {LOOPS}, got {self.loop!r}")
+        if self.loop == "auto":
+            self._choose_loop()
         if self.loop == "direct" and (
             self.plant != "hardware" or self.chain != "fused" or self.reference != "controller"
         ):
@@ -170,6 +192,26 @@ class GraphOptions:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
             split_endpoint("board", self.board)
+
+    def _choose_loop(self) -> None:
+        """``loop="auto"``: direct for the hardware plant in real time unless the choices forbid it."""
+        hardware_realtime = self.plant == "hardware" and self.clock_mode == "realtime"
+        unhosted = [
+            f"--{name} {value}"
+            for name, value, wanted in (
+                ("chain", self.chain, "fused"),
+                ("reference", self.reference, "controller"),
+            )
+            if value != wanted
+        ]
+        loop = "direct" if hardware_realtime and not unhosted else "topics"
+        object.__setattr__(self, "loop", loop)
+        if hardware_realtime and unhosted:
+            object.__setattr__(
+                self,
+                "loop_note",
+                f"the direct loop cannot host {' '.join(unhosted)}: using the topics loop",
+            )
 
 
 def split_endpoint(name: str, text: str) -> tuple[str, int]:

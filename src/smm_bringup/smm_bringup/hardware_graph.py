@@ -48,6 +48,10 @@ def hardware_specs(
         ("link.board_port", port),
         ("verdict.late_limit", options.late_limit / 100.0),
     ]
+    if options.preflight is not None:
+        bridge_parameters.append(("preflight.duration_s", float(options.preflight)))
+    if options.force:
+        bridge_parameters.append(("preflight.force", True))
     lockstep = options.clock_mode == "lockstep"
     if lockstep:
         # The board ticks when the controller has answered: the graph's pace, no wall-clock limit may fire.

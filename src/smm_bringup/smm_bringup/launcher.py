@@ -3,7 +3,8 @@
 Each node its own OS process, as ``ros2 launch`` starts it (:mod:`smm_bringup.supervisor`; ``--loop direct``:
 ``direct_loop`` hosts bridge and controller), or all in this process with ``--composed``
 (:mod:`smm_bringup.composed`). Options, the closing ``board:`` and ``run:`` lines, shutdown and exit codes
-(0 run complete, 1 a node failed, 2 bad configuration, 3 a hardware run that did not control, 128 + signal):
+(0 run complete, 1 a node failed, 2 bad configuration, 3 a hardware run that did not control, 4 refused to
+arm at preflight, 128 + signal):
 docs/LAUNCH.md.
 """
 
@@ -37,6 +38,7 @@ from smm_bringup.supervisor import (
     EXIT_CONFIGURATION_ERROR,
     EXIT_NOT_CONTROLLED,
     EXIT_OK,
+    EXIT_PREFLIGHT_REFUSED,
     STOP_GRACE_S,
     _say,
     launch_processes,
@@ -92,7 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
         choices=LOOPS,
         default=GraphOptions.loop,
         help="hardware: topics (the bridge and controller_node as processes joined by topics) or direct "
-        "(one process steps the chain in the bridge's receiving thread; topics for observation only)",
+        "(one process steps the chain in the bridge's receiving thread; topics for observation only); auto "
+        "(default): direct in real time where the chain and reference allow it, else topics",
     )
     parser.add_argument("--algorithm", choices=law_names(), default="fpdeso", help="controller algorithm")
     parser.add_argument(
@@ -146,6 +149,19 @@ def build_parser() -> argparse.ArgumentParser:
         "the first second were late",
     )
     parser.add_argument(
+        "--preflight",
+        type=float,
+        default=None,
+        metavar="S",
+        help="hardware, real time: seconds the bridge rehearses the loop with output disabled before arming "
+        "(0-30, 0 skips it; default 3); a rate this host does not hold is refused (exit 4)",
+    )
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="hardware: arm even when the preflight finds the control rate is not held (with a warning)",
+    )
+    parser.add_argument(
         "--start-timeout",
         type=float,
         default=GraphOptions.start_timeout,
@@ -187,6 +203,8 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         loop=arguments.loop,
         late_limit=arguments.late_limit,
         start_timeout=arguments.start_timeout,
+        preflight=arguments.preflight,
+        force=arguments.force,
     )
 
 
@@ -209,8 +227,11 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--record", options.record]
     if options.rt_priority is not None:
         arguments += ["--rt-priority", str(options.rt_priority)]
-    if options.loop != GraphOptions.loop:
-        arguments += ["--loop", options.loop]
+    arguments += ["--loop", options.loop]
+    if options.preflight is not None:
+        arguments += ["--preflight", repr(options.preflight)]
+    if options.force:
+        arguments.append("--force")
     if options.late_limit != GraphOptions.late_limit:
         arguments += ["--late-limit", repr(options.late_limit)]
     if options.start_timeout != GraphOptions.start_timeout:
@@ -223,6 +244,8 @@ def run(argv: Sequence[str]) -> int:
     arguments = build_parser().parse_args(list(argv))
     try:
         options = options_from_arguments(arguments)
+        if options.loop_note is not None:
+            _say(options.loop_note)
         specs = build_graph(options)
         if arguments.dry_run:
             for spec in specs:
@@ -235,6 +258,9 @@ def run(argv: Sequence[str]) -> int:
         with tempfile.TemporaryDirectory(prefix="smm-launch-") as folder:
             status = Path(folder) / "board.json"
             code = launch_processes(with_board_status(specs, status), stop_grace_s=arguments.stop_grace)
+            if code == EXIT_PREFLIGHT_REFUSED:
+                _say("run: refused to arm at preflight (the bridge's figures and reason above)", sys.stderr)
+                return code
             _say(board_line(status, real_board=options.board is not None))
             read = read_line(status)
             if read and options.board is None:

@@ -78,6 +78,11 @@ class DirectControllerNode(ControllerNode):
         self._pending = result
         return result
 
+    def forget_rehearsal(self) -> None:
+        """After the preflight's rehearsal: nothing of it is published, the run starts from fresh state."""
+        self._pending = None
+        self.core.reset()
+
     def publish_answer(self) -> None:
         """Publishes what the topics loop would for the last measurement, after the frame went out.
 
@@ -198,6 +203,20 @@ class DirectBridgeNode(HwBridgeNode):
         self.statistics.on_tick(rx_ns, time.monotonic_ns())
         self._answered_stamp = stamp_ns
         return True
+
+    def rehearse_in_place(self, core: BridgeCore, rx_ns: int) -> bool:
+        """The preflight: steps the chain as :meth:`answer_in_place` does, and sends nothing of it."""
+        stamp_ns = core.stamp_ns
+        try:
+            result = self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
+        except Exception as error:  # a bug in a law: the loop cannot go on
+            self.fail(f"control chain failed at stamp {stamp_ns} ns: {type(error).__name__}: {error}")
+            return False
+        return not isinstance(result, Refusal)
+
+    def end_rehearsal(self) -> None:
+        """The hosted chain forgets the rehearsal (its reference starts at the first armed measurement)."""
+        self.controller.forget_rehearsal()
 
     def after_feedback(self, sample: JointSample) -> None:
         """The ROS side of the tick, after the command went out: the controller's topics, the bridge's."""
