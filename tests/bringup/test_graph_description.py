@@ -168,7 +168,7 @@ def test_bad_late_limit_or_start_timeout_is_rejected_with_its_name(name: str, va
 def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_controller_side() -> None:
     sim = build_graph(GraphOptions(clock_mode="realtime", scenario="case1", duration=3.0, seed=4))
     hardware = build_graph(
-        GraphOptions(plant="hw", clock_mode="realtime", scenario="case1", duration=3.0, seed=4)
+        GraphOptions(plant="hw", clock_mode="realtime", scenario="case1", duration=3.0, seed=4, loop="topics")
     )
     assert [spec.name for spec in hardware] == [
         graph_nodes.EMULATOR_NODE,
@@ -244,11 +244,13 @@ def test_the_emulator_accepts_every_option_the_graph_passes_it() -> None:
             {graph_nodes.SIM_NODE: 10, graph_nodes.CONTROLLER_NODE: 10},
         ),
         (
-            GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=0),
+            GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=0, loop="topics"),
             {graph_nodes.EMULATOR_NODE: 0, graph_nodes.HW_NODE: 0, graph_nodes.CONTROLLER_NODE: 0},
         ),
         (
-            GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=90, record="bag"),
+            GraphOptions(
+                plant="hardware", clock_mode="realtime", rt_priority=90, record="bag", loop="topics"
+            ),
             {
                 graph_nodes.RECORDER_NODE: 80,
                 graph_nodes.EMULATOR_NODE: 99,
@@ -301,7 +303,9 @@ def test_children_run_under_sched_fifo_when_the_system_allows_it(
 
 
 def test_hardware_plant_with_a_board_address_starts_no_emulator() -> None:
-    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", board="10.0.0.7:6000"))
+    specs = build_graph(
+        GraphOptions(plant="hardware", clock_mode="realtime", board="10.0.0.7:6000", loop="topics")
+    )
     assert specs[0].name == graph_nodes.HW_NODE
     parameters = dict(specs[0].parameters)
     assert (parameters["link.board_address"], parameters["link.board_port"]) == ("10.0.0.7", 6000)
@@ -614,8 +618,9 @@ def test_launch_file_starts_the_graph_the_launcher_starts(
 def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(PlantNotAvailableError):
         _launched_nodes(monkeypatch, {"plant": "hardware", "board": "10.0.0.7:6000"})
-    nodes = _launched_nodes(monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "duration": "2"})
-    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", duration=2.0))
+    arguments = {"plant": "hardware", "clock_mode": "realtime", "duration": "2", "loop": "topics"}
+    nodes = _launched_nodes(monkeypatch, arguments)
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", duration=2.0, loop="topics"))
     assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in specs]
     emulator = nodes[0].kwargs
     assert "parameters" not in emulator  # a plain process: options on its command line
@@ -642,15 +647,15 @@ def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) 
     nodes = _launched_nodes(
         monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "board": "192.168.1.20:50101"}
     )
-    assert nodes[0].kwargs["name"] == graph_nodes.HW_NODE
+    assert nodes[0].kwargs["executable"] == graph_nodes.DIRECT_LOOP  # hardware's default loop in real time
 
 
 def test_launch_file_records_and_sets_real_time_priorities(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     bag = str(tmp_path / "run")
-    arguments = {"plant": "hardware", "clock_mode": "realtime", "record": bag}
-    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", record=bag))
+    arguments = {"plant": "hardware", "clock_mode": "realtime", "record": bag, "loop": "topics"}
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", record=bag, loop="topics"))
     nodes = _launched_nodes(monkeypatch, arguments)
     assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in specs]
     assert nodes[0].kwargs["name"] == graph_nodes.RECORDER_NODE

@@ -36,9 +36,11 @@ def test_host_late_at_1khz_refuses_and_names_500_hz() -> None:
     assert not verdict.holds
     assert verdict.late_share == pytest.approx(0.05)
     assert verdict.fastest_held_hz == 500.0
-    text = verdict.refusal(direct_loop=False)
-    assert "does not hold 1000 Hz" in text and "500 Hz" in text and "--loop direct" in text
-    assert "--loop direct" not in verdict.refusal(direct_loop=True)
+    text = verdict.refusal(direct_loop=False, realtime=False)
+    assert "does not hold 1000 Hz" in text and "500 Hz" in text
+    assert "--loop direct" in text and "--rt-priority" in text
+    assert "--loop direct" not in verdict.refusal(direct_loop=True, realtime=False)
+    assert "--rt-priority" not in verdict.refusal(direct_loop=False, realtime=True)
 
 
 def test_only_250_hz_holds() -> None:
@@ -50,7 +52,7 @@ def test_only_250_hz_holds() -> None:
 def test_nothing_holds_says_so() -> None:
     verdict = judge(figures([5000.0] * 100), 0.01)
     assert verdict.fastest_held_hz is None
-    assert "none of the candidate rates holds" in verdict.refusal(direct_loop=True)
+    assert "none of the candidate rates holds" in verdict.refusal(direct_loop=True, realtime=True)
 
 
 def test_unanswered_periods_count_as_late() -> None:

@@ -8,6 +8,7 @@ services; the logic is :class:`BridgeCore`. Lifecycle, faults and parameters: do
 
 from __future__ import annotations
 
+import os
 import secrets
 import sys
 import threading
@@ -206,14 +207,13 @@ class HwBridgeNode(LifecycleNode):
         self.preflight = verdict
         for line in verdict.lines():
             self._log.info(f"preflight: {line}")
+        refusal = verdict.refusal(direct_loop=self.direct, realtime=realtime_scheduled())
         if verdict.holds:
             self._log.info(f"preflight: {verdict.figures.rate_hz:g} Hz holds here; arming")
         elif self._preflight.config.force:
-            self._log.warning(
-                f"preflight: ARMING ANYWAY (preflight.force): {verdict.refusal(direct_loop=self.direct)}"
-            )
+            self._log.warning(f"preflight: ARMING ANYWAY (preflight.force): {refusal}")
         else:
-            self.preflight_refusal = verdict.refusal(direct_loop=self.direct)
+            self.preflight_refusal = refusal
             self._log.error(f"preflight: refused to arm: {self.preflight_refusal}")
             self.context.try_shutdown()
             return
@@ -247,7 +247,7 @@ class HwBridgeNode(LifecycleNode):
         tally = self.tally
         reason = self.run_verdict()
         if self.preflight_refusal is not None:
-            return f"host: refused to arm at preflight: {self.preflight_refusal}"
+            return "host: refused to arm at preflight (its figures and reason above); no output went live"
         if tally is None:
             return f"host: no feedback frame counted; did not control: {reason}"
         verdict = "controlled" if reason is None else f"did not control: {reason}"
@@ -614,6 +614,14 @@ class HwBridgeNode(LifecycleNode):
                 lifecycle=self.lifecycle_state,
                 now_ns=now,
             )
+
+
+def realtime_scheduled() -> bool:
+    """True when this process runs under a real-time policy (SCHED_FIFO or SCHED_RR)."""
+    try:
+        return os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)
+    except (AttributeError, OSError):  # not Linux
+        return False
 
 
 def judged_exit(code: int, node: HwBridgeNode | None, name: str) -> int:

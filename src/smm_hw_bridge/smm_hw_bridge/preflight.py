@@ -143,8 +143,13 @@ class PreflightVerdict:
             f"predicted: {predicted}",
         ]
 
-    def refusal(self, *, direct_loop: bool) -> str:
-        """Why the run may not arm, what rate it holds, and the other options (for a refused verdict)."""
+    def refusal(self, *, direct_loop: bool, realtime: bool) -> str:
+        """Why the run may not arm, what rate it holds, and the other options (for a refused verdict).
+
+        Args:
+            direct_loop: The host is the direct loop already (not named as an option then).
+            realtime: The host runs under a real-time policy already (not named then).
+        """
         rate = self.figures.rate_hz
         held = (
             f"the fastest candidate rate it holds is {self.fastest_held_hz:g} Hz "
@@ -154,7 +159,8 @@ class PreflightVerdict:
             + ", ".join(f"{r:g}" for r, _ in self.predicted)
             + " Hz)"
         )
-        options = ["real-time priority (--rt-priority N; needs an rtprio limit)", "an isolated core"]
+        options = [] if realtime else ["real-time priority (--rt-priority N; needs an rtprio limit)"]
+        options.append("an isolated core (isolcpus, taskset)")
         if not direct_loop:
             options.append("the direct loop (--loop direct)")
         return (
