@@ -109,8 +109,9 @@ def record(
 ) -> None:
     for tick in ticks:
         rx = 5_000_000_000 + tick * PERIOD + way_ns + (tick % 7) * 10_000
-        recorder.on_feedback(tick, rx)
-        if recorder.is_control_tick(tick) and tick not in skip:
+        control = tick % recorder.divider == 0
+        recorder.on_feedback(tick, rx, control)
+        if control and tick not in skip:
             recorder.on_answer(tick, rx + answer_ns)
 
 
@@ -133,6 +134,15 @@ def test_recorder_counts_unanswered_control_periods_and_its_divider() -> None:
     assert result.unanswered == 2
     assert result.periods == (3000 - 1252) // 4  # control ticks from 1252 (after the warm-up) on
     assert min(result.feedback_to_command_us) == pytest.approx(1050.0)  # the added latency counts
+
+
+def test_recorder_counts_lost_frames_as_unanswered_periods() -> None:
+    recorder = RehearsalRecorder(PERIOD, divider=2)
+    record(recorder, range(0, 1000), way_ns=0, answer_ns=50_000)
+    record(recorder, range(1010, 2000), way_ns=0, answer_ns=50_000)  # 10 ticks lost: 5 control periods
+    result = recorder.figures()
+    assert result.unanswered == 5
+    assert result.periods == (2000 - 250) // 2
 
 
 def test_recorder_without_frames_gives_nothing() -> None:

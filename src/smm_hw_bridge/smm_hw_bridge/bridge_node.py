@@ -462,8 +462,9 @@ class HwBridgeNode(LifecycleNode):
             tick = core.stamp_ns // core.config.period_ns
             rehearsed = False
             if rehearsal is not None:
-                rehearsal.on_feedback(tick, now)
-                rehearsed = rehearsal.is_control_tick(tick) and self.rehearse_in_place(core, now)
+                control = tick % rehearsal.divider == 0
+                rehearsal.on_feedback(tick, now, control)
+                rehearsed = control and self.rehearse_in_place(core, now)
             answered = publish and self.answer_in_place(core, now)
             if not answered and core.needs_frame(now):
                 out = core.next_frame(now)

@@ -198,7 +198,7 @@ class RehearsalRecorder:
 
     Args:
         board_period_ns: The board's tick (ns), > 0.
-        divider: Board ticks per control period (the chain answers ticks that are multiples of it), >= 1.
+        divider: Board ticks per control period (the chain answers one tick in so many), >= 1.
         added_latency_us: Added to every answer's time (us), >= 0 (:class:`PreflightConfig`).
     """
 
@@ -212,23 +212,30 @@ class RehearsalRecorder:
         self.divider = divider
         self.added_ns = round(added_latency_us * 1e3)
         self._arrivals: dict[int, int] = {}
+        self._control: set[int] = set()
         self._answers: dict[int, int] = {}
 
-    def is_control_tick(self, tick: int) -> bool:
-        """True for a tick the chain answers (a multiple of the divider)."""
-        return tick % self.divider == 0
+    def on_feedback(self, tick: int, rx_ns: int, control: bool) -> None:
+        """The frame of board tick ``tick`` (unwrapped) arrived at ``rx_ns`` (ns); the first one counts.
 
-    def on_feedback(self, tick: int, rx_ns: int) -> None:
-        """The frame of board tick ``tick`` (unwrapped) arrived at ``rx_ns`` (ns); the first one counts."""
-        self._arrivals.setdefault(tick, rx_ns)
+        ``control``: a control tick, one the chain answers.
+        """
+        if tick not in self._arrivals:
+            self._arrivals[tick] = rx_ns
+            if control:
+                self._control.add(tick)
 
     def on_answer(self, tick: int, ready_ns: int) -> None:
         """The answer to tick ``tick`` was ready to send at ``ready_ns`` (the first answer counts)."""
-        if tick in self._arrivals:
+        if tick in self._control:
             self._answers.setdefault(tick, ready_ns + self.added_ns)
 
     def figures(self) -> RehearsalFigures:
-        """The figures after the warm-up: the ticks' times from the arrivals' lower envelope."""
+        """The figures after the warm-up: the ticks' times from the arrivals' lower envelope.
+
+        Control periods whose frame never came (lost, or not read) count as unanswered: the ticks missing
+        between the first and the last judged one, divided by the divider.
+        """
         period = self.board_period_ns
         ticks = np.array(sorted(self._arrivals), dtype=np.int64)
         if ticks.size == 0:
@@ -236,19 +243,20 @@ class RehearsalRecorder:
         arrivals = np.array([self._arrivals[t] for t in ticks], dtype=np.int64)
         grid = tick_grid(ticks, arrivals, period)
         judged = ticks >= ticks[0] + round(WARM_UP_S * 1e9 / period)
-        control = judged & (ticks % self.divider == 0)
-        first, last = (int(ticks[judged][0]), int(ticks[judged][-1])) if judged.any() else (0, -1)
-        first_control = -(-first // self.divider) * self.divider
-        expected = max(0, (last - first_control) // self.divider + 1) if last >= first_control else 0
-        latencies = [
-            (self._answers[int(t)] - g) / 1e3
-            for t, g in zip(ticks[control], grid[control], strict=True)
-            if int(t) in self._answers
-        ]
+        latencies: list[float] = []
+        unanswered = 0
+        for tick, at in zip(ticks[judged].tolist(), grid[judged].tolist(), strict=True):
+            if tick not in self._control:
+                continue
+            if tick in self._answers:
+                latencies.append((self._answers[tick] - at) / 1e3)
+            else:
+                unanswered += 1
+        if judged.any():
+            kept = ticks[judged]
+            unanswered += (int(kept[-1] - kept[0]) + 1 - kept.size) // self.divider
         wakeups = ((arrivals[judged] - grid[judged]) / 1e3).tolist()
-        return RehearsalFigures(
-            period, self.divider, tuple(latencies), tuple(wakeups), max(0, expected - len(latencies))
-        )
+        return RehearsalFigures(period, self.divider, tuple(latencies), tuple(wakeups), unanswered)
 
 
 def tick_grid(ticks: np.ndarray, arrivals_ns: np.ndarray, period_ns: int) -> np.ndarray:
