@@ -217,6 +217,9 @@ class HwBridgeNode(LifecycleNode):
             self._log.error(f"preflight: refused to arm: {self.preflight_refusal}")
             self.context.try_shutdown()
             return
+        if self.lifecycle_state != "inactive":  # a fault during the rehearsal took it out of configured
+            self._log.error(f"preflight: the bridge is {self.lifecycle_state} after rehearsing; not arming")
+            return
         self.trigger_activate()  # type: ignore[no-untyped-call]
 
     @property
@@ -460,9 +463,9 @@ class HwBridgeNode(LifecycleNode):
             publish = core.state in (BridgeState.ARMING, BridgeState.ARMED)
             rehearsal = None if publish or frame is None else self.rehearsal
             tick = core.stamp_ns // core.config.period_ns
+            control = rehearsal is not None and tick % rehearsal.divider == 0
             rehearsed = False
             if rehearsal is not None:
-                control = tick % rehearsal.divider == 0
                 rehearsal.on_feedback(tick, now, control)
                 rehearsed = control and self.rehearse_in_place(core, now)
             answered = publish and self.answer_in_place(core, now)
@@ -472,7 +475,7 @@ class HwBridgeNode(LifecycleNode):
                     self._transmit(out)
             if rehearsed and rehearsal is not None:
                 rehearsal.on_answer(tick, time.monotonic_ns())
-            if not publish and (rehearsal is None or self.direct):
+            if not publish and (not control or self.direct):
                 return
             stamp = core.stamp_ns + (0 if publish else REHEARSAL_STAMP_OFFSET_NS)
             sample = JointSample(stamp, core.position, effort=core.applied_torque)
