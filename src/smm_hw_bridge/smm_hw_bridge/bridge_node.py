@@ -243,7 +243,9 @@ class HwBridgeNode(LifecycleNode):
         with self._lock:
             self._core, self._transport = core, transport
             if self.tally is None:
-                self.tally = RunTally(core.config.period_ns, self._verdict.config)
+                self.tally = RunTally(
+                    core.config.period_ns, self._verdict.config, core.config.control_divider
+                )
             self._send_safe()
         self._stop.clear()
         self._reader = threading.Thread(target=self._read_loop, name="hw_bridge_reader", daemon=True)
@@ -376,7 +378,8 @@ class HwBridgeNode(LifecycleNode):
             resent = core.config.lockstep and core.last_rejection is Reason.DUPLICATE
             if frame is None and not resent:
                 return
-            publish = core.state in (BridgeState.ARMING, BridgeState.ARMED)
+            # the controller answers every Nth board tick (bridge.control_divider); the board holds between
+            publish = core.state in (BridgeState.ARMING, BridgeState.ARMED) and core.control_tick
             answered = publish and self.answer_in_place(core, now)
             if not answered and core.needs_frame(now):
                 out = core.next_frame(now)
