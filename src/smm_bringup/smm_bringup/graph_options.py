@@ -13,12 +13,14 @@ from types import MappingProxyType
 from typing import Final, Literal
 
 from smm_controller.laws import law_names, law_table
+from smm_hw_bridge.control_rate import BOARD_TICK_HZ, CONTROL_RATES_HZ, control_divider
 
 from smm_bringup.realtime import MAX_PRIORITY
 
 __all__ = [
     "CHAIN_LAYOUTS",
     "CLOCK_MODES",
+    "CONTROL_RATES_HZ",
     "LOOPS",
     "PLANTS",
     "PLANT_ALIASES",
@@ -71,8 +73,11 @@ class GraphOptions:
             length in lockstep and runs without end in real time; 0 runs without end.
         seed: Seed of the simulator's noise generator, >= 0; ``None`` keeps the configured one.
         params_files: Extra ROS 2 parameter files, applied after the scenario file, in order.
-        control_period: Control period of every node (s), > 0; ``None`` keeps the configured one (1 ms).
-            The plant and the controller nodes must agree on it: each node steps once per measurement.
+        control_rate: Control rate (Hz), one of ``smm_hw_bridge.control_rate.CONTROL_RATES_HZ`` (1000, 500,
+            250). The board (and the simulator's integration step) keeps its 1 kHz tick; the controller
+            steps every N = 1000 / rate ticks with ``control_period`` = N ms, the board holds each command
+            in between, and the rate's settings file (``smm_controller/config/control_rate_<rate>.yaml``)
+            is applied after the scenario's (docs/LAUNCH.md, "Control rate").
         board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board; ``None`` starts
             ``smm_bench_emulator`` on loopback instead.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
@@ -105,7 +110,7 @@ class GraphOptions:
     duration: float | None = None
     seed: int | None = None
     params_files: tuple[str, ...] = ()
-    control_period: float | None = None
+    control_rate: float = BOARD_TICK_HZ
     board: str | None = None
     record: str | None = None
     rt_priority: int | None = None
@@ -139,14 +144,8 @@ class GraphOptions:
             or self.duration < 0.0
         ):
             raise ValueError(f"duration must be a finite number >= 0 s or None, got {self.duration!r}")
-        period = self.control_period
-        if period is not None and (
-            isinstance(period, bool)
-            or not isinstance(period, (int, float))
-            or not math.isfinite(period)
-            or round(period * 1e9) < 1
-        ):
-            raise ValueError(f"control_period must be a finite number >= 1 ns or None, got {period!r}")
+        control_divider(self.control_rate)  # raises with the valid rates
+        object.__setattr__(self, "control_rate", int(self.control_rate))  # 500.0 (argparse) is 500
         seed = self.seed
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
             raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
@@ -212,6 +211,16 @@ class GraphOptions:
                 "loop_note",
                 f"the direct loop cannot host {' '.join(unhosted)}: using the topics loop",
             )
+
+    @property
+    def control_divider(self) -> int:
+        """N, board ticks per control period (1 at 1 kHz)."""
+        return control_divider(self.control_rate)
+
+    @property
+    def control_period(self) -> float:
+        """The controller's period (s): N board ticks."""
+        return self.control_divider / BOARD_TICK_HZ
 
 
 def split_endpoint(name: str, text: str) -> tuple[str, int]:

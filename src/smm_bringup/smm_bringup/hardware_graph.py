@@ -64,16 +64,9 @@ def hardware_specs(
         ]
     if options.board is None:
         bridge_parameters += [("link.bind_address", bind_address), ("link.bind_port", bind_port)]
-    if options.control_period is not None:
-        # The bridge's time limits are counted in board ticks at the default 1 kHz: scale them with the tick.
-        period_ns = round(options.control_period * 1e9)
-        bridge_parameters.append(("bridge.admission.period_ns", period_ns))
-        if not lockstep:
-            bridge_parameters += [
-                ("bridge.admission.stale_ns", 20 * period_ns),
-                ("bridge.host_watchdog_ns", 10 * period_ns),
-                ("bridge.link_timeout_ns", 100 * period_ns),
-            ]
+    divider = options.control_divider
+    if divider > 1:  # the board keeps its 1 kHz tick; the bridge stretches validity and limits by N
+        bridge_parameters.append(("bridge.control_divider", divider))
     bridge = NodeSpec(
         package="smm_hw_bridge",
         executable=HW_NODE,
@@ -113,8 +106,8 @@ def hardware_specs(
         emulator_parameters.append(("duration-from", "live"))
     if options.seed is not None:
         emulator_parameters.append(("seed", options.seed))
-    if options.control_period is not None:
-        emulator_parameters.append(("control-period", float(options.control_period)))
+    if divider > 1:
+        emulator_parameters.append(("control-divider", divider))
     emulator_parameters += _emulator_plant(files)
     emulator = NodeSpec(
         package="smm_bench_emulator",

@@ -27,6 +27,7 @@ from smm_bringup.graph_nodes import EMULATOR_NODE, NodeSpec
 from smm_bringup.graph_options import (
     CHAIN_LAYOUTS,
     CLOCK_MODES,
+    CONTROL_RATES_HZ,
     LOOPS,
     PLANT_ALIASES,
     PLANTS,
@@ -113,11 +114,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--seed", type=int, default=None, help="seed of the simulator's noise")
     parser.add_argument(
-        "--control-period",
+        "--control-rate",
         type=float,
-        default=None,
-        metavar="S",
-        help="control period of every node in seconds (default: as configured, 0.001)",
+        default=GraphOptions.control_rate,
+        metavar="HZ",
+        help=f"control rate, one of {', '.join(map(str, CONTROL_RATES_HZ))} Hz: the controller steps every "
+        "1000/HZ ticks of the board's (or the simulator's) 1 kHz tick, the board holds each command between",
     )
     parser.add_argument(
         "--params-file",
@@ -196,7 +198,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         duration=arguments.duration,
         seed=arguments.seed,
         params_files=tuple(arguments.params_file),
-        control_period=arguments.control_period,
+        control_rate=arguments.control_rate,
         board=arguments.board,
         record=arguments.record,
         rt_priority=arguments.rt_priority,
@@ -217,8 +219,8 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--duration", repr(options.duration)]
     if options.seed is not None:
         arguments += ["--seed", str(options.seed)]
-    if options.control_period is not None:
-        arguments += ["--control-period", repr(options.control_period)]
+    if options.control_rate != GraphOptions.control_rate:
+        arguments += ["--control-rate", str(options.control_rate)]
     for params_file in options.params_files:
         arguments += ["--params-file", params_file]
     if options.board is not None:

@@ -21,6 +21,7 @@ from rclpy.parameter import Parameter
 from smm_controller.controller_node import ControllerNode
 from smm_controller.core import Refusal, StepResult
 from smm_hw_bridge.bridge_node import HwBridgeNode, judged_exit
+from smm_hw_bridge.control_rate import is_control_tick
 from smm_hw_bridge.core import BridgeCore
 from smm_hw_bridge.transport import Transport
 from smm_msgs_py.conversions import JointSample, torque_to_msg
@@ -172,6 +173,13 @@ class DirectBridgeNode(HwBridgeNode):
         spin_ns = self.settings.config.spin_us * 1000
         last, core = self._last_rx_ns, self.core
         data = None
+        feedback = None if core is None else core.last_feedback
+        if (
+            core is not None
+            and feedback is not None
+            and not is_control_tick(feedback.tick + 1, core.config.control_divider)
+        ):
+            spin_ns = 0  # the next frame is one the board holds through: nothing to answer in a hurry
         if spin_ns and last is not None and core is not None:
             due = last + core.config.period_ns
             now = time.monotonic_ns()

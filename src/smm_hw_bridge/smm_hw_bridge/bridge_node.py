@@ -142,8 +142,6 @@ class HwBridgeNode(LifecycleNode):
         if self.autostart:
             self._autostart = self.create_timer(_AUTOSTART_POLL_S, self._start, clock=steady)
         self._waiting_logged = False
-        self.control_divider = 1
-        """Board ticks per control period (the chain answers every this many ticks)."""
         self.rehearsal: RehearsalRecorder | None = None
         """While the preflight rehearses (output disabled): its arrivals and answers."""
         self.preflight: PreflightVerdict | None = None
@@ -187,7 +185,7 @@ class HwBridgeNode(LifecycleNode):
             return
         with self._lock:
             self.rehearsal = RehearsalRecorder(
-                core.config.period_ns, self.control_divider, config.added_latency_us
+                core.config.period_ns, core.config.control_divider, config.added_latency_us
             )
         self._preflight_end = time.monotonic() + config.duration_s
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -327,7 +325,9 @@ class HwBridgeNode(LifecycleNode):
         with self._lock:
             self._core, self._transport = core, transport
             if self.tally is None:
-                self.tally = RunTally(core.config.period_ns, self._verdict.config)
+                self.tally = RunTally(
+                    core.config.period_ns, self._verdict.config, core.config.control_divider
+                )
             self._send_safe()
         self._stop.clear()
         self._reader = threading.Thread(target=self._read_loop, name="hw_bridge_reader", daemon=True)
@@ -460,10 +460,12 @@ class HwBridgeNode(LifecycleNode):
             resent = core.config.lockstep and core.last_rejection is Reason.DUPLICATE
             if frame is None and not resent:
                 return
-            publish = core.state in (BridgeState.ARMING, BridgeState.ARMED)
-            rehearsal = None if publish or frame is None else self.rehearsal
+            # the controller answers every Nth board tick (bridge.control_divider); the board holds between
+            armed = core.state in (BridgeState.ARMING, BridgeState.ARMED)
+            publish = armed and core.control_tick
+            rehearsal = None if armed or frame is None else self.rehearsal
             tick = core.stamp_ns // core.config.period_ns
-            control = rehearsal is not None and tick % rehearsal.divider == 0
+            control = rehearsal is not None and core.control_tick
             rehearsed = False
             if rehearsal is not None:
                 rehearsal.on_feedback(tick, now, control)

@@ -14,6 +14,8 @@ from typing import Final
 import numpy as np
 from smm_dynamics.validation import bounds, check_bounds
 
+from smm_hw_bridge.control_rate import BOARD_TICK_HZ, CONTROL_RATES_HZ
+
 __all__ = [
     "CANDIDATE_DIVIDERS",
     "EXIT_PREFLIGHT_REFUSED",
@@ -27,8 +29,8 @@ __all__ = [
 
 EXIT_PREFLIGHT_REFUSED: Final[int] = 4
 """Exit code of a hardware run whose preflight refused to arm (the host cannot hold the control rate)."""
-CANDIDATE_DIVIDERS: Final[tuple[int, ...]] = (1, 2, 4)
-"""Board ticks per control period the preflight names (1000, 500, 250 Hz on a 1 kHz board)."""
+CANDIDATE_DIVIDERS: Final[tuple[int, ...]] = tuple(BOARD_TICK_HZ // rate for rate in CONTROL_RATES_HZ)
+"""Board ticks per control period of the rates the preflight names (1000, 500, 250 Hz: 1, 2, 4)."""
 WARM_UP_S: Final[float] = 0.25
 """The rehearsal's first seconds are not judged (first steps of the chain, caches, the DDS discovery)."""
 
