@@ -55,6 +55,21 @@ def test_nothing_holds_says_so() -> None:
     assert "none of the candidate rates holds" in verdict.refusal(direct_loop=True, realtime=True)
 
 
+def test_the_margin_asks_for_a_share_of_the_limit() -> None:
+    rehearsal = figures([100.0] * 993 + [1500.0] * 7)  # 0.7 % late at 1 kHz
+    assert judge(rehearsal, 0.01).holds
+    halved = judge(rehearsal, 0.01, margin=0.5)
+    assert not halved.holds and halved.allowed == pytest.approx(0.005)
+    assert halved.fastest_held_hz == 500.0
+    assert "above 0.5 % (the limit of 1 % with the preflight's margin)" in halved.refusal(
+        direct_loop=True, realtime=True
+    )
+    with pytest.raises(ValueError, match="margin"):
+        judge(rehearsal, 0.01, margin=0.0)
+    with pytest.raises(ValueError, match="margin"):
+        PreflightConfig(margin=1.5)
+
+
 def test_unanswered_periods_count_as_late() -> None:
     verdict = judge(figures([100.0] * 97, unanswered=3), 0.01)
     assert verdict.late_share == pytest.approx(0.03)

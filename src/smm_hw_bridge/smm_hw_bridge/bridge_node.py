@@ -201,7 +201,8 @@ class HwBridgeNode(LifecycleNode):
             self.end_rehearsal()
         if recorder is None:
             return
-        verdict = judge(recorder.figures(), self._verdict.config.late_limit)
+        margin = self._preflight.config.margin
+        verdict = judge(recorder.figures(), self._verdict.config.late_limit, margin=margin)
         self.preflight = verdict
         for line in verdict.lines():
             self._log.info(f"preflight: {line}")
