@@ -444,7 +444,13 @@ def main(argv: list[str] | None = None) -> int:
         period = 1e-3
         for layout, composed, seconds in realtime_runs:
             command = ["--clock-mode", "realtime", "--scenario", "case2", "--algorithm", "fpdeso"]
-            command += [*LAYOUTS[layout], "--duration", str(seconds), "--control-period", str(period)]
+            command += [
+                *LAYOUTS[layout],
+                "--duration",
+                str(seconds),
+                "--control-rate",
+                str(round(1 / period)),
+            ]
             command += ["--composed"] if composed else []
             stats = run_graph(
                 workdir,

@@ -71,10 +71,13 @@ def tracking_rms(
 
 
 def td_yaml(workdir: Path, period: float) -> Path:
-    """The TD's filter factor h must be >= the control period."""
+    """Every node's period = the board's tick ``period`` here (not a control rate below the tick: the board
+    itself ticks at ``period``); the TD's filter factor h must be >= it."""
     path = workdir / f"td_{period}.yaml"
     h = max(period, 0.001)
-    path.write_text(f"/**:\n  ros__parameters:\n    td:\n      filter_factor: [{h}, {h}]\n")
+    path.write_text(
+        f"/**:\n  ros__parameters:\n    control_period: {period}\n    td:\n      filter_factor: [{h}, {h}]\n"
+    )
     return path
 
 
@@ -95,7 +98,7 @@ def lockstep_reference(workdir: Path, period: float) -> np.ndarray | None:
         "--scenario",
         "case1",
     ]
-    command += ["--duration", str(SECONDS), "--control-period", str(period)]
+    command += ["--duration", str(SECONDS)]
     command += ["--params-file", str(td_yaml(workdir, period)), "--params-file", str(params)]
     log = workdir / f"lockstep_{period}.log"
     with log.open("wb") as out:
@@ -230,7 +233,6 @@ def realtime_hil(
     options = GraphOptions(
         clock_mode="realtime",
         scenario="case1",
-        control_period=period,
         params_files=(str(td_yaml(workdir, period)),),
     )
     spec = next(s for s in build_graph(options) if s.name == CONTROLLER_NODE)

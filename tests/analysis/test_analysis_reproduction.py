@@ -30,9 +30,7 @@ SHORT = 0.2
 
 @pytest.fixture(scope="module")
 def short_result() -> ReproductionResult:
-    return run_reproduction(
-        resolve_scenarios(["step", "case1", "case2"], SHORT), PAPER_LAWS
-    )
+    return run_reproduction(resolve_scenarios(["step", "case1", "case2"], SHORT), PAPER_LAWS)
 
 
 @pytest.mark.parametrize(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import py_compile
 import runpy
@@ -17,11 +18,12 @@ import yaml
 from hypothesis import assume, given
 from hypothesis import strategies as st
 from smm_bringup.errors import ParameterFileError, PlantNotAvailableError
-from smm_bringup.graph import build_graph
+from smm_bringup.graph import build_graph, control_rate_file
 from smm_bringup.graph_nodes import NodeSpec
 from smm_bringup.graph_options import (
     CHAIN_LAYOUTS,
     CLOCK_MODES,
+    CONTROL_RATES_HZ,
     LOOPS,
     PLANTS,
     REFERENCE_PLACEMENTS,
@@ -106,9 +108,16 @@ def test_options_reach_the_right_nodes() -> None:
     assert by_name["td_node"] == {}
 
 
-def test_control_period_goes_to_every_node() -> None:
-    for spec in build_graph(GraphOptions(control_period=0.005)):
-        assert dict(spec.parameters)["control_period"] == 0.005, spec.name
+def test_the_control_rate_sets_the_period_of_every_node_and_the_simulator_integrates_at_1_ms() -> None:
+    specs = build_graph(GraphOptions(control_rate=250, record="bag", chain="split", reference="node"))
+    for spec in specs:
+        assert dict(spec.parameters)["control_period"] == 0.004, spec.name
+    sim = next(spec for spec in specs if spec.name == graph_nodes.SIM_NODE)
+    assert dict(sim.parameters)["substeps"] == 4
+    rate_file = str(control_rate_file(250))
+    assert all(rate_file in spec.parameter_files for spec in specs if spec.name != graph_nodes.RECORDER_NODE)
+    assert all("control_period" not in dict(spec.parameters) for spec in build_graph(GraphOptions()))
+    assert control_rate_file(1000) is None  # 1 kHz: the configured defaults are its settings
 
 
 def test_realtime_with_a_scenario_runs_without_end_unless_asked() -> None:
@@ -168,7 +177,7 @@ def test_bad_late_limit_or_start_timeout_is_rejected_with_its_name(name: str, va
 def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_controller_side() -> None:
     sim = build_graph(GraphOptions(clock_mode="realtime", scenario="case1", duration=3.0, seed=4))
     hardware = build_graph(
-        GraphOptions(plant="hw", clock_mode="realtime", scenario="case1", duration=3.0, seed=4)
+        GraphOptions(plant="hw", clock_mode="realtime", scenario="case1", duration=3.0, seed=4, loop="topics")
     )
     assert [spec.name for spec in hardware] == [
         graph_nodes.EMULATOR_NODE,
@@ -198,10 +207,11 @@ def test_hardware_plant_starts_the_emulator_then_the_bridge_then_the_same_contro
         and bridge["link.bind_port"] == 50100
     )
     assert hardware[0].name in graph_nodes.PLANT_NODE_NAMES  # the emulator's end is the end of the run
-    slow = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", control_period=0.01))
+    slow = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", control_rate=500))
     emulator, bridge = dict(slow[0].parameters), dict(slow[1].parameters)
-    assert emulator["control-period"] == 0.01 and bridge["bridge.admission.period_ns"] == 10_000_000
-    assert bridge["bridge.host_watchdog_ns"] == 100_000_000  # 10 ticks, as the 10 ms default at 1 kHz
+    assert "control-period" not in emulator  # the board keeps its 1 kHz tick
+    assert emulator["control-divider"] == 2 and bridge["bridge.control_divider"] == 2
+    assert "bridge.admission.period_ns" not in bridge
 
 
 def test_the_emulator_runs_the_scenario_plant_the_simulator_would(tmp_path: Path) -> None:
@@ -224,13 +234,13 @@ def test_the_emulator_accepts_every_option_the_graph_passes_it() -> None:
     from smm_bench_emulator.cli import from_ros_arguments
 
     options = GraphOptions(
-        plant="hardware", clock_mode="realtime", scenario="case2", seed=3, control_period=0.002
+        plant="hardware", clock_mode="realtime", scenario="case2", seed=3, control_rate=250
     )
     spec = build_graph(options)[0]
     assert spec.name == graph_nodes.EMULATOR_NODE
     parsed = emulator_parser().parse_args(from_ros_arguments([spec.executable, *spec.ros_arguments()][1:]))
     assert (parsed.noise_std, parsed.inertia_scale, parsed.disturbance) == (0.001, 1.1, "eq46")
-    assert (parsed.seed, parsed.control_period) == (3, 0.002)
+    assert (parsed.seed, parsed.control_period, parsed.control_divider) == (3, 0.001, 4)
     assert parsed.bind == split_endpoint("board", hardware_graph.EMULATOR_BOARD)
     with pytest.raises(ValueError, match="unknown parameter 'valve'"):
         from_ros_arguments(["--ros-args", "-p", "valve:=1"])
@@ -244,11 +254,13 @@ def test_the_emulator_accepts_every_option_the_graph_passes_it() -> None:
             {graph_nodes.SIM_NODE: 10, graph_nodes.CONTROLLER_NODE: 10},
         ),
         (
-            GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=0),
+            GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=0, loop="topics"),
             {graph_nodes.EMULATOR_NODE: 0, graph_nodes.HW_NODE: 0, graph_nodes.CONTROLLER_NODE: 0},
         ),
         (
-            GraphOptions(plant="hardware", clock_mode="realtime", rt_priority=90, record="bag"),
+            GraphOptions(
+                plant="hardware", clock_mode="realtime", rt_priority=90, record="bag", loop="topics"
+            ),
             {
                 graph_nodes.RECORDER_NODE: 80,
                 graph_nodes.EMULATOR_NODE: 99,
@@ -301,7 +313,9 @@ def test_children_run_under_sched_fifo_when_the_system_allows_it(
 
 
 def test_hardware_plant_with_a_board_address_starts_no_emulator() -> None:
-    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", board="10.0.0.7:6000"))
+    specs = build_graph(
+        GraphOptions(plant="hardware", clock_mode="realtime", board="10.0.0.7:6000", loop="topics")
+    )
     assert specs[0].name == graph_nodes.HW_NODE
     parameters = dict(specs[0].parameters)
     assert (parameters["link.board_address"], parameters["link.board_port"]) == ("10.0.0.7", 6000)
@@ -324,7 +338,10 @@ def test_hardware_plant_with_a_board_address_starts_no_emulator() -> None:
         ({"scenario": "case9"}, "scenario"),
         ({"duration": -1.0}, "duration"),
         ({"seed": -2}, "seed"),
-        ({"control_period": 0.0}, "control_period"),
+        ({"control_rate": 300}, "control rate must be one of 1000, 500, 250 Hz"),
+        ({"control_rate": 0}, "control rate"),
+        ({"control_rate": math.nan}, "control rate"),
+        ({"control_rate": True}, "control rate"),
     ],
 )
 def test_invalid_options_name_the_field(changes: dict[str, Any], message: str) -> None:
@@ -427,8 +444,8 @@ def test_launcher_arguments_map_onto_graph_options() -> None:
             "3",
             "--seed",
             "4",
-            "--control-period",
-            "0.002",
+            "--control-rate",
+            "500",
         ]
     )
     assert options_from_arguments(arguments) == GraphOptions(
@@ -439,7 +456,7 @@ def test_launcher_arguments_map_onto_graph_options() -> None:
         scenario=None,
         duration=3.0,
         seed=4,
-        control_period=0.002,
+        control_rate=500,
     )
 
 
@@ -458,7 +475,7 @@ def graph_options(draw: st.DrawFn) -> GraphOptions:
             duration=draw(st.none() | st.just(0.0) | positive),
             seed=draw(st.none() | st.integers(min_value=0, max_value=2**32 - 1)),
             params_files=tuple(draw(st.lists(st.sampled_from(["a.yaml", "dir/b c.yaml"]), max_size=3))),
-            control_period=draw(st.none() | positive),
+            control_rate=draw(st.sampled_from(CONTROL_RATES_HZ)),
             board=draw(st.none() | st.just("192.168.0.9:50101")),
             record=draw(st.none() | st.just("bags/run 1")),
             rt_priority=draw(st.none() | st.integers(min_value=0, max_value=98)),
@@ -579,7 +596,7 @@ def _launched_nodes(monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str]) 
                 "scenario": "case1",
                 "duration": "2",
                 "seed": "5",
-                "control_period": "0.002",
+                "control_rate": "500",
             },
             GraphOptions(
                 clock_mode="realtime",
@@ -589,7 +606,7 @@ def _launched_nodes(monkeypatch: pytest.MonkeyPatch, arguments: dict[str, str]) 
                 scenario="case1",
                 duration=2.0,
                 seed=5,
-                control_period=0.002,
+                control_rate=500,
             ),
         ),
         ({"scenario": "none"}, GraphOptions(scenario=None)),
@@ -614,8 +631,9 @@ def test_launch_file_starts_the_graph_the_launcher_starts(
 def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(PlantNotAvailableError):
         _launched_nodes(monkeypatch, {"plant": "hardware", "board": "10.0.0.7:6000"})
-    nodes = _launched_nodes(monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "duration": "2"})
-    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", duration=2.0))
+    arguments = {"plant": "hardware", "clock_mode": "realtime", "duration": "2", "loop": "topics"}
+    nodes = _launched_nodes(monkeypatch, arguments)
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", duration=2.0, loop="topics"))
     assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in specs]
     emulator = nodes[0].kwargs
     assert "parameters" not in emulator  # a plain process: options on its command line
@@ -642,15 +660,15 @@ def test_launch_file_starts_the_hardware_graph(monkeypatch: pytest.MonkeyPatch) 
     nodes = _launched_nodes(
         monkeypatch, {"plant": "hardware", "clock_mode": "realtime", "board": "192.168.1.20:50101"}
     )
-    assert nodes[0].kwargs["name"] == graph_nodes.HW_NODE
+    assert nodes[0].kwargs["executable"] == graph_nodes.DIRECT_LOOP  # hardware's default loop in real time
 
 
 def test_launch_file_records_and_sets_real_time_priorities(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     bag = str(tmp_path / "run")
-    arguments = {"plant": "hardware", "clock_mode": "realtime", "record": bag}
-    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", record=bag))
+    arguments = {"plant": "hardware", "clock_mode": "realtime", "record": bag, "loop": "topics"}
+    specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", record=bag, loop="topics"))
     nodes = _launched_nodes(monkeypatch, arguments)
     assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in specs]
     assert nodes[0].kwargs["name"] == graph_nodes.RECORDER_NODE

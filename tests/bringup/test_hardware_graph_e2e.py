@@ -2,8 +2,8 @@
 control exit 3.
 
 Lockstep (the emulator clocked by the controller's answers over the same UDP protocol) in ``make test``; the
-same tests in real time at 100 Hz need a quiet machine (``make test-realtime``: a run more than 1 % late exits
-3). Timings are printed by smm-launch's closing lines, never asserted.
+same tests in real time (250 Hz control, the board at 1 kHz) need a quiet machine (``make test-realtime``: a
+run more than 1 % late exits 3). Timings are printed by smm-launch's closing lines, never asserted.
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ CLOCK_MODES = [pytest.param("lockstep"), pytest.param("realtime", marks=pytest.m
 
 
 def launch_hardware(ros_processes: Any, tmp_path: Path, name: str, clock_mode: str, *options: str) -> str:
-    """Run ``smm-launch --plant hardware`` case1 PID at 100 Hz with ``options``; its logs (asserts exit 0)."""
+    """Run ``smm-launch --plant hardware`` case1 PID at 250 Hz with ``options``; its logs (asserts exit 0)."""
     params = tmp_path / "td.yaml"
-    # 100 Hz, as the simulator's real-time e2e test: a loaded two-core machine answers most measurements
+    # 250 Hz, as the simulator's real-time e2e test: a loaded two-core machine answers most measurements
     params.write_text("/**:\n  ros__parameters:\n    td:\n      filter_factor: [0.01, 0.01]\n")
     launcher = ros_processes.start(
         name,
@@ -41,8 +41,8 @@ def launch_hardware(ros_processes: Any, tmp_path: Path, name: str, clock_mode: s
             "case1",
             "--algorithm",
             "pid",
-            "--control-period",
-            "0.01",
+            "--control-rate",
+            "250",
             "--params-file",
             str(params),
             *options,
@@ -66,8 +66,11 @@ def test_hardware_graph_runs_for_its_duration_and_the_output_goes_live(
     logs = launch_hardware(ros_processes, tmp_path, "smm-launch-hardware", clock_mode, "--duration", "4")
     summary = next(line for line in logs.splitlines() if line.startswith('{"session"'))
     figures = json.loads(summary)
-    assert figures["ticks"] == 400  # 4 s of board time at 100 Hz
+    assert figures["ticks"] == 4000  # 4 s of board time at its 1 kHz tick
     assert figures["applied"] > 0, logs  # the bridge armed and the controller's commands reached the valves
+    assert figures["applied"] <= 1000 and figures["control_divider"] == 4  # one command per 4 ticks
+    if clock_mode == "lockstep":  # every period waits for its answer: none is late, though the board holds
+        assert figures["late_periods"] == 0 and figures["judged_periods"] > 0, logs
     assert figures["crc_errors"] == 0
     late, enabled = figures["late_commands"], figures["enabled_ticks"]
     closing = (

@@ -104,9 +104,10 @@ def test_a_bridge_that_never_arms_exits_3_and_both_sides_say_so(ros_processes: A
 @pytest.mark.realtime
 def test_a_realtime_run_more_late_than_its_limit_exits_3(ros_processes: Any) -> None:
     # A limit of 0 %: one held tick in 3 s at 1 kHz through DDS is enough (the quiet developers' machine
-    # holds about 0.1 % with the topics loop, docs/LAUNCH.md).
+    # holds about 0.1 % with the topics loop, docs/LAUNCH.md); no preflight, which would refuse to arm.
     arguments = ("--plant", "hardware", "--clock-mode", "realtime", "--scenario", "case1", "--algorithm",
-                 "pid", "--duration", "3", "--late-limit", "0")  # fmt: skip
+                 "pid", "--duration", "3", "--late-limit", "0", "--loop", "topics",
+                 "--preflight", "0")  # fmt: skip
     code, logs = _launch(ros_processes, "smm-launch-late", *arguments)
     assert code == 3, logs
     assert (

@@ -93,6 +93,8 @@ def start(ros_processes: Any, loop: str = "topics") -> tuple[Any, Any, int]:
         f"bridge.validity_ticks:={VALIDITY}",
         "-p",
         f"bridge.host_watchdog_ns:={int(HOST_WATCHDOG_MS * 1e6)}",
+        "-p",
+        "preflight.duration_s:=0.0",  # arm at once: the watchdogs are the subject, not this host's timing
     ]
     if loop == "direct":
         # one process: controller_node's arguments (no __node remapping: it hosts two), then the bridge's

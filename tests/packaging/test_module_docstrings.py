@@ -15,7 +15,6 @@ MAX_LINES = 8
 """Most lines a module docstring may span, quotes included."""
 
 
-
 def docstring_lines(source: str) -> int:
     """Lines the module docstring of ``source`` spans, quotes included; 0 without one."""
     body = ast.parse(source).body

@@ -46,6 +46,8 @@ def _style(name: str) -> dict[str, Any]:
         return _RETUNED_STYLE
     names = law_names()
     return _PALETTE[names.index(name) % len(_PALETTE)] if name in names else {}
+
+
 _SYMBOLS = {"alpha": "\u03b1", "beta": "\u03b2"}
 
 

@@ -52,6 +52,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--full-scale-torque", type=float, default=10.0, help="N m at D/A code 32767")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--control-period", type=float, default=1e-3, help="board tick (s)")
+    parser.add_argument(
+        "--control-divider",
+        type=int,
+        default=1,
+        help="board ticks per control period: the run is judged per period; in lockstep only every Nth "
+        "tick waits for the host",
+    )
     parser.add_argument("--record", default="", help="write the per-tick record (.npz) here at the end")
     parser.add_argument("--status-file", default="", help="write the end-of-run status (JSON) here too")
     parser.add_argument(
@@ -112,6 +119,7 @@ def run(args: argparse.Namespace) -> int:
             start_timeout_ns=round(args.start_timeout * 1e9),
             duration_from_live=args.duration_from == "live",
             min_idle_ns=args.min_idle_us * 1000,
+            control_divider=args.control_divider,
         )
         emulator = Emulator(config, record=bool(args.record))
     except (ValueError, OSError) as error:

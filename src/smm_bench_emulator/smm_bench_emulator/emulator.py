@@ -16,10 +16,11 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+from smm_hw_bridge.control_rate import MAX_DIVIDER, is_control_tick
 from smm_hw_bridge.protocol import encode
 from smm_hw_bridge.run_verdict import RunTally, VerdictConfig
 from smm_hw_bridge.transport import Transport, UdpTransport
-from smm_schema.ranges import at_least, check_bounds, no_range
+from smm_schema.ranges import at_least, bounds, check_bounds, no_range
 
 from smm_bench_emulator.board import BoardConfig, BoardCore
 from smm_bench_emulator.faults import LinkFault, LinkFaults
@@ -51,6 +52,9 @@ class EmulatorConfig:
         verdict: When the run counts as controlled (:mod:`smm_hw_bridge.run_verdict`).
         start_timeout_ns: Stop, as a run that never started, when no tick came (lockstep) or no tick
             latched an enabled command (realtime) this long (ns) after boot (0 = wait for ever).
+        control_divider: N, board ticks per control period (the bridge's ``bridge.control_divider``): the
+            run is judged per period, and in lockstep only control ticks (multiples of N) wait for the
+            host; the others hold its command, as the board does in real time.
         min_idle_ns: Realtime: after a tick the loop waits at least this long (ns) before the next, even
             when behind; on a shared host a board behind its clock must not take the CPU from the host's
             threads, as a separate board never would (docs/LAUNCH.md, "Real time").
@@ -69,6 +73,7 @@ class EmulatorConfig:
     verdict: VerdictConfig = field(default_factory=VerdictConfig)
     start_timeout_ns: int = field(default=0, metadata=at_least(0))
     min_idle_ns: int = field(default=100_000, metadata=at_least(0))
+    control_divider: int = field(default=1, metadata=bounds(1, MAX_DIVIDER))
 
     def __post_init__(self) -> None:
         if self.lockstep_trigger not in ("any", "enabled"):
@@ -132,7 +137,7 @@ class Emulator:
         self.null_since_tick: int | None = None
         self.last_command_ns: int | None = None
         self.last_enabled_ns: int | None = None
-        self.tally = RunTally(config.board.period_ns, config.verdict)
+        self.tally = RunTally(config.board.period_ns, config.verdict, config.control_divider)
         """Enabled and late ticks of the feedback sent, as the bridge counts them."""
         self._live_from: int | None = None
         self.never_started = False
@@ -258,8 +263,9 @@ class Emulator:
             "status_bits": 0 if board.last_feedback is None else board.last_feedback.status,
             "armed": self.tally.armed,
             "live_ticks": self.tally.live_ticks,
-            "judged_enabled_ticks": self.tally.enabled_ticks,
-            "judged_late_ticks": self.tally.late_ticks,
+            "control_divider": self.config.control_divider,
+            "judged_periods": self.tally.periods,
+            "late_periods": self.tally.late_periods,
             "settle_s": self.config.verdict.settle_s,
             "late_limit": self.config.verdict.late_limit,
             "figures": self.tally.figures(),
@@ -318,10 +324,13 @@ class Emulator:
             if timeout and self.ticks <= 1 and self._clock() - started > timeout:
                 self.never_started, self.running = True, False
                 break
-            self._wait(resend - (self._clock() - sent))
+            # a tick between two control ticks waits for no one: the board holds the host's command
+            holding = not is_control_tick(self.board.tick, self.config.control_divider)
+            if not holding:
+                self._wait(resend - (self._clock() - sent))
             self._drain()
             enabled_only = self.config.lockstep_trigger == "enabled"
-            if self.board.answered_enabled if enabled_only else self.board.answered:
+            if holding or (self.board.answered_enabled if enabled_only else self.board.answered):
                 self._send(self.board.tick_lockstep())
                 sent = self._clock()
             elif self._clock() - sent >= resend and self.board.last_feedback is not None:

@@ -2,7 +2,7 @@
 
 The node list comes from :func:`smm_bringup.graph.build_graph`, as for ``smm-launch``, so the two cannot
 drift apart. Arguments (``plant``, ``board``, ``clock_mode``, ``algorithm``, ``scenario``, ``loop``,
-``chain``, ``reference``, ``duration``, ``seed``, ``params_file``, ``control_period``, ``record``,
+``chain``, ``reference``, ``duration``, ``seed``, ``params_file``, ``control_rate``, ``record``,
 ``rt_priority``) and how the launch ends: docs/LAUNCH.md, "On a ROS 2 Jazzy machine".
 """
 
@@ -29,7 +29,7 @@ from smm_controller.laws import law_names
 ARGUMENTS = (
     ("plant", "sim", f"plant node: {' | '.join(PLANTS)}"),
     ("clock_mode", "lockstep", f"simulator clock: {' | '.join(CLOCK_MODES)}"),
-    ("loop", "topics", f"control loop: {' | '.join(LOOPS)}"),
+    ("loop", "auto", f"control loop: {' | '.join(LOOPS)}"),
     ("chain", "fused", f"chain layout: {' | '.join(CHAIN_LAYOUTS)}"),
     ("reference", "controller", f"who samples the reference: {' | '.join(REFERENCE_PLACEMENTS)}"),
     ("algorithm", "fpdeso", f"controller: {' | '.join(law_names())}"),
@@ -37,7 +37,7 @@ ARGUMENTS = (
     ("duration", "", "simulated seconds until the simulator stops (empty: scenario / endless; 0: endless)"),
     ("seed", "", "noise seed of the simulator (empty: as configured)"),
     ("params_file", "", "extra ROS 2 parameter file for every node (empty: none)"),
-    ("control_period", "", "control period of every node, s (empty: as configured, 0.001)"),
+    ("control_rate", "1000", "control rate, Hz: 1000 | 500 | 250 (the board's 1 kHz tick divided by N)"),
     ("board", "", "plant hardware: ADDRESS:PORT of the I/O board (empty: start the bench emulator)"),
     ("record", "", "bag folder to record every topic to (empty: no recording)"),
     ("rt_priority", "", "SCHED_FIFO priority of the loop's processes (empty: 50 with hardware, else 0)"),
@@ -57,7 +57,7 @@ def options_from_launch_arguments(values: dict[str, str]) -> GraphOptions:
         duration=float(values["duration"]) if values["duration"] else None,
         seed=int(values["seed"]) if values["seed"] else None,
         params_files=(values["params_file"],) if values["params_file"] else (),
-        control_period=float(values["control_period"]) if values["control_period"] else None,
+        control_rate=float(values["control_rate"]),
         board=values["board"] or None,
         record=values["record"] or None,
         rt_priority=int(values["rt_priority"]) if values["rt_priority"] else None,

@@ -304,9 +304,7 @@ def demo(
 def build_parser() -> argparse.ArgumentParser:
     """The demo's command line (``--controllers``: the laws of ``smm_controller.laws.law_table()``)."""
     parser = argparse.ArgumentParser(prog="smm-demo", description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--controllers", nargs="+", default=list(DEMO_CONTROLLERS), choices=law_names()
-    )
+    parser.add_argument("--controllers", nargs="+", default=list(DEMO_CONTROLLERS), choices=law_names())
     parser.add_argument("--scenario", default="case2", choices=("step", "case1", "case2"))
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--duration", type=float, default=None, help="override the scenario length (s)")

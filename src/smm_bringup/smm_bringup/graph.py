@@ -14,6 +14,7 @@ from typing import Any, Final
 
 from smm_controller.controller_node import REFERENCE_PREFIX
 from smm_controller.reference import REFERENCE_KINDS
+from smm_hw_bridge.control_rate import control_divider
 
 from smm_bringup.errors import ParameterFileError, PlantNotAvailableError
 from smm_bringup.graph_nodes import (
@@ -39,7 +40,7 @@ from smm_bringup.realtime import (
     RECORDER_PRIORITY_OFFSET,
 )
 
-__all__ = ["build_graph", "scenario_file"]
+__all__ = ["build_graph", "control_rate_file", "scenario_file"]
 
 _CONTROLLER_NODES: Final[tuple[tuple[str, str], ...]] = (
     # (node name = console script, class inside smm_controller.<name>)
@@ -64,6 +65,20 @@ def scenario_file(name: str) -> Path:
     return package_file("smm_bringup", f"config/scenario_{name}.yaml")
 
 
+def control_rate_file(rate_hz: float) -> Path | None:
+    """The settings file of control rate ``rate_hz`` (``smm_controller/config/control_rate_<rate>.yaml``).
+
+    None at the board's own rate (1 kHz: the configured defaults are that rate's settings).
+
+    Raises:
+        ValueError: Not a control rate (``smm_hw_bridge.control_rate.CONTROL_RATES_HZ``).
+        ParameterFileError: The file is missing.
+    """
+    if control_divider(rate_hz) == 1:
+        return None
+    return package_file("smm_controller", f"config/control_rate_{rate_hz}.yaml")
+
+
 def _sim_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], ...]:
     parameters: list[tuple[str, ParameterValue]] = [("clock_mode", options.clock_mode)]
     if options.duration is not None:
@@ -73,11 +88,14 @@ def _sim_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], 
         parameters.append(("duration", 0.0))
     if options.seed is not None:
         parameters.append(("seed", options.seed))
+    if options.control_divider > 1:  # the plant integrates at the board's 1 ms step at every control rate
+        parameters.append(("substeps", options.control_divider))
     return tuple(parameters) + _period_parameters(options)
 
 
 def _period_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], ...]:
-    return () if options.control_period is None else (("control_period", float(options.control_period)),)
+    """``control_period`` of the nodes stepping once per measurement; none at 1 kHz (as configured)."""
+    return () if options.control_divider == 1 else (("control_period", options.control_period),)
 
 
 def _reference_parameters(files: Sequence[str]) -> tuple[tuple[str, ParameterValue], ...]:
@@ -128,6 +146,9 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
     files: list[str] = []
     if options.scenario is not None:
         files.append(str(scenario_file(options.scenario)))
+    rate_file = control_rate_file(options.control_rate)
+    if rate_file is not None:
+        files.append(str(rate_file))
     for extra in options.params_files:
         path = Path(extra)
         if not path.is_file():

@@ -8,17 +8,19 @@ from __future__ import annotations
 import ipaddress
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Final, Literal
 
 from smm_controller.laws import law_names, law_table
+from smm_hw_bridge.control_rate import BOARD_TICK_HZ, CONTROL_RATES_HZ, control_divider
 
 from smm_bringup.realtime import MAX_PRIORITY
 
 __all__ = [
     "CHAIN_LAYOUTS",
     "CLOCK_MODES",
+    "CONTROL_RATES_HZ",
     "LOOPS",
     "PLANTS",
     "PLANT_ALIASES",
@@ -32,10 +34,12 @@ PLANTS: Final[tuple[str, ...]] = ("sim", "hardware")
 PLANT_ALIASES: Final[Mapping[str, str]] = MappingProxyType({"hw": "hardware"})
 """Other names accepted for a plant (``hw`` = ``hardware``)."""
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
-LOOPS: Final[tuple[str, ...]] = ("topics", "direct")
+LOOPS: Final[tuple[str, ...]] = ("auto", "topics", "direct")
 """``topics``: the plant and ``controller_node`` are separate processes joined by topics (the product's
 shape); ``direct`` (hardware only): one process, ``direct_loop``, steps the chain of ``controller_node`` in
-the bridge's receiving thread and publishes the same topics for observation (docs/LAUNCH.md)."""
+the bridge's receiving thread and publishes the same topics for observation (docs/LAUNCH.md); ``auto``: the
+direct loop for the hardware plant in real time (it holds the deadline best) where the chain and reference
+allow it, the topics loop otherwise."""
 CHAIN_LAYOUTS: Final[tuple[str, ...]] = ("fused", "split")
 """``fused``: TD, FLESO and law in ``controller_node`` (``chain: internal``), two hops per step; ``split``:
 ``td_node`` and ``fleso_node`` as their own nodes (``chain: external``), four hops per step."""
@@ -69,16 +73,23 @@ class GraphOptions:
             length in lockstep and runs without end in real time; 0 runs without end.
         seed: Seed of the simulator's noise generator, >= 0; ``None`` keeps the configured one.
         params_files: Extra ROS 2 parameter files, applied after the scenario file, in order.
-        control_period: Control period of every node (s), > 0; ``None`` keeps the configured one (1 ms).
-            The plant and the controller nodes must agree on it: each node steps once per measurement.
+        control_rate: Control rate (Hz), one of ``smm_hw_bridge.control_rate.CONTROL_RATES_HZ`` (1000, 500,
+            250). The board (and the simulator's integration step) keeps its 1 kHz tick; the controller
+            steps every N = 1000 / rate ticks with ``control_period`` = N ms, the board holds each command
+            in between, and the rate's settings file (``smm_controller/config/control_rate_<rate>.yaml``)
+            is applied after the scenario's (docs/LAUNCH.md, "Control rate").
         board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board; ``None`` starts
             ``smm_bench_emulator`` on loopback instead.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
-        loop: ``"topics"`` (default) or ``"direct"`` (``plant="hardware"``, fused chain, reference sampled
-            by the controller): see :data:`LOOPS`.
+        loop: ``"auto"`` (default), ``"topics"`` or ``"direct"`` (``plant="hardware"``, fused chain,
+            reference sampled by the controller): see :data:`LOOPS`. ``"auto"`` is resolved on
+            construction, so the instance holds ``"topics"`` or ``"direct"``.
         late_limit: ``hardware``: percent of the ticks after the first second of live output that may be
             late or not live before the run counts as not controlled (exit 3, docs/LAUNCH.md), in [0, 100].
+        preflight: ``hardware`` in real time: seconds the bridge rehearses the loop with output disabled
+            before arming (``preflight.duration_s``, in [0, 30], 0 skips it); ``None``: its default (3 s).
+        force: ``hardware``: arm even when the preflight finds the control rate is not held (a warning).
         start_timeout: ``hardware``: seconds the emulator waits for the first step (lockstep) or the first
             tick with an enabled command (real time) before the run counts as never started (exit 3), > 0.
         rt_priority: SCHED_FIFO priority (1-98) of the processes of the loop (plant or bridge, controller
@@ -99,13 +110,18 @@ class GraphOptions:
     duration: float | None = None
     seed: int | None = None
     params_files: tuple[str, ...] = ()
-    control_period: float | None = None
+    control_rate: float = BOARD_TICK_HZ
     board: str | None = None
     record: str | None = None
     rt_priority: int | None = None
-    loop: Literal["topics", "direct"] = "topics"
+    loop: Literal["auto", "topics", "direct"] = "auto"
     late_limit: float = 1.0
     start_timeout: float = 60.0
+    preflight: float | None = None
+    force: bool = False
+    loop_note: str | None = field(default=None, init=False, compare=False)
+    """Why ``auto`` chose the topics loop for a hardware run in real time (the user's chain or reference),
+    in one line; None otherwise."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "plant", PLANT_ALIASES.get(self.plant, self.plant))
@@ -128,14 +144,8 @@ class GraphOptions:
             or self.duration < 0.0
         ):
             raise ValueError(f"duration must be a finite number >= 0 s or None, got {self.duration!r}")
-        period = self.control_period
-        if period is not None and (
-            isinstance(period, bool)
-            or not isinstance(period, (int, float))
-            or not math.isfinite(period)
-            or round(period * 1e9) < 1
-        ):
-            raise ValueError(f"control_period must be a finite number >= 1 ns or None, got {period!r}")
+        control_divider(self.control_rate)  # raises with the valid rates
+        object.__setattr__(self, "control_rate", int(self.control_rate))  # 500.0 (argparse) is 500
         seed = self.seed
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
             raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
@@ -157,8 +167,19 @@ class GraphOptions:
                 or not (0.0 <= value <= 100.0 if name == "late_limit" else value > 0.0)
             ):
                 raise ValueError(f"{name} must be a finite number, {wanted}, got {value!r}")
+        preflight = self.preflight
+        if preflight is not None and (
+            isinstance(preflight, bool)
+            or not isinstance(preflight, (int, float))
+            or not 0.0 <= preflight <= 30.0
+        ):
+            raise ValueError(f"preflight must be a number of seconds in [0, 30] or None, got {preflight!r}")
+        if not isinstance(self.force, bool):
+            raise ValueError(f"force must be a bool, got {self.force!r}")
         if self.loop not in LOOPS:
             raise ValueError(f"loop must be one of {LOOPS}, got {self.loop!r}")
+        if self.loop == "auto":
+            self._choose_loop()
         if self.loop == "direct" and (
             self.plant != "hardware" or self.chain != "fused" or self.reference != "controller"
         ):
@@ -170,6 +191,36 @@ class GraphOptions:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
             split_endpoint("board", self.board)
+
+    def _choose_loop(self) -> None:
+        """``loop="auto"``: direct for the hardware plant in real time unless the choices forbid it."""
+        hardware_realtime = self.plant == "hardware" and self.clock_mode == "realtime"
+        unhosted = [
+            f"--{name} {value}"
+            for name, value, wanted in (
+                ("chain", self.chain, "fused"),
+                ("reference", self.reference, "controller"),
+            )
+            if value != wanted
+        ]
+        loop = "direct" if hardware_realtime and not unhosted else "topics"
+        object.__setattr__(self, "loop", loop)
+        if hardware_realtime and unhosted:
+            object.__setattr__(
+                self,
+                "loop_note",
+                f"the direct loop cannot host {' '.join(unhosted)}: using the topics loop",
+            )
+
+    @property
+    def control_divider(self) -> int:
+        """N, board ticks per control period (1 at 1 kHz)."""
+        return control_divider(self.control_rate)
+
+    @property
+    def control_period(self) -> float:
+        """The controller's period (s): N board ticks."""
+        return self.control_divider / BOARD_TICK_HZ
 
 
 def split_endpoint(name: str, text: str) -> tuple[str, int]:

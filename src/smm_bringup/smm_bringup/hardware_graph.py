@@ -48,6 +48,10 @@ def hardware_specs(
         ("link.board_port", port),
         ("verdict.late_limit", options.late_limit / 100.0),
     ]
+    if options.preflight is not None:
+        bridge_parameters.append(("preflight.duration_s", float(options.preflight)))
+    if options.force:
+        bridge_parameters.append(("preflight.force", True))
     lockstep = options.clock_mode == "lockstep"
     if lockstep:
         # The board ticks when the controller has answered: the graph's pace, no wall-clock limit may fire.
@@ -60,16 +64,9 @@ def hardware_specs(
         ]
     if options.board is None:
         bridge_parameters += [("link.bind_address", bind_address), ("link.bind_port", bind_port)]
-    if options.control_period is not None:
-        # The bridge's time limits are counted in board ticks at the default 1 kHz: scale them with the tick.
-        period_ns = round(options.control_period * 1e9)
-        bridge_parameters.append(("bridge.admission.period_ns", period_ns))
-        if not lockstep:
-            bridge_parameters += [
-                ("bridge.admission.stale_ns", 20 * period_ns),
-                ("bridge.host_watchdog_ns", 10 * period_ns),
-                ("bridge.link_timeout_ns", 100 * period_ns),
-            ]
+    divider = options.control_divider
+    if divider > 1:  # the board keeps its 1 kHz tick; the bridge stretches validity and limits by N
+        bridge_parameters.append(("bridge.control_divider", divider))
     bridge = NodeSpec(
         package="smm_hw_bridge",
         executable=HW_NODE,
@@ -109,8 +106,8 @@ def hardware_specs(
         emulator_parameters.append(("duration-from", "live"))
     if options.seed is not None:
         emulator_parameters.append(("seed", options.seed))
-    if options.control_period is not None:
-        emulator_parameters.append(("control-period", float(options.control_period)))
+    if divider > 1:
+        emulator_parameters.append(("control-divider", divider))
     emulator_parameters += _emulator_plant(files)
     emulator = NodeSpec(
         package="smm_bench_emulator",

@@ -3,7 +3,8 @@
 Each node its own OS process, as ``ros2 launch`` starts it (:mod:`smm_bringup.supervisor`; ``--loop direct``:
 ``direct_loop`` hosts bridge and controller), or all in this process with ``--composed``
 (:mod:`smm_bringup.composed`). Options, the closing ``board:`` and ``run:`` lines, shutdown and exit codes
-(0 run complete, 1 a node failed, 2 bad configuration, 3 a hardware run that did not control, 128 + signal):
+(0 run complete, 1 a node failed, 2 bad configuration, 3 a hardware run that did not control, 4 refused to
+arm at preflight, 128 + signal):
 docs/LAUNCH.md.
 """
 
@@ -26,6 +27,7 @@ from smm_bringup.graph_nodes import EMULATOR_NODE, NodeSpec
 from smm_bringup.graph_options import (
     CHAIN_LAYOUTS,
     CLOCK_MODES,
+    CONTROL_RATES_HZ,
     LOOPS,
     PLANT_ALIASES,
     PLANTS,
@@ -37,6 +39,7 @@ from smm_bringup.supervisor import (
     EXIT_CONFIGURATION_ERROR,
     EXIT_NOT_CONTROLLED,
     EXIT_OK,
+    EXIT_PREFLIGHT_REFUSED,
     STOP_GRACE_S,
     _say,
     launch_processes,
@@ -92,7 +95,8 @@ def build_parser() -> argparse.ArgumentParser:
         choices=LOOPS,
         default=GraphOptions.loop,
         help="hardware: topics (the bridge and controller_node as processes joined by topics) or direct "
-        "(one process steps the chain in the bridge's receiving thread; topics for observation only)",
+        "(one process steps the chain in the bridge's receiving thread; topics for observation only); auto "
+        "(default): direct in real time where the chain and reference allow it, else topics",
     )
     parser.add_argument("--algorithm", choices=law_names(), default="fpdeso", help="controller algorithm")
     parser.add_argument(
@@ -110,11 +114,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--seed", type=int, default=None, help="seed of the simulator's noise")
     parser.add_argument(
-        "--control-period",
+        "--control-rate",
         type=float,
-        default=None,
-        metavar="S",
-        help="control period of every node in seconds (default: as configured, 0.001)",
+        default=GraphOptions.control_rate,
+        metavar="HZ",
+        help=f"control rate, one of {', '.join(map(str, CONTROL_RATES_HZ))} Hz: the controller steps every "
+        "1000/HZ ticks of the board's (or the simulator's) 1 kHz tick, the board holds each command between",
     )
     parser.add_argument(
         "--params-file",
@@ -144,6 +149,19 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PERCENT",
         help="hardware: exit 3 (did not control) when more than this percentage of the enabled ticks after "
         "the first second were late",
+    )
+    parser.add_argument(
+        "--preflight",
+        type=float,
+        default=None,
+        metavar="S",
+        help="hardware, real time: seconds the bridge rehearses the loop with output disabled before arming "
+        "(0-30, 0 skips it; default 3); a rate this host does not hold is refused (exit 4)",
+    )
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="hardware: arm even when the preflight finds the control rate is not held (with a warning)",
     )
     parser.add_argument(
         "--start-timeout",
@@ -180,13 +198,15 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         duration=arguments.duration,
         seed=arguments.seed,
         params_files=tuple(arguments.params_file),
-        control_period=arguments.control_period,
+        control_rate=arguments.control_rate,
         board=arguments.board,
         record=arguments.record,
         rt_priority=arguments.rt_priority,
         loop=arguments.loop,
         late_limit=arguments.late_limit,
         start_timeout=arguments.start_timeout,
+        preflight=arguments.preflight,
+        force=arguments.force,
     )
 
 
@@ -199,8 +219,8 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--duration", repr(options.duration)]
     if options.seed is not None:
         arguments += ["--seed", str(options.seed)]
-    if options.control_period is not None:
-        arguments += ["--control-period", repr(options.control_period)]
+    if options.control_rate != GraphOptions.control_rate:
+        arguments += ["--control-rate", str(options.control_rate)]
     for params_file in options.params_files:
         arguments += ["--params-file", params_file]
     if options.board is not None:
@@ -209,8 +229,11 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--record", options.record]
     if options.rt_priority is not None:
         arguments += ["--rt-priority", str(options.rt_priority)]
-    if options.loop != GraphOptions.loop:
-        arguments += ["--loop", options.loop]
+    arguments += ["--loop", options.loop]
+    if options.preflight is not None:
+        arguments += ["--preflight", repr(options.preflight)]
+    if options.force:
+        arguments.append("--force")
     if options.late_limit != GraphOptions.late_limit:
         arguments += ["--late-limit", repr(options.late_limit)]
     if options.start_timeout != GraphOptions.start_timeout:
@@ -223,6 +246,8 @@ def run(argv: Sequence[str]) -> int:
     arguments = build_parser().parse_args(list(argv))
     try:
         options = options_from_arguments(arguments)
+        if options.loop_note is not None:
+            _say(options.loop_note)
         specs = build_graph(options)
         if arguments.dry_run:
             for spec in specs:
@@ -235,6 +260,9 @@ def run(argv: Sequence[str]) -> int:
         with tempfile.TemporaryDirectory(prefix="smm-launch-") as folder:
             status = Path(folder) / "board.json"
             code = launch_processes(with_board_status(specs, status), stop_grace_s=arguments.stop_grace)
+            if code == EXIT_PREFLIGHT_REFUSED:
+                _say("run: refused to arm at preflight (the bridge's figures and reason above)", sys.stderr)
+                return code
             _say(board_line(status, real_board=options.board is not None))
             read = read_line(status)
             if read and options.board is None:

@@ -20,6 +20,7 @@ from types import FrameType
 from typing import Any, Final, TextIO
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+from smm_hw_bridge.preflight import EXIT_PREFLIGHT_REFUSED
 from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 
 from smm_bringup.errors import GraphError
@@ -31,6 +32,7 @@ __all__ = [
     "EXIT_NODE_FAILED",
     "EXIT_NOT_CONTROLLED",
     "EXIT_OK",
+    "EXIT_PREFLIGHT_REFUSED",
     "ExecutableNotFoundError",
     "GraphProcesses",
     "launch_processes",
@@ -340,6 +342,10 @@ def launch_processes(
                     codes = processes.stop()
                     _report_stop(codes, expected_done=spec.name)
                     return EXIT_NOT_CONTROLLED if EXIT_NOT_CONTROLLED in codes.values() else EXIT_OK
+                if code == EXIT_PREFLIGHT_REFUSED:
+                    _say(f"{spec.name} refused to arm at preflight; stopping the graph", sys.stderr)
+                    _report_stop(processes.stop(), expected_done=spec.name)
+                    return EXIT_PREFLIGHT_REFUSED
                 _say(f"node {spec.name} exited with code {code}; stopping the graph", sys.stderr)
                 _report_stop(processes.stop(), expected_done=spec.name)
                 return EXIT_NODE_FAILED

@@ -21,6 +21,7 @@ from rclpy.parameter import Parameter
 from smm_controller.controller_node import ControllerNode
 from smm_controller.core import Refusal, StepResult
 from smm_hw_bridge.bridge_node import HwBridgeNode, judged_exit
+from smm_hw_bridge.control_rate import is_control_tick
 from smm_hw_bridge.core import BridgeCore
 from smm_hw_bridge.transport import Transport
 from smm_msgs_py.conversions import JointSample, torque_to_msg
@@ -77,6 +78,11 @@ class DirectControllerNode(ControllerNode):
             self.counters.deadline_misses += 1
         self._pending = result
         return result
+
+    def forget_rehearsal(self) -> None:
+        """After the preflight's rehearsal: nothing of it is published, the run starts from fresh state."""
+        self._pending = None
+        self.core.reset()
 
     def publish_answer(self) -> None:
         """Publishes what the topics loop would for the last measurement, after the frame went out.
@@ -167,6 +173,13 @@ class DirectBridgeNode(HwBridgeNode):
         spin_ns = self.settings.config.spin_us * 1000
         last, core = self._last_rx_ns, self.core
         data = None
+        feedback = None if core is None else core.last_feedback
+        if (
+            core is not None
+            and feedback is not None
+            and not is_control_tick(feedback.tick + 1, core.config.control_divider)
+        ):
+            spin_ns = 0  # the next frame is one the board holds through: nothing to answer in a hurry
         if spin_ns and last is not None and core is not None:
             due = last + core.config.period_ns
             now = time.monotonic_ns()
@@ -198,6 +211,20 @@ class DirectBridgeNode(HwBridgeNode):
         self.statistics.on_tick(rx_ns, time.monotonic_ns())
         self._answered_stamp = stamp_ns
         return True
+
+    def rehearse_in_place(self, core: BridgeCore, rx_ns: int) -> bool:
+        """The preflight: steps the chain as :meth:`answer_in_place` does, and sends nothing of it."""
+        stamp_ns = core.stamp_ns
+        try:
+            result = self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
+        except Exception as error:  # a bug in a law: the loop cannot go on
+            self.fail(f"control chain failed at stamp {stamp_ns} ns: {type(error).__name__}: {error}")
+            return False
+        return not isinstance(result, Refusal)
+
+    def end_rehearsal(self) -> None:
+        """The hosted chain forgets the rehearsal (its reference starts at the first armed measurement)."""
+        self.controller.forget_rehearsal()
 
     def after_feedback(self, sample: JointSample) -> None:
         """The ROS side of the tick, after the command went out: the controller's topics, the bridge's."""

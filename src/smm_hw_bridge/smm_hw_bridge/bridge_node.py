@@ -8,6 +8,7 @@ services; the logic is :class:`BridgeCore`. Lifecycle, faults and parameters: do
 
 from __future__ import annotations
 
+import os
 import secrets
 import sys
 import threading
@@ -31,6 +32,13 @@ from std_srvs.srv import Trigger
 
 from smm_hw_bridge.bridge_health import BridgeCounters, bridge_health
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError, BridgeState
+from smm_hw_bridge.preflight import (
+    EXIT_PREFLIGHT_REFUSED,
+    PreflightConfig,
+    PreflightVerdict,
+    RehearsalRecorder,
+    judge,
+)
 from smm_hw_bridge.protocol import CommandFrame, Reason, encode
 from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED, RunTally, VerdictConfig
 from smm_hw_bridge.transport import LinkConfig, Transport, TransportError, open_transport
@@ -51,6 +59,9 @@ INTERNALS_TOPIC: Final[str] = topics.HW_BRIDGE_INTERNALS
 _FAULT_CHECK_S: Final[float] = 0.005
 _AUTOSTART_POLL_S: Final[float] = 0.01
 """How often ``autostart`` looks for a ``torque_command`` publisher (s)."""
+REHEARSAL_STAMP_OFFSET_NS: Final[int] = 3_600_000_000_000
+"""Topics loop: the rehearsal's ``joint_states`` are stamped this much (1 h) after the board's tick, so that
+the armed run's first measurements are a backward time jump: ``controller_node`` then starts it afresh."""
 
 
 @dataclass(frozen=True)
@@ -93,6 +104,7 @@ class HwBridgeNode(LifecycleNode):
             self._bridge = ConfigParameters(self, "bridge", BridgeConfig())
             self._verdict = ConfigParameters(self, "verdict", VerdictConfig(), read_only=True)
             self._gate = ConfigParameters(self, "", AutostartGate(), read_only=True)
+            self._preflight = ConfigParameters(self, "preflight", PreflightConfig(), read_only=True)
         except ValueError:
             self.destroy_node()
             raise
@@ -130,6 +142,12 @@ class HwBridgeNode(LifecycleNode):
         if self.autostart:
             self._autostart = self.create_timer(_AUTOSTART_POLL_S, self._start, clock=steady)
         self._waiting_logged = False
+        self.rehearsal: RehearsalRecorder | None = None
+        """While the preflight rehearses (output disabled): its arrivals and answers."""
+        self.preflight: PreflightVerdict | None = None
+        self.preflight_refusal: str | None = None
+        """Why the preflight refused to arm (the process then ends), None otherwise."""
+        self._preflight_end = 0.0
 
     def _start(self) -> None:
         """``autostart``: once a controller publishes ``torque_command``, configure, then activate, once.
@@ -153,7 +171,70 @@ class HwBridgeNode(LifecycleNode):
         self._autostart.cancel()  # type: ignore[no-untyped-call]
         self._started = True
         if self.trigger_configure() == TransitionCallbackReturn.SUCCESS:  # type: ignore[no-untyped-call]
+            self._begin_preflight()
+
+    def _begin_preflight(self) -> None:
+        """Rehearses the loop, output disabled, for ``preflight.duration_s``; then judges. Not in lockstep."""
+        core, config = self._core, self._preflight.config
+        if core is None:
+            return
+        if core.config.lockstep or config.duration_s == 0.0:
+            why = "lockstep" if core.config.lockstep else "preflight.duration_s = 0"
+            self._log.info(f"preflight: skipped ({why})")
             self.trigger_activate()  # type: ignore[no-untyped-call]
+            return
+        with self._lock:
+            self.rehearsal = RehearsalRecorder(
+                core.config.period_ns, core.config.control_divider, config.added_latency_us
+            )
+        self._preflight_end = time.monotonic() + config.duration_s
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._preflight_timer = self.create_timer(_AUTOSTART_POLL_S, self._end_preflight, clock=steady)
+
+    def _end_preflight(self) -> None:
+        """After the rehearsal: states its figures, then arms, or refuses and ends the process."""
+        if time.monotonic() < self._preflight_end:
+            return
+        self._preflight_timer.cancel()  # type: ignore[no-untyped-call]
+        with self._lock:
+            recorder, self.rehearsal = self.rehearsal, None
+            self.end_rehearsal()
+        if recorder is None:
+            return
+        margin = self._preflight.config.margin
+        verdict = judge(recorder.figures(), self._verdict.config.late_limit, margin=margin)
+        self.preflight = verdict
+        for line in verdict.lines():
+            self._log.info(f"preflight: {line}")
+        refusal = verdict.refusal(direct_loop=self.direct, realtime=realtime_scheduled())
+        if verdict.holds:
+            self._log.info(f"preflight: {verdict.figures.rate_hz:g} Hz holds here; arming")
+        elif self._preflight.config.force:
+            self._log.warning(f"preflight: ARMING ANYWAY (preflight.force): {refusal}")
+        else:
+            self.preflight_refusal = refusal
+            self._log.error(f"preflight: refused to arm: {self.preflight_refusal}")
+            self.context.try_shutdown()
+            return
+        if self.lifecycle_state != "inactive":  # a fault during the rehearsal took it out of configured
+            self._log.error(f"preflight: the bridge is {self.lifecycle_state} after rehearsing; not arming")
+            return
+        self.trigger_activate()  # type: ignore[no-untyped-call]
+
+    @property
+    def direct(self) -> bool:
+        """True for a host that answers each measurement itself (the direct loop)."""
+        return not self.SUBSCRIBES_COMMAND
+
+    def rehearse_in_place(self, core: BridgeCore, rx_ns: int) -> bool:
+        """Hook of the direct loop: steps the chain on the measurement, sends nothing (lock held).
+
+        True if it answered; the topics loop publishes the measurement to its controller instead: False.
+        """
+        return False
+
+    def end_rehearsal(self) -> None:
+        """Hook called when the rehearsal ends, before arming (lock held): the chain starts the run afresh."""
 
     def destroy_node(self) -> None:
         """Sends safe output, stops the reader thread and closes the transport, prints the closing line."""
@@ -167,6 +248,8 @@ class HwBridgeNode(LifecycleNode):
         """What the host knows of the run, from the board's feedback frames (docs/LAUNCH.md, "Exit codes")."""
         tally = self.tally
         reason = self.run_verdict()
+        if self.preflight_refusal is not None:
+            return "host: refused to arm at preflight (its figures and reason above); no output went live"
         if tally is None:
             return f"host: no feedback frame counted; did not control: {reason}"
         verdict = "controlled" if reason is None else f"did not control: {reason}"
@@ -243,7 +326,9 @@ class HwBridgeNode(LifecycleNode):
         with self._lock:
             self._core, self._transport = core, transport
             if self.tally is None:
-                self.tally = RunTally(core.config.period_ns, self._verdict.config)
+                self.tally = RunTally(
+                    core.config.period_ns, self._verdict.config, core.config.control_divider
+                )
             self._send_safe()
         self._stop.clear()
         self._reader = threading.Thread(target=self._read_loop, name="hw_bridge_reader", daemon=True)
@@ -376,17 +461,30 @@ class HwBridgeNode(LifecycleNode):
             resent = core.config.lockstep and core.last_rejection is Reason.DUPLICATE
             if frame is None and not resent:
                 return
-            publish = core.state in (BridgeState.ARMING, BridgeState.ARMED)
+            # the controller answers every Nth board tick (bridge.control_divider); the board holds between
+            armed = core.state in (BridgeState.ARMING, BridgeState.ARMED)
+            publish = armed and core.control_tick
+            rehearsal = None if armed or frame is None else self.rehearsal
+            tick = core.stamp_ns // core.config.period_ns
+            control = rehearsal is not None and core.control_tick
+            rehearsed = False
+            if rehearsal is not None:
+                rehearsal.on_feedback(tick, now, control)
+                rehearsed = control and self.rehearse_in_place(core, now)
             answered = publish and self.answer_in_place(core, now)
             if not answered and core.needs_frame(now):
                 out = core.next_frame(now)
                 if out is not None:
                     self._transmit(out)
-            if not publish:
+            if rehearsed and rehearsal is not None:
+                rehearsal.on_answer(tick, time.monotonic_ns())
+            if not publish and (not control or self.direct):
                 return
-            sample = JointSample(core.stamp_ns, core.position, effort=core.applied_torque)
+            stamp = core.stamp_ns + (0 if publish else REHEARSAL_STAMP_OFFSET_NS)
+            sample = JointSample(stamp, core.position, effort=core.applied_torque)
         self._joint_states.publish(sample_to_joint_state(sample))
-        self.after_feedback(sample)
+        if publish:
+            self.after_feedback(sample)
 
     def answer_in_place(self, core: BridgeCore, rx_ns: int) -> bool:
         """Hook of a host that answers the core's measurement in its receiving thread (lock held, none sent).
@@ -445,6 +543,11 @@ class HwBridgeNode(LifecycleNode):
         with self._lock:
             core = self._core
             if core is None or self._transport is None:
+                return
+            rehearsal = self.rehearsal
+            if rehearsal is not None:  # the answer to a rehearsed measurement: timed, never sent
+                tick = (command.stamp_ns - REHEARSAL_STAMP_OFFSET_NS) // core.config.period_ns
+                rehearsal.on_answer(tick, now)
                 return
             if not self.take_command(core, command.values, command.stamp_ns, now):
                 return
@@ -520,6 +623,14 @@ class HwBridgeNode(LifecycleNode):
             )
 
 
+def realtime_scheduled() -> bool:
+    """True when this process runs under a real-time policy (SCHED_FIFO or SCHED_RR)."""
+    try:
+        return os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)
+    except (AttributeError, OSError):  # not Linux
+        return False
+
+
 def judged_exit(code: int, node: HwBridgeNode | None, name: str) -> int:
     """``code``, or :data:`EXIT_NOT_CONTROLLED` when ``node`` was to start itself and its run did not control.
 
@@ -527,6 +638,9 @@ def judged_exit(code: int, node: HwBridgeNode | None, name: str) -> int:
     """
     if code != 0 or node is None or not node.autostart:
         return code
+    if node.preflight_refusal is not None:
+        print(f"{name}: refused to arm at preflight: {node.preflight_refusal}", file=sys.stderr, flush=True)
+        return EXIT_PREFLIGHT_REFUSED
     reason = node.run_verdict()
     if reason is None:
         return code

@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 from smm_schema.ranges import above, bounds, check_bounds
 
+from smm_hw_bridge.control_rate import MAX_DIVIDER, held_ticks, in_flight_ticks, is_control_tick
 from smm_hw_bridge.encoder import EncoderConfig, EncoderDecoder
 from smm_hw_bridge.link import AdmissionConfig, FeedbackAdmission, LinkStats
 from smm_hw_bridge.protocol import (
@@ -74,11 +75,15 @@ class BridgeConfig:
         encoder: Counts -> rad.
         valve: Torque -> D/A code.
         admission: Feedback admission (tick period, staleness).
-        host_watchdog_ns: No fresh command for this long -> safe output (ns), > 0.
+        host_watchdog_ns: No fresh command for this long -> safe output (ns), > 0; at a divider N the
+            bridge waits 2 (N - 1) ticks longer (:attr:`watchdog_ns`).
         stale_periods: A command answering a measurement more than this many ticks older than the newest
-            is refused (K), >= 1.
+            is refused (K), >= 1; at a divider N, N - 1 ticks more (:attr:`stale_ticks`).
         validity_ticks: Ticks after the answered measurement during which the board may apply a command,
-            in [1, 65535].
+            in [1, 65535], as at 1 kHz control; at a divider N the frames carry 2 (N - 1) ticks more
+            (:attr:`validity`; docs/LAUNCH.md, "Control rate").
+        control_divider: N, board ticks per control period, in [1, 10]: the host answers the feedback of
+            board ticks that are multiples of N and the board holds each command in between.
         soft_limits: Joint soft limits +-limit (alpha, beta) (rad), > 0: beyond one, a torque that drives
             further out is cut to 0; one that drives back is passed.
         link_timeout_ns: No admitted feedback for this long -> link down (ns), > 0.
@@ -95,6 +100,7 @@ class BridgeConfig:
     host_watchdog_ns: int = field(default=10_000_000, metadata=bounds(1, 10_000_000_000))
     stale_periods: int = field(default=5, metadata=bounds(1, 65535))
     validity_ticks: int = field(default=10, metadata=bounds(1, 65535))
+    control_divider: int = field(default=1, metadata=bounds(1, MAX_DIVIDER))
     soft_limits: tuple[float, float] = field(default=(1.2, 1.2), metadata=above(0.0))
     link_timeout_ns: int = field(default=100_000_000, metadata=bounds(1, 60_000_000_000))
     reboot_frames: int = field(default=3, metadata=bounds(1, 1000))
@@ -110,6 +116,11 @@ class BridgeConfig:
             if not isinstance(getattr(self, name), kind):
                 raise ValueError(f"{name} must be a {kind.__name__}, got {getattr(self, name)!r}")
         check_bounds(self)
+        if self.validity > 0xFFFF:
+            raise ValueError(
+                f"validity_ticks must be <= {0xFFFF - held_ticks(self.control_divider)} at control_divider "
+                f"{self.control_divider} (a u16 on the wire), got {self.validity_ticks!r}"
+            )
         if not isinstance(self.lockstep, bool):
             raise ValueError(f"lockstep must be a bool, got {self.lockstep!r}")
 
@@ -117,6 +128,21 @@ class BridgeConfig:
     def period_ns(self) -> int:
         """Board tick period (ns)."""
         return self.admission.period_ns
+
+    @property
+    def validity(self) -> int:
+        """The validity every command frame carries (ticks): ``validity_ticks`` + 2 (N - 1)."""
+        return self.validity_ticks + held_ticks(self.control_divider)
+
+    @property
+    def stale_ticks(self) -> int:
+        """A command answering a measurement more than this many ticks older than the newest is refused."""
+        return self.stale_periods + in_flight_ticks(self.control_divider)
+
+    @property
+    def watchdog_ns(self) -> int:
+        """No fresh command for this long -> safe output (ns): ``host_watchdog_ns`` + 2 (N - 1) ticks."""
+        return self.host_watchdog_ns + held_ticks(self.control_divider) * self.period_ns
 
 
 @dataclass(slots=True)
@@ -161,6 +187,10 @@ class BridgeCore:
         self._host_session = host_session
         self._period_s = config.period_ns / 1e9
         self._limits = (float(config.soft_limits[0]), float(config.soft_limits[1]))
+        self._validity = config.validity
+        self._stale_ticks = config.stale_ticks
+        self._watchdog_ns = config.watchdog_ns
+        self._divider = config.control_divider
         self._encoder = EncoderDecoder(config.encoder)
         self._count_limit = config.encoder.modulus
         self._valve = ValveOutput(config.valve)
@@ -303,6 +333,12 @@ class BridgeCore:
             pass  # stays until reset: the lifecycle error path reconfigures
 
     @property
+    def control_tick(self) -> bool:
+        """True if the controller answers the last admitted feedback (its board tick a multiple of N)."""
+        last = self._last
+        return last is not None and is_control_tick(last.tick, self._divider)
+
+    @property
     def stamp_ns(self) -> int:
         """Stamp of the last admitted measurement: unwrapped board tick * period (ns)."""
         return self._admission.tick * self._config.period_ns
@@ -357,7 +393,7 @@ class BridgeCore:
         entry = self._recent.get(tick) if remainder == 0 else None
         if entry is None:
             return self._refuse(Refusal.UNKNOWN_STAMP)
-        if self._admission.tick - tick > self._config.stale_periods:
+        if self._admission.tick - tick > self._stale_ticks:
             return self._refuse(Refusal.STALE)
         if tick <= self._arm_tick:
             return self._refuse(Refusal.BEFORE_ARM)
@@ -391,8 +427,8 @@ class BridgeCore:
         elif self._rearm_pending:
             flags = _REARM
         elif self.state == BridgeState.ARMED and pending is not None:
-            fresh = now_ns - pending.rx_ns <= self._config.host_watchdog_ns
-            valid = self._admission.tick - pending.answers_tick_unwrapped <= self._config.validity_ticks
+            fresh = now_ns - pending.rx_ns <= self._watchdog_ns
+            valid = self._admission.tick - pending.answers_tick_unwrapped <= self._validity
             if fresh and valid:
                 flags = _ENABLE
                 codes = pending.codes
@@ -414,7 +450,7 @@ class BridgeCore:
             answers_seq=answers_seq,
             answers_tick=answers_tick,
             flags=flags,
-            validity=self._config.validity_ticks,
+            validity=self._validity,
             codes=codes,
         )
         self.stats.on_command_sent(frame.seq, now_ns)
@@ -425,9 +461,9 @@ class BridgeCore:
         pending = self._pending
         if self.state != BridgeState.ARMED or pending is None:
             return True
-        if now_ns - pending.rx_ns > self._config.host_watchdog_ns:
+        if now_ns - pending.rx_ns > self._watchdog_ns:
             return True
-        return self._admission.tick - pending.answers_tick_unwrapped > self._config.validity_ticks
+        return self._admission.tick - pending.answers_tick_unwrapped > self._validity
 
     def link_up(self, now_ns: int) -> bool:
         """True if feedback was admitted within ``link_timeout_ns`` (no state change)."""

@@ -1,7 +1,8 @@
-"""Whether a hardware run controlled: armed, live, few late ticks (docs/LAUNCH.md, "Shutdown and exit codes").
+"""Whether a hardware run controlled: armed, live, few late periods (docs/LAUNCH.md, "Exit codes").
 
-The board's feedback frames carry its status (``ENABLED``) and its late count; the emulator (the frames it
-sends) and the bridge (the frames it admits) count them with :class:`RunTally`, so both give the same figures.
+The board's feedback frames carry its status (``ENABLED``) and the age of the command on the valves; the
+emulator (the frames it sends) and the bridge (the frames it admits) count them with :class:`RunTally`, so
+both give the same figures. Late is counted per control period (docs/LAUNCH.md, "Control rate").
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ class VerdictConfig:
     """When a run counts as controlled.
 
     Attributes:
-        late_limit: Largest fraction of late enabled ticks after ``settle_s`` (0.01 = 1 %).
+        late_limit: Largest fraction of late control periods after ``settle_s`` (0.01 = 1 %).
         settle_s: Enabled ticks in the first ``settle_s`` seconds of live output are not judged (s).
     """
 
@@ -36,37 +37,45 @@ class VerdictConfig:
 
 
 class RunTally:
-    """Counts a run's enabled and late ticks from the board's feedback frames, one call per frame.
+    """Counts a run's control periods and the late ones from the board's feedback frames, one call per frame.
+
+    A control period is the N board ticks from one control tick (a multiple of N) to the next. It is late
+    when the command answering its control tick was not on the valves by the next control tick: the
+    feedback of that tick shows the output not live, or a command older than the period (``applied_age``
+    above N). At N = 1 that is the board's late count: the answer to the last feedback had not arrived.
 
     Args:
         period_ns: The board's tick (ns), > 0.
         config: Limit and settling time.
+        divider: N, board ticks per control period (``bridge.control_divider``), >= 1.
     """
 
-    def __init__(self, period_ns: int, config: VerdictConfig | None = None) -> None:
+    def __init__(self, period_ns: int, config: VerdictConfig | None = None, divider: int = 1) -> None:
         if period_ns <= 0:
             raise ValueError(f"period_ns must be > 0, got {period_ns!r}")
+        if isinstance(divider, bool) or not isinstance(divider, int) or divider < 1:
+            raise ValueError(f"divider must be an int >= 1, got {divider!r}")
         self.config = config or VerdictConfig()
+        self.divider = divider
+        self.period_ms = period_ns * divider / 1e6
         self.settle_ticks = round(self.config.settle_s * 1e9 / period_ns)
         self.armed = False
         """An enabled command was sent (bridge) or arrived (board)."""
         self.live_ticks = 0
-        """Feedback frames with ENABLED set: ticks that latched an enabled command."""
-        self.enabled_ticks = 0
-        """Ticks after the settling time from the first live tick on (the late fraction's denominator)."""
-        self.late_ticks = 0
-        """Of :attr:`enabled_ticks`, those at which the board held the previous command (the answer to its
-        last feedback had not arrived) or the output was not live."""
+        """Feedback frames with ENABLED set: ticks that latched or held an enabled command."""
+        self.periods = 0
+        """Control periods ending after the settling time from the first live tick on (the denominator)."""
+        self.late_periods = 0
+        """Of :attr:`periods`, those whose command was not on the valves by their end, or not live."""
         self.missed_ticks = 0
         """Ticks of which no feedback frame was counted here (lost on the way, or not read in time)."""
         self._first_live: int | None = None
         self._last: FeedbackFrame | None = None
 
     def on_feedback(self, frame: FeedbackFrame) -> None:
-        """Counts one feedback frame (in tick order; a lost frame's ticks count as the next one's).
+        """Counts one feedback frame (in tick order; a lost frame's periods are judged by the next one).
 
-        After the settling time every tick is judged: late if the board held the previous command, or if
-        the output was not live (nulled by a watchdog, a fault, a disarm) at all.
+        After the settling time every period is judged at the feedback of the control tick that ends it.
         """
         last, self._last = self._last, frame
         if last is not None and last.session == frame.session:
@@ -77,29 +86,33 @@ class RunTally:
             if self._first_live is None:
                 self._first_live = frame.tick
         first = self._first_live
-        if first is None or last is None or u32_diff(frame.tick, first) < self.settle_ticks:
+        if first is None or last is None:
             return
         ticks = u32_diff(frame.tick, last.tick)
         if last.session != frame.session or ticks <= 0:
             return  # a reboot, or the same tick re-sent (lockstep)
-        self.enabled_ticks += ticks
-        if not enabled:
-            self.late_ticks += ticks
-        else:
-            dead = ticks - 1 if not last.status & StatusBit.ENABLED else 0
-            late = max(0, u32_diff(frame.late_commands, last.late_commands))
-            self.late_ticks += min(ticks, dead + late)  # a missed tick is not late twice
+        divider = self.divider
+        answered = frame.tick - frame.applied_age  # the tick the command on the valves answers
+        dead_before = not last.status & StatusBit.ENABLED  # frames lost after a frame not live: not live
+        # the control ticks in (last.tick, frame.tick]: each ends the period that began N ticks before
+        for end in range(frame.tick - (frame.tick % divider), frame.tick - ticks, -divider):
+            if u32_diff(end, first) < self.settle_ticks:
+                continue
+            self.periods += 1
+            seen = end == frame.tick
+            if not enabled or (dead_before and not seen) or u32_diff(answered, end - divider) < 0:
+                self.late_periods += 1
 
     @property
     def late_fraction(self) -> float:
-        """Late share of the judged enabled ticks (0 before any)."""
-        return self.late_ticks / self.enabled_ticks if self.enabled_ticks else 0.0
+        """Late share of the judged control periods (0 before any)."""
+        return self.late_periods / self.periods if self.periods else 0.0
 
     def figures(self) -> str:
-        """``late L of N ticks after the first S s live (P %), T live ticks in all``."""
+        """``late L of N periods of T ms after the first S s live (P %), T live ticks in all``."""
         missed = f", {self.missed_ticks} ticks without a frame here" if self.missed_ticks else ""
         return (
-            f"late {self.late_ticks} of {self.enabled_ticks} ticks after the first "
+            f"late {self.late_periods} of {self.periods} periods of {self.period_ms:g} ms after the first "
             f"{self.config.settle_s:g} s live ({100.0 * self.late_fraction:.2f} %), "
             f"{self.live_ticks} live ticks in all{missed}"
         )
@@ -112,7 +125,7 @@ class RunTally:
             return "the output never went live: no board tick latched an enabled command"
         if self.late_fraction > self.config.late_limit:
             return (
-                f"{100.0 * self.late_fraction:.2f} % of the ticks after the first "
+                f"{100.0 * self.late_fraction:.2f} % of the control periods after the first "
                 f"{self.config.settle_s:g} s live were late or not live, above the limit of "
                 f"{100.0 * self.config.late_limit:g} %"
             )

@@ -38,6 +38,7 @@ def implausible_text(topic: str, stamp_ns: int, reason: str) -> str:
     """Why a measurement was dropped as implausible (the text of a ``dropped_implausible`` count)."""
     return f"dropped implausible measurement on '{topic}' at {stamp_ns} ns: {reason}"
 
+
 COUNTER_ROWS: Final[tuple[str, ...]] = (
     "dropped_invalid",
     "dropped_stale",

@@ -1,0 +1,176 @@
+"""The preflight's verdict from rehearsal figures: hold, refuse, the fastest rate held (no ROS, no clock)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from smm_hw_bridge.preflight import (
+    WARM_UP_S,
+    PreflightConfig,
+    RehearsalFigures,
+    RehearsalRecorder,
+    judge,
+    tick_grid,
+)
+
+PERIOD = 1_000_000  # 1 kHz board
+
+
+def figures(latencies_us: list[float], unanswered: int = 0, divider: int = 1) -> RehearsalFigures:
+    return RehearsalFigures(PERIOD, divider, tuple(latencies_us), (10.0,) * len(latencies_us), unanswered)
+
+
+def test_fast_host_holds_every_rate() -> None:
+    verdict = judge(figures([200.0] * 1000), 0.01)
+    assert verdict.holds
+    assert verdict.late_share == 0.0
+    assert verdict.fastest_held_hz == 1000.0
+    assert [rate for rate, _ in verdict.predicted] == [1000.0, 500.0, 250.0]
+
+
+def test_host_late_at_1khz_refuses_and_names_500_hz() -> None:
+    # 5 % of the answers take 1.5 ms: late at 1 kHz (budget 1 ms), in time at 500 Hz (2 ms)
+    verdict = judge(figures([300.0] * 950 + [1500.0] * 50), 0.01)
+    assert not verdict.holds
+    assert verdict.late_share == pytest.approx(0.05)
+    assert verdict.fastest_held_hz == 500.0
+    text = verdict.refusal(direct_loop=False, realtime=False)
+    assert "does not hold 1000 Hz" in text and "500 Hz" in text
+    assert "--loop direct" in text and "--rt-priority" in text
+    assert "--loop direct" not in verdict.refusal(direct_loop=True, realtime=False)
+    assert "--rt-priority" not in verdict.refusal(direct_loop=False, realtime=True)
+
+
+def test_only_250_hz_holds() -> None:
+    verdict = judge(figures([300.0] * 900 + [3000.0] * 100), 0.01)
+    assert verdict.fastest_held_hz == 250.0
+    assert dict(verdict.predicted)[500.0] == pytest.approx(0.1)
+
+
+def test_nothing_holds_says_so() -> None:
+    verdict = judge(figures([5000.0] * 100), 0.01)
+    assert verdict.fastest_held_hz is None
+    assert "none of the candidate rates holds" in verdict.refusal(direct_loop=True, realtime=True)
+
+
+def test_the_margin_asks_for_a_share_of_the_limit() -> None:
+    rehearsal = figures([100.0] * 993 + [1500.0] * 7)  # 0.7 % late at 1 kHz
+    assert judge(rehearsal, 0.01).holds
+    halved = judge(rehearsal, 0.01, margin=0.5)
+    assert not halved.holds and halved.allowed == pytest.approx(0.005)
+    assert halved.fastest_held_hz == 500.0
+    assert "above 0.5 % (the limit of 1 % with the preflight's margin)" in halved.refusal(
+        direct_loop=True, realtime=True
+    )
+    with pytest.raises(ValueError, match="margin"):
+        judge(rehearsal, 0.01, margin=0.0)
+    with pytest.raises(ValueError, match="margin"):
+        PreflightConfig(margin=1.5)
+
+
+def test_unanswered_periods_count_as_late() -> None:
+    verdict = judge(figures([100.0] * 97, unanswered=3), 0.01)
+    assert verdict.late_share == pytest.approx(0.03)
+    assert not verdict.holds and verdict.fastest_held_hz is None
+
+
+def test_limit_is_inclusive() -> None:
+    assert judge(figures([100.0] * 99 + [1500.0]), 0.01).holds
+    assert not judge(figures([100.0] * 99 + [1500.0]), 0.0099).holds
+
+
+def test_no_rehearsed_period_does_not_hold() -> None:
+    assert not judge(figures([]), 0.01).holds
+
+
+def test_rehearsed_at_500_hz_judges_its_own_period() -> None:
+    verdict = judge(figures([1500.0] * 100, divider=2), 0.01)
+    assert verdict.figures.rate_hz == 500.0
+    assert verdict.holds and verdict.fastest_held_hz == 500.0
+
+
+@given(st.lists(st.floats(0.0, 10_000.0), min_size=1, max_size=200), st.floats(0.0, 1.0))
+def test_fastest_held_is_within_the_limit_and_every_faster_one_is_not(
+    latencies: list[float], limit: float
+) -> None:
+    verdict = judge(figures(latencies), limit)
+    for rate, share in verdict.predicted:
+        if verdict.fastest_held_hz is not None and rate > verdict.fastest_held_hz:
+            assert share > limit
+    if verdict.fastest_held_hz is not None:
+        assert dict(verdict.predicted)[verdict.fastest_held_hz] <= limit
+    assert verdict.holds == (verdict.late_share <= limit)
+
+
+def test_bad_limits_and_settings_are_refused() -> None:
+    with pytest.raises(ValueError, match="late_limit"):
+        judge(figures([1.0]), 1.5)
+    with pytest.raises(ValueError, match="dividers"):
+        judge(figures([1.0]), 0.01, (0, 1))
+    with pytest.raises(ValueError, match="duration_s"):
+        PreflightConfig(duration_s=-1.0)
+    with pytest.raises(ValueError, match="duration_s"):
+        PreflightConfig(duration_s=31.0)
+    with pytest.raises(ValueError, match="force"):
+        PreflightConfig(force=1)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="divider"):
+        RehearsalRecorder(PERIOD, divider=0)
+
+
+def record(
+    recorder: RehearsalRecorder, ticks: range, way_ns: int, answer_ns: int, skip: frozenset[int] = frozenset()
+) -> None:
+    for tick in ticks:
+        rx = 5_000_000_000 + tick * PERIOD + way_ns + (tick % 7) * 10_000
+        control = tick % recorder.divider == 0
+        recorder.on_feedback(tick, rx, control)
+        if control and tick not in skip:
+            recorder.on_answer(tick, rx + answer_ns)
+
+
+def test_recorder_times_answers_from_the_tick_grid() -> None:
+    recorder = RehearsalRecorder(PERIOD)
+    record(recorder, range(2000), way_ns=40_000, answer_ns=100_000)
+    result = recorder.figures()
+    warm = round(WARM_UP_S * 1e9 / PERIOD)
+    assert result.periods == 2000 - warm and result.unanswered == 0
+    # wake-up: arrival after the earliest arrival's grid (0..60 us jitter); answer 100 us after arrival
+    assert min(result.wakeup_us) == pytest.approx(0.0) and max(result.wakeup_us) == pytest.approx(60.0)
+    assert min(result.feedback_to_command_us) == pytest.approx(100.0)
+    assert max(result.feedback_to_command_us) == pytest.approx(160.0)
+
+
+def test_recorder_counts_unanswered_control_periods_and_its_divider() -> None:
+    recorder = RehearsalRecorder(PERIOD, divider=4, added_latency_us=1000.0)
+    record(recorder, range(1000, 3000), way_ns=0, answer_ns=50_000, skip=frozenset({2000, 2004}))
+    result = recorder.figures()
+    assert result.unanswered == 2
+    assert result.periods == (3000 - 1252) // 4  # control ticks from 1252 (after the warm-up) on
+    assert min(result.feedback_to_command_us) == pytest.approx(1050.0)  # the added latency counts
+
+
+def test_recorder_counts_lost_frames_as_unanswered_periods() -> None:
+    recorder = RehearsalRecorder(PERIOD, divider=2)
+    record(recorder, range(0, 1000), way_ns=0, answer_ns=50_000)
+    record(recorder, range(1010, 2000), way_ns=0, answer_ns=50_000)  # 10 ticks lost: 5 control periods
+    result = recorder.figures()
+    assert result.unanswered == 5
+    assert result.periods == (2000 - 250) // 2
+
+
+def test_recorder_without_frames_gives_nothing() -> None:
+    result = RehearsalRecorder(PERIOD).figures()
+    assert result.periods == 0 and not judge(result, 0.01).holds
+
+
+def test_tick_grid_follows_a_drifting_board_clock() -> None:
+    ticks = np.arange(3000, dtype=np.int64)
+    drift = (ticks * 50) // 1000  # 50 ppm: the board's tick is 1.00005 ms on the host's clock
+    jitter = (ticks % 5) * 20_000
+    arrivals = 7_000 + ticks * PERIOD + drift + jitter
+    grid = tick_grid(ticks, arrivals, PERIOD)
+    after = arrivals - grid
+    assert after.min() >= 0
+    assert np.abs(after - jitter).max() <= 2  # the drift is taken out, the jitter remains
