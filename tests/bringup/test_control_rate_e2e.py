@@ -16,6 +16,7 @@ import pytest
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.metrics import rms_error
 from smm_bringup.graph import control_rate_settings
+
 from smm_controller import TrackingDifferentiatorConfig
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
