@@ -74,7 +74,8 @@ def test_hardware_graph_runs_for_its_duration_and_the_output_goes_live(
     assert figures["crc_errors"] == 0
     late, enabled = figures["late_commands"], figures["enabled_ticks"]
     closing = (
-        f"board: late {late} of {enabled} enabled ticks ({100 * late / enabled:.2f} %), feedback->command"
+        f"board: late {late} of {enabled} enabled ticks ({100 * late / enabled:.2f} %) (its count per tick: "
+        "it holds 3 of every 4), feedback->command"
     )
     assert closing in logs  # the closing line is the emulator's own counters
     # the bridge counts the same ticks from the feedback frames it admitted
