@@ -109,6 +109,21 @@ def test_the_closing_line_is_the_emulator_counters(tmp_path: Path) -> None:
     assert board_line(status, real_board=False) == (
         "board: late 3 of 400 enabled ticks (0.75 %), feedback->command p50 120 us, p99 281 us"
     )
+    status.write_text(
+        json.dumps(
+            {
+                "late_commands": 300,
+                "enabled_ticks": 400,
+                "latency_p50_us": None,
+                "latency_p99_us": None,
+                "control_divider": 4,
+            }
+        )
+    )
+    assert board_line(status, real_board=False) == (  # 250 Hz control: the board's count is per tick
+        "board: late 300 of 400 enabled ticks (75.00 %) (its count per tick: it holds 3 of every 4), "
+        "feedback->command no enabled command"
+    )
     assert board_line(tmp_path / "missing.json", real_board=False).startswith("board: no end-of-run status")
     assert "host" in board_line(status, real_board=True)  # a real board: what the host knows, and where
     assert read_line(status) is None  # an emulator that gives no read time

@@ -46,7 +46,7 @@ def test_hardware_lockstep_case2_recorded_twice_gives_a_bag_with_the_same_indice
         )
         code, logs = _launch(ros_processes, f"smm-launch-{run}", *arguments)
         assert code == 0, logs
-        assert "[smm-launch] run: controlled (late 0 of 3999 ticks after the first 1 s live" in logs
+        assert "[smm-launch] run: controlled (late 0 of 3999 periods of 1 ms after the first 1 s live" in logs
         analysed = subprocess.run(
             [sys.executable, "-m", "smm_bag.cli", "analyze", "--json", "--quiet", str(bag)],
             capture_output=True,
@@ -75,7 +75,7 @@ def test_a_lockstep_hardware_run_that_never_starts_exits_3_and_says_why(tmp_path
     assert launch_processes(with_board_status(specs, status), stop_grace_s=5.0) == EXIT_NOT_CONTROLLED
     assert verdict_line(status) == (
         "run: did not control: the lockstep run never started: no step within its start timeout of 2 s "
-        "(late 0 of 0 ticks after the first 1 s live (0.00 %), 0 live ticks in all)"
+        "(late 0 of 0 periods of 1 ms after the first 1 s live (0.00 %), 0 live ticks in all)"
     )
 
 

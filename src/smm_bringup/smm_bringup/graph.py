@@ -40,7 +40,7 @@ from smm_bringup.realtime import (
     RECORDER_PRIORITY_OFFSET,
 )
 
-__all__ = ["build_graph", "control_rate_file", "scenario_file"]
+__all__ = ["build_graph", "control_rate_file", "control_rate_settings", "scenario_file"]
 
 _CONTROLLER_NODES: Final[tuple[tuple[str, str], ...]] = (
     # (node name = console script, class inside smm_controller.<name>)
@@ -77,6 +77,12 @@ def control_rate_file(rate_hz: float) -> Path | None:
     if control_divider(rate_hz) == 1:
         return None
     return package_file("smm_controller", f"config/control_rate_{rate_hz}.yaml")
+
+
+def control_rate_settings(rate_hz: float) -> dict[str, Any]:
+    """What the settings file of control rate ``rate_hz`` gives ``controller_node`` (empty at 1 kHz)."""
+    path = control_rate_file(rate_hz)
+    return {} if path is None else load_parameter_file(path, f"/{NAMESPACE}/{CONTROLLER_NODE}")
 
 
 def _sim_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], ...]:

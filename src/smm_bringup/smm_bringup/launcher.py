@@ -308,7 +308,10 @@ def board_line(path: Path, *, real_board: bool) -> str:
         return f"board: no end-of-run status from the emulator ({type(error).__name__}: {error})"
     percent = 100.0 * late / enabled if enabled else 0.0
     figures = "no enabled command" if p50 is None else f"p50 {p50:.0f} us, p99 {p99:.0f} us"
-    return f"board: late {late} of {enabled} enabled ticks ({percent:.2f} %), feedback->command {figures}"
+    divider = int(status.get("control_divider", 1))
+    held = f" (its count per tick: it holds {divider - 1} of every {divider})" if divider > 1 else ""
+    late_line = f"board: late {late} of {enabled} enabled ticks ({percent:.2f} %){held}"
+    return f"{late_line}, feedback->command {figures}"
 
 
 def verdict_line(path: Path) -> str | None:

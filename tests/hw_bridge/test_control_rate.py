@@ -1,0 +1,120 @@
+"""Control rates below the board tick: the divider, the control ticks, the validity and limits set from N."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from smm_hw_bridge.control_rate import (
+    CONTROL_RATES_HZ,
+    control_divider,
+    held_ticks,
+    in_flight_ticks,
+    is_control_tick,
+)
+from smm_hw_bridge.core import BridgeConfig, BridgeCore, Refusal
+
+from tests.hw_bridge.test_core import CONFIG, HOST, MS, Board
+
+RULE = "control rate must be one of 1000, 500, 250 Hz"
+
+
+def test_the_offered_rates_divide_the_board_tick() -> None:
+    assert [control_divider(rate) for rate in CONTROL_RATES_HZ] == [1, 2, 4]
+    assert control_divider(500.0) == 2  # argparse gives floats
+
+
+@pytest.mark.parametrize(
+    "rate", [300, 0, -250, 333, 100, 2000, math.nan, math.inf, -math.inf, True, "500", None, 250.5]
+)
+def test_a_rate_that_is_not_offered_is_refused_with_the_valid_ones(rate: object) -> None:
+    with pytest.raises(ValueError, match=RULE) as raised:
+        control_divider(rate)
+    assert repr(rate) in str(raised.value)
+
+
+@given(st.integers(min_value=0, max_value=2**32 - 1), st.sampled_from([1, 2, 4, 10]))
+def test_control_ticks_are_the_multiples_of_n_so_each_period_has_exactly_one(tick: int, divider: int) -> None:
+    window = [is_control_tick(tick + offset, divider) for offset in range(divider)]
+    assert sum(window) == 1
+
+
+@pytest.mark.parametrize(
+    ("divider", "validity", "stale", "watchdog_ms"), [(1, 10, 5, 10), (2, 12, 6, 12), (4, 16, 8, 16)]
+)
+def test_validity_stale_limit_and_host_watchdog_grow_with_the_divider(
+    divider: int, validity: int, stale: int, watchdog_ms: int
+) -> None:
+    config = dataclasses.replace(CONFIG, control_divider=divider)
+    assert (config.validity, config.stale_ticks, config.watchdog_ns) == (validity, stale, watchdog_ms * MS)
+    assert validity - held_ticks(divider) == CONFIG.validity_ticks  # the same margin at every rate
+    assert stale - in_flight_ticks(divider) == CONFIG.stale_periods
+
+
+@pytest.mark.parametrize("divider", [0, 11, -1, 1.5, True, "2"])
+def test_a_bad_divider_is_refused_with_its_name(divider: object) -> None:
+    with pytest.raises(ValueError, match="control_divider"):
+        BridgeConfig(control_divider=divider)  # type: ignore[arg-type]
+
+
+def test_a_validity_that_would_not_fit_the_frame_at_this_divider_is_refused() -> None:
+    assert BridgeConfig(validity_ticks=65535).validity == 65535
+    with pytest.raises(ValueError, match="validity_ticks must be <= 65529 at control_divider 4"):
+        BridgeConfig(validity_ticks=65535, control_divider=4)
+
+
+def armed_at(divider: int) -> tuple[BridgeCore, Board]:
+    """A core at ``divider`` armed by a command answering control tick ``divider``."""
+    core = BridgeCore(dataclasses.replace(CONFIG, control_divider=divider), HOST)
+    board = Board(core)
+    board.step()  # tick 0
+    core.arm()
+    while board.tick <= divider:
+        board.step()
+    assert core.control_tick
+    assert core.on_command([0.5, -0.25], board.stamp, board.now) is None
+    return core, board
+
+
+@pytest.mark.parametrize("divider", [1, 2, 4])
+def test_only_multiples_of_n_are_control_ticks(divider: int) -> None:
+    core, board = armed_at(divider)
+    flags = []
+    for _ in range(2 * divider):
+        board.step()
+        flags.append(core.control_tick)
+    assert flags == [(offset + 1) % divider == 0 for offset in range(2 * divider)]
+
+
+@pytest.mark.parametrize("divider", [1, 2, 4])
+def test_a_command_is_held_through_its_period_and_a_late_next_one_then_expires_on_the_host(
+    divider: int,
+) -> None:
+    core, board = armed_at(divider)
+    frame = core.next_frame(board.now)
+    assert frame is not None and frame.enabled and frame.validity == CONFIG.validity_ticks + 2 * (divider - 1)
+    # the board holds it; the host needs to send nothing new while it is valid (between control ticks too)
+    for age in range(1, frame.validity + 1):
+        board.step()
+        assert not core.needs_frame(board.now - MS), age
+    board.step()
+    assert core.needs_frame(board.now - MS)  # past its validity: the host's next frame is a safe one
+    safe = core.next_frame(board.now - MS)
+    assert safe is not None and not safe.enabled
+
+
+def test_an_answer_in_flight_for_its_whole_period_is_not_stale_at_n_4() -> None:
+    core, board = armed_at(4)
+    stamp = board.stamp  # control tick 8 after the next four ticks
+    for _ in range(4):
+        board.step()
+    control = board.stamp
+    for _ in range(4 + CONFIG.stale_periods - 1):
+        board.step()  # the answer to `control` has been in flight for its period and the 1 kHz margin
+    assert core.on_command([0.1, 0.1], control, board.now) is None
+    board.step()
+    assert core.on_command([0.1, 0.1], control, board.now) is Refusal.STALE
+    assert stamp < control
