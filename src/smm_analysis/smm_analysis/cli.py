@@ -22,6 +22,7 @@ from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD
 from smm_analysis.energy_report import write_energy_plot
 from smm_analysis.energy_study import EnergyStudy, run_energy_study
 from smm_analysis.errors import AnalysisError
+from smm_analysis.metrics import Group, metrics_of
 from smm_analysis.metrics_json import metrics_document
 from smm_analysis.plots import write_plots
 from smm_analysis.report import render_report
@@ -190,8 +191,9 @@ def format_tables(result: ReproductionResult) -> str:
                 continue
             joints = run.joints
             row = f"  {controller:<15}"
-            for metric in ("Ma", "Ave", "RMS", "eps_u", "du_rms"):
-                pair = f"{getattr(joints['alpha'], metric):.4g} / {getattr(joints['beta'], metric):.4g}"
+            for metric in metrics_of(Group.JOINT):
+                alpha, beta = getattr(joints["alpha"], metric.name), getattr(joints["beta"], metric.name)
+                pair = f"{alpha:.4g} / {beta:.4g}"
                 row += f" {pair:>19}"
             if run.step is not None:
                 step = run.step
