@@ -21,7 +21,7 @@ from smm_analysis.metrics import (
     metric,
     metrics_of,
 )
-from smm_analysis.metrics_json import METRICS_UNITS
+from smm_analysis.reproduction.metrics_json import METRICS_UNITS
 
 RESULT_TYPES = {Group.JOINT: JointIndices, Group.STEP: StepMetrics, Group.END_EFFECTOR: AxisError}
 
@@ -35,7 +35,7 @@ def test_each_metric_is_named_once_and_each_result_type_holds_exactly_its_groups
 
 def test_batched_columns_and_units_come_from_the_table() -> None:
     batched = [row for row in METRICS if row.batched]
-    assert INDEX_NAMES == tuple(f"{row.column}_{joint}" for row in batched for joint in ("alpha", "beta"))
+    assert tuple(f"{row.column}_{joint}" for row in batched for joint in ("alpha", "beta")) == INDEX_NAMES
     assert len(set(INDEX_NAMES)) == len(INDEX_NAMES)
     assert all(row.group is not Group.END_EFFECTOR for row in batched)  # the batched loop has no kinematics
     for row in METRICS:

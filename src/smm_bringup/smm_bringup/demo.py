@@ -24,7 +24,7 @@ import numpy as np
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.errors import AnalysisError
 from smm_analysis.metrics import METRICS, JointIndices, joint_indices
-from smm_analysis.paper_values import PAPER_CASE2
+from smm_analysis.reproduction.paper_values import PAPER_CASE2
 from smm_analysis.runs.commands import AnalyzeOptions, analyze
 from smm_analysis.runs.indices import evaluate
 from smm_analysis.runs.recorded import load_run, stamps_per_topic

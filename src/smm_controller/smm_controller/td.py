@@ -35,7 +35,7 @@ __all__ = [
 
 #: Speed factor sigma per joint (rad/s^2). For |y| < h^2 sigma the TD is a linear second-order filter
 #: with natural frequency 1/h, so sigma only matters for large jumps. Chosen by the case2 sweep
-#: (``python -m smm_analysis.tune_td``, docs/REPRODUCTION.md): at h = 1 ms, case2 RMS is flat within
+#: (``python -m smm_analysis.reproduction.tune_td``, docs/REPRODUCTION.md): at h = 1 ms, case2 RMS is flat within
 #: 0.1 % for sigma in [1e4, 1e6]; 1e5 is the middle of that plateau and keeps the TD linear.
 DEFAULT_TD_SPEED: tuple[float, float] = (1.0e5, 1.0e5)
 #: Filter factor h per joint (s), >= the control period. SPEC section 4 asks for the defaults that

@@ -25,7 +25,7 @@ from smm_analysis.metrics import (
     metrics_of,
     step_metrics,
 )
-from smm_analysis.metrics_json import METRICS_UNITS, run_entry
+from smm_analysis.reproduction.metrics_json import METRICS_UNITS, run_entry
 from smm_analysis.runs.latency import summarize_latency
 from smm_analysis.runs.recorded import JOINTS, RecordedRun
 from smm_dynamics import SMMParameters

@@ -7,10 +7,11 @@ from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Final
 
-from smm_analysis.acceptance import acceptance_verdict
 from smm_analysis.metrics import METRICS, AxisError, Group, JointIndices, StepMetrics, metrics_of
-from smm_analysis.reproduction import JOINTS, ReproductionResult, torque_limit_note
-from smm_analysis.retuned import RETUNED_SETS
+from smm_analysis.reproduction.acceptance import acceptance_verdict
+from smm_analysis.reproduction.reproduce import torque_limit_note
+from smm_analysis.reproduction.results import JOINTS, ReproductionResult
+from smm_analysis.reproduction.retuned import RETUNED_SETS
 
 __all__ = ["METRICS_UNITS", "metrics_document", "run_entry"]
 
