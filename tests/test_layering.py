@@ -19,10 +19,11 @@ from smm_controller.laws import PAPER_LAWS
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = ("src", "tests", "bench", "tools")
 TABLE = ROOT / "src" / "smm_controller" / "smm_controller" / "laws.py"
+_REPRODUCTION = "src/smm_analysis/smm_analysis/reproduction"
 PER_LAW_CONTENT = {
-    "src/smm_analysis/smm_analysis/reproduction/paper_values.py": "the paper's published figures, per law",
-    "src/smm_analysis/smm_analysis/reproduction/linearisation.py": "the baselines' linear loops, per law",
-    "src/smm_analysis/smm_analysis/reproduction/energy_study.py": "the study's FPDESO run against its FPD run",
+    f"{_REPRODUCTION}/paper_values.py": "the paper's published figures, per law",
+    f"{_REPRODUCTION}/linearisation.py": "the baselines' linear loops, per law",
+    f"{_REPRODUCTION}/energy_study.py": "the study's FPDESO run against its FPD run",
 }
 """Package files whose dict literals are keyed by the paper's laws, and why."""
 
