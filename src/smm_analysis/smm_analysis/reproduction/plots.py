@@ -21,8 +21,8 @@ from matplotlib.figure import Figure
 from smm_controller.laws import law_names
 
 from smm_analysis.errors import AnalysisError
-from smm_analysis.reproduction import JOINTS, ReproductionResult, RunResult
-from smm_analysis.retuned import RETUNED_SETS, controller_label
+from smm_analysis.reproduction.results import JOINTS, ReproductionResult, RunResult
+from smm_analysis.reproduction.retuned import RETUNED_SETS, controller_label
 
 __all__ = ["DEFAULT_DPI", "write_plots"]
 
