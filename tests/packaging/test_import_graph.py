@@ -231,13 +231,6 @@ def import_cycles(graph: ImportGraph) -> list[list[str]]:
     return sorted(cycles)
 
 
-KNOWN_CYCLES: list[list[str]] = [
-    # MamdaniSystem.evaluate imports the batch inside the function; being removed (issue 31, item 4).
-    ["smm_controller.fuzzy", "smm_controller.fuzzy_batch", "smm_controller.fuzzy_tables"],
-]
-"""Import cycles that exist today and are being removed (each with the reason it is still here)."""
-
-
 # ------------------------------------------------------------------------------------------ the real tree
 
 
@@ -264,7 +257,7 @@ def test_the_graph_is_read_from_the_code() -> None:
 
 
 def test_no_two_modules_of_a_package_import_each_other() -> None:
-    cycles = [cycle for cycle in import_cycles(ImportGraph(read_tree(SRC))) if cycle not in KNOWN_CYCLES]
+    cycles = [cycle for cycle in import_cycles(ImportGraph(read_tree(SRC)))]
     assert not cycles, "import cycles (split the shared part into a module both import):\n" + "\n".join(
         " <-> ".join(cycle) for cycle in cycles
     )
