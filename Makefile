@@ -28,7 +28,7 @@ $(CORPUS_JS): tests/bag/corpus/js/package.json tests/bag/corpus/js/package-lock.
 	cd tests/bag/corpus/js && npm ci --no-audit --no-fund --silent
 	@touch $@
 
-.PHONY: setup test test-realtime test-bags corpus-table test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
+.PHONY: soak setup test test-realtime test-bags corpus-table test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
 
 setup: $(STAMP)
 
@@ -89,3 +89,10 @@ colcon: $(STAMP)
 
 clean:
 	rm -rf $(VENV) build install log out .pytest_cache .mypy_cache .ruff_cache .hypothesis
+
+# The soak of the bench path (not in `make test`): the hardware graph in real time on the emulator, recorded,
+# under scripted faults, in a private network namespace (docs/SOAK.md). make soak SOAK_MINUTES=60
+SOAK_MINUTES ?= 10
+SOAK_OUT ?= out/soak_$(shell date -u +%Y%m%d_%H%M%S)
+soak: $(STAMP)
+	unshare --net -- $(PY) tests/netns_exec.py $(PY) tools/soak.py --minutes $(SOAK_MINUTES) --out $(SOAK_OUT)

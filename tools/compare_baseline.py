@@ -146,8 +146,10 @@ def compare_bags(before: Path, after: Path) -> list[str]:
         only = (set(a) | set(b)) - common
         stamps = [s for s in common if s is not None]
         first, last = min(stamps, default=None), max(stamps, default=None)
-        at_the_ends = first is not None and last is not None and all(
-            s is not None and not first <= s <= last for s in only
+        at_the_ends = (
+            first is not None
+            and last is not None
+            and all(s is not None and not first <= s <= last for s in only)
         )
         if only and not at_the_ends:
             problems.append(f"{topic}: stamps differ ({len(a)} before, {len(b)} after)")
