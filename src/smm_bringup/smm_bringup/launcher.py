@@ -270,13 +270,13 @@ def run(argv: Sequence[str]) -> int:
         options = options_from_arguments(arguments)
         specs = build_graph(options)
         respawn = respawn_from_arguments(arguments)
+        if respawn is not None and arguments.composed:
+            raise ValueError("--respawn restarts processes: it cannot be combined with --composed")
         if arguments.dry_run:
             for spec in specs:
                 print(" ".join([spec.executable, *spec.ros_arguments()]))
             return EXIT_OK
         if arguments.composed:
-            if respawn is not None:
-                raise ValueError("--respawn restarts processes: it cannot be combined with --composed")
             return launch_composed(specs)
         if options.plant != "hardware":
             return launch_processes(specs, stop_grace_s=arguments.stop_grace, respawn=respawn)
