@@ -1,4 +1,4 @@
-"""Shared pieces of the long-run tools (record_hours.py, soak.py): a supervised ``smm-launch``, RSS sampling, bag checks.
+"""Pieces of the long-run tools (record_hours.py, soak.py): ``smm-launch`` watched, RSS sampled, bags checked.
 
 Figures only: nothing here decides from the machine's speed. docs/SOAK.md explains what is measured.
 """

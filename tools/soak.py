@@ -1,4 +1,4 @@
-"""The soak of the bench path: the hardware graph in real time on the emulator, recorded, under scripted faults.
+"""The soak of the bench path: the hardware graph in real time on the emulator, recorded, under faults.
 
     python tools/soak.py --minutes 10 --out out/soak          (make soak SOAK_MINUTES=10)
 
@@ -20,7 +20,10 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import soak_faults as faults
 from long_runs import LaunchedGraph, check_bag, dump_json
+from smm_bag.cdr import stamp_of
+from smm_bag.reader import BagReader
 
 WARMUP_S = 60.0
 STAMPED = ("/smm/joint_states",)
@@ -56,10 +59,7 @@ def uptime() -> str:
 
 
 def loop_gaps(bag: Path, windows: list[tuple[float, float]]) -> dict[str, float]:
-    """Longest joint_states arrival gap (ms) and board-tick step (ms) outside the fault ``windows`` (epoch s)."""
-    from smm_bag.cdr import stamp_of
-    from smm_bag.reader import BagReader
-
+    """Longest joint_states arrival gap and board-tick step (ms) outside the fault ``windows`` (epoch s)."""
     spans = [(int((a - WINDOW_MARGIN_S) * 1e9), int((b + WINDOW_MARGIN_S) * 1e9)) for a, b in windows]
     arrival = step = 0
     last_time = last_stamp = None
@@ -76,7 +76,7 @@ def loop_gaps(bag: Path, windows: list[tuple[float, float]]) -> dict[str, float]
     return {"joint_states_arrival_ms": arrival / 1e6, "board_tick_step_ms": step / 1e6}
 
 
-def run(arguments: argparse.Namespace) -> int:  # noqa: PLR0915 (one sequential script)
+def run(arguments: argparse.Namespace) -> int:
     """The soak; its exit code (module docstring)."""
     if arguments.minutes <= 0 or arguments.settle < 0:
         print("error: --minutes must be > 0 and --settle >= 0", file=sys.stderr)
@@ -88,8 +88,6 @@ def run(arguments: argparse.Namespace) -> int:  # noqa: PLR0915 (one sequential 
     out.mkdir(parents=True)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("ROS_DOMAIN_ID", str(60 + os.getpid() % 40))
-    import soak_faults as faults
-
     load_start = uptime()
     print(f"start: {load_start}", flush=True)
     launch = [
@@ -168,10 +166,14 @@ def run(arguments: argparse.Namespace) -> int:  # noqa: PLR0915 (one sequential 
         board.close()
         code = graph.stop()
     load_end = uptime()
-    return report(arguments, out, graph, results, code, final_status, load_start, load_end)
+    return report(
+        arguments=arguments, out=out, graph=graph, results=results, code=code,
+        final_status=final_status, load_start=load_start, load_end=load_end,
+    )  # fmt: skip
 
 
-def report(  # noqa: PLR0913
+def report(
+    *,
     arguments: argparse.Namespace,
     out: Path,
     graph: LaunchedGraph,
@@ -185,26 +187,23 @@ def report(  # noqa: PLR0913
     failures: list[str] = []
     print(f"\nsmm-launch exit code {code}")
     print(f"load at start: {load_start}\nload at end:   {load_end}")
-    print(
-        f"\n{'fault':<20} {'count':>5} {'failed':>6} {'null ticks max':>15} {'recovery s max':>15} {'median':>7}"
-    )
+    header = ("fault", "count", "failed", "null ticks max", "recovery s max", "median")
+    print("\n{:<20} {:>5} {:>6} {:>15} {:>15} {:>7}".format(*header))
     for name in dict.fromkeys(result.name for result in results):
         mine = [result for result in results if result.name == name]
         nulls = [r.null_ticks for r in mine if r.null_ticks is not None]
         recoveries = sorted(r.recovery_s for r in mine if r.recovery_s is not None)
         failed = sum(not r.ok for r in mine)
-        median = recoveries[len(recoveries) // 2] if recoveries else None
-        print(
-            f"{name:<20} {len(mine):>5} {failed:>6} {max(nulls) if nulls else '-':>15} "
-            f"{f'{max(recoveries):.2f}' if recoveries else '-':>15} {f'{median:.2f}' if median is not None else '-':>7}"
-        )
+        worst = f"{recoveries[-1]:.2f}" if recoveries else "-"
+        median = f"{recoveries[len(recoveries) // 2]:.2f}" if recoveries else "-"
+        null = max(nulls) if nulls else "-"
+        print(f"{name:<20} {len(mine):>5} {failed:>6} {null:>15} {worst:>15} {median:>7}")
         if failed:
             failures.append(f"{name} failed {failed} of {len(mine)}")
     for result in results:
         if not result.ok:
-            print(
-                f"  FAILED {result.name} at {result.started_s - results[0].started_s:.0f} s: {result.detail} {result.operator}"
-            )
+            at = result.started_s - results[0].started_s
+            print(f"  FAILED {result.name} at {at:.0f} s: {result.detail} {result.operator}")
     print()
     for series in graph.series:
         print(series.summary(WARMUP_S))
@@ -221,10 +220,12 @@ def report(  # noqa: PLR0913
         gaps = loop_gaps(bag, [(r.started_s, r.ended_s or r.started_s) for r in results])
         print(
             f"loop outside fault windows (+-{WINDOW_MARGIN_S:g} s): longest joint_states arrival gap at the "
-            f"recorder {gaps['joint_states_arrival_ms']:.1f} ms, longest board-tick step {gaps['board_tick_step_ms']:.0f} ms"
+            f"recorder {gaps['joint_states_arrival_ms']:.1f} ms, "
+            f"longest board-tick step {gaps['board_tick_step_ms']:.0f} ms"
         )
     print(
-        f"board (emulator) at the end: {final_status.get('ticks')} ticks, {final_status.get('overruns')} overruns, "
+        f"board (emulator) at the end: {final_status.get('ticks')} ticks, "
+        f"{final_status.get('overruns')} overruns, "
         f"late {final_status.get('late_commands')} of {final_status.get('enabled_ticks')} enabled ticks"
     )
     if graph.tracebacks:
@@ -247,7 +248,7 @@ def report(  # noqa: PLR0913
                     "slope_mib_h": s.slope_mib_per_hour(WARMUP_S),
                 }
                 for s in graph.series
-            ],  # fmt: skip
+            ],
             "bag_files": check.files,
             "stamps": check.stamps,
             "lost": check.lost,

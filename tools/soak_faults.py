@@ -17,8 +17,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import rclpy
+from lifecycle_msgs.msg import State, Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters
+from std_srvs.srv import Trigger
+
 VALIDITY_TICKS = 10
-"""The bridge's default ``validity_ticks``: a command applies at most this many ticks after its measurement."""
+"""The bridge's default ``validity_ticks``: commands apply at most this many ticks after their measurement."""
 RAMP_TICKS = 1
 """The board's default ramp to null past validity (ticks)."""
 RECOVERY_LIMIT_S = 5.0
@@ -128,17 +135,16 @@ class Operator:
     """What an operator does through ROS: e-stop, re-arm, lifecycle, parameters (rclpy, own node)."""
 
     def __init__(self) -> None:
-        import rclpy
-        from lifecycle_msgs.srv import ChangeState, GetState
-        from rcl_interfaces.srv import GetParameters, SetParameters
-        from std_srvs.srv import Trigger
-
         rclpy.init()
         self._rclpy = rclpy
         self.node = rclpy.create_node("soak_operator")
         self._types = {
-            "trigger": Trigger, "change": ChangeState, "state": GetState, "set": SetParameters, "get": GetParameters
-        }  # fmt: skip
+            "trigger": Trigger,
+            "change": ChangeState,
+            "state": GetState,
+            "set": SetParameters,
+            "get": GetParameters,
+        }
 
     def call(self, kind: str, service: str, request: Any = None, timeout_s: float = 10.0) -> Any:
         """Calls ``service``; its response, or None if it did not answer within ``timeout_s``."""
@@ -149,7 +155,7 @@ class Operator:
                 return None
             future = client.call_async(request if request is not None else service_type.Request())
             self._rclpy.spin_until_future_complete(self.node, future, timeout_sec=timeout_s)
-            return future.result() if future.done() else None
+            return future.result() if future.done() else None  # type: ignore[no-untyped-call]
         finally:
             self.node.destroy_client(client)
 
@@ -162,8 +168,6 @@ class Operator:
 
     def lifecycle_state(self) -> int | None:
         """The bridge's lifecycle state id (lifecycle_msgs/State), None without an answer."""
-        from lifecycle_msgs.srv import GetState
-
         response = self.call("state", f"{BRIDGE}/get_state", GetState.Request())
         return None if response is None else int(response.current_state.id)
 
@@ -173,9 +177,6 @@ class Operator:
         Only valid transitions are asked for: an invalid one raises inside rclpy's lifecycle service and
         ends the process (docs/SOAK.md, "Findings").
         """
-        from lifecycle_msgs.msg import State, Transition
-        from lifecycle_msgs.srv import ChangeState
-
         state = self.lifecycle_state()
         steps = {
             State.PRIMARY_STATE_ACTIVE: (Transition.TRANSITION_DEACTIVATE, Transition.TRANSITION_ACTIVATE),
@@ -197,9 +198,6 @@ class Operator:
 
     def set_gain(self, values: list[float]) -> str:
         """Sets GAIN on the controller, reads it back; ``""`` when it took, else why not."""
-        from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-        from rcl_interfaces.srv import GetParameters, SetParameters
-
         request = SetParameters.Request()
         value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY, double_array_value=values)
         request.parameters = [Parameter(name=GAIN, value=value)]
@@ -218,7 +216,7 @@ class Operator:
 
     def close(self) -> None:
         """Destroys the node and shuts rclpy down."""
-        self.node.destroy_node()
+        self.node.destroy_node()  # type: ignore[no-untyped-call]
         with contextlib.suppress(Exception):
             self._rclpy.shutdown()
 
@@ -368,7 +366,7 @@ def gains(board: Board, operator: Operator, now: Callable[[], float], index: int
 
 
 def _undisturbed(first: dict[str, Any] | None, last: dict[str, Any] | None) -> str:
-    """ "" when the board stayed live with the same session between two statuses, else what changed."""
+    """Empty when the board stayed live with the same session between two statuses, else what changed."""
     if first is None or last is None:
         return "control port did not answer"
     if first["session"] != last["session"] or last.get("estop"):
@@ -383,7 +381,7 @@ def _undisturbed(first: dict[str, Any] | None, last: dict[str, Any] | None) -> s
 
 
 def garbage(board: Board, operator: Operator, now: Callable[[], float], seed: int) -> FaultResult:
-    """A burst of garbage: random datagrams at the bridge's and the board's ports, corrupt frames from the board."""
+    """A garbage burst: random datagrams at the bridge's and board's ports, corrupt frames from the board."""
     started = now()
     rng = random.Random(seed)
     first = board.status()
@@ -400,7 +398,7 @@ def garbage(board: Board, operator: Operator, now: Callable[[], float], seed: in
     time.sleep(1.0)
     last = board.status()
     disturbed = _undisturbed(first, last)
-    detail = f"400 random datagrams, 5 corrupt feedback frames, 20 at the control port"
+    detail = "400 random datagrams, 5 corrupt feedback frames, 20 at the control port"
     return FaultResult(
         "garbage burst",
         started,

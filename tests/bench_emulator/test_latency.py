@@ -14,7 +14,7 @@ from smm_bench_emulator.latency import TOP_US, LatencyHistogram
     st.lists(st.integers(min_value=-5_000, max_value=2 * TOP_US * 1000), min_size=1, max_size=300),
     st.floats(min_value=0.0, max_value=100.0),
 )
-def test_percentiles_are_those_of_the_values_rounded_down_to_a_microsecond(values: list[int], q: float) -> None:
+def test_percentiles_are_those_of_the_values_rounded_down_to_a_us(values: list[int], q: float) -> None:
     histogram = LatencyHistogram()
     for value in values:
         histogram.add(value)

@@ -1,4 +1,4 @@
-"""smm-launch --respawn: a node that exits is started again after the delay, up to the limit; the recorder never."""
+"""smm-launch --respawn: an exited node starts again after the delay, up to the limit; the recorder never."""
 
 from __future__ import annotations
 

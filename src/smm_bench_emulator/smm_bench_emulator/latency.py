@@ -31,7 +31,7 @@ class LatencyHistogram:
         self.maximum_ns = value if self.maximum_ns is None else max(self.maximum_ns, value)
 
     def percentile_us(self, q: float) -> float | None:
-        """The ``q``-th percentile (0-100, the inverted CDF: a value that was seen), in us; None before any."""
+        """The ``q``-th percentile (0-100; inverted CDF: a value that was seen), in us; None before any."""
         if not self.count or self.maximum_ns is None:
             return None
         rank = max(1, math.ceil(q / 100.0 * self.count))
