@@ -5,6 +5,7 @@
 #   make test-realtime  the tests that need the wall clock kept (1 kHz / 100 Hz runs): a quiet machine only
 #   make test-other-cpu  the tests against data made on another machine, under other numeric paths
 #   make bench  benchmarks: figures and ratios, never pass/fail on a shared machine's timing
+#   make soak   the bench path for SOAK_MINUTES (10) under scripted faults, recorded (docs/SOAK.md)
 #   make test-bags  the whole corpus of bags of other writers (make test runs a subset); UPSTREAM=DIR adds
 #               every bag under DIR (rosbag2's test bags, MCAP conformance files: never committed)
 # Re-running a target is quick: the virtual environment is rebuilt only when a requirements file or a
