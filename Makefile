@@ -5,6 +5,7 @@
 #   make test-realtime  the tests that need the wall clock kept (1 kHz / 100 Hz runs): a quiet machine only
 #   make test-other-cpu  the tests against data made on another machine, under other numeric paths
 #   make bench  benchmarks: figures and ratios, never pass/fail on a shared machine's timing
+#   make soak   the bench path for SOAK_MINUTES (10) under scripted faults, recorded (docs/SOAK.md)
 #   make test-bags  the whole corpus of bags of other writers (make test runs a subset); UPSTREAM=DIR adds
 #               every bag under DIR (rosbag2's test bags, MCAP conformance files: never committed)
 # Re-running a target is quick: the virtual environment is rebuilt only when a requirements file or a
@@ -28,7 +29,7 @@ $(CORPUS_JS): tests/bag/corpus/js/package.json tests/bag/corpus/js/package-lock.
 	cd tests/bag/corpus/js && npm ci --no-audit --no-fund --silent
 	@touch $@
 
-.PHONY: setup test test-realtime test-bags corpus-table parameter-tables test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
+.PHONY: soak setup test test-realtime test-bags corpus-table parameter-tables test-other-cpu demo bench lint typecheck reproduce sweep colcon clean mutation
 
 setup: $(STAMP)
 
@@ -93,3 +94,10 @@ colcon: $(STAMP)
 
 clean:
 	rm -rf $(VENV) build install log out .pytest_cache .mypy_cache .ruff_cache .hypothesis
+
+# The soak of the bench path (not in `make test`): the hardware graph in real time on the emulator, recorded,
+# under scripted faults, in a private network namespace (docs/SOAK.md). make soak SOAK_MINUTES=60
+SOAK_MINUTES ?= 10
+SOAK_OUT ?= out/soak_$(shell date -u +%Y%m%d_%H%M%S)
+soak: $(STAMP)
+	unshare --net -- $(PY) tests/netns_exec.py $(PY) tools/soak.py --minutes $(SOAK_MINUTES) --out $(SOAK_OUT)

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 from smm_controller.fuzzy import MamdaniSystem
-from smm_controller.fuzzy_batch import MamdaniBatch
+from smm_controller.fuzzy_batch import MamdaniBatch, evaluate_system
 from smm_controller.rules import PD_LABELS, TABLE_1, pd_gain_system, pd_output_variable
 
 N_INPUTS = 10_000
@@ -114,9 +114,8 @@ def grid_refinement(inputs: np.ndarray) -> None:
         worst = 0.0
         for e, ce in inputs:
             _, native = skfuzzy_evaluate(skfuzzy, simulation, (f_ke, f_kde), float(e), float(ce))
-            worst = max(
-                worst, float(np.max(np.abs(np.subtract(ours.evaluate((float(e), float(ce))), native))))
-            )
+            crisp = evaluate_system(ours, (float(e), float(ce)))
+            worst = max(worst, float(np.max(np.abs(np.subtract(crisp, native)))))
         print(
             f"  grid {points:5d} points: max |ours - skfuzzy sim.output| = {worst:.3e} ({len(inputs)} inputs)"
         )

@@ -229,8 +229,9 @@ def test_latency_runs_from_the_feedback_leaving_to_the_command_arriving_not_to_t
         emu.board.receive = slow_parse  # type: ignore[method-assign]
         now[0] = arrival
         emu._drain()
-        assert emu.latencies_ns == [arrival - 1_000_000]  # this transport gives no kernel arrival time
-        assert emu.read_latencies_ns == emu.latencies_ns
+        # this transport gives no kernel arrival time: both are the read time
+        assert emu.latencies.count == emu.read_latencies.count == 1
+        assert emu.latencies.percentile_us(50) == emu.read_latencies.percentile_us(50) == 250.0
         assert emu.last_command_ns == arrival
     finally:
         emu.close()
@@ -253,8 +254,8 @@ def test_latency_takes_the_kernel_arrival_time_where_the_transport_gives_it() ->
         emu.board.receive = lambda data: command  # type: ignore[method-assign]
         now[0] += 700_000  # the emulator process read it 0.7 ms after it left
         emu._drain()
-        assert emu.latencies_ns == [180_000]
-        assert emu.read_latencies_ns == [700_000]
+        assert (emu.latencies.count, emu.latencies.percentile_us(50)) == (1, 180.0)
+        assert (emu.read_latencies.count, emu.read_latencies.percentile_us(50)) == (1, 700.0)
         status = emu.status()
         assert status["latency_p99_us"] == 180.0 and status["read_latency_p99_us"] == 700.0
     finally:

@@ -82,7 +82,7 @@ class RecorderConfig:
             /parameter_events, /rosout).
         stack_namespace: Namespace of the stack's relative topics.
         max_duration: Split after this many seconds of messages (s); 0 = never.
-        max_size: Split when a file reaches this many bytes; 0 = never.
+        max_size: Split when a file reaches this many bytes; 0 = never, else >= 65536 (64 KiB).
         compression: ``none`` or ``zstd`` (MCAP chunk compression).
         flush_interval: Longest time between flushes to the OS (s), in (0, 1]: what a kill can cost.
         discovery_period: How often topics without a known type are looked up in the graph (s).
@@ -111,6 +111,8 @@ class RecorderConfig:
 
     def __post_init__(self) -> None:
         check_bounds(self)
+        if 0 < self.max_size < 65536:
+            raise ValueError(f"max_size must be 0 (never split) or >= 65536 bytes, got {self.max_size}")
         for name in self.topic_list:
             if not name.startswith("/"):
                 raise ValueError(f"topics must be absolute names, got {name!r}")

@@ -15,7 +15,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-import numpy as np
 from smm_hw_bridge.control_rate import MAX_DIVIDER, is_control_tick
 from smm_hw_bridge.protocol import encode
 from smm_hw_bridge.run_verdict import RunTally, VerdictConfig
@@ -24,6 +23,7 @@ from smm_schema.ranges import at_least, bounds, check_bounds, no_range
 
 from smm_bench_emulator.board import BoardConfig, BoardCore
 from smm_bench_emulator.faults import LinkFault, LinkFaults
+from smm_bench_emulator.latency import LatencyHistogram
 
 __all__ = ["Emulator", "EmulatorConfig"]
 
@@ -83,10 +83,6 @@ class EmulatorConfig:
         check_bounds(self)
 
 
-def _percentile_us(values: list[int], q: float) -> float | None:
-    return float(np.percentile(np.asarray(values), q)) / 1e3 if values else None
-
-
 class Emulator:
     """Runs a :class:`BoardCore` against a UDP transport until stopped.
 
@@ -126,10 +122,10 @@ class Emulator:
         self.ticks = 0
         self.null_since_ns: int | None = None
         self._sent_ns: dict[int, tuple[int, int]] = {}
-        self.latencies_ns: list[int] = []
-        """Feedback sent -> enabled command answering it arrived (ns), one per answered feedback: the
-        kernel's arrival time where the transport gives it, else when this process read it."""
-        self.read_latencies_ns: list[int] = []
+        self.latencies = LatencyHistogram()
+        """Feedback sent -> enabled command answering it arrived, one per answered feedback: the kernel's
+        arrival time where the transport gives it, else when this process read it (bounded memory)."""
+        self.read_latencies = LatencyHistogram()
         """Feedback sent -> enabled command answering it read by this process (ns): also this process's
         own wake-up, which a board's receive interrupt does not have."""
         self.record: list[tuple[int, float, float, int, int]] | None = [] if record else None
@@ -193,8 +189,8 @@ class Emulator:
                     self.last_command_ns = arrived
                     sent = self._sent_ns.pop(command.answers_seq, None)
                     if sent is not None and command.enabled:
-                        self.read_latencies_ns.append(arrived - sent[0])
-                        self.latencies_ns.append(arrived - sent[0] if stamp is None else stamp - sent[1])
+                        self.read_latencies.add(arrived - sent[0])
+                        self.latencies.add(arrived - sent[0] if stamp is None else stamp - sent[1])
                     if command.enabled:
                         self.last_enabled_ns = self.last_command_ns
                         self.tally.armed = True
@@ -255,10 +251,10 @@ class Emulator:
             "last_command_ns": self.last_command_ns,
             "last_enabled_ns": self.last_enabled_ns,
             "applied": len(board.applied_log),
-            "latency_p50_us": _percentile_us(self.latencies_ns, 50),
-            "latency_p99_us": _percentile_us(self.latencies_ns, 99),
-            "read_latency_p50_us": _percentile_us(self.read_latencies_ns, 50),
-            "read_latency_p99_us": _percentile_us(self.read_latencies_ns, 99),
+            "latency_p50_us": self.latencies.percentile_us(50),
+            "latency_p99_us": self.latencies.percentile_us(99),
+            "read_latency_p50_us": self.read_latencies.percentile_us(50),
+            "read_latency_p99_us": self.read_latencies.percentile_us(99),
             "last_applied_tick": board.applied_log[-1][0] if board.applied_log else None,
             "status_bits": 0 if board.last_feedback is None else board.last_feedback.status,
             "armed": self.tally.armed,

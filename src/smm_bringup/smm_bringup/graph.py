@@ -246,6 +246,8 @@ def _recorder_spec(options: GraphOptions) -> NodeSpec:
         ("plant", options.plant),
         ("controller", options.algorithm),
         ("clock_mode", options.clock_mode),
+        ("max_size", options.record_max_size),
+        ("max_duration", float(options.record_max_duration)),
         *_period_parameters(options),
     )
     return NodeSpec(

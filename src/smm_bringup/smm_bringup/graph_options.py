@@ -24,6 +24,8 @@ __all__ = [
     "LOOPS",
     "PLANTS",
     "PLANT_ALIASES",
+    "RECORD_SPLIT_DURATIONS",
+    "RECORD_SPLIT_SIZES",
     "REFERENCE_PLACEMENTS",
     "SCENARIO_NAMES",
     "GraphOptions",
@@ -48,6 +50,10 @@ REFERENCE_PLACEMENTS: Final[tuple[str, ...]] = ("node", "controller")
 ``controller``: ``controller_node`` samples it itself (``reference_source: internal``), from the parameters
 that the parameter files give ``reference_node``, and no ``reference_node`` runs."""
 SCENARIO_NAMES: Final[tuple[str, ...]] = ("step", "case1", "case2", "excite")
+RECORD_SPLIT_SIZES: Final[tuple[int, int]] = (64 * 1024, 1 << 40)
+"""Range of ``record_max_size`` (bytes) besides 0: the writer's smallest split size, 1 TiB."""
+RECORD_SPLIT_DURATIONS: Final[tuple[float, float]] = (1.0, 86_400.0)
+"""Range of ``record_max_duration`` (s) besides 0: one second (a file per step would be absurd), one day."""
 
 
 @dataclass(frozen=True)
@@ -82,6 +88,10 @@ class GraphOptions:
             ``smm_bench_emulator`` on loopback instead.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
+        record_max_size: Start a new bag file when the current one reaches this many bytes: 0 (never) or
+            in [RECORD_MIN_SPLIT_SIZE, RECORD_MAX_SPLIT_SIZE] (64 KiB .. 1 TiB).
+        record_max_duration: Start a new bag file after this many seconds of messages: 0 (never) or in
+            [RECORD_MIN_SPLIT_DURATION, RECORD_MAX_SPLIT_DURATION] (1 s .. 1 day).
         loop: ``"auto"`` (default), ``"topics"`` or ``"direct"`` (``plant="hardware"``, fused chain,
             reference sampled by the controller): see :data:`LOOPS`. ``"auto"`` is resolved on
             construction, so the instance holds ``"topics"`` or ``"direct"``.
@@ -113,6 +123,8 @@ class GraphOptions:
     control_rate: float = BOARD_TICK_HZ
     board: str | None = None
     record: str | None = None
+    record_max_size: int = 0
+    record_max_duration: float = 0.0
     rt_priority: int | None = None
     loop: Literal["auto", "topics", "direct"] = "auto"
     late_limit: float = 1.0
@@ -151,6 +163,10 @@ class GraphOptions:
             raise ValueError(f"seed must be an int >= 0 or None, got {self.seed!r}")
         if self.record is not None and (not isinstance(self.record, str) or not self.record.strip()):
             raise ValueError(f"record must be a bag folder path or None, got {self.record!r}")
+        _check_split("record_max_size", self.record_max_size, RECORD_SPLIT_SIZES, integer=True)
+        _check_split("record_max_duration", self.record_max_duration, RECORD_SPLIT_DURATIONS, integer=False)
+        if (self.record_max_size or self.record_max_duration) and self.record is None:
+            raise ValueError("record_max_size and record_max_duration are options of record (a bag folder)")
         priority = self.rt_priority
         if priority is not None and (
             isinstance(priority, bool) or not isinstance(priority, int) or not 0 <= priority < MAX_PRIORITY
@@ -221,6 +237,20 @@ class GraphOptions:
     def control_period(self) -> float:
         """The controller's period (s): N board ticks."""
         return self.control_divider / BOARD_TICK_HZ
+
+
+def _check_split(name: str, value: object, limits: tuple[float, float], *, integer: bool) -> None:
+    """Rejects a split option that is not 0 nor a number in ``limits`` (an int where ``integer``)."""
+    low, high = limits
+    kind = (int,) if integer else (int, float)
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, kind)
+        or not math.isfinite(value)
+        or not (value == 0 or low <= value <= high)
+    ):
+        unit = "bytes" if integer else "s"
+        raise ValueError(f"{name} must be 0 (never split) or in [{low:g}, {high:g}] {unit}, got {value!r}")
 
 
 def split_endpoint(name: str, text: str) -> tuple[str, int]:

@@ -4,8 +4,7 @@ Each node its own OS process, as ``ros2 launch`` starts it (:mod:`smm_bringup.su
 ``direct_loop`` hosts bridge and controller), or all in this process with ``--composed``
 (:mod:`smm_bringup.composed`). Options, the closing ``board:`` and ``run:`` lines, shutdown and exit codes
 (0 run complete, 1 a node failed, 2 bad configuration, 3 a hardware run that did not control, 4 refused to
-arm at preflight, 128 + signal):
-docs/LAUNCH.md.
+arm at preflight, 128 + signal): docs/LAUNCH.md.
 """
 
 from __future__ import annotations
@@ -31,6 +30,8 @@ from smm_bringup.graph_options import (
     LOOPS,
     PLANT_ALIASES,
     PLANTS,
+    RECORD_SPLIT_DURATIONS,
+    RECORD_SPLIT_SIZES,
     REFERENCE_PLACEMENTS,
     SCENARIO_NAMES,
     GraphOptions,
@@ -41,6 +42,7 @@ from smm_bringup.supervisor import (
     EXIT_OK,
     EXIT_PREFLIGHT_REFUSED,
     STOP_GRACE_S,
+    RespawnPolicy,
     _say,
     launch_processes,
 )
@@ -135,6 +137,22 @@ def build_parser() -> argparse.ArgumentParser:
         help="record every topic to a rosbag2 MCAP bag in DIR (new folder) with smm_bag's recorder_node",
     )
     parser.add_argument(
+        "--record-max-size",
+        type=int,
+        default=0,
+        metavar="BYTES",
+        help="with --record: start a new bag file when the current one reaches BYTES "
+        f"(0 = never, else {RECORD_SPLIT_SIZES[0]}..{RECORD_SPLIT_SIZES[1]})",
+    )
+    parser.add_argument(
+        "--record-max-duration",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="with --record: start a new bag file after S seconds of messages "
+        f"(0 = never, else {RECORD_SPLIT_DURATIONS[0]:g}..{RECORD_SPLIT_DURATIONS[1]:g})",
+    )
+    parser.add_argument(
         "--rt-priority",
         type=int,
         default=None,
@@ -170,6 +188,26 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S",
         help="hardware lockstep: exit 3 (never started) when no step came within S seconds",
     )
+    parser.add_argument(
+        "--respawn",
+        action="store_true",
+        help="restart a node process that exits while the graph runs (as launch's respawn), every node but "
+        "the recorder and a plant that completed its run",
+    )
+    parser.add_argument(
+        "--respawn-delay",
+        type=float,
+        default=RespawnPolicy.delay_s,
+        metavar="S",
+        help="with --respawn: seconds between a node's exit and its restart, in [0, 60]",
+    )
+    parser.add_argument(
+        "--respawn-limit",
+        type=int,
+        default=RespawnPolicy.limit,
+        metavar="N",
+        help="with --respawn: restarts allowed per node, in [1, 10000]; the next exit stops the graph",
+    )
     parser.add_argument("--composed", action="store_true", help="run all nodes in this process")
     parser.add_argument("--dry-run", action="store_true", help="print the node command lines and exit")
     parser.add_argument(
@@ -201,6 +239,8 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         control_rate=arguments.control_rate,
         board=arguments.board,
         record=arguments.record,
+        record_max_size=arguments.record_max_size,
+        record_max_duration=arguments.record_max_duration,
         rt_priority=arguments.rt_priority,
         loop=arguments.loop,
         late_limit=arguments.late_limit,
@@ -227,6 +267,10 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--board", options.board]
     if options.record is not None:
         arguments += ["--record", options.record]
+    if options.record_max_size:
+        arguments += ["--record-max-size", str(options.record_max_size)]
+    if options.record_max_duration:
+        arguments += ["--record-max-duration", repr(options.record_max_duration)]
     if options.rt_priority is not None:
         arguments += ["--rt-priority", str(options.rt_priority)]
     arguments += ["--loop", options.loop]
@@ -249,6 +293,9 @@ def run(argv: Sequence[str]) -> int:
         if options.loop_note is not None:
             _say(options.loop_note)
         specs = build_graph(options)
+        respawn = respawn_from_arguments(arguments)
+        if respawn is not None and arguments.composed:
+            raise ValueError("--respawn restarts processes: it cannot be combined with --composed")
         if arguments.dry_run:
             for spec in specs:
                 print(" ".join([spec.executable, *spec.ros_arguments()]))
@@ -256,10 +303,12 @@ def run(argv: Sequence[str]) -> int:
         if arguments.composed:
             return launch_composed(specs)
         if options.plant != "hardware":
-            return launch_processes(specs, stop_grace_s=arguments.stop_grace)
+            return launch_processes(specs, stop_grace_s=arguments.stop_grace, respawn=respawn)
         with tempfile.TemporaryDirectory(prefix="smm-launch-") as folder:
             status = Path(folder) / "board.json"
-            code = launch_processes(with_board_status(specs, status), stop_grace_s=arguments.stop_grace)
+            code = launch_processes(
+                with_board_status(specs, status), stop_grace_s=arguments.stop_grace, respawn=respawn
+            )
             if code == EXIT_PREFLIGHT_REFUSED:
                 _say("run: refused to arm at preflight (the bridge's figures and reason above)", sys.stderr)
                 return code
@@ -276,6 +325,19 @@ def run(argv: Sequence[str]) -> int:
     except (GraphError, ValueError) as error:
         _say(f"error: {error}", sys.stderr)
         return EXIT_CONFIGURATION_ERROR
+
+
+def respawn_from_arguments(arguments: argparse.Namespace) -> RespawnPolicy | None:
+    """The respawn policy of ``--respawn``/``--respawn-delay``/``--respawn-limit`` (None without it).
+
+    Raises:
+        ValueError: A delay or limit out of range, or one given without ``--respawn``.
+    """
+    if not arguments.respawn:
+        if (arguments.respawn_delay, arguments.respawn_limit) != (RespawnPolicy.delay_s, RespawnPolicy.limit):
+            raise ValueError("--respawn-delay and --respawn-limit are options of --respawn")
+        return None
+    return RespawnPolicy(arguments.respawn_delay, arguments.respawn_limit)
 
 
 def with_board_status(specs: Sequence[NodeSpec], path: Path) -> tuple[NodeSpec, ...]:

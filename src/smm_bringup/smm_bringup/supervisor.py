@@ -35,6 +35,7 @@ __all__ = [
     "EXIT_PREFLIGHT_REFUSED",
     "ExecutableNotFoundError",
     "GraphProcesses",
+    "RespawnPolicy",
     "launch_processes",
     "resolve_executable",
 ]
@@ -122,10 +123,43 @@ def _stop_signals(request: _StopRequest) -> Any:
             signal.signal(sig, handler)
 
 
+@dataclass(frozen=True)
+class RespawnPolicy:
+    """``--respawn``: restart a node process that exited, as launch's ``respawn``/``respawn_delay``.
+
+    Every node but the recorder (its bag folder exists) is restarted with its command line when it exits
+    while the graph runs, unless it is a plant process that completed the run (exit 0 or 3).
+
+    Attributes:
+        delay_s: Seconds between the exit and the restart, in [0, 60].
+        limit: Restarts allowed per node, in [1, 10000]; one more exit stops the graph (exit 1).
+    """
+
+    delay_s: float = 1.0
+    limit: int = 10
+
+    def __post_init__(self) -> None:
+        delay = self.delay_s
+        if isinstance(delay, bool) or not isinstance(delay, (int, float)) or not 0.0 <= delay <= 60.0:
+            raise ValueError(f"respawn delay must be a number of seconds in [0, 60], got {delay!r}")
+        limit = self.limit
+        if isinstance(limit, bool) or not isinstance(limit, int) or not 1 <= limit <= 10_000:
+            raise ValueError(f"respawn limit must be an int in [1, 10000], got {limit!r}")
+
+    def applies(self, spec: NodeSpec, code: int) -> bool:
+        """True when a node ``spec`` that exited with ``code`` is to be restarted."""
+        completed = spec.name in PLANT_NODE_NAMES and code in (EXIT_OK, EXIT_NOT_CONTROLLED)
+        return spec.name != RECORDER_NODE and not completed
+
+
 @dataclass
 class _Child:
     spec: NodeSpec
     popen: subprocess.Popen[bytes]
+    command: tuple[str, ...] = ()
+    priority: int = 0
+    respawns: int = 0
+    restart_at: float | None = None
 
     @property
     def name(self) -> str:
@@ -147,6 +181,15 @@ class GraphProcesses:
         self._grace = stop_grace_s
         self.children: list[_Child] = []
 
+    def _spawn(self, command: Sequence[str], priority: int) -> subprocess.Popen[bytes]:
+        return subprocess.Popen(
+            list(command),
+            env=self._env,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+            preexec_fn=fifo_preexec(priority) if priority else None,  # noqa: PLW1509 (no threads yet)
+        )
+
     def start(self) -> None:
         """Start every node in its own session (so a signal to its group reaches only it and its children).
 
@@ -164,14 +207,8 @@ class GraphProcesses:
         fifo = _fifo_priorities(specs)
         for index, (spec, command) in enumerate(zip(specs, commands, strict=True)):
             priority = fifo.get(spec.name, 0)
-            popen = subprocess.Popen(
-                command,
-                env=self._env,
-                stdin=subprocess.DEVNULL,
-                start_new_session=True,
-                preexec_fn=fifo_preexec(priority) if priority else None,  # noqa: PLW1509 (no threads yet)
-            )
-            self.children.append(_Child(spec, popen))
+            popen = self._spawn(command, priority)
+            self.children.append(_Child(spec, popen, tuple(command), priority))
             scheduling = f", SCHED_FIFO {priority}" if priority else ""
             _say(f"started {spec.name} (pid {popen.pid}{scheduling}): {' '.join(command)}")
             if spec is recorder:
@@ -182,12 +219,42 @@ class GraphProcesses:
                 _wait_for_recorded_publishers(recorder, expected_publishers(specs), popen)
 
     def first_exit(self) -> tuple[NodeSpec, int] | None:
-        """The first child found exited and its exit code (negative: killed by that signal); None if none."""
+        """The first child found exited and its exit code (negative: killed by that signal); None if none.
+
+        A child waiting to be respawned is not reported again.
+        """
         for child in self.children:
             code = child.popen.poll()
-            if code is not None:
+            if code is not None and child.restart_at is None:
                 return child.spec, code
         return None
+
+    def schedule_respawn(self, spec: NodeSpec, code: int, policy: RespawnPolicy) -> bool:
+        """Plans the restart of the exited node ``spec`` after ``policy.delay_s``; False past the limit."""
+        child = next(child for child in self.children if child.spec is spec)
+        if child.respawns >= policy.limit:
+            _say(
+                f"node {spec.name} exited with code {code} after {child.respawns} respawns (the limit)",
+                sys.stderr,
+            )
+            return False
+        child.respawns += 1
+        child.restart_at = time.monotonic() + policy.delay_s
+        _say(
+            f"node {spec.name} exited with code {code}; respawning it in {policy.delay_s:g} s "
+            f"({child.respawns} of {policy.limit})",
+            sys.stderr,
+        )
+        return True
+
+    def respawn_due(self) -> None:
+        """Restarts every child whose respawn delay has passed."""
+        now = time.monotonic()
+        for child in self.children:
+            if child.restart_at is not None and now >= child.restart_at:
+                child.restart_at = None
+                child.popen = self._spawn(child.command, child.priority)
+                _say(f"respawned {child.name} (pid {child.popen.pid}): {' '.join(child.command)}")
 
     def stop(self) -> dict[str, int]:
         """Stop every child still running: SIGINT to its group, then SIGTERM, then SIGKILL; reap all.
@@ -313,6 +380,7 @@ def launch_processes(
     *,
     env: Mapping[str, str] | None = None,
     stop_grace_s: float = STOP_GRACE_S,
+    respawn: RespawnPolicy | None = None,
 ) -> int:
     """Run the graph as separate processes until the plant completes, a node dies, or a stop signal.
 
@@ -320,6 +388,7 @@ def launch_processes(
         specs: The graph (:func:`~smm_bringup.graph.build_graph`).
         env: Environment of the children (default: ours, see :func:`child_environment`).
         stop_grace_s: Seconds each stop signal gets before the next one.
+        respawn: Restart nodes that exit (:class:`RespawnPolicy`); None: a node's exit stops the graph.
 
     Returns:
         The exit code (module docstring).
@@ -333,11 +402,15 @@ def launch_processes(
         try:
             processes.start()
             while not request.event.wait(_POLL_S):
+                processes.respawn_due()
                 exited = processes.first_exit()
                 if exited is None:
                     continue
                 spec, code = exited
-                if spec.name in PLANT_NODE_NAMES and code in (EXIT_OK, EXIT_NOT_CONTROLLED):
+                if respawn is not None and respawn.applies(spec, code):
+                    if processes.schedule_respawn(spec, code, respawn):
+                        continue
+                elif spec.name in PLANT_NODE_NAMES and code in (EXIT_OK, EXIT_NOT_CONTROLLED):
                     _say(f"{spec.name} completed its run; stopping the graph")
                     codes = processes.stop()
                     _report_stop(codes, expected_done=spec.name)
