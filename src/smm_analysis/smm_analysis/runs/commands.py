@@ -16,11 +16,13 @@ from smm_bag.progress import Progress
 
 from smm_analysis.errors import ParamsFileError
 from smm_analysis.runs.agreement import judge, tolerance_for
-from smm_analysis.runs.indices import comparison_table, evaluate, metrics_document
-from smm_analysis.runs.plots import write_plots
+from smm_analysis.runs.indices import comparison_table, evaluate_stream, metrics_document
+from smm_analysis.runs.plots import RunFigures, write_plots
 from smm_analysis.runs.recorded import load_run
 from smm_analysis.runs.report import render_report
 from smm_analysis.runs.rerun import chain_settings, read_params_files, rerun
+from smm_analysis.runs.stream import StepStream
+from smm_analysis.runs.window import TimeWindow
 
 __all__ = ["AnalyzeOptions", "RerunOptions", "analyze", "rerun_command"]
 
@@ -34,16 +36,24 @@ class AnalyzeOptions:
     out: Path | None = None
     plots: bool = True
     quiet: bool = False
+    window: TimeWindow = field(default_factory=TimeWindow)
 
 
 def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
     """``smm-bag analyze BAG [BAG...]``: indices (table or ``--json``), figures and report into ``--out``."""
     out, err = stdout or sys.stdout, stderr or sys.stderr
     results = []
+    figures: list[RunFigures] = []
+    drawing = options.out is not None and options.plots
     try:
         for bag in options.bags:
             progress = Progress(f"reading {bag.name}", 1, err, enabled=not options.quiet)
-            results.append(evaluate(load_run(bag, progress=progress)))
+            stream = StepStream(bag, window=options.window, progress=progress)
+            consumers = []
+            if drawing:
+                figures.append(RunFigures(stream.label, stream.manifest, stream.position_source))
+                consumers.append(figures[-1].add)
+            results.append(evaluate_stream(stream, consumers=consumers))
     except BagError as error:
         return fail(error, err)
     except ValueError as error:  # smm_analysis.MetricsInputError: recorded values the metrics refuse
@@ -60,10 +70,15 @@ def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextI
                     f"note: {result.run.bag}: {result.run.incomplete_steps} steps lack a measurement, "
                     "reference or command and were left out\n"
                 )
+            for topic, count in sorted(result.run.late_messages.items()):
+                out.write(
+                    f"note: {result.run.bag}: {count} messages on {topic} came more than the reorder window "
+                    "after a later stamp and were left out\n"
+                )
     if options.out is not None:
         options.out.mkdir(parents=True, exist_ok=True)
         (options.out / "metrics.json").write_text(json.dumps(document, indent=2, allow_nan=False) + "\n")
-        plots = write_plots([r.run for r in results], options.out) if options.plots else {}
+        plots = write_plots(figures, options.out) if drawing else {}
         report = options.out / "REPORT.md"
         report.write_text(render_report(results, plots, options.out), encoding="utf-8")
         figures = sum(path.endswith(".png") for path in plots.values())

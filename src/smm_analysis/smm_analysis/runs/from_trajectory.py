@@ -43,6 +43,7 @@ def write_trajectory_bag(
     version: str = "",
     internals: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    repeat: int = 1,
 ) -> BagMetadata:
     """Writes the run as a bag; returns its metadata.
 
@@ -54,7 +55,11 @@ def write_trajectory_bag(
         version: ``git describe`` for the manifest.
         internals: Also write ``controller_internals`` (every chain internal).
         progress: Called with (steps written, steps).
+        repeat: Write the run this many times back to back, each copy's stamps after the previous
+            copy's by one control period (long bags for benchmarks without holding a long run).
     """
+    if repeat < 1:
+        raise ValueError(f"repeat must be >= 1, got {repeat}")
     manifest = RunManifest(
         version=version,
         scenario=trajectory.scenario,
@@ -94,8 +99,9 @@ def write_trajectory_bag(
             )
         steps = trajectory.t_ns.size
         names = list(_NAMES)
-        for k in range(steps):
-            stamp = int(trajectory.t_ns[k])
+        span = int(trajectory.t_ns[-1] - trajectory.t_ns[0]) + manifest.control_period_ns
+        for copy, k in ((copy, k) for copy in range(repeat) for k in range(steps)):
+            stamp = int(trajectory.t_ns[k]) + copy * span
             at = epoch_ns + stamp
             applied = trajectory.applied_torque[k - 1].tolist() if k > 0 else [0.0, 0.0]
             writer.write(
@@ -135,6 +141,7 @@ def write_trajectory_bag(
                     encode_float64_multi_array((*internal_dims, _stamp_dim(stamp)), rows),
                     at + 210_000,
                 )
-            if progress is not None and (k % 10_000 == 0 or k == steps - 1):
-                progress(k + 1, steps)
+            done = copy * steps + k + 1
+            if progress is not None and (done % 10_000 == 1 or done == repeat * steps):
+                progress(done, repeat * steps)
         return writer.close()
