@@ -22,6 +22,11 @@ def add_analyze(subparsers: argparse._SubParsersAction[argparse.ArgumentParser])
     parser.add_argument("--out", type=Path, help="write metrics.json, REPORT.md and PNG figures here")
     parser.add_argument("--no-plots", action="store_true", help="with --out: no figures")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--segments",
+        action="store_true",
+        help="find the experiments in each bag (armed stretches, parameter changes) and report each",
+    )
     add_window_options(parser)
     parser.set_defaults(
         handler=lambda options: _windowed(
@@ -35,6 +40,7 @@ def add_analyze(subparsers: argparse._SubParsersAction[argparse.ArgumentParser])
                     plots=not options.no_plots,
                     quiet=options.quiet or options.json,
                     window=window,
+                    segments=options.segments,
                 )
             ),
         )
@@ -49,6 +55,8 @@ def _windowed(
         window = window_from_options(options)
     except ValueError as error:
         parser.error(str(error))
+    if getattr(options, "segments", False) and not window.whole:
+        parser.error("--segments finds its own windows: give it without --start / --end")
     return run(window)
 
 
@@ -76,15 +84,23 @@ def add_rerun(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -
         help="per-step tolerance, relative to the largest recorded |value| of each joint (default: what a "
         "bag recorded on another machine passes, 1e-9 and isolated sign flips; 0: bit for bit)",
     )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_window_options(parser)
     parser.set_defaults(
-        handler=lambda options: rerun_command(
-            RerunOptions(
-                bag=options.bag,
-                params_files=tuple(options.params_file),
-                json=options.json,
-                out=options.out,
-                expect_equal=options.expect_equal,
-                tolerance=options.tolerance,
-            )
+        handler=lambda options: _windowed(
+            parser,
+            options,
+            lambda window: rerun_command(
+                RerunOptions(
+                    bag=options.bag,
+                    params_files=tuple(options.params_file),
+                    json=options.json,
+                    out=options.out,
+                    expect_equal=options.expect_equal,
+                    tolerance=options.tolerance,
+                    window=window,
+                    quiet=options.quiet or options.json,
+                )
+            ),
         )
     )

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TextIO
 
 import numpy as np
-from smm_bag.errors import BagError
+from smm_bag.errors import BagError, MissingTopicsError
 from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_CORRUPT, EXIT_OK, EXIT_PARAMS, EXIT_USAGE, fail
 from smm_bag.progress import Progress
 
@@ -21,6 +21,7 @@ from smm_analysis.runs.plots import RunFigures, write_plots
 from smm_analysis.runs.recorded import load_run
 from smm_analysis.runs.report import render_report
 from smm_analysis.runs.rerun import chain_settings, read_params_files, rerun
+from smm_analysis.runs.segments import MIN_SEGMENT_NS, find_segments
 from smm_analysis.runs.stream import StepStream
 from smm_analysis.runs.window import TimeWindow
 
@@ -37,6 +38,29 @@ class AnalyzeOptions:
     plots: bool = True
     quiet: bool = False
     window: TimeWindow = field(default_factory=TimeWindow)
+    segments: bool = False
+
+
+def _runs(bag: Path, options: AnalyzeOptions, err: TextIO) -> list[tuple[StepStream, str | None]]:
+    """The streams to analyse in ``bag``: the window, or each segment (with its label) for ``--segments``."""
+    progress = Progress(f"reading {bag.name}", 1, err, enabled=not options.quiet)
+    if not options.segments:
+        return [(StepStream(bag, window=options.window, progress=progress), None)]
+    search = find_segments(bag, progress=progress)
+    if search.short_segments or search.disarmed_steps:
+        err.write(
+            f"{bag}: {len(search.segments)} segments; left out: {search.short_segments} shorter than "
+            f"{MIN_SEGMENT_NS / 1e9:g} s, {search.disarmed_steps} disarmed steps\n"
+        )
+    if not search.segments:
+        raise MissingTopicsError(f"{bag}: no segment of at least {MIN_SEGMENT_NS / 1e9:g} s")
+    runs = []
+    for segment in search.segments:
+        label = f"segment {segment.number}"
+        progress = Progress(f"{label} of {bag.name}", 1, err, enabled=not options.quiet)
+        stream = StepStream(bag, window=segment.window, progress=progress)
+        runs.append((stream, f"{stream.label} {label} ({segment.reason})"))
+    return runs
 
 
 def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
@@ -47,13 +71,13 @@ def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextI
     drawing = options.out is not None and options.plots
     try:
         for bag in options.bags:
-            progress = Progress(f"reading {bag.name}", 1, err, enabled=not options.quiet)
-            stream = StepStream(bag, window=options.window, progress=progress)
-            consumers = []
-            if drawing:
-                figures.append(RunFigures(stream.label, stream.manifest, stream.position_source))
-                consumers.append(figures[-1].add)
-            results.append(evaluate_stream(stream, consumers=consumers))
+            for stream, label in _runs(bag, options, err):
+                consumers = []
+                if drawing:
+                    name = label if label is not None else stream.label
+                    figures.append(RunFigures(name, stream.manifest, stream.position_source))
+                    consumers.append(figures[-1].add)
+                results.append(evaluate_stream(stream, consumers=consumers, label=label))
     except BagError as error:
         return fail(error, err)
     except ValueError as error:  # smm_analysis.MetricsInputError: recorded values the metrics refuse
@@ -97,6 +121,8 @@ class RerunOptions:
     expect_equal: bool = False
     tolerance: float | None = None
     """Per-step relative tolerance; None: what a bag from another machine passes; 0: bit for bit."""
+    window: TimeWindow = field(default_factory=TimeWindow)
+    quiet: bool = False
 
 
 def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
@@ -108,7 +134,8 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
         err.write(f"smm-bag: error: --tolerance: {error}\n")
         return EXIT_USAGE
     try:
-        run = load_run(options.bag, progress=Progress(f"reading {options.bag.name}", 1, err))
+        progress = Progress(f"reading {options.bag.name}", 1, err, enabled=not options.quiet)
+        run = load_run(options.bag, progress=progress, window=options.window)
         recorded = next(
             (
                 {str(k): v for k, v in values.items()}
@@ -137,6 +164,7 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
     difference = np.abs(result.command - result.recorded_command)
     summary: dict[str, object] = {
         "bag": str(options.bag),
+        "window": options.window.describe(),
         "algorithm": settings.algorithm,
         "params_files": [str(p) for p in options.params_files],
         "steps": int(result.t_ns.size),

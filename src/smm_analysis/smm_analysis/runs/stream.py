@@ -51,7 +51,8 @@ class StepBlock:
         command_torque: ``torque_command`` (N m), shape (n, 2).
         applied_torque: ``joint_states`` effort (N m), shape (n, 2).
         disturbance_estimate: xi~ (N m), shape (n, 2).
-        internals: Rows of ``controller_internals`` / ``observer_state`` by quantity, each (n, 2).
+        internals: Rows of ``controller_internals`` / ``observer_state`` by quantity, and of
+            ``hw_bridge_internals`` as ``hw_bridge.<quantity>``, each (n, 2).
         latency_ns: Command receive time minus measurement receive time (ns), shape (n,).
     """
 
@@ -296,7 +297,8 @@ class StepStream:
         joint_states, ground_truth = name("joint_states"), name("ground_truth")
         reference_topic, command_topic = name("reference"), name("torque_command")
         estimate_topic = name("disturbance_estimate")
-        labelled = (name("controller_internals"), name("observer_state"))
+        hw_bridge = name("hw_bridge_internals")
+        labelled = (name("controller_internals"), name("observer_state"), hw_bridge)
 
         def reference_layout(labels: tuple[str, ...], width: int) -> None:
             if _items(labels, "order") != _REFERENCE_ROWS or _items(labels, "joint") != JOINTS or width != 6:
@@ -345,8 +347,9 @@ class StepStream:
                 part = _array_part(topic, buffers, log_times, estimate_layout)
                 add("estimate", topic, _Part(part.stamps, part.values[:, :2], part.log_times))
             else:
+                prefix = _INTERNAL + ("hw_bridge." if topic == hw_bridge else "")
                 for quantity, part in _labelled_parts(topic, buffers, log_times).items():
-                    add(_INTERNAL + quantity, topic, part)
+                    add(prefix + quantity, topic, part)
 
         with BagReader(self.bag) as reader:
             counts = {topic.name: topic.message_count for topic in reader.metadata.topics}
