@@ -82,7 +82,7 @@ sweep: $(STAMP)
 	$(VENV)/bin/smm-sweep $(SPEC) $(if $(OUT),--out $(OUT))
 
 reproduce: $(STAMP)
-	$(PY) -m smm_analysis.cli --out out/reproduce
+	$(PY) -m smm_analysis.reproduction.cli --out out/reproduce
 
 colcon: $(STAMP)
 	$(VENV)/bin/colcon build --base-paths src --build-base build --install-base install

@@ -19,10 +19,11 @@ from smm_controller.laws import PAPER_LAWS
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = ("src", "tests", "bench", "tools")
 TABLE = ROOT / "src" / "smm_controller" / "smm_controller" / "laws.py"
+_REPRODUCTION = "src/smm_analysis/smm_analysis/reproduction"
 PER_LAW_CONTENT = {
-    "src/smm_analysis/smm_analysis/paper_values.py": "the paper's published figures, per law",
-    "src/smm_analysis/smm_analysis/linearisation.py": "the baselines' linear loops, per law",
-    "src/smm_analysis/smm_analysis/energy_study.py": "the study's FPDESO run against its FPD run",
+    f"{_REPRODUCTION}/paper_values.py": "the paper's published figures, per law",
+    f"{_REPRODUCTION}/linearisation.py": "the baselines' linear loops, per law",
+    f"{_REPRODUCTION}/energy_study.py": "the study's FPDESO run against its FPD run",
 }
 """Package files whose dict literals are keyed by the paper's laws, and why."""
 
@@ -115,7 +116,7 @@ def test_the_law_list_check_refuses_what_it_should(source: str, refused: bool) -
     assert bool(literal_law_lists(source, "tests/probe.py")) is refused
     keyed = 'GAINS = {"pid": 1, "npd": 2}\n'
     assert literal_law_lists(keyed, "src/smm_x/smm_x/probe.py")
-    assert not literal_law_lists(keyed, "src/smm_analysis/smm_analysis/paper_values.py")
+    assert not literal_law_lists(keyed, "src/smm_analysis/smm_analysis/reproduction/paper_values.py")
 
 
 def test_the_private_import_check_refuses_what_it_should() -> None:

@@ -63,6 +63,11 @@ class Module:
 #: profile's 100 examples: at `thorough`'s 1000 their run alone would take most of the hour.
 MODULES: tuple[Module, ...] = (
     Module("smm_dynamics/model.py", DYNAMICS_TESTS, "ci"),
+    Module("smm_dynamics/kinematics.py", DYNAMICS_TESTS, "ci"),
+    Module("smm_dynamics/integration.py", DYNAMICS_TESTS, "ci"),
+    Module("smm_dynamics/fast_path.py", DYNAMICS_TESTS, "ci"),
+    Module("smm_dynamics/_terms.py", DYNAMICS_TESTS, "ci"),
+    Module("smm_dynamics/_arrays.py", DYNAMICS_TESTS, "ci"),
     Module("smm_dynamics/parameters.py", DYNAMICS_TESTS, "ci"),
     Module("smm_dynamics/validation.py", DYNAMICS_TESTS, "ci"),
     Module("smm_dynamics/valve.py", DYNAMICS_TESTS, "ci"),

@@ -31,7 +31,7 @@ setup(
     cmdclass=command_classes("smm-reproduce", "smm-sweep"),  # user-facing: also in <prefix>/bin
     entry_points={
         "console_scripts": [
-            "smm-reproduce = smm_analysis.cli:main",
+            "smm-reproduce = smm_analysis.reproduction.cli:main",
             "smm-sweep = smm_analysis.sweep.cli:main",
         ],
         "smm_bag.commands": [

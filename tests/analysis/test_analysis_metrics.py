@@ -250,7 +250,7 @@ def test_joint_indices_carry_the_torque_increment() -> None:
 
 
 def test_energy_above_a_cutoff_splits_a_two_tone_torque_by_parseval() -> None:
-    from smm_analysis.energy_study import energy_above
+    from smm_analysis.reproduction.energy_study import energy_above
 
     t_ns = np.arange(1000, dtype=np.int64) * 1_000_000  # 1 s at 1 kHz, whole periods of both tones
     t = t_ns / 1e9

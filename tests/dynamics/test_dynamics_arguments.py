@@ -11,7 +11,8 @@ import pytest
 from smm_dynamics.parameters import BodyData
 from smm_dynamics.validation import check_pair, check_scalar
 
-from smm_dynamics import SMMParameters, model
+import smm_dynamics as model
+from smm_dynamics import SMMParameters
 
 P = SMMParameters()
 Q = np.array([0.3, -0.4])

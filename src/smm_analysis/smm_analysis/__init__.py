@@ -1,7 +1,7 @@
 """Offline closed-loop reproduction of the FPDESO paper, metrics and bag analysis.
 
-The package root re-exports the library (no matplotlib import); ``smm_analysis.plots`` and
-``smm_analysis.cli`` load matplotlib.
+The package root re-exports the library (no matplotlib import); ``smm_analysis.reproduction.plots`` and
+``smm_analysis.reproduction.cli`` load matplotlib.
 """
 
 from smm_analysis.closed_loop import (

@@ -1,14 +1,16 @@
-"""Performance indices (SPEC section 5, paper eq. 42-45), step metrics and end-effector errors.
+"""Performance indices (SPEC section 5, paper eq. 42-45), step metrics, end-effector errors, and their table.
 
 Arrays in, floats out, shared by the offline loop and the bag analysis; stamps are integer ns, strictly
-increasing. Definitions: docs/METRICS.md.
+increasing. :data:`METRICS` names every metric once (name, unit, reduction, whether the batched loop
+computes it); everything that lists metrics reads it. Definitions: docs/METRICS.md.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -18,14 +20,21 @@ from smm_dynamics import SMMParameters, end_effector_position
 
 __all__ = [
     "CARTESIAN_AXES",
+    "METRICS",
     "AxisError",
+    "Group",
     "JointIndices",
+    "Metric",
+    "Reduction",
+    "Signal",
     "StepMetrics",
     "control_energy",
     "end_effector_errors",
     "joint_indices",
     "max_abs_error",
     "mean_abs_error",
+    "metric",
+    "metrics_of",
     "rms_error",
     "step_metrics",
     "torque_increment_rms",
@@ -222,17 +231,13 @@ def joint_indices(
     desired = _validated_joint_array("reference", reference, stamps.size)
     actual = _validated_joint_array("position", position, stamps.size)
     effort = _validated_joint_array("torque", torque, stamps.size)
-    error = desired - actual
-    result: dict[str, JointIndices] = {}
-    for joint, name in enumerate(("alpha", "beta")):
-        result[name] = JointIndices(
-            Ma=max_abs_error(error[:, joint]),
-            Ave=mean_abs_error(error[:, joint]),
-            RMS=rms_error(stamps, error[:, joint]),
-            eps_u=control_energy(stamps, effort[:, joint]),
-            du_rms=torque_increment_rms(effort[:, joint]),
+    signals = {Signal.TRACKING_ERROR: desired - actual, Signal.TORQUE: effort}
+    return {
+        name: JointIndices(
+            **{row.name: row.of(stamps, signals[row.signal][:, joint]) for row in metrics_of(Group.JOINT)}
         )
-    return result
+        for joint, name in enumerate(("alpha", "beta"))
+    }
 
 
 def _first_crossing(t_s: FloatArray, normalised: FloatArray, level: float) -> float:
@@ -337,8 +342,186 @@ def end_effector_errors(
     error_mm = (desired_xyz - actual_xyz) * _MM_PER_M
     return {
         axis: AxisError(
-            max_mm=max_abs_error(error_mm[:, index]),
-            rms_mm=rms_error(stamps, error_mm[:, index]),
+            **{row.name: row.of(stamps, error_mm[:, index]) for row in metrics_of(Group.END_EFFECTOR)}
         )
         for index, axis in enumerate(CARTESIAN_AXES)
     }
+
+
+class Group(Enum):
+    """The result a metric is a field of: :class:`JointIndices`, :class:`StepMetrics`, :class:`AxisError`."""
+
+    JOINT = "joint"
+    STEP = "step"
+    END_EFFECTOR = "end_effector"
+
+
+class Signal(Enum):
+    """The per-step series a metric reduces."""
+
+    TRACKING_ERROR = "tracking_error"
+    """q_d - q per joint (rad), q the true position where recorded."""
+    TORQUE = "torque"
+    """Commanded torque per joint (N m)."""
+    POSITION = "position"
+    """Joint position (rad), the step response."""
+    END_EFFECTOR_ERROR = "end_effector_error"
+    """Desired minus actual end-effector position per axis (mm)."""
+
+
+class Reduction(Enum):
+    """How a metric reduces its signal x_k at stamps t_k (s, k = 0..n-1), and what an accumulator keeps."""
+
+    MAX_ABS = "max_abs"
+    """max_k |x_k|; state: the running max."""
+    MEAN_ABS = "mean_abs"
+    """sum_k |x_k| / n; state: the sum and n."""
+    RMS_OVER_TIME = "rms_over_time"
+    """sqrt(T / (t_{n-1} - t_0)), T = sum_k (x_{k-1}^2 + x_k^2) (t_k - t_{k-1})/2; state: T, x_{k-1}, t_0."""
+    INTEGRAL_SQUARE = "integral_square"
+    """T as in RMS_OVER_TIME (a trapezoidal integral of x^2, times in s); state: T, x_{k-1}, t_{k-1}."""
+    INCREMENT_RMS = "increment_rms"
+    """sqrt(sum_k (x_k - x_{k-1})^2 / (n - 1)); state: the sum, x_{k-1}, n."""
+    STEP_RESPONSE = "step_response"
+    """A field of :func:`step_metrics`: needs the whole series (first crossings, last exit from the band)."""
+
+
+def _max_abs(t_ns: IntArray, series: FloatArray) -> float:
+    return max_abs_error(series)
+
+
+def _mean_abs(t_ns: IntArray, series: FloatArray) -> float:
+    return mean_abs_error(series)
+
+
+def _increment_rms(t_ns: IntArray, series: FloatArray) -> float:
+    return torque_increment_rms(series)
+
+
+_REDUCTIONS: Mapping[Reduction, Callable[[IntArray, FloatArray], float]] = {
+    Reduction.MAX_ABS: _max_abs,
+    Reduction.MEAN_ABS: _mean_abs,
+    Reduction.RMS_OVER_TIME: rms_error,
+    Reduction.INTEGRAL_SQUARE: control_energy,
+    Reduction.INCREMENT_RMS: _increment_rms,
+}
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One metric: a field of :class:`JointIndices`, :class:`StepMetrics` or :class:`AxisError`.
+
+    Attributes:
+        name: The field's name, the key in metrics.json.
+        group: The result it belongs to.
+        signal: The series it reduces.
+        reduction: How (the function, and the state a streaming computation keeps).
+        unit: Short unit, for tables.
+        json_unit: The unit as ``meta.units`` of metrics.json gives it (with what it measures).
+        batched: Whether the batched loop (sweeps) computes it, per joint, as column ``{column}_{joint}``.
+        column: The batched loop's column stem (default ``name``).
+        paper_equation: The paper's equation it is, or "" for the project's own.
+        label: How tables name it (default ``name``).
+        in_reports: Whether the bag comparison table shows it.
+    """
+
+    name: str
+    group: Group
+    signal: Signal
+    reduction: Reduction
+    unit: str
+    json_unit: str
+    batched: bool
+    column: str = ""
+    paper_equation: str = ""
+    label: str = ""
+    in_reports: bool = True
+
+    def __post_init__(self) -> None:
+        if not self.column:
+            object.__setattr__(self, "column", self.name)
+        if not self.label:
+            object.__setattr__(self, "label", self.name)
+
+    @property
+    def function(self) -> Callable[[IntArray, FloatArray], float] | None:
+        """``function(t_ns, series) -> value`` over a series; None for a field of :func:`step_metrics`."""
+        return _REDUCTIONS.get(self.reduction)
+
+    def of(self, t_ns: IntArray, series: FloatArray) -> float:
+        """The metric of ``series`` at the stamps ``t_ns`` (ns), shape (N,) each; not for a step metric."""
+        function = self.function
+        if function is None:
+            raise MetricsInputError(f"{self.name} is a field of step_metrics, not a reduction of one series")
+        return function(t_ns, series)
+
+
+_TRACKING, _TORQUE = Signal.TRACKING_ERROR, Signal.TORQUE
+_STEP, _EE = Group.STEP, Group.END_EFFECTOR
+METRICS: tuple[Metric, ...] = (
+    Metric("Ma", Group.JOINT, _TRACKING, Reduction.MAX_ABS, "rad", "rad", True, paper_equation="42"),
+    Metric("Ave", Group.JOINT, _TRACKING, Reduction.MEAN_ABS, "rad", "rad", True, paper_equation="43"),
+    Metric("RMS", Group.JOINT, _TRACKING, Reduction.RMS_OVER_TIME, "rad", "rad", True, paper_equation="44"),
+    Metric(
+        "eps_u",
+        Group.JOINT,
+        _TORQUE,
+        Reduction.INTEGRAL_SQUARE,
+        "N^2 m^2 s",
+        "N^2 m^2 s (integral of the commanded torque squared)",
+        True,
+        paper_equation="45",
+    ),
+    Metric(
+        "du_rms",
+        Group.JOINT,
+        _TORQUE,
+        Reduction.INCREMENT_RMS,
+        "N m",
+        "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
+        True,
+    ),
+    Metric("rise_time", _STEP, Signal.POSITION, Reduction.STEP_RESPONSE, "s", "s (10-90 %)", True),
+    Metric(
+        "overshoot", _STEP, Signal.POSITION, Reduction.STEP_RESPONSE, "rad", "rad", False, in_reports=False
+    ),
+    Metric(
+        "overshoot_fraction",
+        _STEP,
+        Signal.POSITION,
+        Reduction.STEP_RESPONSE,
+        "-",
+        "fraction of the step (x100 = %)",
+        True,
+        column="overshoot",  # the sweeps' column name, which sweep specs name
+    ),
+    Metric(
+        "settling_time",
+        _STEP,
+        Signal.POSITION,
+        Reduction.STEP_RESPONSE,
+        "s",
+        "s (2 % band; null = not settled)",
+        True,
+    ),
+    Metric("max_mm", _EE, Signal.END_EFFECTOR_ERROR, Reduction.MAX_ABS, "mm", "mm", False, label="max"),
+    Metric("rms_mm", _EE, Signal.END_EFFECTOR_ERROR, Reduction.RMS_OVER_TIME, "mm", "mm", False, label="RMS"),
+)
+"""Every metric, once, in the order of metrics.json and the reports (docs/METRICS.md defines them)."""
+
+
+def metrics_of(group: Group) -> tuple[Metric, ...]:
+    """The rows of :data:`METRICS` in ``group``, in table order."""
+    return tuple(row for row in METRICS if row.group is group)
+
+
+def metric(name: str) -> Metric:
+    """The row of :data:`METRICS` named ``name``.
+
+    Raises:
+        KeyError: No metric has that name.
+    """
+    for row in METRICS:
+        if row.name == name:
+            return row
+    raise KeyError(f"unknown metric {name!r}; known: {', '.join(row.name for row in METRICS)}")

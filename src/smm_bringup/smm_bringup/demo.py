@@ -23,8 +23,8 @@ from typing import Literal
 import numpy as np
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.errors import AnalysisError
-from smm_analysis.metrics import JointIndices, joint_indices
-from smm_analysis.paper_values import PAPER_CASE2
+from smm_analysis.metrics import METRICS, JointIndices, joint_indices
+from smm_analysis.reproduction.paper_values import PAPER_CASE2
 from smm_analysis.runs.commands import AnalyzeOptions, analyze
 from smm_analysis.runs.indices import evaluate
 from smm_analysis.runs.recorded import load_run, stamps_per_topic
@@ -183,7 +183,7 @@ def format_table(runs: Sequence[DemoRun]) -> str:
     for run in runs:
         paper_values = PAPER_CASE2.get(run.controller, {})
         for joint_index, joint in enumerate(JOINTS):
-            for index in ("Ma", "Ave", "RMS", "eps_u"):
+            for index in (row.name for row in METRICS if row.paper_equation):
                 pair = paper_values.get(index)
                 paper = pair[joint_index] if pair is not None else None
                 paper_text = f"{paper:9.4g}" if paper is not None else f"{'-':>9s}"
@@ -304,9 +304,7 @@ def demo(
 def build_parser() -> argparse.ArgumentParser:
     """The demo's command line (``--controllers``: the laws of ``smm_controller.laws.law_table()``)."""
     parser = argparse.ArgumentParser(prog="smm-demo", description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--controllers", nargs="+", default=list(DEMO_CONTROLLERS), choices=law_names()
-    )
+    parser.add_argument("--controllers", nargs="+", default=list(DEMO_CONTROLLERS), choices=law_names())
     parser.add_argument("--scenario", default="case2", choices=("step", "case1", "case2"))
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--duration", type=float, default=None, help="override the scenario length (s)")

@@ -35,8 +35,8 @@ __all__ = [
 
 #: Speed factor sigma per joint (rad/s^2). For |y| < h^2 sigma the TD is a linear second-order filter
 #: with natural frequency 1/h, so sigma only matters for large jumps. Chosen by the case2 sweep
-#: (``python -m smm_analysis.tune_td``, docs/REPRODUCTION.md): at h = 1 ms, case2 RMS is flat within
-#: 0.1 % for sigma in [1e4, 1e6]; 1e5 is the middle of that plateau and keeps the TD linear.
+#: (``python -m smm_analysis.reproduction.tune_td``, docs/REPRODUCTION.md): at h = 1 ms, case2 RMS is flat
+#: within 0.1 % for sigma in [1e4, 1e6]; 1e5 is the middle of that plateau and keeps the TD linear.
 DEFAULT_TD_SPEED: tuple[float, float] = (1.0e5, 1.0e5)
 #: Filter factor h per joint (s), >= the control period. SPEC section 4 asks for the defaults that
 #: minimise case2 tracking RMS: RMS grows monotonically with h (1 ms: 2.9/2.3 mrad, 2 ms: 4.7/3.6,

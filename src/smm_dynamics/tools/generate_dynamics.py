@@ -274,7 +274,7 @@ LOAD_ALPHA, LOAD_BETA = sp.symbols("load_alpha load_beta", real=True)
 FRICTION_ALPHA, FRICTION_BETA, GRAVITY = sp.symbols("friction_alpha friction_beta gravity", real=True)
 DT = sp.Symbol("dt", positive=True)
 
-# The same stages, in the same order and with the same arithmetic, as smm_dynamics.model.rk4_stages.
+# The same stages, in the same order and with the same arithmetic, as smm_dynamics.integration.rk4_stages.
 _RK4_COMBINATION = """\
     half = 0.5 * dt
 {stage_1}

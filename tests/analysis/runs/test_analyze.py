@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from bag.bag_helpers import rewrite_bag
 from smm_analysis.closed_loop import Trajectory, run_closed_loop
-from smm_analysis.reproduction import evaluate_run
+from smm_analysis.reproduction.reproduce import evaluate_run
 from smm_analysis.runs.from_trajectory import write_trajectory_bag
 from smm_analysis.runs.indices import evaluate
 from smm_analysis.runs.plots import PLOTS

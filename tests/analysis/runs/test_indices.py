@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from smm_analysis.metrics_json import METRICS_UNITS
+from smm_analysis.reproduction.metrics_json import METRICS_UNITS
 from smm_analysis.runs.indices import comparison_table, evaluate, metrics_document, step_target
 from smm_analysis.runs.recorded import RecordedRun
 from smm_bag.manifest import RunManifest

@@ -10,7 +10,7 @@ import pytest
 from bag.bag_helpers import MAKERS, T0
 from smm_analysis.closed_loop import Trajectory, run_closed_loop
 from smm_analysis.metrics import end_effector_errors, joint_indices, step_metrics
-from smm_analysis.reproduction import evaluate_run
+from smm_analysis.reproduction.reproduce import evaluate_run
 from smm_analysis.runs.accumulate import SUM_RELATIVE_TOLERANCE
 from smm_analysis.runs.from_trajectory import write_trajectory_bag
 from smm_analysis.runs.indices import RunMetrics, evaluate_stream

@@ -23,7 +23,7 @@ from smm_analysis.batch.chain import BatchChain, BatchFLESO, BatchLimiter, Batch
 from smm_analysis.batch.plant import BatchPlant
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD, Trajectory, run_closed_loop
 from smm_analysis.errors import AnalysisError, ClosedLoopDivergedError
-from smm_analysis.metrics import joint_indices, step_metrics
+from smm_analysis.metrics import METRICS, Group, joint_indices, step_metrics
 from smm_analysis.scenarios import Scenario
 from smm_controller import (
     FLESOConfig,
@@ -48,12 +48,9 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 _NS_PER_S = 1_000_000_000
 _JOINTS = ("alpha", "beta")
-_JOINT_INDICES = ("RMS", "Ma", "Ave", "eps_u", "du_rms")
-_STEP_INDICES = ("overshoot", "rise_time", "settling_time")
-INDEX_NAMES: tuple[str, ...] = tuple(
-    f"{name}_{joint}" for name in (*_JOINT_INDICES, *_STEP_INDICES) for joint in _JOINTS
-)
-"""Index columns of a run: ``RMS_alpha`` ... (rad, N^2 m^2 s, N m); step ones NaN for a sine."""
+_BATCHED = tuple(row for row in METRICS if row.batched)
+INDEX_NAMES: tuple[str, ...] = tuple(f"{row.column}_{joint}" for row in _BATCHED for joint in _JOINTS)
+"""Index columns of a run: ``{column}_{joint}`` of the table's batched metrics; step ones NaN for a sine."""
 
 
 @dataclass(frozen=True)
@@ -111,18 +108,19 @@ def indices_of(
     if desired is None:
         desired = scenario.reference().sample(t_ns.astype(np.float64) / _NS_PER_S)[:, 0, :]
     joints = joint_indices(t_ns, desired, position, torque)
+    steps = [
+        step_metrics(t_ns, position[:, index], scenario.amplitude[index]) if scenario.is_step else None
+        for index in range(len(_JOINTS))
+    ]
     result: dict[str, float] = {}
-    for name in _JOINT_INDICES:
-        for joint in _JOINTS:
-            result[f"{name}_{joint}"] = float(getattr(joints[joint], name))
-    for index, joint in enumerate(_JOINTS):
-        if scenario.is_step:
-            metrics = step_metrics(t_ns, position[:, index], scenario.amplitude[index])
-            values = (metrics.overshoot_fraction, metrics.rise_time, metrics.settling_time)
-        else:
-            values = (math.nan, math.nan, math.nan)
-        for name, value in zip(_STEP_INDICES, values, strict=True):
-            result[f"{name}_{joint}"] = float(value)
+    for row in _BATCHED:
+        for index, joint in enumerate(_JOINTS):
+            if row.group is Group.JOINT:
+                value = float(getattr(joints[joint], row.name))
+            else:
+                step = steps[index]
+                value = math.nan if step is None else float(getattr(step, row.name))
+            result[f"{row.column}_{joint}"] = value
     return result
 
 

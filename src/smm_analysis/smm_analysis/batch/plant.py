@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from smm_dynamics.model import rk4_stages
+from smm_dynamics.integration import rk4_stages
 from smm_dynamics.spin_form import forward_dynamics_entries_spin_form
 from smm_sim.plant import PlantConfig, eq46_disturbance
 

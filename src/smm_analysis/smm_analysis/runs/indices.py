@@ -17,14 +17,17 @@ import numpy as np
 from smm_bag.manifest import RunManifest
 
 from smm_analysis.metrics import (
+    CARTESIAN_AXES,
     AxisError,
+    Group,
     JointIndices,
     StepMetrics,
     end_effector_errors,
     joint_indices,
+    metrics_of,
     step_metrics,
 )
-from smm_analysis.metrics_json import METRICS_UNITS, run_entry
+from smm_analysis.reproduction.metrics_json import METRICS_UNITS, run_entry
 from smm_analysis.runs.accumulate import IndexAccumulator
 from smm_analysis.runs.latency import LatencySketch, LatencySummary, summarize_latency
 from smm_analysis.runs.recorded import JOINTS, RecordedRun
@@ -261,29 +264,36 @@ def comparison_table(results: Sequence[RunMetrics]) -> str:
     headers = [f"{r.run.label} ({r.run.position_source})" for r in results]
     rows: list[tuple[str, list[str]]] = []
     for joint in JOINTS:
-        indices = (("Ma", "rad"), ("Ave", "rad"), ("RMS", "rad"), ("eps_u", "N^2 m^2 s"), ("du_rms", "N m"))
-        for name, unit in indices:
+        for metric in metrics_of(Group.JOINT):
             rows.append(
-                (f"{joint} {name} ({unit})", [_number(getattr(r.joints[joint], name)) for r in results])
+                (
+                    f"{joint} {metric.label} ({metric.unit})",
+                    [_number(getattr(r.joints[joint], metric.name)) for r in results],
+                )
             )
         if any(r.step is not None and joint in r.step for r in results):
-            for name, unit in (("rise_time", "s"), ("overshoot_fraction", "-"), ("settling_time", "s")):
+            for metric in metrics_of(Group.STEP):
+                if not metric.in_reports:
+                    continue
                 rows.append(
                     (
-                        f"{joint} {name} ({unit})",
+                        f"{joint} {metric.label} ({metric.unit})",
                         [
-                            _number(getattr(r.step[joint], name)) if r.step and joint in r.step else "-"
+                            _number(getattr(r.step[joint], metric.name))
+                            if r.step and joint in r.step
+                            else "-"
                             for r in results
                         ],
                     )
                 )
-    for axis in ("x", "y", "z"):
-        rows.append(
-            (f"end effector {axis} max (mm)", [_number(r.end_effector[axis].max_mm) for r in results])
-        )
-        rows.append(
-            (f"end effector {axis} RMS (mm)", [_number(r.end_effector[axis].rms_mm) for r in results])
-        )
+    for axis in CARTESIAN_AXES:
+        for metric in metrics_of(Group.END_EFFECTOR):
+            rows.append(
+                (
+                    f"end effector {axis} {metric.label} ({metric.unit})",
+                    [_number(getattr(r.end_effector[axis], metric.name)) for r in results],
+                )
+            )
     rows.append(("steps", [str(r.run.steps) for r in results]))
     lines = ["| index | " + " | ".join(headers) + " |", "|---|" + "---|" * len(results)]
     lines.extend(f"| {name} | " + " | ".join(values) + " |" for name, values in rows)

@@ -134,7 +134,7 @@ def read_parts(out: Path) -> pa.Table:
         return pa.table(
             {"run_id": pa.array([], pa.int64()), **{k: pa.array([], pa.float64()) for k in INDEX_NAMES}}
         )
-    table = pa.concat_tables([pq.read_table(path) for path in paths])
+    table = pa.concat_tables([pq.read_table(path, columns=["run_id", *INDEX_NAMES]) for path in paths])
     return table.sort_by("run_id")
 
 

@@ -24,10 +24,14 @@ from smm_controller.laws import PAPER_LAWS, law_names, law_table
 from smm_controller.limits import OutputLimitConfig
 from smm_node_runtime.schema import config_fields, config_from_parameters, config_to_parameters
 
-from smm_analysis.acceptance import CASE2_RMS_REDUCTION, STEP_OVERSHOOT_LIMIT, STEP_RISE_TIME_RANGE
 from smm_analysis.batch.loop import INDEX_NAMES, RunSettings
 from smm_analysis.closed_loop import scenario_plant_config
 from smm_analysis.errors import AnalysisError, UnknownScenarioError
+from smm_analysis.reproduction.acceptance import (
+    CASE2_RMS_REDUCTION,
+    STEP_OVERSHOOT_LIMIT,
+    STEP_RISE_TIME_RANGE,
+)
 from smm_analysis.scenarios import Scenario, get_scenario
 from smm_controller import FLESOConfig, TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
@@ -483,7 +487,7 @@ def _constraints(spec: Mapping[str, Any], scenarios: Sequence[Scenario]) -> tupl
 
 
 def _claims(scenarios: Sequence[Scenario]) -> tuple[Constraint, ...]:
-    """The reproduction's claims (``smm_analysis.reproduction``) as constraints on step, case1 and case2."""
+    """The claims of ``smm_analysis.reproduction.acceptance`` as constraints on step, case1 and case2."""
     names = {s.name for s in scenarios}
     if not {"step", "case1", "case2"} <= names:
         raise SpecError(f"reproduction_claims needs the scenarios step, case1 and case2, got {sorted(names)}")

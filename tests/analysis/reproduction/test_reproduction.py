@@ -8,31 +8,27 @@ import math
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-from smm_analysis.acceptance import acceptance_checks
 from smm_analysis.errors import AnalysisError, UnknownControllerError, UnknownScenarioError
 from smm_analysis.metrics import step_metrics
-from smm_analysis.metrics_json import metrics_document
-from smm_analysis.reproduction import (
-    JOINTS,
-    ReproductionResult,
+from smm_analysis.reproduction import acceptance
+from smm_analysis.reproduction.acceptance import acceptance_checks
+from smm_analysis.reproduction.metrics_json import metrics_document
+from smm_analysis.reproduction.reproduce import (
     ideal_step_response,
     resolve_controllers,
     resolve_scenarios,
     run_reproduction,
 )
-from smm_analysis.tune_td import TDSweepPoint, best_point, chosen_point, format_table, sweep_td
+from smm_analysis.reproduction.results import JOINTS, ReproductionResult
+from smm_analysis.reproduction.tune_td import TDSweepPoint, best_point, chosen_point, format_table, sweep_td
 from smm_controller.laws import PAPER_LAWS
-
-from smm_analysis import acceptance
 
 SHORT = 0.2
 
 
 @pytest.fixture(scope="module")
 def short_result() -> ReproductionResult:
-    return run_reproduction(
-        resolve_scenarios(["step", "case1", "case2"], SHORT), PAPER_LAWS
-    )
+    return run_reproduction(resolve_scenarios(["step", "case1", "case2"], SHORT), PAPER_LAWS)
 
 
 @pytest.mark.parametrize(

@@ -7,10 +7,11 @@ from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Final
 
-from smm_analysis.acceptance import acceptance_verdict
-from smm_analysis.metrics import AxisError, JointIndices, StepMetrics
-from smm_analysis.reproduction import JOINTS, ReproductionResult, torque_limit_note
-from smm_analysis.retuned import RETUNED_SETS
+from smm_analysis.metrics import METRICS, AxisError, Group, JointIndices, StepMetrics, metrics_of
+from smm_analysis.reproduction.acceptance import acceptance_verdict
+from smm_analysis.reproduction.reproduce import torque_limit_note
+from smm_analysis.reproduction.results import JOINTS, ReproductionResult
+from smm_analysis.reproduction.retuned import RETUNED_SETS
 
 __all__ = ["METRICS_UNITS", "metrics_document", "run_entry"]
 
@@ -19,20 +20,13 @@ def _finite_or_none(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-METRICS_UNITS: Final[Mapping[str, str]] = MappingProxyType(
-    {
-        "Ma": "rad",
-        "Ave": "rad",
-        "RMS": "rad",
-        "eps_u": "N^2 m^2 s (integral of the commanded torque squared)",
-        "du_rms": "N m per control step (RMS of the commanded torque's increment; torque smoothness)",
-        "rise_time": "s (10-90 %)",
-        "overshoot": "rad",
-        "overshoot_fraction": "fraction of the step (x100 = %)",
-        "settling_time": "s (2 % band; null = not settled)",
-        "end_effector": "mm",
-    }
-)
+def _units() -> dict[str, str]:
+    units = {row.name: row.json_unit for row in METRICS if row.group is not Group.END_EFFECTOR}
+    (units["end_effector"],) = {row.json_unit for row in metrics_of(Group.END_EFFECTOR)}
+    return units
+
+
+METRICS_UNITS: Final[Mapping[str, str]] = MappingProxyType(_units())
 """Units of the quantities of :func:`run_entry` (``meta.units`` of ``metrics.json``)."""
 
 
@@ -46,25 +40,17 @@ def run_entry(
     for joint in JOINTS:
         indices = joints[joint]
         values: dict[str, float | None] = {
-            "Ma": indices.Ma,
-            "Ave": indices.Ave,
-            "RMS": indices.RMS,
-            "eps_u": indices.eps_u,
-            "du_rms": indices.du_rms,
+            row.name: getattr(indices, row.name) for row in metrics_of(Group.JOINT)
         }
         if step is not None and joint in step:
             metrics = step[joint]
             values.update(
-                {
-                    "rise_time": _finite_or_none(metrics.rise_time),
-                    "overshoot": metrics.overshoot,
-                    "overshoot_fraction": metrics.overshoot_fraction,
-                    "settling_time": _finite_or_none(metrics.settling_time),
-                }
+                {row.name: _finite_or_none(getattr(metrics, row.name)) for row in metrics_of(Group.STEP)}
             )
         entry[joint] = values
     entry["end_effector"] = {
-        axis: {"max_mm": error.max_mm, "rms_mm": error.rms_mm} for axis, error in end_effector.items()
+        axis: {row.name: getattr(error, row.name) for row in metrics_of(Group.END_EFFECTOR)}
+        for axis, error in end_effector.items()
     }
     return entry
 

@@ -7,37 +7,31 @@ from collections.abc import Mapping, Sequence
 
 from smm_controller.laws import PAPER_LAWS
 
-from smm_analysis.acceptance import (
-    CASE2_RMS_REDUCTION,
-    STEP_OVERSHOOT_LIMIT,
-    AcceptanceCheck,
-    acceptance_verdict,
-)
-from smm_analysis.energy_report import energy_section
-from smm_analysis.energy_study import EnergyStudy
-from smm_analysis.linearisation import baseline_linearisations
-from smm_analysis.paper_values import (
+from smm_analysis.reproduction.acceptance import CASE2_RMS_REDUCTION, STEP_OVERSHOOT_LIMIT, acceptance_verdict
+from smm_analysis.reproduction.energy_report import energy_section
+from smm_analysis.reproduction.energy_study import EnergyStudy
+from smm_analysis.reproduction.linearisation import baseline_linearisations
+from smm_analysis.reproduction.paper_values import (
     PAPER_CASE1,
     PAPER_CASE1_FPDESO_RMS_REDUCTION,
     PAPER_CASE2,
     PAPER_END_EFFECTOR_MAX_MM,
     PAPER_STEP,
 )
-from smm_analysis.reproduction import (
-    JOINTS,
-    ReproductionResult,
+from smm_analysis.reproduction.reproduce import (
     ideal_step_response,
     paper_fpdeso_ideal_step,
     torque_limit_note,
 )
-from smm_analysis.retuned import (
+from smm_analysis.reproduction.results import JOINTS, AcceptanceCheck, ReproductionResult
+from smm_analysis.reproduction.retuned import (
     RETUNED_SETS,
     RetunedSet,
     controller_label,
     damping_ratio,
     matched_damping_kd0,
 )
-from smm_analysis.tune_td import TDSweepPoint, best_point, chosen_point, format_table
+from smm_analysis.reproduction.tune_td import TDSweepPoint, best_point, chosen_point, format_table
 from smm_controller import FPDESOConfig
 from smm_dynamics import SMMParameters
 
@@ -514,8 +508,8 @@ def _td_section(result: ReproductionResult, sweep: Sequence[TDSweepPoint] | None
     )
     lines += [
         "SPEC section 4 asks for the (sigma, h) that minimise case 2 tracking RMS. `python -m "
-        "smm_analysis.tune_td` sweeps the grid below with FPDESO on case 2 (same value on both joints). "
-        "Cells: RMS "
+        "smm_analysis.reproduction.tune_td` sweeps the grid below with FPDESO on case 2 (same value on both "
+        "joints). Cells: RMS "
         "alpha / beta in mrad; 'inf' = the loop went unstable; the best pair is in bold.",
         "",
         format_table(sweep),

@@ -21,8 +21,8 @@ from matplotlib.figure import Figure
 from smm_controller.laws import law_names
 
 from smm_analysis.errors import AnalysisError
-from smm_analysis.reproduction import JOINTS, ReproductionResult, RunResult
-from smm_analysis.retuned import RETUNED_SETS, controller_label
+from smm_analysis.reproduction.results import JOINTS, ReproductionResult, RunResult
+from smm_analysis.reproduction.retuned import RETUNED_SETS, controller_label
 
 __all__ = ["DEFAULT_DPI", "write_plots"]
 
@@ -46,6 +46,8 @@ def _style(name: str) -> dict[str, Any]:
         return _RETUNED_STYLE
     names = law_names()
     return _PALETTE[names.index(name) % len(_PALETTE)] if name in names else {}
+
+
 _SYMBOLS = {"alpha": "\u03b1", "beta": "\u03b2"}
 
 

@@ -8,16 +8,17 @@ from typing import Any
 
 import pytest
 from numpy.testing import assert_array_equal
-from smm_analysis.acceptance import AcceptanceCheck, acceptance_verdict
-from smm_analysis.reproduction import (
+from smm_analysis.reproduction import cli, reproduce
+from smm_analysis.reproduction.acceptance import acceptance_verdict
+from smm_analysis.reproduction.reproduce import (
     REPRODUCTION_CONTROLLERS,
-    ReproductionResult,
     resolve_controllers,
     resolve_scenarios,
     run_controller,
     run_reproduction,
 )
-from smm_analysis.retuned import (
+from smm_analysis.reproduction.results import AcceptanceCheck, ReproductionResult
+from smm_analysis.reproduction.retuned import (
     FPDESO_RETUNED,
     RETUNED_SETS,
     RetunedSet,
@@ -27,7 +28,7 @@ from smm_analysis.retuned import (
 from smm_analysis.scenarios import SCENARIOS
 from smm_controller.laws import PAPER_LAWS
 
-from smm_analysis import cli, closed_loop, reproduction
+from smm_analysis import closed_loop
 from smm_controller import FPDESOConfig, FPDESOController, TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
 
@@ -84,7 +85,7 @@ def test_retuned_run_uses_the_paper_chain_with_only_the_law_replaced(monkeypatch
     """A 'retuned' set carrying the paper's config reproduces the paper's run bit for bit."""
     scenario = SCENARIOS["case2"].with_duration(0.05)
     same = RetunedSet(name="same", base="fpdeso", label="paper copy", config=PAPER, change="", reason="")
-    monkeypatch.setattr(reproduction, "RETUNED_SETS", {"same": same})
+    monkeypatch.setattr(reproduce, "RETUNED_SETS", {"same": same})
     copy = run_controller(scenario, "same", seed=3)
     paper = closed_loop.run_closed_loop(scenario, "fpdeso", seed=3)
     assert copy.controller == "same"

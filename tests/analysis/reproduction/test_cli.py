@@ -7,9 +7,8 @@ import re
 from pathlib import Path
 
 import pytest
+from smm_analysis.reproduction import acceptance, cli
 from smm_controller.laws import PAPER_LAWS
-
-from smm_analysis import acceptance, cli
 
 
 def test_writes_metrics_report_and_plots(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

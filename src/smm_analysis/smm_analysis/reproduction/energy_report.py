@@ -1,4 +1,7 @@
-"""Plot, report section and printout of the torque-noise study (``python -m smm_analysis.energy_report``)."""
+"""Plot, report section and printout of the torque-noise study.
+
+``python -m smm_analysis.reproduction.energy_report`` prints it.
+"""
 
 from __future__ import annotations
 
@@ -13,7 +16,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from smm_analysis.energy_study import (
+from smm_analysis.reproduction.energy_study import (
     CUTOFF_HZ,
     EARLY_S,
     PAPER_STRUCTURE,
@@ -23,7 +26,7 @@ from smm_analysis.energy_study import (
     sweep_settings,
     torque_terms,
 )
-from smm_analysis.paper_values import PAPER_CASE2
+from smm_analysis.reproduction.paper_values import PAPER_CASE2
 
 __all__ = ["energy_section", "main", "write_energy_plot"]
 
@@ -152,7 +155,7 @@ def energy_section(study: EnergyStudy, plot: str | None) -> list[str]:
         "`controller.*`; the feedback M u split into its fixed-gain position and velocity parts and the "
         "fuzzy schedule's share), alpha / beta. The terms add up to tau; the position and velocity parts of "
         "the start transient cancel in part, so their eps_u can exceed the total's. "
-        "`python -m smm_analysis.energy_study` prints the same figures.",
+        "`python -m smm_analysis.reproduction.energy_study` prints the same figures.",
         "",
         *_terms_table(study),
         "",
@@ -238,7 +241,9 @@ def _fmt(pair: tuple[float, float], scale: float = 1.0) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Prints the term split of the paper's structure and of the defaults, then the sweep."""
-    parser = argparse.ArgumentParser(prog="python -m smm_analysis.energy_report", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m smm_analysis.reproduction.energy_report", description=__doc__
+    )
     parser.add_argument("--seed", type=int, default=0)
     options = parser.parse_args(argv)
     for setting in (PAPER_STRUCTURE, chosen_setting()):

@@ -17,26 +17,25 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from smm_analysis.acceptance import acceptance_verdict
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD
-from smm_analysis.energy_report import write_energy_plot
-from smm_analysis.energy_study import EnergyStudy, run_energy_study
 from smm_analysis.errors import AnalysisError
-from smm_analysis.metrics_json import metrics_document
-from smm_analysis.plots import write_plots
-from smm_analysis.report import render_report
-from smm_analysis.reproduction import (
-    JOINTS,
+from smm_analysis.metrics import Group, metrics_of
+from smm_analysis.reproduction.acceptance import acceptance_verdict
+from smm_analysis.reproduction.energy_report import write_energy_plot
+from smm_analysis.reproduction.energy_study import EnergyStudy, run_energy_study
+from smm_analysis.reproduction.metrics_json import metrics_document
+from smm_analysis.reproduction.plots import write_plots
+from smm_analysis.reproduction.report import render_report
+from smm_analysis.reproduction.reproduce import (
     REPRODUCTION_CONTROLLERS,
-    ReproductionResult,
-    RunResult,
     resolve_controllers,
     resolve_scenarios,
     run_reproduction,
 )
-from smm_analysis.retuned import RETUNED_SETS, controller_label
+from smm_analysis.reproduction.results import JOINTS, ReproductionResult, RunResult
+from smm_analysis.reproduction.retuned import RETUNED_SETS, controller_label
+from smm_analysis.reproduction.tune_td import TDSweepPoint, sweep_td
 from smm_analysis.scenarios import SCENARIOS
-from smm_analysis.tune_td import TDSweepPoint, sweep_td
 from smm_controller import TrackingDifferentiatorConfig
 
 __all__ = ["ReproduceOptions", "build_parser", "main", "reproduce"]
@@ -190,8 +189,9 @@ def format_tables(result: ReproductionResult) -> str:
                 continue
             joints = run.joints
             row = f"  {controller:<15}"
-            for metric in ("Ma", "Ave", "RMS", "eps_u", "du_rms"):
-                pair = f"{getattr(joints['alpha'], metric):.4g} / {getattr(joints['beta'], metric):.4g}"
+            for metric in metrics_of(Group.JOINT):
+                alpha, beta = getattr(joints["alpha"], metric.name), getattr(joints["beta"], metric.name)
+                pair = f"{alpha:.4g} / {beta:.4g}"
                 row += f" {pair:>19}"
             if run.step is not None:
                 step = run.step

@@ -4,7 +4,7 @@ The TD step t is the control period; sigma (speed factor, rad/s^2) and h (filter
 swept over a grid, the same value on both joints, and each pair is scored by the case2 RMS tracking
 error of FPDESO (true plant position, eq. 44) per joint and by their sum.
 
-Run ``python -m smm_analysis.tune_td`` for the default grid (prints the table and the best pair).
+Run ``python -m smm_analysis.reproduction.tune_td`` for the default grid (prints the table and the best pair).
 """
 
 from __future__ import annotations
@@ -200,7 +200,7 @@ def format_table(points: Sequence[TDSweepPoint], *, energy: bool = False) -> str
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``python -m smm_analysis.tune_td``; returns the exit code."""
+    """Entry point of ``python -m smm_analysis.reproduction.tune_td``; returns the exit code."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--speeds", type=float, nargs="+", default=list(DEFAULT_SPEEDS), help="sigma values (rad/s^2)"

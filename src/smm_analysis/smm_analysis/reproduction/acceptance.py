@@ -4,26 +4,20 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from smm_controller.laws import PAPER_LAWS
 
-from smm_analysis.retuned import RETUNED_SETS, controller_label
-
-if TYPE_CHECKING:
-    from smm_analysis.reproduction import ReproductionResult, RunResult
+from smm_analysis.reproduction.results import JOINTS, AcceptanceCheck, ReproductionResult, RunResult
+from smm_analysis.reproduction.retuned import RETUNED_SETS, controller_label
 
 __all__ = [
     "CASE2_RMS_REDUCTION",
     "STEP_OVERSHOOT_LIMIT",
     "STEP_RISE_TIME_RANGE",
-    "AcceptanceCheck",
     "AcceptanceVerdict",
     "acceptance_checks",
     "acceptance_verdict",
 ]
-
-JOINTS: tuple[str, str] = ("alpha", "beta")
 
 
 STEP_OVERSHOOT_LIMIT = 0.05
@@ -36,33 +30,6 @@ STEP_RISE_TIME_RANGE: tuple[float, float] = (0.03, 0.09)
 
 CASE2_RMS_REDUCTION = 0.38
 """case2: FPDESO's RMS must be at least this fraction below FPD's (the paper: 56 % / 38 %)."""
-
-
-@dataclass(frozen=True)
-class AcceptanceCheck:
-    """One acceptance claim on one joint.
-
-    Attributes:
-        claim: What is claimed, in words.
-        scenario: Scenario name.
-        joint: ``alpha`` or ``beta``.
-        value: The measured quantity (unit in ``claim``).
-        requirement: The bound, in words.
-        passed: Whether the claim holds.
-        controller: The controller (gain set) the claim is checked on: ``"fpdeso"`` for the paper's
-            gains, or a retuned set's name.
-        quantity: What ``value`` is: ``overshoot_fraction``, ``rise_time``, ``RMS``, ``Ma``,
-            ``rms_reduction`` or ``eps_u``; matches a retuned set's check with the paper set's.
-    """
-
-    claim: str
-    scenario: str
-    joint: str
-    value: float
-    requirement: str
-    passed: bool
-    controller: str = "fpdeso"
-    quantity: str = ""
 
 
 @dataclass(frozen=True)

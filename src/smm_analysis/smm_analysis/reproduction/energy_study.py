@@ -1,7 +1,7 @@
 """Where FPDESO's case2 torque noise comes from, and the settings that remove it (issue #15).
 
 :func:`torque_terms` splits the torque into the law's terms; :func:`sweep_settings` runs the settings,
-over the offline loop with the paper's gains. Rendering is in :mod:`smm_analysis.energy_report`.
+over the offline loop with the paper's gains. Rendering is in :mod:`smm_analysis.reproduction.energy_report`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The paper's simulations, every scenario x controller, and their metrics (library of ``smm-reproduce``).
 
-Claims: :mod:`smm_analysis.acceptance`; ``metrics.json``: :mod:`smm_analysis.metrics_json`.
+Into ``results``; the claims are in ``acceptance``, ``metrics.json`` in ``metrics_json`` (this package).
 """
 
 from __future__ import annotations
@@ -8,35 +8,29 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from smm_controller.laws import PAPER_LAWS, law_names, law_table
 from smm_controller.limits import OutputLimitConfig
 
-from smm_analysis.acceptance import AcceptanceCheck, acceptance_checks
 from smm_analysis.closed_loop import DEFAULT_CONTROL_PERIOD, Trajectory, run_closed_loop
 from smm_analysis.errors import AnalysisError, UnknownControllerError
 from smm_analysis.metrics import (
-    AxisError,
-    JointIndices,
     StepMetrics,
     end_effector_errors,
     joint_indices,
     step_metrics,
 )
-from smm_analysis.retuned import RETUNED_SETS, damping_ratio
+from smm_analysis.reproduction.acceptance import acceptance_checks
+from smm_analysis.reproduction.results import JOINTS, ReproductionResult, RunResult, StepStudyPoint
+from smm_analysis.reproduction.retuned import RETUNED_SETS, damping_ratio
 from smm_analysis.scenarios import SCENARIOS, Scenario, get_scenario
 from smm_controller import FPDESOConfig, TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
 
 __all__ = [
-    "JOINTS",
     "REPRODUCTION_CONTROLLERS",
-    "ReproductionResult",
-    "RunResult",
-    "StepStudyPoint",
     "evaluate_run",
     "ideal_step_response",
     "paper_fpdeso_ideal_step",
@@ -47,78 +41,12 @@ __all__ = [
     "step_discretisation_study",
 ]
 
-JOINTS: tuple[str, str] = ("alpha", "beta")
 REPRODUCTION_CONTROLLERS: tuple[str, ...] = (
     PAPER_LAWS[0],
     *RETUNED_SETS,
     *PAPER_LAWS[1:],
 )
 """Default controllers of the reproduction: the paper's, with the labelled retuned sets after FPDESO."""
-
-
-@dataclass(frozen=True, eq=False)
-class RunResult:
-    """Metrics of one scenario x controller run.
-
-    Attributes:
-        scenario: Scenario name.
-        controller: Controller name.
-        joints: Eq. 42-45 per joint (error on the true position, energy of the commanded torque).
-        step: Step metrics per joint (step scenarios only).
-        end_effector: End-effector errors along x, y, z (mm).
-        wall_time: Wall-clock time of the run (s), for the progress line only.
-        trajectory: The sampled run (for plots).
-    """
-
-    scenario: str
-    controller: str
-    joints: Mapping[str, JointIndices]
-    step: Mapping[str, StepMetrics] | None
-    end_effector: Mapping[str, AxisError]
-    wall_time: float
-    trajectory: Trajectory
-
-
-@dataclass(frozen=True)
-class StepStudyPoint:
-    """FPDESO step response under one variation of the discretisation.
-
-    Attributes:
-        label: The variation (control period, TD filter factor, sub-steps).
-        step: Step metrics per joint.
-    """
-
-    label: str
-    step: Mapping[str, StepMetrics]
-
-
-@dataclass(frozen=True, eq=False)
-class ReproductionResult:
-    """Everything ``smm-reproduce`` computed.
-
-    Attributes:
-        runs: Results by (scenario, controller), in run order.
-        scenarios: Scenarios run, in order.
-        controllers: Controllers run, in order.
-        seed: Noise seed.
-        control_period: Control period (s).
-        td_config: TD parameters used by every chain.
-        checks: Acceptance checks (those whose runs are present).
-        step_study: FPDESO step metrics versus control period (empty if not computed).
-    """
-
-    runs: Mapping[tuple[str, str], RunResult]
-    scenarios: tuple[Scenario, ...]
-    controllers: tuple[str, ...]
-    seed: int
-    control_period: float
-    td_config: TrackingDifferentiatorConfig
-    checks: tuple[AcceptanceCheck, ...] = ()
-    step_study: tuple[StepStudyPoint, ...] = field(default_factory=tuple)
-
-    def run(self, scenario: str, controller: str) -> RunResult | None:
-        """The result of one run, or None if it was not run."""
-        return self.runs.get((scenario, controller))
 
 
 def resolve_scenarios(names: Sequence[str], duration: float | None = None) -> tuple[Scenario, ...]:
