@@ -1,5 +1,8 @@
 """SPEC section 5 indices accumulated block by block, as ``smm_analysis.metrics`` computes them on arrays.
 
+Which indices, of which signal and by which reduction is read from ``smm_analysis.metrics.METRICS``;
+each :class:`~smm_analysis.metrics.Reduction` has its streaming state here (step metrics their own).
+
 Each block's terms are the same floating-point operations as the in-memory functions' (time base, errors,
 trapezoids, end-effector positions); only the order of the summation differs: numpy's pairwise sum within a
 block of :data:`smm_analysis.runs.stream.BLOCK_STEPS` steps, block sums added in step order. Maxima and
@@ -16,7 +19,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from smm_analysis.errors import MetricsInputError
-from smm_analysis.metrics import CARTESIAN_AXES, AxisError, JointIndices, StepMetrics
+from smm_analysis.metrics import (
+    CARTESIAN_AXES,
+    AxisError,
+    Group,
+    JointIndices,
+    Metric,
+    Reduction,
+    Signal,
+    StepMetrics,
+    metrics_of,
+)
 from smm_analysis.runs.stream import JOINTS, StepBlock
 from smm_dynamics import SMMParameters, end_effector_position
 
@@ -67,6 +80,39 @@ class _Running:
         self.maximum = np.maximum(self.maximum, magnitude.max(axis=0))
         self.total += np.array([float(np.sum(row)) for row in np.ascontiguousarray(magnitude.T)])
         self.count += values.shape[0]
+
+
+class _Reducer:
+    """The streaming state of one :class:`~smm_analysis.metrics.Reduction` over each column of a signal."""
+
+    def __init__(self, reduction: Reduction, width: int) -> None:
+        self.reduction = reduction
+        self.running = _Running(width)
+        self.trapezoid = _Trapezoid(width)
+        self.increments = np.zeros(width)
+        self.last: FloatArray | None = None
+
+    def add(self, t_s: FloatArray, values: FloatArray) -> None:
+        if self.reduction in (Reduction.MAX_ABS, Reduction.MEAN_ABS):
+            self.running.add(values)
+        elif self.reduction in (Reduction.RMS_OVER_TIME, Reduction.INTEGRAL_SQUARE):
+            self.trapezoid.add(t_s, values**2)
+        elif self.reduction is Reduction.INCREMENT_RMS:
+            joined = values if self.last is None else np.vstack([self.last, values])
+            squared = np.ascontiguousarray((np.diff(joined, axis=0) ** 2).T)
+            self.increments += np.array([float(np.sum(row)) for row in squared])
+            self.last = values[-1:].copy()
+
+    def value(self, column: int, steps: int, t_f: float) -> float:
+        if self.reduction is Reduction.MAX_ABS:
+            return float(self.running.maximum[column])
+        if self.reduction is Reduction.MEAN_ABS:
+            return float(self.running.total[column] / self.running.count)
+        if self.reduction is Reduction.RMS_OVER_TIME:
+            return math.sqrt(float(self.trapezoid.total[column]) / t_f)
+        if self.reduction is Reduction.INTEGRAL_SQUARE:
+            return float(self.trapezoid.total[column])
+        return math.sqrt(float(self.increments[column]) / (steps - 1))
 
 
 class _StepResponse:
@@ -154,13 +200,10 @@ class IndexAccumulator:
         self.t0: int | None = None
         self.last_ns = 0
         self.steps = 0
-        self.error = _Running(2)
-        self.error_squared = _Trapezoid(2)
-        self.energy = _Trapezoid(2)
-        self.increment = np.zeros(2)
-        self.last_torque: FloatArray | None = None
-        self.cartesian = _Running(3)
-        self.cartesian_squared = _Trapezoid(3)
+        self.reducers: dict[str, _Reducer] = {
+            _key(metric): _Reducer(metric.reduction, 3 if metric.group is Group.END_EFFECTOR else 2)
+            for metric in (*metrics_of(Group.JOINT), *metrics_of(Group.END_EFFECTOR))
+        }
         self.is_step = True
         self.first_reference: FloatArray | None = None
         self.first_position: FloatArray | None = None
@@ -182,20 +225,16 @@ class IndexAccumulator:
         t_s = (block.t_ns - self.t0).astype(np.float64) / _NS_PER_S
         self.last_ns = int(block.t_ns[-1])
         self.steps += n
-        desired, position, torque = block.desired_position, block.position, block.command_torque
-        error = desired - position
-        self.error.add(error)
-        self.error_squared.add(t_s, error**2)
-        self.energy.add(t_s, torque**2)
-        with_previous = torque if self.last_torque is None else np.vstack([self.last_torque, torque])
-        increments = np.ascontiguousarray((np.diff(with_previous, axis=0) ** 2).T)
-        self.increment += np.array([float(np.sum(row)) for row in increments])
-        self.last_torque = torque[-1:].copy()
+        desired, position = block.desired_position, block.position
         desired_xyz = np.asarray(end_effector_position(desired, self.params), dtype=np.float64)
         actual_xyz = np.asarray(end_effector_position(position, self.params), dtype=np.float64)
-        error_mm = (desired_xyz - actual_xyz) * _MM_PER_M
-        self.cartesian.add(error_mm)
-        self.cartesian_squared.add(t_s, error_mm**2)
+        signals = {
+            Signal.TRACKING_ERROR: desired - position,
+            Signal.TORQUE: block.command_torque,
+            Signal.END_EFFECTOR_ERROR: (desired_xyz - actual_xyz) * _MM_PER_M,
+        }
+        for metric in (*metrics_of(Group.JOINT), *metrics_of(Group.END_EFFECTOR)):
+            self.reducers[_key(metric)].add(t_s, signals[metric.signal])
         self._add_step(block, t_s)
 
     def _add_step(self, block: StepBlock, t_s: FloatArray) -> None:
@@ -233,18 +272,16 @@ class IndexAccumulator:
         t_f = float(np.float64(self.last_ns - self.t0) / _NS_PER_S)
         joints = {
             joint: JointIndices(
-                Ma=float(self.error.maximum[j]),
-                Ave=float(self.error.total[j] / self.error.count),
-                RMS=math.sqrt(float(self.error_squared.total[j]) / t_f),
-                eps_u=float(self.energy.total[j]),
-                du_rms=math.sqrt(float(self.increment[j]) / (self.steps - 1)),
+                **{m.name: self.reducers[_key(m)].value(j, self.steps, t_f) for m in metrics_of(Group.JOINT)}
             )
             for j, joint in enumerate(JOINTS)
         }
         cartesian = {
             axis: AxisError(
-                max_mm=float(self.cartesian.maximum[i]),
-                rms_mm=math.sqrt(float(self.cartesian_squared.total[i]) / t_f),
+                **{
+                    m.name: self.reducers[_key(m)].value(i, self.steps, t_f)
+                    for m in metrics_of(Group.END_EFFECTOR)
+                }
             )
             for i, axis in enumerate(CARTESIAN_AXES)
         }
@@ -263,3 +300,7 @@ class IndexAccumulator:
             first_ns=self.t0,
             last_ns=self.last_ns,
         )
+
+
+def _key(metric: Metric) -> str:
+    return f"{metric.group.value}:{metric.name}"
