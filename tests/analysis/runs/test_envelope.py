@@ -14,7 +14,7 @@ def test_columns_stay_bounded_and_hold_every_extreme() -> None:
     envelope = Envelope(columns=64)
     rng = np.random.default_rng(3)
     values = rng.normal(size=100_003)
-    t_s = np.arange(values.size) * 1e-3
+    t_s = np.arange(values.size, dtype=np.float64) * 1e-3
     for start in range(0, values.size, 4099):  # blocks that do not divide the columns
         envelope.add(t_s[start : start + 4099], {"v": values[start : start + 4099]})
     assert envelope.used <= 64 and envelope.width == 2048
@@ -59,4 +59,4 @@ def test_a_one_step_spike_in_an_hour_of_steps_reaches_the_figure() -> None:
     beta = figure.axes[1]
     drawn = np.concatenate([np.asarray(line.get_ydata(), dtype=np.float64) for line in beta.lines])
     assert np.nanmax(drawn) == 42.0
-    assert max(line.get_xydata().shape[0] for line in beta.lines) <= 2 * 2048
+    assert max(np.asarray(line.get_xydata()).shape[0] for line in beta.lines) <= 2 * 2048

@@ -62,13 +62,17 @@ def test_latency_figure_is_one_panel_with_p50_and_p99_marked() -> None:
     figure = plots._latency_figure([_figures([1.0, 2.0, 3.0, 4.0])])
     assert figure is not None
     (axis,) = figure.axes
-    marks = sorted(float(line.get_xdata()[0]) for line in axis.lines if line.get_linestyle() in ("--", ":"))
+    marks = sorted(
+        float(np.asarray(line.get_xdata())[0]) for line in axis.lines if line.get_linestyle() in ("--", ":")
+    )
     # numpy's 2.5 and 3.97 ms, within the sketch's relative bound
     assert marks == [
         pytest.approx(2.5, rel=SKETCH_RELATIVE_ERROR),
         pytest.approx(3.97, rel=SKETCH_RELATIVE_ERROR),
     ]
-    assert any("p99" in text.get_text() for text in axis.get_legend().get_texts())
+    legend = axis.get_legend()
+    assert legend is not None
+    assert any("p99" in text.get_text() for text in legend.get_texts())
     plt.close(figure)
 
 

@@ -142,7 +142,11 @@ class _StepResponse:
             if index == 0 and self.previous is None:
                 self.crossings[level] = float(t_s[0])
                 continue
-            before_t, before = self.previous if index == 0 else (float(t_s[index - 1]), normalised[index - 1])
+            if index == 0:
+                assert self.previous is not None
+                before_t, before = self.previous
+            else:
+                before_t, before = float(t_s[index - 1]), float(normalised[index - 1])
             fraction = (level - before) / (normalised[index] - before)
             self.crossings[level] = float(before_t + fraction * (t_s[index] - before_t))
         self.peak = max(self.peak, float(np.max(normalised)))

@@ -54,7 +54,7 @@ def _runs(bag: Path, options: AnalyzeOptions, err: TextIO) -> list[tuple[StepStr
         )
     if not search.segments:
         raise MissingTopicsError(f"{bag}: no segment of at least {MIN_SEGMENT_NS / 1e9:g} s")
-    runs = []
+    runs: list[tuple[StepStream, str | None]] = []
     for segment in search.segments:
         label = f"segment {segment.number}"
         progress = Progress(f"{label} of {bag.name}", 1, err, enabled=not options.quiet)
@@ -105,8 +105,8 @@ def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextI
         plots = write_plots(figures, options.out) if drawing else {}
         report = options.out / "REPORT.md"
         report.write_text(render_report(results, plots, options.out), encoding="utf-8")
-        figures = sum(path.endswith(".png") for path in plots.values())
-        err.write(f"wrote {options.out / 'metrics.json'}, {report} and {figures} figures\n")
+        drawn = sum(path.endswith(".png") for path in plots.values())
+        err.write(f"wrote {options.out / 'metrics.json'}, {report} and {drawn} figures\n")
     return EXIT_OK
 
 

@@ -97,7 +97,7 @@ class _LumpedStream:
         if after is not None:
             pieces.append(tuple(a[:1] for a in after))  # type: ignore[arg-type]
         t_s, position, applied = (np.concatenate([p[i] for p in pieces]) for i in range(3))
-        parts = recorded_lumped_disturbance(self.parameters, t_s, position, applied)  # type: ignore[arg-type]
+        parts = recorded_lumped_disturbance(self.parameters, t_s, position, applied)
         if parts is None:
             return None
         middle = slice(lead, lead + held[0].size)

@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rosbags.typesys import Stores, get_typestore
@@ -92,6 +93,7 @@ def parameter_changes(path: Path | str) -> list[_Change]:
         if PARAMETER_EVENTS not in reader.topics:
             return []
         for message in reader.messages([PARAMETER_EVENTS]):
+            event: Any
             try:
                 event = store.deserialize_cdr(message.data, "rcl_interfaces/msg/ParameterEvent")
             except Exception as error:  # rosbags raises several kinds for bad CDR
