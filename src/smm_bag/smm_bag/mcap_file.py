@@ -9,6 +9,7 @@ of messages outside chunks): in file order, or in log-time order by merging the 
 from __future__ import annotations
 
 import heapq
+import mmap
 import struct
 import zlib
 from collections.abc import Iterator
@@ -156,6 +157,7 @@ class McapFile:
     def _block(self, block: _Block, wanted: set[int] | None) -> Iterator[RawMessage]:
         if not block.chunk:
             yield from _parse(self.data, block.offset, block.end, wanted, self.path)
+            _release(self.data, block.offset, block.end)
             return
         fields = chunk_fields(self.data, block.offset, len(self.data))
         if fields is None:
@@ -163,11 +165,27 @@ class McapFile:
         _, size, crc, compression, start, length = fields
         try:
             records = decompress(compression, bytes(self.data[start : start + length]), size)
+            _release(self.data, block.offset, start + length)
         except (*PARSE_ERRORS, RuntimeError, MemoryError) as error:
             raise CorruptBagError(f"{self.path}: damaged chunk ({error})") from None
         if crc and zlib.crc32(records) != crc:
             raise CorruptBagError(f"{self.path}: damaged chunk at byte {block.offset} (CRC mismatch)")
         yield from _parse(records, 0, len(records), wanted, self.path)
+
+
+def _release(data: bytes, start: int, end: int) -> None:
+    """Drops the pages of ``data[start:end]`` from this process's memory when ``data`` is a file mapping.
+
+    Read once, a mapped file's pages would otherwise stay resident (and count in the RSS) until the process
+    ends; dropped, a later read maps them again from the page cache. Bounded memory for hour-long bags.
+    """
+    if not isinstance(data, mmap.mmap) or not hasattr(mmap, "MADV_DONTNEED"):
+        return
+    page = mmap.PAGESIZE
+    first = start - start % page
+    last = min(len(data), end)
+    if last > first:
+        data.madvise(mmap.MADV_DONTNEED, first, last - first)
 
 
 def _parse(data: bytes, position: int, end: int, wanted: set[int] | None, path: Path) -> Iterator[RawMessage]:

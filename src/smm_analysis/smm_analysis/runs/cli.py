@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 
 from smm_analysis.runs.commands import AnalyzeOptions, RerunOptions, analyze, rerun_command
+from smm_analysis.runs.window import TimeWindow, add_window_options, window_from_options
 
 __all__ = ["add_analyze", "add_rerun"]
 
@@ -20,17 +22,42 @@ def add_analyze(subparsers: argparse._SubParsersAction[argparse.ArgumentParser])
     parser.add_argument("--out", type=Path, help="write metrics.json, REPORT.md and PNG figures here")
     parser.add_argument("--no-plots", action="store_true", help="with --out: no figures")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--segments",
+        action="store_true",
+        help="find the experiments in each bag (armed stretches, parameter changes) and report each",
+    )
+    add_window_options(parser)
     parser.set_defaults(
-        handler=lambda options: analyze(
-            AnalyzeOptions(
-                bags=tuple(options.bags),
-                json=options.json,
-                out=options.out,
-                plots=not options.no_plots,
-                quiet=options.quiet or options.json,
-            )
+        handler=lambda options: _windowed(
+            parser,
+            options,
+            lambda window: analyze(
+                AnalyzeOptions(
+                    bags=tuple(options.bags),
+                    json=options.json,
+                    out=options.out,
+                    plots=not options.no_plots,
+                    quiet=options.quiet or options.json,
+                    window=window,
+                    segments=options.segments,
+                )
+            ),
         )
     )
+
+
+def _windowed(
+    parser: argparse.ArgumentParser, options: argparse.Namespace, run: Callable[[TimeWindow], int]
+) -> int:
+    """Runs a command with the window of ``--start`` / ``--end``; a bad bound is a usage error."""
+    try:
+        window = window_from_options(options)
+    except ValueError as error:
+        parser.error(str(error))
+    if getattr(options, "segments", False) and not window.whole:
+        parser.error("--segments finds its own windows: give it without --start / --end")
+    return run(window)
 
 
 def add_rerun(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -57,15 +84,23 @@ def add_rerun(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -
         help="per-step tolerance, relative to the largest recorded |value| of each joint (default: what a "
         "bag recorded on another machine passes, 1e-9 and isolated sign flips; 0: bit for bit)",
     )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_window_options(parser)
     parser.set_defaults(
-        handler=lambda options: rerun_command(
-            RerunOptions(
-                bag=options.bag,
-                params_files=tuple(options.params_file),
-                json=options.json,
-                out=options.out,
-                expect_equal=options.expect_equal,
-                tolerance=options.tolerance,
-            )
+        handler=lambda options: _windowed(
+            parser,
+            options,
+            lambda window: rerun_command(
+                RerunOptions(
+                    bag=options.bag,
+                    params_files=tuple(options.params_file),
+                    json=options.json,
+                    out=options.out,
+                    expect_equal=options.expect_equal,
+                    tolerance=options.tolerance,
+                    window=window,
+                    quiet=options.quiet or options.json,
+                )
+            ),
         )
     )

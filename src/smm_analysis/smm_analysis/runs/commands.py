@@ -10,17 +10,20 @@ from pathlib import Path
 from typing import TextIO
 
 import numpy as np
-from smm_bag.errors import BagError
+from smm_bag.errors import BagError, MissingTopicsError
 from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_CORRUPT, EXIT_OK, EXIT_PARAMS, EXIT_USAGE, fail
 from smm_bag.progress import Progress
 
 from smm_analysis.errors import ParamsFileError
 from smm_analysis.runs.agreement import judge, tolerance_for
-from smm_analysis.runs.indices import comparison_table, evaluate, metrics_document
-from smm_analysis.runs.plots import write_plots
+from smm_analysis.runs.indices import comparison_table, evaluate_stream, metrics_document
+from smm_analysis.runs.plots import RunFigures, write_plots
 from smm_analysis.runs.recorded import load_run
 from smm_analysis.runs.report import render_report
 from smm_analysis.runs.rerun import chain_settings, read_params_files, rerun
+from smm_analysis.runs.segments import MIN_SEGMENT_NS, find_segments
+from smm_analysis.runs.stream import StepStream
+from smm_analysis.runs.window import TimeWindow
 
 __all__ = ["AnalyzeOptions", "RerunOptions", "analyze", "rerun_command"]
 
@@ -34,16 +37,47 @@ class AnalyzeOptions:
     out: Path | None = None
     plots: bool = True
     quiet: bool = False
+    window: TimeWindow = field(default_factory=TimeWindow)
+    segments: bool = False
+
+
+def _runs(bag: Path, options: AnalyzeOptions, err: TextIO) -> list[tuple[StepStream, str | None]]:
+    """The streams to analyse in ``bag``: the window, or each segment (with its label) for ``--segments``."""
+    progress = Progress(f"reading {bag.name}", 1, err, enabled=not options.quiet)
+    if not options.segments:
+        return [(StepStream(bag, window=options.window, progress=progress), None)]
+    search = find_segments(bag, progress=progress)
+    if search.short_segments or search.disarmed_steps:
+        err.write(
+            f"{bag}: {len(search.segments)} segments; left out: {search.short_segments} shorter than "
+            f"{MIN_SEGMENT_NS / 1e9:g} s, {search.disarmed_steps} disarmed steps\n"
+        )
+    if not search.segments:
+        raise MissingTopicsError(f"{bag}: no segment of at least {MIN_SEGMENT_NS / 1e9:g} s")
+    runs: list[tuple[StepStream, str | None]] = []
+    for segment in search.segments:
+        label = f"segment {segment.number}"
+        progress = Progress(f"{label} of {bag.name}", 1, err, enabled=not options.quiet)
+        stream = StepStream(bag, window=segment.window, progress=progress)
+        runs.append((stream, f"{stream.label} {label} ({segment.reason})"))
+    return runs
 
 
 def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
     """``smm-bag analyze BAG [BAG...]``: indices (table or ``--json``), figures and report into ``--out``."""
     out, err = stdout or sys.stdout, stderr or sys.stderr
     results = []
+    figures: list[RunFigures] = []
+    drawing = options.out is not None and options.plots
     try:
         for bag in options.bags:
-            progress = Progress(f"reading {bag.name}", 1, err, enabled=not options.quiet)
-            results.append(evaluate(load_run(bag, progress=progress)))
+            for stream, label in _runs(bag, options, err):
+                consumers = []
+                if drawing:
+                    name = label if label is not None else stream.label
+                    figures.append(RunFigures(name, stream.manifest, stream.position_source))
+                    consumers.append(figures[-1].add)
+                results.append(evaluate_stream(stream, consumers=consumers, label=label))
     except BagError as error:
         return fail(error, err)
     except ValueError as error:  # smm_analysis.MetricsInputError: recorded values the metrics refuse
@@ -60,14 +94,19 @@ def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextI
                     f"note: {result.run.bag}: {result.run.incomplete_steps} steps lack a measurement, "
                     "reference or command and were left out\n"
                 )
+            for topic, count in sorted(result.run.late_messages.items()):
+                out.write(
+                    f"note: {result.run.bag}: {count} messages on {topic} came more than the reorder window "
+                    "after a later stamp and were left out\n"
+                )
     if options.out is not None:
         options.out.mkdir(parents=True, exist_ok=True)
         (options.out / "metrics.json").write_text(json.dumps(document, indent=2, allow_nan=False) + "\n")
-        plots = write_plots([r.run for r in results], options.out) if options.plots else {}
+        plots = write_plots(figures, options.out) if drawing else {}
         report = options.out / "REPORT.md"
         report.write_text(render_report(results, plots, options.out), encoding="utf-8")
-        figures = sum(path.endswith(".png") for path in plots.values())
-        err.write(f"wrote {options.out / 'metrics.json'}, {report} and {figures} figures\n")
+        drawn = sum(path.endswith(".png") for path in plots.values())
+        err.write(f"wrote {options.out / 'metrics.json'}, {report} and {drawn} figures\n")
     return EXIT_OK
 
 
@@ -82,6 +121,8 @@ class RerunOptions:
     expect_equal: bool = False
     tolerance: float | None = None
     """Per-step relative tolerance; None: what a bag from another machine passes; 0: bit for bit."""
+    window: TimeWindow = field(default_factory=TimeWindow)
+    quiet: bool = False
 
 
 def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
@@ -93,7 +134,8 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
         err.write(f"smm-bag: error: --tolerance: {error}\n")
         return EXIT_USAGE
     try:
-        run = load_run(options.bag, progress=Progress(f"reading {options.bag.name}", 1, err))
+        progress = Progress(f"reading {options.bag.name}", 1, err, enabled=not options.quiet)
+        run = load_run(options.bag, progress=progress, window=options.window)
         recorded = next(
             (
                 {str(k): v for k, v in values.items()}
@@ -122,6 +164,7 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
     difference = np.abs(result.command - result.recorded_command)
     summary: dict[str, object] = {
         "bag": str(options.bag),
+        "window": options.window.describe(),
         "algorithm": settings.algorithm,
         "params_files": [str(p) for p in options.params_files],
         "steps": int(result.t_ns.size),

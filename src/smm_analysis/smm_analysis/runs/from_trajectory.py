@@ -9,7 +9,7 @@ bag, the benchmark's long bags, and tests that need a run whose metrics are know
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +43,9 @@ def write_trajectory_bag(
     version: str = "",
     internals: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    repeat: int = 1,
+    then: Sequence[Trajectory] = (),
+    parameter_events: Sequence[tuple[int, bytes]] = (),
 ) -> BagMetadata:
     """Writes the run as a bag; returns its metadata.
 
@@ -54,7 +57,16 @@ def write_trajectory_bag(
         version: ``git describe`` for the manifest.
         internals: Also write ``controller_internals`` (every chain internal).
         progress: Called with (steps written, steps).
+        repeat: Write the run this many times back to back, each copy's stamps after the previous
+            copy's by one control period (long bags for benchmarks without holding a long run).
+        then: Runs written after it (after the repeats), each likewise one period after the previous one
+            (several experiments in one recording; the manifest is the first run's).
+        parameter_events: ``(stamp ns, rcl_interfaces/msg/ParameterEvent CDR)`` written on
+            ``/parameter_events`` just before the first step stamped at or after it.
     """
+    if repeat < 1:
+        raise ValueError(f"repeat must be >= 1, got {repeat}")
+    parts = [trajectory] * repeat + list(then)
     manifest = RunManifest(
         version=version,
         scenario=trajectory.scenario,
@@ -79,10 +91,6 @@ def write_trajectory_bag(
     )
     topic = manifest.topic
     keys: tuple[str, ...] = tuple(trajectory.internals) if internals else ()
-    internal_rows: Mapping[str, np.ndarray] = trajectory.internals
-    internal_dims = (
-        (("quantity:" + ",".join(keys), len(keys), 2 * len(keys)), (_JOINT_DIM, 2, 2)) if keys else ()
-    )
     with BagWriter(path, chosen) as writer:
         writer.create_topic(topic("joint_states"), "sensor_msgs/msg/JointState", [_CONTROL])
         writer.create_topic(topic("ground_truth"), "sensor_msgs/msg/JointState", [_DIAGNOSTIC])
@@ -92,49 +100,93 @@ def write_trajectory_bag(
             writer.create_topic(
                 topic("controller_internals"), "std_msgs/msg/Float64MultiArray", [_DIAGNOSTIC]
             )
-        steps = trajectory.t_ns.size
-        names = list(_NAMES)
-        for k in range(steps):
-            stamp = int(trajectory.t_ns[k])
-            at = epoch_ns + stamp
-            applied = trajectory.applied_torque[k - 1].tolist() if k > 0 else [0.0, 0.0]
-            writer.write(
-                topic("reference"),
-                encode_float64_multi_array(
-                    (*_REFERENCE_DIMS, _stamp_dim(stamp)), trajectory.reference[k].ravel().tolist()
-                ),
-                at,
+        if parameter_events:
+            writer.create_topic("/parameter_events", "rcl_interfaces/msg/ParameterEvent", [_DIAGNOSTIC])
+        events = sorted(parameter_events, key=lambda event: event[0])
+        total = sum(part.t_ns.size for part in parts)
+        done = 0
+        offset = 0
+        for part in parts:
+            shift = offset - int(part.t_ns[0])
+            offset += int(part.t_ns[-1] - part.t_ns[0]) + manifest.control_period_ns
+            done = _write_steps(
+                writer,
+                part,
+                topic=topic,
+                shift=shift,
+                keys=keys,
+                events=events,
+                epoch_ns=epoch_ns,
+                done=done,
+                total=total,
+                progress=progress,
             )
-            writer.write(
-                topic("joint_states"),
-                encode_joint_state(stamp, names, trajectory.measured_position[k].tolist(), [], applied),
-                at + 10_000,
-            )
-            writer.write(
-                topic("ground_truth"),
-                encode_joint_state(
-                    stamp,
-                    names,
-                    trajectory.position[k].tolist(),
-                    trajectory.velocity[k].tolist(),
-                    applied,
-                ),
-                at + 20_000,
-            )
-            writer.write(
-                topic("torque_command"),
-                encode_float64_multi_array(
-                    ((_JOINT_DIM, 2, 2), _stamp_dim(stamp)), trajectory.command_torque[k].tolist()
-                ),
-                at + 200_000,
-            )
-            if keys:
-                rows = [value for key in keys for value in internal_rows[key][k].tolist()]
-                writer.write(
-                    topic("controller_internals"),
-                    encode_float64_multi_array((*internal_dims, _stamp_dim(stamp)), rows),
-                    at + 210_000,
-                )
-            if progress is not None and (k % 10_000 == 0 or k == steps - 1):
-                progress(k + 1, steps)
         return writer.close()
+
+
+def _write_steps(
+    writer: BagWriter,
+    trajectory: Trajectory,
+    *,
+    topic: Callable[[str], str],
+    shift: int,
+    keys: tuple[str, ...],
+    events: list[tuple[int, bytes]],
+    epoch_ns: int,
+    done: int,
+    total: int,
+    progress: Callable[[int, int], None] | None,
+) -> int:
+    """Writes one run's steps, stamps moved by ``shift`` (ns), and the events due; returns the steps done."""
+    names = list(_NAMES)
+    internal_rows: Mapping[str, np.ndarray] = trajectory.internals
+    internal_dims = (
+        (("quantity:" + ",".join(keys), len(keys), 2 * len(keys)), (_JOINT_DIM, 2, 2)) if keys else ()
+    )
+    for k in range(trajectory.t_ns.size):
+        stamp = int(trajectory.t_ns[k]) + shift
+        while events and events[0][0] <= stamp:
+            writer.write("/parameter_events", events.pop(0)[1], epoch_ns + stamp)
+        at = epoch_ns + stamp
+        applied = trajectory.applied_torque[k - 1].tolist() if k > 0 else [0.0, 0.0]
+        writer.write(
+            topic("reference"),
+            encode_float64_multi_array(
+                (*_REFERENCE_DIMS, _stamp_dim(stamp)), trajectory.reference[k].ravel().tolist()
+            ),
+            at,
+        )
+        writer.write(
+            topic("joint_states"),
+            encode_joint_state(stamp, names, trajectory.measured_position[k].tolist(), [], applied),
+            at + 10_000,
+        )
+        writer.write(
+            topic("ground_truth"),
+            encode_joint_state(
+                stamp,
+                names,
+                trajectory.position[k].tolist(),
+                trajectory.velocity[k].tolist(),
+                applied,
+            ),
+            at + 20_000,
+        )
+        writer.write(
+            topic("torque_command"),
+            encode_float64_multi_array(
+                ((_JOINT_DIM, 2, 2), _stamp_dim(stamp)), trajectory.command_torque[k].tolist()
+            ),
+            at + 200_000,
+        )
+        if keys:
+            rows = [value for key in keys for value in internal_rows[key][k].tolist()]
+            writer.write(
+                topic("controller_internals"),
+                encode_float64_multi_array((*internal_dims, _stamp_dim(stamp)), rows),
+                at + 210_000,
+            )
+        done += 1
+        if progress is not None and (done % 10_000 == 1 or done == total):
+            progress(done, total)
+    return done

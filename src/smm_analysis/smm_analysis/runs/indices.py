@@ -9,10 +9,12 @@ position, and every result says which.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+from smm_bag.manifest import RunManifest
 
 from smm_analysis.metrics import (
     CARTESIAN_AXES,
@@ -26,11 +28,57 @@ from smm_analysis.metrics import (
     step_metrics,
 )
 from smm_analysis.reproduction.metrics_json import METRICS_UNITS, run_entry
-from smm_analysis.runs.latency import summarize_latency
+from smm_analysis.runs.accumulate import IndexAccumulator
+from smm_analysis.runs.latency import LatencySketch, LatencySummary, summarize_latency
 from smm_analysis.runs.recorded import JOINTS, RecordedRun
+from smm_analysis.runs.stream import StepBlock, StepStream
 from smm_dynamics import SMMParameters
 
-__all__ = ["RunMetrics", "comparison_table", "evaluate", "metrics_document", "step_target"]
+__all__ = [
+    "RunMetrics",
+    "RunSummary",
+    "comparison_table",
+    "evaluate",
+    "evaluate_stream",
+    "metrics_document",
+    "step_target",
+]
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What the indices were computed on: the bag, its manifest, the steps used and left out, the latency.
+
+    Attributes:
+        bag: Bag folder.
+        manifest: Run manifest.
+        label: Name of the run in tables (controller, or bag name; a segment's number appended).
+        position_source: ``"ground truth"`` or ``"measured"``.
+        steps: Steps used.
+        incomplete_steps: Stamps seen on some required topics but not all (left out).
+        first_ns: First step's stamp (ns).
+        last_ns: Last step's stamp (ns).
+        latency: Loop latency quantiles (ms), or None when not known.
+        late_messages: Per topic, messages that came after the reorder window (left out).
+        window: ``--start A --end B`` that selects these steps (empty: the whole bag).
+    """
+
+    bag: Path
+    manifest: RunManifest
+    label: str
+    position_source: str
+    steps: int
+    incomplete_steps: int
+    first_ns: int
+    last_ns: int
+    latency: LatencySummary | None
+    late_messages: Mapping[str, int] = field(default_factory=dict)
+    window: str = ""
+
+    @property
+    def duration_s(self) -> float:
+        """Last step minus first step (s)."""
+        return (self.last_ns - self.first_ns) / 1e9
 
 
 @dataclass(frozen=True)
@@ -38,13 +86,13 @@ class RunMetrics:
     """Indices of one recorded run.
 
     Attributes:
-        run: The run.
+        run: What they were computed on.
         joints: Eq. 42-45 per joint.
         end_effector: Errors along x, y, z (mm).
         step: Step metrics per joint, or None when the reference is not a step.
     """
 
-    run: RecordedRun
+    run: RunSummary
     joints: Mapping[str, JointIndices]
     end_effector: Mapping[str, AxisError]
     step: Mapping[str, StepMetrics] | None
@@ -82,12 +130,67 @@ def evaluate(run: RecordedRun, params: SMMParameters | None = None) -> RunMetric
             for index, joint in enumerate(JOINTS)
             if target[index] != float(run.position[0, index])
         }
+    summary = RunSummary(
+        bag=run.bag,
+        manifest=run.manifest,
+        label=run.label,
+        position_source=run.position_source,
+        steps=int(run.t_ns.size),
+        incomplete_steps=run.incomplete_steps,
+        first_ns=int(run.t_ns[0]),
+        last_ns=int(run.t_ns[-1]),
+        latency=None if run.latency_ns is None else summarize_latency(run.latency_ns),
+    )
     return RunMetrics(
-        run=run,
+        run=summary,
         joints=joint_indices(run.t_ns, run.desired_position, run.position, run.command_torque),
         end_effector=end_effector_errors(run.t_ns, run.desired_position, run.position, model),
         step=step,
     )
+
+
+def evaluate_stream(
+    stream: StepStream,
+    params: SMMParameters | None = None,
+    *,
+    consumers: Sequence[Callable[[StepBlock], None]] = (),
+    label: str | None = None,
+) -> RunMetrics:
+    """Computes the indices of a bag read once in blocks (bounded memory), as :func:`evaluate` does in memory.
+
+    Args:
+        stream: The bag's joined steps (its window chosen).
+        params: Parameters giving the link length (default ``SMMParameters()``).
+        consumers: Also given every block (figures).
+        label: Name in tables (default: the stream's).
+
+    Raises:
+        BagError: See :class:`StepStream`.
+        MetricsInputError: A non-finite recorded value.
+    """
+    indices = IndexAccumulator(params)
+    latency = LatencySketch()
+    for block in stream.blocks():
+        indices.add(block)
+        latency.add(block.latency_ns)
+        for consume in consumers:
+            consume(block)
+    result = indices.result()
+    report = stream.report
+    summary = RunSummary(
+        bag=stream.bag,
+        manifest=stream.manifest,
+        label=label if label is not None else stream.label,
+        position_source=stream.position_source,
+        steps=result.steps,
+        incomplete_steps=report.incomplete_steps,
+        first_ns=result.first_ns,
+        last_ns=result.last_ns,
+        latency=latency.summary(),
+        late_messages=dict(report.late_messages),
+        window=stream.window.describe(),
+    )
+    return RunMetrics(run=summary, joints=result.joints, end_effector=result.end_effector, step=result.step)
 
 
 def _run_key(metrics: RunMetrics, taken: set[tuple[str, str]]) -> tuple[str, str]:
@@ -119,14 +222,17 @@ def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
         entry = run_entry(result.joints, result.step, result.end_effector)
         per_scenario[controller] = entry
         run = result.run
-        latency = None if run.latency_ns is None else summarize_latency(run.latency_ns)
-        bags[str(run.bag)] = {
+        latency = run.latency
+        name = str(run.bag) if not run.window else f"{run.bag} {run.window}"
+        bags[name] = {
             "scenario": scenario,
             "controller": controller,
             "position_source": run.position_source,
-            "steps": int(run.t_ns.size),
+            "steps": run.steps,
             "incomplete_steps": run.incomplete_steps,
-            "duration_s": float((run.t_ns[-1] - run.t_ns[0]) / 1e9),
+            "late_messages": dict(run.late_messages),
+            "window": run.window,
+            "duration_s": run.duration_s,
             "seed": run.manifest.seed,
             "plant": run.manifest.plant,
             "version": run.manifest.version,
@@ -188,7 +294,7 @@ def comparison_table(results: Sequence[RunMetrics]) -> str:
                     [_number(getattr(r.end_effector[axis], metric.name)) for r in results],
                 )
             )
-    rows.append(("steps", [str(r.run.t_ns.size) for r in results]))
+    rows.append(("steps", [str(r.run.steps) for r in results]))
     lines = ["| index | " + " | ".join(headers) + " |", "|---|" + "---|" * len(results)]
     lines.extend(f"| {name} | " + " | ".join(values) + " |" for name, values in rows)
     return "\n".join(lines)

@@ -1,12 +1,14 @@
-"""PNG figures of recorded runs, several bags overlaid, each line thinned to at most 5000 points.
+"""PNG figures of recorded runs, several runs overlaid, drawn from per-column min/max envelopes.
 
 Tracking, error, torque, estimated vs true disturbance, observer bandwidth, fuzzy gains (one panel per
-joint); the loop latency's distribution (one panel, p50 and p99 marked).
+joint); the loop latency's distribution (one panel, p50 and p99 marked). Every series is collected block by
+block into an :class:`~smm_analysis.runs.envelope.Envelope` (bounded memory, no spike lost) and the latency
+into a :class:`~smm_analysis.runs.latency.LatencySketch`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import matplotlib
@@ -17,62 +19,194 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
+from smm_bag.manifest import RunManifest
 from smm_sim.plant import disturbance_torque
 
-from smm_analysis.lumped import LumpedDisturbance, recorded_lumped_disturbance
-from smm_analysis.runs.latency import latency_cdf, summarize_latency
-from smm_analysis.runs.recorded import JOINTS, RecordedRun
+from smm_analysis.lumped import recorded_lumped_disturbance
+from smm_analysis.runs.envelope import Envelope
+from smm_analysis.runs.latency import LatencySketch
+from smm_analysis.runs.stream import JOINTS, StepBlock
 from smm_analysis.scenarios import get_scenario
 
-__all__ = ["PLOTS", "true_disturbance", "write_plots"]
+__all__ = ["PLOTS", "RunFigures", "true_disturbance", "write_plots"]
 
 FloatArray = NDArray[np.float64]
-_MAX_POINTS = 5000
 _DPI = 80
 
 PLOTS = ("tracking", "error", "torque", "disturbance", "bandwidth", "fuzzy_gains", "latency")
 """Figure names (``<name>.png``)."""
+_PANELS = {
+    "tracking": ("tracking", "rad"),
+    "error": ("tracking error q_d - q", "rad"),
+    "torque": ("torque", "N m"),
+    "disturbance": ("disturbance", "N m"),
+    "bandwidth": ("observer bandwidth", "rad/s"),
+    "fuzzy_gains": ("fuzzy gains", "gain"),
+}
 
 
-def true_disturbance(run: RecordedRun) -> FloatArray | None:
-    """The scenario's disturbance model at the recorded steps (N m), shape (N, 2); None if unknown.
+def true_disturbance(manifest: RunManifest, time_s: FloatArray) -> FloatArray | None:
+    """The scenario's disturbance model at ``time_s`` (s since the first step), (N m), shape (N, 2).
 
-    Simulator runs only: the manifest names the scenario, whose model gives the torque the plant applied.
+    Simulator runs only: the manifest names the scenario, whose model gives the torque the plant applied;
+    None when unknown.
     """
-    if run.manifest.plant != "sim" or not run.manifest.scenario:
+    if manifest.plant != "sim" or not manifest.scenario:
         return None
     try:
-        model = get_scenario(run.manifest.scenario).disturbance
+        model = get_scenario(manifest.scenario).disturbance
     except ValueError:  # a scenario this version does not know
         return None
-    return np.array([disturbance_torque(model, float(t)) for t in run.time_s])
+    return np.array([disturbance_torque(model, float(t)) for t in time_s]).reshape(-1, 2)
 
 
-def _lumped(run: RecordedRun) -> LumpedDisturbance | None:
-    """The true lumped disturbance and its parts (smm_analysis.lumped): simulator runs with ground truth."""
-    if run.manifest.plant != "sim" or run.position_source != "ground truth" or run.applied_torque is None:
-        return None
-    return recorded_lumped_disturbance(run.manifest.parameters, run.time_s, run.position, run.applied_torque)
+class _LumpedStream:
+    """The true lumped disturbance block by block, one block late, with one step of context on both sides.
+
+    Each block's values equal those of :func:`recorded_lumped_disturbance` on the whole run.
+    """
+
+    def __init__(self, parameters: Mapping[str, Mapping[str, object]]) -> None:
+        self.parameters = parameters
+        self.held: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        self.before: tuple[FloatArray, FloatArray, FloatArray] | None = None
+
+    def add(
+        self, t_s: FloatArray, position: FloatArray, applied: FloatArray
+    ) -> tuple[FloatArray, dict[str, FloatArray]] | None:
+        """Feeds a block; returns the previous block's times and series, if any."""
+        current = (t_s, position, applied)
+        out = None if self.held is None else self._compute(self.held, current)
+        self.before, self.held = self.held, current
+        return out
+
+    def finish(self) -> tuple[FloatArray, dict[str, FloatArray]] | None:
+        """The last block's times and series."""
+        return None if self.held is None else self._compute(self.held, None)
+
+    def _compute(
+        self,
+        held: tuple[FloatArray, FloatArray, FloatArray],
+        after: tuple[FloatArray, FloatArray, FloatArray] | None,
+    ) -> tuple[FloatArray, dict[str, FloatArray]] | None:
+        pieces = [held]
+        lead = 0
+        if self.before is not None:
+            pieces.insert(0, tuple(a[-1:] for a in self.before))  # type: ignore[arg-type]
+            lead = 1
+        if after is not None:
+            pieces.append(tuple(a[:1] for a in after))  # type: ignore[arg-type]
+        t_s, position, applied = (np.concatenate([p[i] for p in pieces]) for i in range(3))
+        parts = recorded_lumped_disturbance(self.parameters, t_s, position, applied)
+        if parts is None:
+            return None
+        middle = slice(lead, lead + held[0].size)
+        return held[0], {"total": parts.total[middle], "model_error": parts.model_error[middle]}
 
 
-def _thin(run: RecordedRun) -> slice:
-    return slice(None, None, max(1, run.t_ns.size // _MAX_POINTS))
+class RunFigures:
+    """The figures' series of one run, collected block by block.
+
+    Args:
+        label: The run's name in legends.
+        manifest: Its manifest (scenario, plant, parameters for the true disturbances).
+        position_source: ``"ground truth"`` or ``"measured"``.
+    """
+
+    def __init__(self, label: str, manifest: RunManifest, position_source: str) -> None:
+        self.label = label
+        self.manifest = manifest
+        self.position_source = position_source
+        self.envelope = Envelope()
+        self.lumped_envelope = Envelope()
+        """The true lumped disturbance (one block behind ``envelope``, on its own columns)."""
+        self.latency = LatencySketch()
+        self.styles: dict[str, tuple[str, str, str]] = {}
+        """series key -> (figure, legend label, line style)."""
+        self.t0: int | None = None
+        self.lumped = (
+            _LumpedStream(manifest.parameters)
+            if manifest.plant == "sim" and position_source == "ground truth"
+            else None
+        )
+
+    def _series(
+        self, figure: str, name: str, style: str, values: FloatArray, out: dict[str, FloatArray]
+    ) -> None:
+        for j in range(2):
+            key = f"{figure}|{name}|{j}"
+            self.styles.setdefault(key, (figure, f"{self.label} {name}".strip(), style))
+            out[key] = np.ascontiguousarray(values[:, j], dtype=np.float64)
+
+    def add(self, block: StepBlock) -> None:
+        """Adds the next steps of the run."""
+        if block.t_ns.size == 0:
+            return
+        if self.t0 is None:
+            self.t0 = int(block.t_ns[0])
+        t_s = (block.t_ns - self.t0).astype(np.float64) / 1e9
+        self.latency.add(block.latency_ns)
+        series: dict[str, FloatArray] = {}
+        desired = block.desired_position
+        self._series("tracking", "q_d", "--", desired, series)
+        self._series("tracking", f"q ({self.position_source})", "-", block.position, series)
+        self._series("error", "", "-", desired - block.position, series)
+        self._series("torque", "command", "-", block.command_torque, series)
+        if np.any(np.isfinite(block.applied_torque)):
+            self._series("torque", "applied (prev. interval)", ":", block.applied_torque, series)
+        if np.any(np.isfinite(block.disturbance_estimate)):
+            self._series("disturbance", "estimate xi~", "-", block.disturbance_estimate, series)
+        truth = true_disturbance(self.manifest, t_s)
+        if truth is not None:
+            self._series(
+                "disturbance", f"true external (scenario {self.manifest.scenario})", "--", truth, series
+            )
+        for key, values in sorted(block.internals.items()):
+            if key.endswith("bandwidth"):
+                self._series("bandwidth", key, "-", values, series)
+            elif key.endswith((".kp", ".kd")):
+                self._series("fuzzy_gains", key, "-", values, series)
+        self.envelope.add(t_s, series)
+        if self.lumped is not None and np.all(np.isfinite(block.applied_torque)):
+            self._add_lumped(self.lumped.add(t_s, block.position, block.applied_torque))
+
+    def _add_lumped(self, computed: tuple[FloatArray, dict[str, FloatArray]] | None) -> None:
+        if computed is None:
+            return
+        t_s, parts = computed
+        series: dict[str, FloatArray] = {}
+        self._series("disturbance", "true lumped (model error + external)", "-.", parts["total"], series)
+        self._series("disturbance", "model-error part", ":", parts["model_error"], series)
+        self.lumped_envelope.add(t_s, series)
+
+    def finish(self) -> None:
+        """Flushes what is held back (the last block of the lumped disturbance)."""
+        if self.lumped is not None:
+            self._add_lumped(self.lumped.finish())
+            self.lumped = None
+
+    def lines(self, figure: str, joint: int) -> list[tuple[str, str, FloatArray, FloatArray]]:
+        """(legend label, style, x, y) of the figure's envelope lines for one joint."""
+        result = []
+        for envelope in (self.envelope, self.lumped_envelope):
+            for key in envelope.names():
+                kind, label, style = self.styles[key]
+                if kind != figure or not key.endswith(f"|{joint}") or not envelope.drawn(key):
+                    continue
+                x, y = envelope.line(key)
+                result.append((label, style, x, y))
+        return result
 
 
-def _figure(
-    runs: Sequence[RecordedRun],
-    title: str,
-    unit: str,
-    series: Callable[[RecordedRun, int], list[tuple[str, FloatArray, str]]],
-) -> Figure | None:
+def _figure(runs: Sequence[RunFigures], name: str) -> Figure | None:
+    title, unit = _PANELS[name]
     figure, axes = plt.subplots(1, 2, figsize=(10.0, 3.6), sharex=True)
     drawn = False
     for index, joint in enumerate(JOINTS):
         axis = axes[index]
         for run in runs:
-            keep = _thin(run)
-            for label, values, style in series(run, index):
-                axis.plot(run.time_s[keep], values[keep], style, label=label, linewidth=0.9)
+            for label, style, x, y in run.lines(name, index):
+                axis.plot(x, y, style, label=label, linewidth=0.9)
                 drawn = True
         axis.set_title(f"{title}: {joint}")
         axis.set_xlabel("t (s)")
@@ -87,17 +221,16 @@ def _figure(
     return figure
 
 
-def _latency_figure(runs: Sequence[RecordedRun]) -> Figure | None:
-    """Empirical CDF of each run's loop latency, p50 dashed and p99 dotted; the axis ends at twice the p99."""
-    timed = [run for run in runs if run.latency_ns is not None]
+def _latency_figure(runs: Sequence[RunFigures]) -> Figure | None:
+    """CDF of each run's loop latency (sketch buckets), p50 dashed, p99 dotted; the axis ends at 2 x p99."""
+    timed = [run for run in runs if run.latency.count]
     if not timed:
         return None
     figure, axis = plt.subplots(figsize=(10.0, 3.6))
     left, right = 0.0, 0.0
     for run in timed:
-        assert run.latency_ns is not None
-        values, fraction = latency_cdf(run.latency_ns)
-        summary = summarize_latency(run.latency_ns)
+        values, fraction = run.latency.cdf()
+        summary = run.latency.summary()
         (line,) = axis.step(values, fraction, where="post", linewidth=0.9, label=run.label)
         for value, style, name in ((summary.p50_ms, "--", "p50"), (summary.p99_ms, ":", "p99")):
             axis.axvline(
@@ -121,60 +254,12 @@ def _latency_figure(runs: Sequence[RecordedRun]) -> Figure | None:
     return figure
 
 
-def _internal(run: RecordedRun, suffix: str) -> list[tuple[str, FloatArray]]:
-    return [(key, values) for key, values in sorted(run.internals.items()) if key.endswith(suffix)]
-
-
-def write_plots(runs: Sequence[RecordedRun], out: Path) -> dict[str, str]:
+def write_plots(runs: Sequence[RunFigures], out: Path) -> dict[str, str]:
     """Writes the figures into ``out``; returns ``{name: file or reason it was not drawn}``."""
     out.mkdir(parents=True, exist_ok=True)
-    truths = {id(run): true_disturbance(run) for run in runs}
-    lumped = {id(run): _lumped(run) for run in runs}
-
-    def tracking(run: RecordedRun, j: int) -> list[tuple[str, FloatArray, str]]:
-        return [
-            (f"{run.label} q_d", run.desired_position[:, j], "--"),
-            (f"{run.label} q ({run.position_source})", run.position[:, j], "-"),
-        ]
-
-    def error(run: RecordedRun, j: int) -> list[tuple[str, FloatArray, str]]:
-        return [(run.label, run.desired_position[:, j] - run.position[:, j], "-")]
-
-    def torque(run: RecordedRun, j: int) -> list[tuple[str, FloatArray, str]]:
-        lines = [(f"{run.label} command", run.command_torque[:, j], "-")]
-        if run.applied_torque is not None:
-            lines.append((f"{run.label} applied (prev. interval)", run.applied_torque[:, j], ":"))
-        return lines
-
-    def disturbance(run: RecordedRun, j: int) -> list[tuple[str, FloatArray, str]]:
-        lines = []
-        if run.disturbance_estimate is not None:
-            lines.append((f"{run.label} estimate xi~", run.disturbance_estimate[:, j], "-"))
-        truth = truths[id(run)]
-        if truth is not None:
-            lines.append((f"{run.label} true external (scenario {run.manifest.scenario})", truth[:, j], "--"))
-        parts = lumped[id(run)]
-        if parts is not None:
-            lines.append((f"{run.label} true lumped (model error + external)", parts.total[:, j], "-."))
-            lines.append((f"{run.label} model-error part", parts.model_error[:, j], ":"))
-        return lines
-
-    def bandwidth(run: RecordedRun, j: int) -> list[tuple[str, FloatArray, str]]:
-        return [(f"{run.label} {key}", values[:, j], "-") for key, values in _internal(run, "bandwidth")]
-
-    def gains(run: RecordedRun, j: int) -> list[tuple[str, FloatArray, str]]:
-        chosen = _internal(run, ".kp") + _internal(run, ".kd")
-        return [(f"{run.label} {key}", values[:, j], "-") for key, values in chosen]
-
-    specs: dict[str, tuple[str, str, Callable[[RecordedRun, int], list[tuple[str, FloatArray, str]]]]] = {
-        "tracking": ("tracking", "rad", tracking),
-        "error": ("tracking error q_d - q", "rad", error),
-        "torque": ("torque", "N m", torque),
-        "disturbance": ("disturbance", "N m", disturbance),
-        "bandwidth": ("observer bandwidth", "rad/s", bandwidth),
-        "fuzzy_gains": ("fuzzy gains", "gain", gains),
-    }
-    figures = {name: _figure(runs, title, unit, series) for name, (title, unit, series) in specs.items()}
+    for run in runs:
+        run.finish()
+    figures = {name: _figure(runs, name) for name in _PANELS}
     figures["latency"] = _latency_figure(runs)
     written: dict[str, str] = {}
     for name, figure in figures.items():

@@ -22,7 +22,7 @@ def render_report(results: Sequence[RunMetrics], plots: Mapping[str, str], out: 
         lines.append(
             f"| `{run.bag}` | {run.label} | {manifest.scenario or '-'} | "
             f"{'-' if manifest.seed is None else manifest.seed} | {manifest.plant or '-'} | "
-            f"{run.t_ns.size} ({run.incomplete_steps}) | {run.position_source} | {manifest.version or '-'} |"
+            f"{run.steps} ({run.incomplete_steps}) | {run.position_source} | {manifest.version or '-'} |"
         )
     lines += [
         "",

@@ -1,0 +1,113 @@
+"""Long bags: time and peak RSS of ``smm-bag analyze`` and ``smm-bag rerun`` on 1 kHz case-2 bags.
+
+Run by ``make bench``. For each length in ``--minutes`` (default 1 and 60) a case-2 FPDESO run of the
+offline loop (one minute, repeated back to back for longer bags) is written as a bag into a temporary
+directory (its own process, not measured); then ``smm-bag analyze BAG --out DIR`` and ``smm-bag rerun BAG``
+each run as their own process, and their wall time, CPU time and peak RSS (``ru_maxrss`` of that process
+alone, from ``os.wait4``) are printed, with the ratios of issue 33's acceptance: the longest run's peak RSS
+against the shortest's (target <= 1.2x) and its time against the shortest's (target <= the length ratio).
+Figures only; nothing asserts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+_GENERATE = """
+import sys
+from pathlib import Path
+from smm_analysis.closed_loop import run_closed_loop
+from smm_analysis.runs.from_trajectory import write_trajectory_bag
+from smm_analysis.scenarios import get_scenario
+minutes, block, path = float(sys.argv[1]), float(sys.argv[2]), Path(sys.argv[3])
+piece = min(minutes, block)
+repeat = max(1, round(minutes / piece))
+trajectory = run_closed_loop(get_scenario("case2").with_duration(60.0 * piece), "fpdeso", seed=0)
+metadata = write_trajectory_bag(trajectory, path, repeat=repeat)
+print(metadata.message_count)
+"""
+_BLOCK_MINUTES = 1.0
+"""Longer bags repeat a run of this many minutes back to back (the offline loop holds its whole run, about
+2 GiB per 10 minutes with every internal): every length holds the same signals, so the figures compare."""
+
+
+def measured(command: list[str]) -> tuple[int, float, float, float]:
+    """Runs ``command``; returns its exit code, wall time (s), CPU time (s) and peak RSS (MiB) of it alone."""
+    env = dict(os.environ)
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    start = time.perf_counter()
+    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    assert process.stderr is not None
+    errors = process.stderr.read()
+    _, status, usage = os.wait4(process.pid, 0)
+    wall = time.perf_counter() - start
+    process.returncode = os.waitstatus_to_exitcode(status)
+    if process.returncode != 0:
+        print(f"  {' '.join(command[:3])} exited {process.returncode}: {errors.decode()[-500:]}")
+    return process.returncode, wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
+
+
+def generate(minutes: float, bag: Path) -> int:
+    """Writes a ``minutes``-long case-2 bag (offline loop); returns its message count."""
+    result = subprocess.run(
+        [sys.executable, "-c", _GENERATE, str(minutes), str(_BLOCK_MINUTES), str(bag)],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    return int(result.stdout.split()[-1])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", default="1,60", help="comma-separated bag lengths (min), default 1,60")
+    parser.add_argument("--commands", default="analyze,rerun", help="which of analyze,rerun to measure")
+    arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    lengths = [float(value) for value in arguments.minutes.split(",")]
+    commands = [name.strip() for name in arguments.commands.split(",") if name.strip()]
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores (shared machine: times vary)")
+    results: dict[tuple[str, float], tuple[float, float, float]] = {}
+    failed = False
+    with tempfile.TemporaryDirectory(prefix="bench_long_bag_") as directory:
+        workdir = Path(directory)
+        for minutes in lengths:
+            bag = workdir / f"case2_{minutes:g}min"
+            start = time.perf_counter()
+            count = generate(minutes, bag)
+            size = sum(p.stat().st_size for p in bag.iterdir()) / 2**20
+            print(
+                f"{minutes:g} min bag: {count:,} messages, {size:,.0f} MiB "
+                f"(generated in {time.perf_counter() - start:.0f} s)"
+            )
+            for name in commands:
+                command = [sys.executable, "-m", "smm_bag.cli", name, str(bag), "--quiet"]
+                if name == "analyze":
+                    command += ["--out", str(workdir / f"out_{minutes:g}")]
+                code, wall, cpu, rss = measured(command)
+                failed |= code != 0
+                results[(name, minutes)] = (wall, cpu, rss)
+                print(f"  smm-bag {name}: wall {wall:7.1f} s, CPU {cpu:7.1f} s, peak RSS {rss:6.0f} MiB")
+            for path in bag.iterdir():
+                path.unlink()
+            bag.rmdir()
+    shortest, longest = min(lengths), max(lengths)
+    if longest > shortest:
+        for name in commands:
+            (short_wall, short_cpu, short_rss) = results[(name, shortest)]
+            (long_wall, long_cpu, long_rss) = results[(name, longest)]
+            print(
+                f"{name}: {longest:g} min vs {shortest:g} min: peak RSS x{long_rss / short_rss:.2f} "
+                f"(target <= 1.2), wall x{long_wall / short_wall:.1f}, CPU x{long_cpu / short_cpu:.1f} "
+                f"(target <= {longest / shortest:g})"
+            )
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,133 @@
+"""runs.segments and ``analyze --segments``: three experiments in one recording are three segments, each with
+the indices of its window analysed alone."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bag.bag_helpers import TYPESTORE
+from smm_analysis.closed_loop import run_closed_loop
+from smm_analysis.runs.from_trajectory import write_trajectory_bag
+from smm_analysis.runs.indices import evaluate_stream
+from smm_analysis.runs.segments import find_segments
+from smm_analysis.runs.stream import StepStream
+from smm_analysis.scenarios import get_scenario
+from smm_bag.cli import main
+from smm_controller.chain import make_law
+
+from smm_controller import FPDESOConfig
+from smm_dynamics import SMMParameters
+
+S = 1_000_000_000
+
+
+def _gain_event(stamp_ns: int, node: str = "/smm/controller_node", name: str = "fpdeso.robust_gain") -> bytes:
+    types = TYPESTORE.types
+    value = types["rcl_interfaces/msg/ParameterValue"](
+        type=8,
+        bool_value=False,
+        integer_value=0,
+        double_value=0.0,
+        string_value="",
+        byte_array_value=np.array([], dtype=np.uint8),
+        bool_array_value=np.array([], dtype=np.bool_),
+        integer_array_value=np.array([], dtype=np.int64),
+        double_array_value=np.array([1.0, 1.0]),
+        string_array_value=[],
+    )
+    event = types["rcl_interfaces/msg/ParameterEvent"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=stamp_ns // S, nanosec=stamp_ns % S),
+        node=node,
+        new_parameters=[],
+        changed_parameters=[types["rcl_interfaces/msg/Parameter"](name=name, value=value)],
+        deleted_parameters=[],
+    )
+    return bytes(TYPESTORE.serialize_cdr(event, "rcl_interfaces/msg/ParameterEvent"))
+
+
+@pytest.fixture(scope="module")
+def three_experiments(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Case 1 (1.5 s), the same with other gains (1.5 s), case 2 (1.5 s): one bag, two parameter events."""
+    case1, case2 = get_scenario("case1").with_duration(1.5), get_scenario("case2").with_duration(1.5)
+    first = run_closed_loop(case1, "fpdeso", seed=1)
+    retuned = run_closed_loop(
+        case1, "fpdeso", seed=1, controller=make_law(FPDESOConfig(robust_gain=(1.0, 1.0)), SMMParameters())
+    )
+    second = run_closed_loop(case2, "fpdeso", seed=2)
+    period = round(first.control_period * S)
+    change = int(first.t_ns[-1] - first.t_ns[0]) + period  # first step of the second run
+    scenario = 2 * change
+    bag = tmp_path_factory.mktemp("segments") / "day"
+    write_trajectory_bag(
+        first,
+        bag,
+        then=(retuned, second),
+        parameter_events=[
+            (0, _gain_event(0, name="use_sim_time")),  # ignored: not a gain
+            (change, _gain_event(change)),
+            (scenario, _gain_event(scenario, node="/smm/reference_node", name="scenario")),
+        ],
+    )
+    return bag
+
+
+def test_three_experiments_are_three_segments(three_experiments: Path) -> None:
+    search = find_segments(three_experiments)
+    assert [segment.steps for segment in search.segments] == [1501, 1501, 1501]
+    assert search.short_segments == 0 and search.disarmed_steps == 0
+    reasons = [segment.reason for segment in search.segments]
+    assert reasons[0] == "start of the bag"
+    assert "controller_node: fpdeso.robust_gain changed" in reasons[1]
+    assert "reference_node: scenario changed" in reasons[2]
+    ends = [segment.end_ns for segment in search.segments]
+    assert ends[:2] == [search.segments[1].start_ns, search.segments[2].start_ns] and ends[2] is None
+
+
+def test_each_segment_has_the_indices_of_its_window_analysed_alone(
+    tmp_path: Path, three_experiments: Path
+) -> None:
+    out = tmp_path / "out"
+    assert main(["analyze", str(three_experiments), "--segments", "--json", "--out", str(out)]) == 0
+    document = json.loads((out / "metrics.json").read_text())
+    bags = document["meta"]["bags"]
+    assert len(bags) == 3
+    for segment, (name, entry) in zip(find_segments(three_experiments).segments, bags.items(), strict=True):
+        assert entry["window"] == segment.window.describe() and entry["steps"] == segment.steps
+        alone = evaluate_stream(StepStream(three_experiments, window=segment.window))
+        indices = document[entry["scenario"]][entry["controller"]]
+        for joint in ("alpha", "beta"):
+            for index in ("Ma", "Ave", "RMS", "eps_u", "du_rms"):
+                assert indices[joint][index] == getattr(alone.joints[joint], index), (name, joint, index)
+        # The window as a user types it: --start @a --end @b.
+        start_end = segment.window.describe().split()
+        windowed = tmp_path / f"alone{segment.number}"
+        assert (
+            main(
+                [
+                    "analyze",
+                    str(three_experiments),
+                    "--json",
+                    "--no-plots",
+                    "--out",
+                    str(windowed),
+                    *start_end,
+                ]
+            )
+            == 0
+        )
+        alone_document = json.loads((windowed / "metrics.json").read_text())
+        (alone_entry,) = alone_document["meta"]["bags"].values()
+        assert alone_entry["steps"] == segment.steps
+    assert sorted(path.name for path in out.glob("*.png"))  # figures drawn for the segments side by side
+
+
+def test_segments_with_a_window_is_a_usage_error(
+    three_experiments: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as raised:
+        main(["analyze", str(three_experiments), "--segments", "--start", "1"])
+    assert raised.value.code == 2
+    assert "--segments finds its own windows" in capsys.readouterr().err
