@@ -197,9 +197,9 @@ def test_sigint_stops_every_child(ros_processes: Any, ros_context: Any) -> None:
 def test_realtime_graph_runs_for_its_duration_and_answers(
     ros_processes: Any, tmp_path: Path, answers: bool
 ) -> None:
-    """The simulator's clock gives 200 steps in 2 s whatever the machine; that the controller, started beside
-    it, answered within those 2 s of wall time needs a machine that keeps up (make test-realtime; the answers'
-    twin in make test: the lockstep graph tests above, which answer every step)."""
+    """The simulator's clock gives 500 steps in 2 s at 250 Hz whatever the machine; that the controller,
+    started beside it, answered within those 2 s of wall time needs a machine that keeps up (make
+    test-realtime; the answers' twin in make test: the lockstep graph tests above, answering every step)."""
     import json
 
     stats = tmp_path / "stats.json"
@@ -210,7 +210,8 @@ def test_realtime_graph_runs_for_its_duration_and_answers(
         f'/**/smm_sim_node:\n  ros__parameters:\n    stats_file: "{stats}"\n'
         "/**:\n  ros__parameters:\n    td:\n      filter_factor: [0.01, 0.01]\n"
     )
-    # 100 Hz: slow enough that even a loaded two-core machine answers most measurements.
+    # 250 Hz: slow enough that even a loaded two-core machine answers most measurements.
+    rate_hz, duration_s = 250, 2
     launcher = ros_processes.start(
         "smm-launch-realtime",
         launcher_argv(
@@ -221,9 +222,9 @@ def test_realtime_graph_runs_for_its_duration_and_answers(
             "--algorithm",
             "pid",
             "--control-rate",
-            "250",
+            str(rate_hz),
             "--duration",
-            "2",
+            str(duration_s),
             "--params-file",
             str(params),
         ),
@@ -232,7 +233,7 @@ def test_realtime_graph_runs_for_its_duration_and_answers(
     assert code == 0, launcher.logs()
     figures = json.loads(stats.read_text())
     assert figures["clock_mode"] == "realtime"
-    assert figures["steps"] == 200
+    assert figures["steps"] == rate_hz * duration_s
     assert figures["dropped_invalid"] == 0 and figures["dropped_unknown_stamp"] == 0, figures
     if answers:
         assert figures["latency"]["count"] > 0, figures

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from smm_controller.fleso import FLESO, FLESOConfig, observer_gains
+from smm_controller.fuzzy_batch import evaluate_system
 from smm_controller.rules import fleso_bandwidth_system
 
 from smm_dynamics import SMMParameters, gravity_vector, inverse_dynamics, mass_matrix, rk4_step
@@ -63,7 +64,7 @@ def test_one_step_follows_the_documented_update() -> None:
     innovation = y - q0
     s = np.clip(np.array(config.k_s1) * innovation + np.array(config.k_s2) * innovation / DT, -1, 1)
     system = fleso_bandwidth_system()
-    w = np.array(config.w0) + np.array(config.k_w) * np.array([system.evaluate((v,))[0] for v in s])
+    w = np.array(config.w0) + np.array(config.k_w) * np.array([evaluate_system(system, (v,))[0] for v in s])
     l1, l2, l3 = observer_gains(w)
     internals = fleso.internals
     assert_allclose(internals["bandwidth"], w, rtol=1e-13)

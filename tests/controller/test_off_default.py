@@ -15,6 +15,7 @@ from numpy.testing import assert_allclose
 from smm_controller.baselines import PIDConfig, PIDController
 from smm_controller.fleso import FLESO, FLESOConfig, observer_gains
 from smm_controller.fpdeso import robust_switch
+from smm_controller.fuzzy_batch import evaluate_system
 from smm_controller.model import NominalModel
 from smm_controller.reference import RampHoldReference, SineReference
 from smm_controller.rules import fleso_bandwidth_system
@@ -141,7 +142,7 @@ def reference_fleso(config: FLESOConfig, ys: np.ndarray, taus: np.ndarray) -> li
         rate = (error - previous) / DT
         previous = error
         s = np.clip(np.array(config.k_s1) * error + np.array(config.k_s2) * rate, -1.0, 1.0)
-        f = np.array([system.evaluate((v,))[0] for v in s])
+        f = np.array([evaluate_system(system, (v,))[0] for v in s])
         w = np.maximum(np.array(config.w0) + np.array(config.k_w) * f, np.array(config.w_min))
         l1, l2, l3 = observer_gains(w)  # type: ignore[arg-type]
         x1, x2, x3 = p1 + DT * l1 * error, p2 + DT * l2 * error, x3 + DT * l3 * error

@@ -1,12 +1,9 @@
 """SPEC section 5 indices accumulated block by block, as ``smm_analysis.metrics`` computes them on arrays.
 
-Which indices, of which signal and by which reduction is read from ``smm_analysis.metrics.METRICS``;
-each :class:`~smm_analysis.metrics.Reduction` has its streaming state here (step metrics their own).
-
-Each block's terms are the same floating-point operations as the in-memory functions' (time base, errors,
-trapezoids, end-effector positions); only the order of the summation differs: numpy's pairwise sum within a
-block of :data:`smm_analysis.runs.stream.BLOCK_STEPS` steps, block sums added in step order. Maxima and
-counts are exact; the sums' tolerance is derived in docs/BAGS.md, "Streaming analysis".
+Which indices, of which signal and by which reduction: ``smm_analysis.metrics.METRICS``; each
+:class:`~smm_analysis.metrics.Reduction` has its streaming state here. Terms are the in-memory functions'
+float operations; only the summation order differs (pairwise within a block, blocks in step order). Maxima
+and counts are exact; the sums' tolerance: docs/BAGS.md, "Streaming analysis".
 """
 
 from __future__ import annotations

@@ -1,13 +1,9 @@
 """The experiments inside one recording: armed stretches cut where the scenario, the law or the gains change.
 
-Rules (docs/BAGS.md, "Windows and segments"): a segment is a stretch of consecutive joined steps in which
-1. the hardware bridge reports both valves enabled (``hw_bridge_internals`` row ``enabled``; a bag without it,
-   a simulator run, is armed throughout), and
-2. no parameter of the chain's nodes or of ``reference_node`` changes (``/parameter_events``: a new segment
-   starts at the first step stamped at or after the event's stamp), and
-3. no gap between steps exceeds :data:`GAP_PERIODS` control periods (a new recording resumed).
-Segments shorter than :data:`MIN_SEGMENT_NS` are left out and counted. Each segment is a window of bag time
-(``--start @a --end @b``), so a segment analysed alone is that window.
+A segment: consecutive joined steps with both valves enabled (``hw_bridge_internals``; a bag without it is
+armed throughout), no parameter event of the chain's nodes or ``reference_node``, no gap over
+:data:`GAP_PERIODS` control periods; shorter than :data:`MIN_SEGMENT_NS`: left out and counted. Each
+segment is a window of bag time, so analysed alone it is that window (docs/BAGS.md, "Windows and segments").
 """
 
 from __future__ import annotations

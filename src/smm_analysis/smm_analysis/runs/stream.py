@@ -1,11 +1,9 @@
 """The stack's topics of a bag joined on stamps while reading, handed on in blocks of a fixed number of steps.
 
-Memory is bounded whatever the bag's length: messages are decoded in batches, each topic's samples wait in
-a reorder window (:data:`REORDER_WINDOW_NS` of stamps behind the newest stamp read), and the steps older
-than that window are joined and passed on. A message whose stamp is already behind the window arrives too
-late: it is counted per topic and left out. Blocks hold :data:`BLOCK_STEPS` steps each (the last fewer), cut
-by step number, so what follows never depends on how the writer chunked the file. docs/BAGS.md,
-"Streaming analysis".
+Memory is bounded: each topic's samples wait in a reorder window (:data:`REORDER_WINDOW_NS` behind the
+newest stamp read); a message already behind it is counted per topic and left out. Blocks of
+:data:`BLOCK_STEPS` steps are cut by step number, so nothing depends on the writer's chunking
+(docs/BAGS.md, "Streaming analysis").
 """
 
 from __future__ import annotations
