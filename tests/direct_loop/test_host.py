@@ -184,6 +184,7 @@ def test_the_reader_sleeps_until_spin_us_before_the_next_frame_is_due_then_polls
     """spin_us = 0: one blocking wait per frame; else a wait ending spin_us before the frame is due, polls."""
     from hw_bridge.test_bridge_node import DIRECT_CONTROLLER
     from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode
+    from smm_hw_bridge.bridge_node import LINK_CHECK_S
     from smm_hw_bridge.core import BridgeCore
 
     controller = DirectControllerNode(context=ros_context, parameter_overrides=DIRECT_CONTROLLER)
@@ -191,11 +192,11 @@ def test_the_reader_sleeps_until_spin_us_before_the_next_frame_is_due_then_polls
     try:
         node._core = BridgeCore(node._bridge.config, host_session=1)  # its period: 1 ms
         transport = _Recorded(frames_on={1, 2} if spin_us == 0 else {1, 5})
-        assert node.receive_next(transport) == b"frame"  # no frame yet: the plain 50 ms wait
-        assert transport.timeouts == [0.05]
+        assert node.receive_next(transport) == b"frame"  # no frame yet: the plain wait, a link check's period
+        assert transport.timeouts == [LINK_CHECK_S]
         assert node.receive_next(transport) == b"frame"
         if spin_us == 0:
-            assert transport.timeouts == [0.05, 0.05]
+            assert transport.timeouts == [LINK_CHECK_S, LINK_CHECK_S]
         else:
             sleep, *polls = transport.timeouts[1:]
             assert 0.0 < sleep <= (1_000_000 - spin_us * 1000) / 1e9  # wakes spin_us before it is due

@@ -257,6 +257,23 @@ def test_every_lifecycle_transition_sends_safe_output(ros_context: Any, loop: st
         bench.close()
 
 
+@pytest.mark.parametrize("loop", LOOPS)
+def test_no_executor_timer_wakes_faster_than_10_hz_while_the_loop_runs(ros_context: Any, loop: str) -> None:
+    """The link check and host watchdog run in the reader thread: no timer takes the GIL within ticks."""
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    bench = Bench(ros_context, loop=loop)
+    try:
+        assert bench.node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert bench.node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        assert bench.spin_until(bench.live)
+        nodes = [bench.node, *([bench.node.controller] if loop == "direct" else [])]
+        periods = [t.timer_period_ns for node in nodes for t in node.timers if not t.is_canceled()]
+        assert periods and min(periods) >= 100_000_000, periods
+    finally:
+        bench.close()
+
+
 def test_take_command_takes_a_tuple_of_two_floats_and_the_board_applies_its_codes(ros_context: Any) -> None:
     from rclpy.lifecycle import TransitionCallbackReturn
     from smm_hw_bridge.valve_output import ValveOutput

@@ -6,6 +6,7 @@ A failing chain sends a safe frame and goes to ERROR. Why and when: docs/LAUNCH.
 
 from __future__ import annotations
 
+import gc
 import sys
 import threading
 import time
@@ -188,7 +189,7 @@ class DirectBridgeNode(HwBridgeNode):
             while data is None and time.monotonic_ns() < due + spin_ns:
                 data = transport.receive(0.0)
         if data is None:
-            data = transport.receive(0.05)
+            data = super().receive_next(transport)
         self._last_rx_ns = None if data is None else time.monotonic_ns()
         return data
 
@@ -243,6 +244,11 @@ class DirectBridgeNode(HwBridgeNode):
         self.statistics.reset()
         self.publish_us = RunningFigures()
         return super().on_configure(state)
+
+    def on_activate(self, state: Any) -> Any:
+        """As the bridge's; what the process holds by now is frozen out of the collector's full passes."""
+        gc.freeze()  # a full collection then scans the objects made since, not rclpy's and numpy's
+        return super().on_activate(state)
 
     def health(self) -> Health:
         """The bridge's status plus the loop's periodicity and execution time (ros2_control's figures)."""

@@ -52,11 +52,15 @@ from smm_node_runtime import (
     node_main,
 )
 
-__all__ = ["INTERNALS_TOPIC", "NODE_NAME", "HwBridgeNode", "main"]
+__all__ = ["INTERNALS_TOPIC", "LINK_CHECK_S", "NODE_NAME", "HwBridgeNode", "main"]
 
 NODE_NAME: Final[str] = "hw_bridge_node"
 INTERNALS_TOPIC: Final[str] = topics.HW_BRIDGE_INTERNALS
-_FAULT_CHECK_S: Final[float] = 0.005
+LINK_CHECK_S: Final[float] = 0.005
+"""Period of the link and host-watchdog check, done by the receiving thread (s)."""
+_LINK_CHECK_NS: Final[int] = round(LINK_CHECK_S * 1e9)
+_FAULT_TRANSITION_S: Final[float] = 0.1
+"""How often the executor looks for a signalled fault (s); the safe frame went out at once."""
 _AUTOSTART_POLL_S: Final[float] = 0.01
 """How often ``autostart`` looks for a ``torque_command`` publisher (s)."""
 REHEARSAL_STAMP_OFFSET_NS: Final[int] = 3_600_000_000_000
@@ -135,7 +139,9 @@ class HwBridgeNode(LifecycleNode):
         self.create_service(Trigger, "~/estop", self._on_estop)
         self.create_service(Trigger, "~/rearm", self._on_rearm)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(_FAULT_CHECK_S, self._check, clock=steady)
+        self._fault_signalled = False
+        """Set by the receiving thread or :meth:`fail`: the executor drives the error transition."""
+        self.create_timer(_FAULT_TRANSITION_S, self._on_fault, clock=steady)
         self.diagnostics = DiagnosticsPublisher(self, self.health)
         self._started = False
         self.autostart = self.declare_parameter("autostart", False).value is True
@@ -189,7 +195,8 @@ class HwBridgeNode(LifecycleNode):
             )
         self._preflight_end = time.monotonic() + config.duration_s
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._preflight_timer = self.create_timer(_AUTOSTART_POLL_S, self._end_preflight, clock=steady)
+        # one wake-up at the end, none during the rehearsal it measures
+        self._preflight_timer = self.create_timer(config.duration_s, self._end_preflight, clock=steady)
 
     def _end_preflight(self) -> None:
         """After the rehearsal: states its figures, then arms, or refuses and ends the process."""
@@ -414,6 +421,7 @@ class HwBridgeNode(LifecycleNode):
             self.tally.armed = True
 
     def _read_loop(self) -> None:
+        next_check = 0
         while not self._stop.is_set():
             transport = self._transport
             if transport is None:
@@ -422,22 +430,22 @@ class HwBridgeNode(LifecycleNode):
                 data = self.receive_next(transport)
             except (TransportError, OSError) as error:
                 self.counters.last_error = str(error)
-                if self._stop.wait(0.05):
+                if self._stop.wait(LINK_CHECK_S):
                     return
-                continue
+                data = None
             try:
-                if data is None:
-                    with self._lock:
-                        if self._core is not None:
-                            self._core.check_link(time.monotonic_ns())
-                else:
+                if data is not None:
                     self._on_datagram(data)
+                now = time.monotonic_ns()
+                if data is None or now >= next_check:  # after the answer went out, not before
+                    next_check = now + _LINK_CHECK_NS
+                    self._check(now)
             except Exception as error:  # a bug in the host's handling: the reader must outlive it
                 self._handling_failed(error)
 
     def receive_next(self, transport: Transport) -> bytes | None:
-        """The next datagram, or None after 50 ms without one (the receiving thread's wait)."""
-        return transport.receive(0.05)
+        """The next datagram, or None after :data:`LINK_CHECK_S` without one (the receiving thread's wait)."""
+        return transport.receive(LINK_CHECK_S)
 
     def _handling_failed(self, error: Exception) -> None:
         """The bridge's own handling of a datagram raised: its state is not to be trusted, a host fault."""
@@ -531,6 +539,7 @@ class HwBridgeNode(LifecycleNode):
             if self._core is not None:
                 self._core.disarm()
                 self._send_safe()
+        self._fault_signalled = True
 
     def _on_command(self, msg: Float64MultiArray) -> None:
         now = time.monotonic_ns()
@@ -583,9 +592,12 @@ class HwBridgeNode(LifecycleNode):
         response.message = "re-arm sent: output needs a fresh measurement and command again"
         return response
 
-    def _check(self) -> None:
-        """Steady timer: host watchdog / link check, fault bits -> error transition."""
-        now = time.monotonic_ns()
+    def _check(self, now: int) -> None:
+        """Receiving thread, every ``LINK_CHECK_S``: host watchdog and link check; a fault is signalled.
+
+        In this thread, not an executor timer: a timer's wake-ups would take the GIL at random points of
+        the loop's ticks (docs/LAUNCH.md, "The direct loop").
+        """
         with self._lock:
             core = self._core
             if core is None or self._transport is None:
@@ -595,6 +607,19 @@ class HwBridgeNode(LifecycleNode):
                 out = core.next_frame(now)  # host watchdog: safe output although feedback stopped
                 if out is not None:
                     self._transmit(out)
+            fault = core.state == BridgeState.FAULT or bool(self._host_fault)
+        if fault and not self._fault_transition:
+            self._fault_signalled = True
+
+    def _on_fault(self) -> None:
+        """Executor timer: after a signalled fault (safe output already sent), the error transition."""
+        if not self._fault_signalled:  # the usual case: no lock, no work in the executor's thread
+            return
+        self._fault_signalled = False
+        with self._lock:
+            core = self._core
+            if core is None:
+                return
             fault = core.state == BridgeState.FAULT or bool(self._host_fault)
         if fault and not self._fault_transition:
             self._fault_transition = True
