@@ -39,7 +39,6 @@ def run(observed: bool) -> dict[str, Any]:
     import rclpy
     import smm_hw_bridge.bridge_node
     from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
     from smm_bench_emulator.board import BoardConfig, BoardCore
     from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode
@@ -47,6 +46,7 @@ def run(observed: bool) -> dict[str, Any]:
     from std_msgs.msg import Float64MultiArray
 
     from smm_msgs_py import topics
+    from smm_node_runtime import make_executor
 
     class Board(Transport):
         """The emulator's board behind an in-memory link: a new feedback frame each time one is read.
@@ -101,7 +101,7 @@ def run(observed: bool) -> dict[str, Any]:
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline and controller.count_subscribers(topics.CONTROLLER_INTERNALS) == 0:
             time.sleep(0.05)
-    executor = SingleThreadedExecutor(context=context)
+    executor = make_executor(context)  # the direct_loop process's executor
     for node in (controller, bridge, peer):
         executor.add_node(node)
     spinner = threading.Thread(target=executor.spin, daemon=True)
