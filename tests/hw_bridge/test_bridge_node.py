@@ -258,6 +258,33 @@ def test_every_lifecycle_transition_sends_safe_output(ros_context: Any, loop: st
 
 
 @pytest.mark.parametrize("loop", LOOPS)
+def test_a_transition_the_state_lacks_is_refused_and_the_loop_runs_on(ros_context: Any, loop: str) -> None:
+    """``ros2 lifecycle set`` of a transition not valid now (by id): success false, no end of the process."""
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    bench = Bench(ros_context, loop=loop)
+    try:
+        assert bench.node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert bench.node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        assert bench.spin_until(bench.live)
+        client = bench.peer.create_client(
+            ChangeState, f"{bench.node.get_fully_qualified_name()}/change_state"
+        )
+        assert bench.spin_until(client.service_is_ready)
+        for transition in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE, 99):
+            future = client.call_async(ChangeState.Request(transition=Transition(id=transition)))
+            assert bench.spin_until(future.done), transition  # the executor spins on: nothing raised
+            assert future.result().success is False, transition
+        assert bench.node.lifecycle_state == "active"
+        before = bench.measurements
+        assert bench.spin_until(lambda: bench.measurements > before + 10 and bench.live())
+    finally:
+        bench.close()
+
+
+@pytest.mark.parametrize("loop", LOOPS)
 def test_no_executor_timer_wakes_faster_than_10_hz_while_the_loop_runs(ros_context: Any, loop: str) -> None:
     """The link check and host watchdog run in the reader thread: no timer takes the GIL within ticks."""
     from rclpy.lifecycle import TransitionCallbackReturn

@@ -14,13 +14,14 @@ import sys
 import threading
 import time
 import traceback
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar, Final, Unpack
+from typing import Any, ClassVar, Final, Unpack
 
 import numpy.typing as npt
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.context import Context
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import JointSample, internals_to_msg, msg_to_torque, sample_to_joint_state
@@ -83,6 +84,25 @@ class AutostartGate:
         check_bounds(self)
 
 
+def _refusing_invalid_transitions(callback: Callable[[Any, Any], Any], log: Any) -> Callable[[Any, Any], Any]:
+    """``~/change_state`` that answers a transition the current state lacks with ``success: false``.
+
+    rclpy raises ``RCLError`` for an unknown transition id out of the service callback, which ends the
+    executor's spin and the process: one mistyped ``ros2 lifecycle set`` would stop the control loop.
+    """
+
+    def change_state(request: Any, response: Any) -> Any:
+        try:
+            return callback(request, response)
+        except rclpy_implementation.RCLError as error:
+            transition = request.transition
+            log.warning(f"change_state: transition {transition.id} {transition.label!r} refused: {error}")
+            response.success = False
+            return response
+
+    return change_state
+
+
 class HwBridgeNode(LifecycleNode):
     """The hardware bridge (see the module docstring).
 
@@ -113,6 +133,8 @@ class HwBridgeNode(LifecycleNode):
             self.destroy_node()
             raise
         self._log = self.get_logger()  # type: ignore[no-untyped-call]
+        change_state = self._service_change_state
+        change_state.callback = _refusing_invalid_transitions(change_state.callback, self._log)
         self._lock = threading.RLock()
         self._core: BridgeCore | None = None
         self._transport: Transport | None = None
