@@ -184,3 +184,24 @@ def test_step_metrics_stream_across_blocks_as_in_memory() -> None:
         for start in range(0, 2000, size):
             streamed.add(t_s[start : start + size], response[start : start + size])
         assert streamed.result() == expected
+
+
+def test_a_rehearsal_stamped_an_hour_ahead_is_left_out_and_the_run_after_it_is_joined(tmp_path: Path) -> None:
+    """The topics loop's preflight publishes its rehearsal stamped an hour ahead, then the run's stamps."""
+    hour = 3_600_000  # steps of 1 ms
+    steps = 2000
+    path = tmp_path / "rehearsed"
+    with BagWriter(path, WriterOptions(chunk_size=2048)) as writer:
+        for topic in MAKERS:
+            kind = "sensor_msgs/msg/JointState" if "joint" in topic else "std_msgs/msg/Float64MultiArray"
+            writer.create_topic(topic, kind)
+        # recorded as received: log time = the step's true time, slightly after its stamp
+        for k in range(2 * steps):
+            stamp_step = k + hour if k < steps else k
+            for topic in MAKERS:
+                writer.write(topic, MAKERS[topic](stamp_step), k * 1_000_000 + 200_000)
+    stream = StepStream(path, read_batch=256, block_steps=128)
+    stamps = np.concatenate([block.t_ns for block in stream.blocks()])
+    assert stamps.tolist() == [k * 1_000_000 for k in range(steps, 2 * steps)]  # the run, whole
+    assert stream.report.ahead_messages == {topic: steps for topic in MAKERS}  # per message, once
+    assert stream.report.late_messages == {}

@@ -22,7 +22,7 @@ from smm_analysis.runs.recorded import load_run
 from smm_analysis.runs.report import render_report
 from smm_analysis.runs.rerun import chain_settings, read_params_files, rerun
 from smm_analysis.runs.segments import MIN_SEGMENT_NS, find_segments
-from smm_analysis.runs.stream import StepStream
+from smm_analysis.runs.stream import AHEAD_LIMIT_NS, StepStream
 from smm_analysis.runs.window import TimeWindow
 
 __all__ = ["AnalyzeOptions", "RerunOptions", "analyze", "rerun_command"]
@@ -98,6 +98,12 @@ def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextI
                 out.write(
                     f"note: {result.run.bag}: {count} messages on {topic} came more than the reorder window "
                     "after a later stamp and were left out\n"
+                )
+            for topic, count in sorted(result.run.ahead_messages.items()):
+                out.write(
+                    f"note: {result.run.bag}: {count} messages on {topic} were stamped more than "
+                    f"{AHEAD_LIMIT_NS // 1_000_000_000} s after they were recorded (a preflight rehearsal of "
+                    "the topics loop, or a clock gone wrong) and were left out\n"
                 )
     if options.out is not None:
         options.out.mkdir(parents=True, exist_ok=True)

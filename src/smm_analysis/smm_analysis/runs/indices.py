@@ -60,6 +60,7 @@ class RunSummary:
         last_ns: Last step's stamp (ns).
         latency: Loop latency quantiles (ms), or None when not known.
         late_messages: Per topic, messages that came after the reorder window (left out).
+        ahead_messages: Per topic, messages stamped far after their log time (left out; ``AHEAD_LIMIT_NS``).
         window: ``--start A --end B`` that selects these steps (empty: the whole bag).
     """
 
@@ -73,6 +74,7 @@ class RunSummary:
     last_ns: int
     latency: LatencySummary | None
     late_messages: Mapping[str, int] = field(default_factory=dict)
+    ahead_messages: Mapping[str, int] = field(default_factory=dict)
     window: str = ""
 
     @property
@@ -188,6 +190,7 @@ def evaluate_stream(
         last_ns=result.last_ns,
         latency=latency.summary(),
         late_messages=dict(report.late_messages),
+        ahead_messages=dict(report.ahead_messages),
         window=stream.window.describe(),
     )
     return RunMetrics(run=summary, joints=result.joints, end_effector=result.end_effector, step=result.step)
@@ -231,6 +234,7 @@ def metrics_document(results: Sequence[RunMetrics]) -> dict[str, object]:
             "steps": run.steps,
             "incomplete_steps": run.incomplete_steps,
             "late_messages": dict(run.late_messages),
+            "ahead_messages": dict(run.ahead_messages),
             "window": run.window,
             "duration_s": run.duration_s,
             "seed": run.manifest.seed,

@@ -1,7 +1,8 @@
 """The stack's topics of a bag joined on stamps while reading, handed on in blocks of a fixed number of steps.
 
 Memory is bounded: each topic's samples wait in a reorder window (:data:`REORDER_WINDOW_NS` behind the
-newest stamp read); a message already behind it is counted per topic and left out. Blocks of
+newest stamp read); a message already behind it is counted per topic and left out, as is one stamped more
+than :data:`AHEAD_LIMIT_NS` after its log time. Blocks of
 :data:`BLOCK_STEPS` steps are cut by step number, so nothing depends on the writer's chunking
 (docs/BAGS.md, "Streaming analysis").
 """
@@ -21,12 +22,15 @@ from smm_bag.reader import BagReader
 
 from smm_analysis.runs.window import TimeWindow
 
-__all__ = ["BLOCK_STEPS", "REORDER_WINDOW_NS", "JoinReport", "StepBlock", "StepStream"]
+__all__ = ["AHEAD_LIMIT_NS", "BLOCK_STEPS", "REORDER_WINDOW_NS", "JoinReport", "StepBlock", "StepStream"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 REORDER_WINDOW_NS = 1_000_000_000
 """How far (ns of stamps) a message may arrive behind the newest stamp read and still be joined."""
+AHEAD_LIMIT_NS = 60_000_000_000
+"""A message stamped more than this after its log time (ns) is left out and counted: the topics loop's
+preflight rehearsal (stamped an hour ahead, docs/LAUNCH.md) or a clock gone wrong, never a step of the run."""
 BLOCK_STEPS = 8192
 """Steps per block handed on (the unit of the ordered sums, docs/BAGS.md)."""
 READ_BATCH = 32_768
@@ -78,6 +82,7 @@ class JoinReport:
     steps: int = 0
     incomplete_steps: int = 0
     late_messages: dict[str, int] = field(default_factory=dict)
+    ahead_messages: dict[str, int] = field(default_factory=dict)
     first_ns: int | None = None
     last_ns: int | None = None
     messages_read: int = 0
@@ -312,18 +317,25 @@ class StepStream:
 
         pending: dict[str, _Pending] = {}
         topic_of: dict[str, str] = {}
-        late = self.report.late_messages
+        late, ahead = self.report.late_messages, self.report.ahead_messages
         required = ["measured", "reference", "command"] + (["truth"] if self.has_ground_truth else [])
         state = _JoinState(self.window)
 
-        def add(series: str, topic: str, part: _Part | None) -> None:
+        def add(series: str, topic: str, part: _Part | None, counted: bool = True) -> None:
+            """``counted``: this series' left-out messages are counted (one series per message counts)."""
             if part is None or part.stamps.size == 0:
                 return
             topic_of[series] = topic
+            beyond = part.stamps - part.log_times > AHEAD_LIMIT_NS
+            if np.any(beyond):
+                if counted:
+                    ahead[topic] = ahead.get(topic, 0) + int(np.count_nonzero(beyond))
+                part = _Part(part.stamps[~beyond], part.values[~beyond], part.log_times[~beyond])
             if state.finalised is not None:
                 early = part.stamps <= state.finalised
                 if np.any(early):
-                    late[topic] = late.get(topic, 0) + int(np.count_nonzero(early))
+                    if counted:
+                        late[topic] = late.get(topic, 0) + int(np.count_nonzero(early))
                     keep = ~early
                     part = _Part(part.stamps[keep], part.values[keep], part.log_times[keep])
             if part.stamps.size:
@@ -333,8 +345,9 @@ class StepStream:
         def decode(topic: str, buffers: list[bytes], times: list[int]) -> None:
             log_times = np.array(times, dtype=np.int64)
             if topic == joint_states:
-                add("measured", topic, _joint_parts(topic, buffers, log_times, "position"))
-                add("applied", topic, _joint_parts(topic, buffers, log_times, "effort"))
+                measured = _joint_parts(topic, buffers, log_times, "position")
+                add("measured", topic, measured)
+                add("applied", topic, _joint_parts(topic, buffers, log_times, "effort"), measured is None)
             elif topic == ground_truth:
                 add("truth", topic, _joint_parts(topic, buffers, log_times, "position"))
             elif topic == reference_topic:
@@ -346,8 +359,8 @@ class StepStream:
                 add("estimate", topic, _Part(part.stamps, part.values[:, :2], part.log_times))
             else:
                 prefix = _INTERNAL + ("hw_bridge." if topic == hw_bridge else "")
-                for quantity, part in _labelled_parts(topic, buffers, log_times).items():
-                    add(prefix + quantity, topic, part)
+                for number, (quantity, part) in enumerate(_labelled_parts(topic, buffers, log_times).items()):
+                    add(prefix + quantity, topic, part, number == 0)
 
         with BagReader(self.bag) as reader:
             counts = {topic.name: topic.message_count for topic in reader.metadata.topics}
