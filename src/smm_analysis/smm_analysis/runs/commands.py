@@ -18,9 +18,9 @@ from smm_analysis.runs.agreement import Agreement, Tolerance, tolerance_for
 from smm_analysis.runs.indices import comparison_table, evaluate_stream, metrics_document
 from smm_analysis.runs.plots import RunFigures, write_plots
 from smm_analysis.runs.report import render_report
-from smm_analysis.runs.rerun import chain_settings, read_params_files
+from smm_analysis.runs.rerun import CONTROLLER_NODE, chain_settings, read_params_files
 from smm_analysis.runs.rerun_stream import RerunCsv, rerun_stream, survey
-from smm_analysis.runs.segments import MIN_SEGMENT_NS, Segment, find_segments
+from smm_analysis.runs.segments import MIN_SEGMENT_NS, Segment, find_segments, parameter_values
 from smm_analysis.runs.stream import StepStream
 from smm_analysis.runs.window import TimeWindow
 
@@ -195,13 +195,15 @@ def _rerun_window(
         (
             {str(k): v for k, v in values.items()}
             for node, values in manifest.parameters.items()
-            if node.rstrip("/").split("/")[-1] == "controller_node"
+            if node.rstrip("/").split("/")[-1] == CONTROLLER_NODE
         ),
         {},
     )
+    found = survey(surveyed)
+    assert surveyed.report.first_ns is not None  # the survey raised on fewer than 2 steps
+    recorded |= parameter_values(options.bag, CONTROLLER_NODE, surveyed.report.first_ns)
     parameters = {**recorded, **read_params_files(options.params_files, manifest.namespace)}
     settings = chain_settings(parameters, manifest.controller or "fpdeso")
-    found = survey(surveyed)
     stream = _stream(options.bag, window, segment, doing="re-running", quiet=options.quiet, err=err)
     if options.out is None:
         result = rerun_stream(stream, settings, found, tolerance)
