@@ -28,6 +28,7 @@ from smm_analysis.runs.rerun_stream import RerunCsv, RerunSummary, rerun_stream,
 from smm_analysis.runs.stream import StepStream
 from smm_analysis.scenarios import get_scenario
 from smm_bag.cdr import decode_joint_state, encode_joint_state
+from smm_bag.cli import main
 from smm_bag.reader import BagMessage
 
 BLOCK = 97
@@ -225,3 +226,11 @@ def test_memory_does_not_grow_with_the_bags_length(tmp_path: Path) -> None:
     # the same measurement sees the in-memory run grow with the length
     memory_short, memory_long = (_peak_bytes(in_memory(bags[s])) for s in (1.5, 4.5))
     assert memory_long >= 2.0 * memory_short, (memory_short, memory_long)
+
+
+def test_progress_of_both_passes_unless_quiet(case2_bag: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["rerun", str(case2_bag)]) == 0
+    err = capsys.readouterr().err
+    assert "reading case2: 100 %" in err and "re-running case2: 100 %" in err
+    assert main(["rerun", str(case2_bag), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
