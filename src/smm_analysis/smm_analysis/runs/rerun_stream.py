@@ -1,11 +1,9 @@
 """``smm-bag rerun`` in bounded memory: a survey pass over the steps, then the chain pass, block by block.
 
-The survey finds what the whole run decides before the first step is judged: whether every step has the
-effort (else the applied torque is the previous recorded command) and the recorded estimate, and the
-largest recorded |values| the per-step tolerance is relative to. The chain pass then steps
-:class:`~smm_analysis.runs.rerun.ChainStepper`, judges with
-:class:`~smm_analysis.runs.agreement.AgreementAccumulator` and writes ``rerun.csv`` as it goes
-(docs/BAGS.md, "Streaming rerun").
+The survey finds what the whole run decides: whether every step has the effort (else the applied torque is
+the previous recorded command) and a recorded estimate, and the largest recorded |values| the per-step
+tolerance is relative to. The chain pass steps ``ChainStepper``, judges with ``AgreementAccumulator`` and
+writes ``rerun.csv`` as it goes (docs/BAGS.md, "Streaming rerun").
 """
 
 from __future__ import annotations
