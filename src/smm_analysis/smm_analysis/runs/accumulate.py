@@ -30,7 +30,7 @@ from smm_analysis.metrics import (
 from smm_analysis.runs.stream import JOINTS, StepBlock
 from smm_dynamics import SMMParameters, end_effector_position
 
-__all__ = ["SUM_RELATIVE_TOLERANCE", "IndexAccumulator", "Reducer", "StreamIndices"]
+__all__ = ["SUM_RELATIVE_TOLERANCE", "IndexAccumulator", "StreamIndices"]
 
 FloatArray = NDArray[np.float64]
 _NS_PER_S = 1e9
@@ -79,7 +79,7 @@ class _Running:
         self.count += values.shape[0]
 
 
-class Reducer:
+class _Reducer:
     """The streaming state of one :class:`~smm_analysis.metrics.Reduction` over each column of a signal."""
 
     def __init__(self, reduction: Reduction, width: int) -> None:
@@ -90,7 +90,6 @@ class Reducer:
         self.last: FloatArray | None = None
 
     def add(self, t_s: FloatArray, values: FloatArray) -> None:
-        """Adds the next rows: times (s), shape (n,), and values, shape (n, width)."""
         if self.reduction in (Reduction.MAX_ABS, Reduction.MEAN_ABS):
             self.running.add(values)
         elif self.reduction in (Reduction.RMS_OVER_TIME, Reduction.INTEGRAL_SQUARE):
@@ -102,7 +101,6 @@ class Reducer:
             self.last = values[-1:].copy()
 
     def value(self, column: int, steps: int, t_f: float) -> float:
-        """The reduction of one column over ``steps`` rows; ``t_f`` (s) the last time."""
         if self.reduction is Reduction.MAX_ABS:
             return float(self.running.maximum[column])
         if self.reduction is Reduction.MEAN_ABS:
@@ -203,8 +201,8 @@ class IndexAccumulator:
         self.t0: int | None = None
         self.last_ns = 0
         self.steps = 0
-        self.reducers: dict[str, Reducer] = {
-            _key(metric): Reducer(metric.reduction, 3 if metric.group is Group.END_EFFECTOR else 2)
+        self.reducers: dict[str, _Reducer] = {
+            _key(metric): _Reducer(metric.reduction, 3 if metric.group is Group.END_EFFECTOR else 2)
             for metric in (*metrics_of(Group.JOINT), *metrics_of(Group.END_EFFECTOR))
         }
         self.is_step = True

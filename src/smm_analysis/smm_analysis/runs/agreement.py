@@ -13,8 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from smm_analysis.metrics import Reduction
-from smm_analysis.runs.accumulate import Reducer
+from smm_analysis.runs.pairwise import PairwiseSum
 
 __all__ = [
     "BIT_FOR_BIT",
@@ -159,6 +158,36 @@ def _relative(a: float, b: float) -> float:
     return 0.0 if a == b else abs(a - b) / max(abs(a), abs(b))
 
 
+class _TorqueIndices:
+    """eps_u (eq. 45) and du_rms per joint of a torque series fed in blocks, bit for bit as on the whole.
+
+    The terms are ``smm_analysis.metrics``' float operations, summed in numpy's order (:class:`PairwiseSum`).
+    """
+
+    def __init__(self, steps: int) -> None:
+        self.steps = steps
+        self.energy = [PairwiseSum(steps - 1) for _ in range(2)]
+        self.increments = [PairwiseSum(steps - 1) for _ in range(2)]
+        self._last: tuple[FloatArray, FloatArray] | None = None
+
+    def add(self, t_s: FloatArray, torque: FloatArray) -> None:
+        if self._last is not None:
+            t_s, torque = np.concatenate([self._last[0], t_s]), np.vstack([self._last[1], torque])
+        self._last = (t_s[-1:], torque[-1:])
+        if t_s.size < 2:
+            return
+        squares = torque**2
+        energy = 0.5 * (squares[1:] + squares[:-1]) * np.diff(t_s)[:, None]
+        increments = np.diff(torque, axis=0) ** 2
+        for joint in range(2):
+            self.energy[joint].add(np.ascontiguousarray(energy[:, joint]))
+            self.increments[joint].add(np.ascontiguousarray(increments[:, joint]))
+
+    def values(self, joint: int) -> tuple[float, float]:
+        """(eps_u, du_rms) of one joint."""
+        return self.energy[joint].total(), math.sqrt(self.increments[joint].total() / (self.steps - 1))
+
+
 @dataclass
 class _Block:
     t_ns: NDArray[np.int64]
@@ -171,11 +200,11 @@ class _Block:
 class AgreementAccumulator:
     """:func:`judge` fed consecutive blocks of steps; holds one block (its last step needs the next one).
 
-    The per-step tolerances come from the whole run's largest recorded values, known before (a first pass).
-    The indices are summed as ``accumulate`` sums them (pairwise within a block, blocks in order), so on one
-    block they are the in-memory functions' values.
+    The per-step tolerances come from the whole run's largest recorded values and the number of steps
+    from a first pass; with them every figure is the one :func:`judge` gives on the whole arrays, bit for bit.
 
     Args:
+        steps: Steps that will be added (>= 2).
         command_allowed: Per-step tolerance of the commands per joint (N m), shape (2,).
         flip_size: Largest change of one step's command a flip of the robust term makes, per joint (N m).
         tolerance: What is allowed.
@@ -185,6 +214,7 @@ class AgreementAccumulator:
     def __init__(
         self,
         *,
+        steps: int,
         command_allowed: FloatArray,
         flip_size: tuple[float, float],
         tolerance: Tolerance,
@@ -205,8 +235,7 @@ class AgreementAccumulator:
         self.first_outside: list[int | None] = [None, None]
         self._previous_out = np.zeros(2, dtype=bool)
         self._pending: _Block | None = None
-        self._offline = (Reducer(Reduction.INTEGRAL_SQUARE, 2), Reducer(Reduction.INCREMENT_RMS, 2))
-        self._recorded = (Reducer(Reduction.INTEGRAL_SQUARE, 2), Reducer(Reduction.INCREMENT_RMS, 2))
+        self._offline, self._recorded = _TorqueIndices(steps), _TorqueIndices(steps)
 
     def add(
         self,
@@ -254,9 +283,8 @@ class AgreementAccumulator:
                 self.first_outside[joint] = int(outside[0]) + self.steps
         unflipped = np.where(is_flip, block.recorded, block.command)
         t_s = (block.t_ns - self.t0).astype(np.float64) / 1e9
-        for reducers, values in ((self._offline, unflipped), (self._recorded, block.recorded)):
-            for reducer in reducers:
-                reducer.add(t_s, values)
+        self._offline.add(t_s, unflipped)
+        self._recorded.add(t_s, block.recorded)
         self._previous_out = out[-1]
         self.steps += block.t_ns.size
         self.last_ns = int(block.t_ns[-1])
@@ -267,11 +295,8 @@ class AgreementAccumulator:
             self._settle(np.zeros(2, dtype=bool))
         index_difference = 0.0
         for joint in range(2):
-            for offline, recorded in zip(self._offline, self._recorded, strict=True):
-                index_difference = max(
-                    index_difference,
-                    _relative(offline.value(joint, self.steps, 0.0), recorded.value(joint, self.steps, 0.0)),
-                )
+            pairs = zip(self._offline.values(joint), self._recorded.values(joint), strict=True)
+            index_difference = max(index_difference, *(_relative(a, b) for a, b in pairs))
         estimate_max, estimate_allowed = None, None
         if self.estimate_allowed is not None:
             estimate_max, estimate_allowed = _pair(self.estimate_max), _pair(self.estimate_allowed)
@@ -318,6 +343,7 @@ def judge(
     """
     judged = estimate is not None and recorded_estimate is not None
     accumulator = AgreementAccumulator(
+        steps=int(t_ns.size),
         command_allowed=allowed_difference(np.max(np.abs(recorded_command), axis=0, initial=0.0), tolerance),
         flip_size=flip_size,
         tolerance=tolerance,

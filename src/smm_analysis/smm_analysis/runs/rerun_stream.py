@@ -123,6 +123,7 @@ def rerun_stream(
     )
     estimate_allowed = allowed_difference(found.estimate_max, tolerance) if found.estimate_complete else None
     accumulator = AgreementAccumulator(
+        steps=found.steps,
         command_allowed=allowed_difference(found.command_max, tolerance),
         flip_size=settings.flip_size,
         tolerance=tolerance,
