@@ -2,10 +2,11 @@
 
 Run by ``make bench``. For each length in ``--minutes`` (default 1 and 60) a case-2 FPDESO run of the
 offline loop (one minute, repeated back to back for longer bags) is written as a bag into a temporary
-directory (its own process, not measured); then ``smm-bag analyze BAG --out DIR`` and ``smm-bag rerun BAG``
-each run as their own process, and their wall time, CPU time and peak RSS (``ru_maxrss`` of that process
-alone, from ``os.wait4``) are printed, with the ratios of issue 33's acceptance: the longest run's peak RSS
-against the shortest's (target <= 1.2x) and its time against the shortest's (target <= the length ratio).
+directory (its own process, not measured); then ``smm-bag analyze BAG --out DIR`` and ``smm-bag rerun BAG
+--out DIR`` (the chain streamed over the bag, ``rerun.csv`` written) each run as their own process, and
+their wall time, CPU time and peak RSS (``ru_maxrss`` of that process alone, from ``os.wait4``) are
+printed, with the ratios of issue 33's acceptance: the longest run's peak RSS against the shortest's
+(target <= 1.2x) and its time against the shortest's (target <= the length ratio).
 Figures only; nothing asserts.
 """
 
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -86,10 +88,10 @@ def main(argv: list[str] | None = None) -> int:
                 f"(generated in {time.perf_counter() - start:.0f} s)"
             )
             for name in commands:
-                command = [sys.executable, "-m", "smm_bag.cli", name, str(bag), "--quiet"]
-                if name == "analyze":
-                    command += ["--out", str(workdir / f"out_{minutes:g}")]
+                out = workdir / f"out_{name}_{minutes:g}"
+                command = [sys.executable, "-m", "smm_bag.cli", name, str(bag), "--quiet", "--out", str(out)]
                 code, wall, cpu, rss = measured(command)
+                shutil.rmtree(out, ignore_errors=True)
                 failed |= code != 0
                 results[(name, minutes)] = (wall, cpu, rss)
                 print(f"  smm-bag {name}: wall {wall:7.1f} s, CPU {cpu:7.1f} s, peak RSS {rss:6.0f} MiB")

@@ -159,6 +159,11 @@ class ControlChain:
         )
 
     @property
+    def disturbance_estimate(self) -> tuple[float, float]:
+        """The last step's disturbance estimate (N m; zeros without FLESO), as ``internals`` has it."""
+        return self._disturbance
+
+    @property
     def internals(self) -> Mapping[str, FloatArray]:
         """Every stage's internals, keys prefixed ``td.``, ``fleso.``, ``controller.``, ``limiter.``; (2,)."""
         merged = stage_internals("td", self.td.internals)

@@ -93,7 +93,7 @@ def test_a_bias_within_a_loose_step_tolerance_fails_on_the_indices() -> None:
     assert loose.flip_share == CROSS_MACHINE.flip_share
     assert loose.index_relative == CROSS_MACHINE.index_relative
     agreement = judge(T_NS, recorded + 1e-4, recorded, flip_size=FLIP, tolerance=loose)
-    assert agreement.outside == ((), ())
+    assert agreement.outside_counts == (0, 0)
     assert agreement.failures[-1].startswith("torque indices differ by ")
 
 

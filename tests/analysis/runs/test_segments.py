@@ -131,3 +131,27 @@ def test_segments_with_a_window_is_a_usage_error(
         main(["analyze", str(three_experiments), "--segments", "--start", "1"])
     assert raised.value.code == 2
     assert "--segments finds its own windows" in capsys.readouterr().err
+
+
+def test_rerun_of_each_segment_equals_the_rerun_of_its_window(
+    tmp_path: Path, three_experiments: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "segments"
+    assert main(["rerun", str(three_experiments), "--segments", "--json", "--out", str(out)]) == 0
+    summaries = json.loads(capsys.readouterr().out)
+    segments = find_segments(three_experiments).segments
+    assert [summary["steps"] for summary in summaries] == [segment.steps for segment in segments]
+    for segment, summary in zip(segments, summaries, strict=True):
+        assert summary.pop("segment") == f"{segment.number} ({segment.reason})"
+        windowed = tmp_path / f"alone{segment.number}"
+        start_end = segment.window.describe().split()
+        assert main(["rerun", str(three_experiments), "--json", "--out", str(windowed), *start_end]) == 0
+        assert json.loads(capsys.readouterr().out) == summary
+        alone = (windowed / "rerun.csv").read_bytes()
+        assert (out / f"rerun_segment_{segment.number}.csv").read_bytes() == alone
+    # each experiment re-runs with the gains in force at its start (the manifest's, then the gain change)
+    assert [summary["reproduces_recording"] for summary in summaries[:2]] == [True, True]
+    assert summaries[1]["command_max_abs_difference_Nm"] == [0.0, 0.0]
+    with pytest.raises(SystemExit) as raised:
+        main(["rerun", str(three_experiments), "--segments", "--start", "1"])
+    assert raised.value.code == 2

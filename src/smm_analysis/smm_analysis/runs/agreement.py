@@ -2,6 +2,7 @@
 
 The tolerance and its derivation are in docs/BAGS.md, "Rerun across machines"; docs/TESTING.md,
 "Floats across machines", says which operation changes the last bits and how to force another path.
+:class:`AgreementAccumulator` judges block by block (``smm-bag rerun`` streams); :func:`judge`, on arrays.
 """
 
 from __future__ import annotations
@@ -12,9 +13,19 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from smm_analysis.metrics import control_energy, torque_increment_rms
+from smm_analysis.runs.pairwise import PairwiseSum
 
-__all__ = ["BIT_FOR_BIT", "CROSS_MACHINE", "Agreement", "Tolerance", "judge", "tolerance_for"]
+__all__ = [
+    "BIT_FOR_BIT",
+    "CROSS_MACHINE",
+    "LISTED_FLIPS",
+    "Agreement",
+    "AgreementAccumulator",
+    "Tolerance",
+    "allowed_difference",
+    "judge",
+    "tolerance_for",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -70,6 +81,10 @@ def tolerance_for(relative: float | None) -> Tolerance:
     return replace(CROSS_MACHINE, relative=relative)
 
 
+LISTED_FLIPS = 1000
+"""Sign-flip steps listed per joint (all are counted)."""
+
+
 @dataclass(frozen=True)
 class Agreement:
     """The verdict on one re-run, with what it rests on.
@@ -78,9 +93,11 @@ class Agreement:
         tolerance: The tolerance judged against.
         command_max_difference: Max |offline - recorded| command per joint, flips included (N m).
         command_allowed: The per-step tolerance per joint (N m).
-        flip_steps: Per joint, the steps counted as isolated sign flips.
+        flip_steps: Per joint, the first :data:`LISTED_FLIPS` steps counted as isolated sign flips.
+        flip_counts: Per joint, the steps counted as isolated sign flips.
         flips_allowed: Isolated flips allowed per joint.
-        outside: Per joint, steps out of tolerance that are not isolated flips.
+        outside_counts: Per joint, steps out of tolerance that are not isolated flips.
+        first_outside: Per joint, the first of them, or None.
         estimate_max_difference: Max |offline - recorded| estimate per joint (N m), or None.
         estimate_allowed: The per-step tolerance of the estimate per joint (N m), or None.
         index_relative_difference: Largest relative difference of eps_u and du_rms over the joints.
@@ -90,8 +107,10 @@ class Agreement:
     command_max_difference: tuple[float, float]
     command_allowed: tuple[float, float]
     flip_steps: tuple[tuple[int, ...], tuple[int, ...]]
+    flip_counts: tuple[int, int]
     flips_allowed: int
-    outside: tuple[tuple[int, ...], tuple[int, ...]]
+    outside_counts: tuple[int, int]
+    first_outside: tuple[int | None, int | None]
     estimate_max_difference: tuple[float, float] | None
     estimate_allowed: tuple[float, float] | None
     index_relative_difference: float
@@ -101,16 +120,17 @@ class Agreement:
         """Why the re-run does not reproduce the recording; empty when it does."""
         reasons: list[str] = []
         for joint, name in enumerate(("alpha", "beta")):
-            outside, flips = self.outside[joint], self.flip_steps[joint]
+            outside, first = self.outside_counts[joint], self.first_outside[joint]
+            flips = self.flip_counts[joint]
             if outside and self.tolerance.flip_share == 0.0:
-                reasons.append(f"{name}: {len(outside)} step(s) differ (first at step {outside[0]})")
+                reasons.append(f"{name}: {outside} step(s) differ (first at step {first})")
             elif outside:
                 reasons.append(
-                    f"{name}: {len(outside)} step(s) differ by more than {self.command_allowed[joint]:.3g} "
-                    f"N m and are not isolated sign flips (first at step {outside[0]})"
+                    f"{name}: {outside} step(s) differ by more than {self.command_allowed[joint]:.3g} "
+                    f"N m and are not isolated sign flips (first at step {first})"
                 )
-            if len(flips) > self.flips_allowed:
-                reasons.append(f"{name}: {len(flips)} sign flips, at most {self.flips_allowed} allowed")
+            if flips > self.flips_allowed:
+                reasons.append(f"{name}: {flips} sign flips, at most {self.flips_allowed} allowed")
             estimate, allowed = self.estimate_max_difference, self.estimate_allowed
             if estimate is not None and allowed is not None and estimate[joint] > allowed[joint]:
                 reasons.append(
@@ -129,12 +149,170 @@ class Agreement:
         return not self.failures
 
 
-def _allowed(recorded: FloatArray, relative: float) -> FloatArray:
-    return np.asarray(relative * np.max(np.abs(recorded), axis=0, initial=0.0), dtype=np.float64)
+def allowed_difference(largest_recorded: FloatArray, tolerance: Tolerance) -> FloatArray:
+    """Per-step tolerance per joint (N m) from the largest recorded |value| of each joint, shape (2,)."""
+    return np.asarray(tolerance.relative * np.asarray(largest_recorded, dtype=np.float64), dtype=np.float64)
 
 
 def _relative(a: float, b: float) -> float:
     return 0.0 if a == b else abs(a - b) / max(abs(a), abs(b))
+
+
+class _TorqueIndices:
+    """eps_u (eq. 45) and du_rms per joint of a torque series fed in blocks, bit for bit as on the whole.
+
+    The terms are ``smm_analysis.metrics``' float operations, summed in numpy's order (:class:`PairwiseSum`).
+    """
+
+    def __init__(self, steps: int) -> None:
+        self.steps = steps
+        self.energy = [PairwiseSum(steps - 1) for _ in range(2)]
+        self.increments = [PairwiseSum(steps - 1) for _ in range(2)]
+        self._last: tuple[FloatArray, FloatArray] | None = None
+
+    def add(self, t_s: FloatArray, torque: FloatArray) -> None:
+        if self._last is not None:
+            t_s, torque = np.concatenate([self._last[0], t_s]), np.vstack([self._last[1], torque])
+        self._last = (t_s[-1:], torque[-1:])
+        if t_s.size < 2:
+            return
+        squares = torque**2
+        energy = 0.5 * (squares[1:] + squares[:-1]) * np.diff(t_s)[:, None]
+        increments = np.diff(torque, axis=0) ** 2
+        for joint in range(2):
+            self.energy[joint].add(np.ascontiguousarray(energy[:, joint]))
+            self.increments[joint].add(np.ascontiguousarray(increments[:, joint]))
+
+    def values(self, joint: int) -> tuple[float, float]:
+        """(eps_u, du_rms) of one joint."""
+        return self.energy[joint].total(), math.sqrt(self.increments[joint].total() / (self.steps - 1))
+
+
+@dataclass
+class _Block:
+    t_ns: NDArray[np.int64]
+    command: FloatArray
+    recorded: FloatArray
+    difference: FloatArray
+    out: NDArray[np.bool_]
+
+
+class AgreementAccumulator:
+    """:func:`judge` fed consecutive blocks of steps; holds one block (its last step needs the next one).
+
+    The per-step tolerances come from the whole run's largest recorded values and the number of steps
+    from a first pass; with them every figure is the one :func:`judge` gives on the whole arrays, bit for bit.
+
+    Args:
+        steps: Steps that will be added (>= 2).
+        command_allowed: Per-step tolerance of the commands per joint (N m), shape (2,).
+        flip_size: Largest change of one step's command a flip of the robust term makes, per joint (N m).
+        tolerance: What is allowed.
+        estimate_allowed: Per-step tolerance of the estimates (N m), shape (2,), or None: not judged.
+    """
+
+    def __init__(
+        self,
+        *,
+        steps: int,
+        command_allowed: FloatArray,
+        flip_size: tuple[float, float],
+        tolerance: Tolerance,
+        estimate_allowed: FloatArray | None = None,
+    ) -> None:
+        self.tolerance = tolerance
+        self.allowed = np.asarray(command_allowed, dtype=np.float64)
+        self.flip_limit = np.asarray(flip_size) + self.allowed
+        self.estimate_allowed = estimate_allowed
+        self.difference_max = np.zeros(2)
+        self.estimate_max = np.zeros(2)
+        self.steps = 0
+        self.t0: int | None = None
+        self.last_ns = 0
+        self.flips: tuple[list[int], list[int]] = ([], [])
+        self.flip_counts = [0, 0]
+        self.outside_counts = [0, 0]
+        self.first_outside: list[int | None] = [None, None]
+        self._previous_out = np.zeros(2, dtype=bool)
+        self._pending: _Block | None = None
+        self._offline, self._recorded = _TorqueIndices(steps), _TorqueIndices(steps)
+
+    def add(
+        self,
+        t_ns: NDArray[np.int64],
+        command: FloatArray,
+        recorded_command: FloatArray,
+        estimate: FloatArray | None = None,
+        recorded_estimate: FloatArray | None = None,
+    ) -> None:
+        """Adds the next steps: stamps (ns), shape (n,); commands and estimates (N m), shape (n, 2)."""
+        if t_ns.size == 0:
+            return
+        if self.t0 is None:
+            self.t0 = int(t_ns[0])
+        difference = np.abs(command - recorded_command)
+        self.difference_max = np.maximum(self.difference_max, np.max(difference, axis=0))
+        if estimate is not None and recorded_estimate is not None:
+            estimate_difference = np.max(np.abs(estimate - recorded_estimate), axis=0)
+            self.estimate_max = np.maximum(self.estimate_max, estimate_difference)
+        out = difference > self.allowed
+        if self._pending is not None:
+            self._settle(out[0])
+        self._pending = _Block(t_ns, command, recorded_command, difference, out)
+
+    def _settle(self, next_out: NDArray[np.bool_]) -> None:
+        """Classifies the held block's steps (the next step's flags known) and sums its indices."""
+        block = self._pending
+        assert block is not None and self.t0 is not None
+        self._pending = None
+        out = block.out
+        near = np.zeros_like(out)
+        near[1:] |= out[:-1]
+        near[:-1] |= out[1:]
+        near[0] |= self._previous_out
+        near[-1] |= next_out
+        is_flip = out & ~near & (block.difference <= self.flip_limit) & (self.tolerance.flip_share > 0.0)
+        for joint in range(2):
+            flips = np.flatnonzero(is_flip[:, joint])
+            self.flip_counts[joint] += int(flips.size)
+            room = LISTED_FLIPS - len(self.flips[joint])
+            self.flips[joint].extend(int(k) + self.steps for k in flips[:room])
+            outside = np.flatnonzero(out[:, joint] & ~is_flip[:, joint])
+            self.outside_counts[joint] += int(outside.size)
+            if outside.size and self.first_outside[joint] is None:
+                self.first_outside[joint] = int(outside[0]) + self.steps
+        unflipped = np.where(is_flip, block.recorded, block.command)
+        t_s = (block.t_ns - self.t0).astype(np.float64) / 1e9
+        self._offline.add(t_s, unflipped)
+        self._recorded.add(t_s, block.recorded)
+        self._previous_out = out[-1]
+        self.steps += block.t_ns.size
+        self.last_ns = int(block.t_ns[-1])
+
+    def result(self) -> Agreement:
+        """The verdict on the steps added."""
+        if self._pending is not None:
+            self._settle(np.zeros(2, dtype=bool))
+        index_difference = 0.0
+        for joint in range(2):
+            pairs = zip(self._offline.values(joint), self._recorded.values(joint), strict=True)
+            index_difference = max(index_difference, *(_relative(a, b) for a, b in pairs))
+        estimate_max, estimate_allowed = None, None
+        if self.estimate_allowed is not None:
+            estimate_max, estimate_allowed = _pair(self.estimate_max), _pair(self.estimate_allowed)
+        return Agreement(
+            tolerance=self.tolerance,
+            command_max_difference=_pair(self.difference_max),
+            command_allowed=_pair(self.allowed),
+            flip_steps=(tuple(self.flips[0]), tuple(self.flips[1])),
+            flip_counts=(self.flip_counts[0], self.flip_counts[1]),
+            flips_allowed=self.tolerance.allowed_flips(self.steps),
+            outside_counts=(self.outside_counts[0], self.outside_counts[1]),
+            first_outside=(self.first_outside[0], self.first_outside[1]),
+            estimate_max_difference=estimate_max,
+            estimate_allowed=estimate_allowed,
+            index_relative_difference=index_difference,
+        )
 
 
 def judge(
@@ -163,45 +341,21 @@ def judge(
         estimate: Offline disturbance estimates (N m), shape (N, 2), or None.
         recorded_estimate: Recorded estimates, shape (N, 2), or None.
     """
-    difference = np.abs(command - recorded_command)
-    allowed = _allowed(recorded_command, tolerance.relative)
-    out = difference > allowed
-    near = np.zeros_like(out)
-    near[1:] |= out[:-1]
-    near[:-1] |= out[1:]
-    is_flip = out & ~near & (difference <= np.asarray(flip_size) + allowed) & (tolerance.flip_share > 0.0)
-    unflipped = np.where(is_flip, recorded_command, command)
-    index_difference = 0.0
-    for joint in range(2):
-        for index in (
-            lambda series: control_energy(t_ns, series),
-            torque_increment_rms,
-        ):
-            index_difference = max(
-                index_difference,
-                _relative(index(unflipped[:, joint]), index(recorded_command[:, joint])),
-            )
-    estimate_max: tuple[float, float] | None = None
-    estimate_allowed: tuple[float, float] | None = None
-    if estimate is not None and recorded_estimate is not None:
-        estimate_max = _pair(np.max(np.abs(estimate - recorded_estimate), axis=0, initial=0.0))
-        estimate_allowed = _pair(_allowed(recorded_estimate, tolerance.relative))
-    return Agreement(
+    judged = estimate is not None and recorded_estimate is not None
+    accumulator = AgreementAccumulator(
+        steps=int(t_ns.size),
+        command_allowed=allowed_difference(np.max(np.abs(recorded_command), axis=0, initial=0.0), tolerance),
+        flip_size=flip_size,
         tolerance=tolerance,
-        command_max_difference=_pair(np.max(difference, axis=0, initial=0.0)),
-        command_allowed=_pair(allowed),
-        flip_steps=(_steps(is_flip[:, 0]), _steps(is_flip[:, 1])),
-        flips_allowed=tolerance.allowed_flips(int(t_ns.size)),
-        outside=(_steps(out[:, 0] & ~is_flip[:, 0]), _steps(out[:, 1] & ~is_flip[:, 1])),
-        estimate_max_difference=estimate_max,
-        estimate_allowed=estimate_allowed,
-        index_relative_difference=index_difference,
+        estimate_allowed=(
+            allowed_difference(np.max(np.abs(recorded_estimate), axis=0, initial=0.0), tolerance)
+            if judged and recorded_estimate is not None
+            else None
+        ),
     )
+    accumulator.add(t_ns, command, recorded_command, estimate, recorded_estimate)
+    return accumulator.result()
 
 
 def _pair(values: FloatArray) -> tuple[float, float]:
     return float(values[0]), float(values[1])
-
-
-def _steps(mask: NDArray[np.bool_]) -> tuple[int, ...]:
-    return tuple(int(k) for k in np.flatnonzero(mask))

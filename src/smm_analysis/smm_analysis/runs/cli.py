@@ -85,6 +85,11 @@ def add_rerun(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -
         "bag recorded on another machine passes, 1e-9 and isolated sign flips; 0: bit for bit)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--segments",
+        action="store_true",
+        help="find the experiments in the bag (as analyze --segments) and re-run each alone",
+    )
     add_window_options(parser)
     parser.set_defaults(
         handler=lambda options: _windowed(
@@ -100,6 +105,7 @@ def add_rerun(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -
                     tolerance=options.tolerance,
                     window=window,
                     quiet=options.quiet or options.json,
+                    segments=options.segments,
                 )
             ),
         )

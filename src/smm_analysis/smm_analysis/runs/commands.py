@@ -9,19 +9,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
-import numpy as np
 from smm_bag.errors import BagError, MissingTopicsError
 from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_CORRUPT, EXIT_OK, EXIT_PARAMS, EXIT_USAGE, fail
 from smm_bag.progress import Progress
 
 from smm_analysis.errors import ParamsFileError
-from smm_analysis.runs.agreement import judge, tolerance_for
+from smm_analysis.runs.agreement import Agreement, Tolerance, tolerance_for
 from smm_analysis.runs.indices import comparison_table, evaluate_stream, metrics_document
 from smm_analysis.runs.plots import RunFigures, write_plots
-from smm_analysis.runs.recorded import load_run
 from smm_analysis.runs.report import render_report
-from smm_analysis.runs.rerun import chain_settings, read_params_files, rerun
-from smm_analysis.runs.segments import MIN_SEGMENT_NS, find_segments
+from smm_analysis.runs.rerun import CONTROLLER_NODE, chain_settings, read_params_files
+from smm_analysis.runs.rerun_stream import RerunCsv, rerun_stream, survey
+from smm_analysis.runs.segments import MIN_SEGMENT_NS, Segment, find_segments, parameter_values
 from smm_analysis.runs.stream import AHEAD_LIMIT_NS, StepStream
 from smm_analysis.runs.window import TimeWindow
 
@@ -41,12 +40,13 @@ class AnalyzeOptions:
     segments: bool = False
 
 
-def _runs(bag: Path, options: AnalyzeOptions, err: TextIO) -> list[tuple[StepStream, str | None]]:
-    """The streams to analyse in ``bag``: the window, or each segment (with its label) for ``--segments``."""
-    progress = Progress(f"reading {bag.name}", 1, err, enabled=not options.quiet)
-    if not options.segments:
-        return [(StepStream(bag, window=options.window, progress=progress), None)]
-    search = find_segments(bag, progress=progress)
+def _windows(
+    bag: Path, window: TimeWindow, segments: bool, quiet: bool, err: TextIO
+) -> list[tuple[TimeWindow, Segment | None]]:
+    """The windows to read in ``bag``: ``window``, or each segment's for ``--segments``."""
+    if not segments:
+        return [(window, None)]
+    search = find_segments(bag, progress=Progress(f"reading {bag.name}", 1, err, enabled=not quiet))
     if search.short_segments or search.disarmed_steps:
         err.write(
             f"{bag}: {len(search.segments)} segments; left out: {search.short_segments} shorter than "
@@ -54,12 +54,26 @@ def _runs(bag: Path, options: AnalyzeOptions, err: TextIO) -> list[tuple[StepStr
         )
     if not search.segments:
         raise MissingTopicsError(f"{bag}: no segment of at least {MIN_SEGMENT_NS / 1e9:g} s")
+    return [(segment.window, segment) for segment in search.segments]
+
+
+def _stream(
+    bag: Path, window: TimeWindow, segment: Segment | None, *, doing: str, quiet: bool, err: TextIO
+) -> StepStream:
+    """A stream of ``window`` with its progress bar (``doing`` the bag or the segment of it)."""
+    what = bag.name if segment is None else f"segment {segment.number} of {bag.name}"
+    label = f"{doing} {what}".strip()
+    return StepStream(bag, window=window, progress=Progress(label, 1, err, enabled=not quiet))
+
+
+def _runs(bag: Path, options: AnalyzeOptions, err: TextIO) -> list[tuple[StepStream, str | None]]:
+    """The streams to analyse in ``bag``: the window, or each segment (with its label) for ``--segments``."""
     runs: list[tuple[StepStream, str | None]] = []
-    for segment in search.segments:
-        label = f"segment {segment.number}"
-        progress = Progress(f"{label} of {bag.name}", 1, err, enabled=not options.quiet)
-        stream = StepStream(bag, window=segment.window, progress=progress)
-        runs.append((stream, f"{stream.label} {label} ({segment.reason})"))
+    for window, segment in _windows(bag, options.window, options.segments, options.quiet, err):
+        doing = "reading" if segment is None else ""
+        stream = _stream(bag, window, segment, doing=doing, quiet=options.quiet, err=err)
+        label = None if segment is None else f"{stream.label} segment {segment.number} ({segment.reason})"
+        runs.append((stream, label))
     return runs
 
 
@@ -129,6 +143,7 @@ class RerunOptions:
     """Per-step relative tolerance; None: what a bag from another machine passes; 0: bit for bit."""
     window: TimeWindow = field(default_factory=TimeWindow)
     quiet: bool = False
+    segments: bool = False
 
 
 def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
@@ -139,97 +154,95 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
     except ValueError as error:
         err.write(f"smm-bag: error: --tolerance: {error}\n")
         return EXIT_USAGE
+    runs: list[tuple[dict[str, object], Agreement, str]] = []
     try:
-        progress = Progress(f"reading {options.bag.name}", 1, err, enabled=not options.quiet)
-        run = load_run(options.bag, progress=progress, window=options.window)
-        recorded = next(
-            (
-                {str(k): v for k, v in values.items()}
-                for node, values in run.manifest.parameters.items()
-                if node.rstrip("/").split("/")[-1] == "controller_node"
-            ),
-            {},
-        )
-        parameters = {**recorded, **read_params_files(options.params_files, run.manifest.namespace)}
-        settings = chain_settings(parameters, run.manifest.controller or "fpdeso")
-        result = rerun(run, settings)
+        for window, segment in _windows(options.bag, options.window, options.segments, options.quiet, err):
+            runs.append(_rerun_window(options, window, segment, tolerance, err))
     except BagError as error:
         return fail(error, err)
     except ParamsFileError as error:
         err.write(f"smm-bag: error: {error}\n")
         return EXIT_PARAMS
-    agreement = judge(
-        result.t_ns,
-        result.command,
-        result.recorded_command,
-        flip_size=settings.flip_size,
-        tolerance=tolerance,
-        estimate=result.estimate,
-        recorded_estimate=result.recorded_estimate,
+    summaries = [summary for summary, _, _ in runs]
+    if options.json:
+        document: object = summaries if options.segments else summaries[0]
+        out.write(json.dumps(document, indent=2) + "\n")
+    else:
+        for number, summary in enumerate(summaries):
+            out.write("\n" if number else "")
+            for key, value in summary.items():
+                out.write(f"{key}: {value}\n")
+    failed = False
+    for _, agreement, prefix in runs:
+        if options.expect_equal and not agreement.ok:
+            failed = True
+            err.write(
+                f"smm-bag: {prefix}the re-run does not reproduce the recording (commands differ by up to "
+                f"{max(agreement.command_max_difference):.3g} N m; tolerance relative "
+                f"{tolerance.relative:g}):\n"
+            )
+            for reason in agreement.failures:
+                err.write(f"  {reason}\n")
+    return EXIT_CHECK_FAILED if failed else EXIT_OK
+
+
+def _rerun_window(
+    options: RerunOptions, window: TimeWindow, segment: Segment | None, tolerance: Tolerance, err: TextIO
+) -> tuple[dict[str, object], Agreement, str]:
+    """Re-runs one window: its summary, the verdict, and its name for messages (empty for the whole run).
+
+    Raises:
+        BagError: See :class:`StepStream`.
+        ParamsFileError: A parameters file that cannot be read or holds invalid gains.
+    """
+    surveyed = _stream(options.bag, window, segment, doing="reading", quiet=options.quiet, err=err)
+    manifest = surveyed.manifest
+    recorded = next(
+        (
+            {str(k): v for k, v in values.items()}
+            for node, values in manifest.parameters.items()
+            if node.rstrip("/").split("/")[-1] == CONTROLLER_NODE
+        ),
+        {},
     )
-    difference = np.abs(result.command - result.recorded_command)
-    summary: dict[str, object] = {
-        "bag": str(options.bag),
-        "window": options.window.describe(),
+    found = survey(surveyed)
+    assert surveyed.report.first_ns is not None  # the survey raised on fewer than 2 steps
+    recorded |= parameter_values(options.bag, CONTROLLER_NODE, surveyed.report.first_ns)
+    parameters = {**recorded, **read_params_files(options.params_files, manifest.namespace)}
+    settings = chain_settings(parameters, manifest.controller or "fpdeso")
+    stream = _stream(options.bag, window, segment, doing="re-running", quiet=options.quiet, err=err)
+    if options.out is None:
+        result = rerun_stream(stream, settings, found, tolerance)
+    else:
+        options.out.mkdir(parents=True, exist_ok=True)
+        name = "rerun.csv" if segment is None else f"rerun_segment_{segment.number}.csv"
+        with RerunCsv(options.out / name, recorded_estimate=found.estimate_complete) as rows:
+            result = rerun_stream(stream, settings, found, tolerance, rows)
+        err.write(f"wrote {rows.path}\n")
+    agreement = result.agreement
+    summary: dict[str, object] = {"bag": str(options.bag)}
+    if segment is not None:
+        summary["segment"] = f"{segment.number} ({segment.reason})"
+    summary |= {
+        "window": window.describe(),
         "algorithm": settings.algorithm,
         "params_files": [str(p) for p in options.params_files],
-        "steps": int(result.t_ns.size),
+        "steps": result.steps,
         "applied_torque_from": result.applied_source,
-        "command_max_abs_difference_Nm": [float(v) for v in difference.max(axis=0)],
-        "command_rms_offline_Nm": [float(v) for v in np.sqrt(np.mean(result.command**2, axis=0))],
-        "command_rms_recorded_Nm": [float(v) for v in np.sqrt(np.mean(result.recorded_command**2, axis=0))],
+        "command_max_abs_difference_Nm": list(agreement.command_max_difference),
+        "command_rms_offline_Nm": list(result.command_rms_offline),
+        "command_rms_recorded_Nm": list(result.command_rms_recorded),
     }
-    if result.recorded_estimate is not None:
-        summary["estimate_max_abs_difference_Nm"] = [
-            float(v) for v in np.abs(result.estimate - result.recorded_estimate).max(axis=0)
-        ]
+    if agreement.estimate_max_difference is not None:
+        summary["estimate_max_abs_difference_Nm"] = list(agreement.estimate_max_difference)
     summary["tolerance"] = {
         "relative": tolerance.relative,
         "flip_share": tolerance.flip_share,
         "index_relative": tolerance.index_relative,
     }
     summary["command_tolerance_Nm"] = list(agreement.command_allowed)
-    summary["sign_flips"] = [len(steps) for steps in agreement.flip_steps]
+    summary["sign_flips"] = list(agreement.flip_counts)
     summary["sign_flip_steps"] = [list(steps) for steps in agreement.flip_steps]
     summary["index_max_relative_difference"] = agreement.index_relative_difference
     summary["reproduces_recording"] = agreement.ok
-    if options.json:
-        out.write(json.dumps(summary, indent=2) + "\n")
-    else:
-        for key, value in summary.items():
-            out.write(f"{key}: {value}\n")
-    if options.out is not None:
-        options.out.mkdir(parents=True, exist_ok=True)
-        columns = {
-            "t_ns": result.t_ns,
-            "command_offline": result.command,
-            "command_recorded": result.recorded_command,
-            "estimate_offline": result.estimate,
-        }
-        if result.recorded_estimate is not None:
-            columns["estimate_recorded"] = result.recorded_estimate
-        header = ["t_ns"]
-        table: list[np.ndarray] = [result.t_ns.astype(np.float64).reshape(-1, 1)]
-        for name, values in columns.items():
-            if name == "t_ns":
-                continue
-            header += [f"{name}_alpha", f"{name}_beta"]
-            table.append(values)
-        np.savetxt(
-            options.out / "rerun.csv",
-            np.hstack(table),
-            delimiter=",",
-            header=",".join(header),
-            comments="",
-            fmt="%.17g",
-        )
-        err.write(f"wrote {options.out / 'rerun.csv'}\n")
-    if options.expect_equal and not agreement.ok:
-        err.write(
-            f"smm-bag: the re-run does not reproduce the recording (commands differ by up to "
-            f"{float(difference.max()):.3g} N m; tolerance relative {tolerance.relative:g}):\n"
-        )
-        for reason in agreement.failures:
-            err.write(f"  {reason}\n")
-        return EXIT_CHECK_FAILED
-    return EXIT_OK
+    return summary, agreement, "" if segment is None else f"segment {segment.number}: "

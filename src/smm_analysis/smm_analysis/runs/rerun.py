@@ -34,7 +34,16 @@ from smm_controller import (
 )
 from smm_dynamics import SMMParameters
 
-__all__ = ["ChainSettings", "RerunResult", "chain_settings", "read_params_files", "rerun"]
+__all__ = [
+    "APPLIED_FROM_COMMANDS",
+    "APPLIED_FROM_EFFORT",
+    "ChainSettings",
+    "ChainStepper",
+    "RerunResult",
+    "chain_settings",
+    "read_params_files",
+    "rerun",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -147,6 +156,63 @@ def chain_settings(parameters: Mapping[str, Any], algorithm: str = "fpdeso") -> 
         raise ParamsFileError(f"invalid gains: {error}") from None
 
 
+APPLIED_FROM_EFFORT = "recorded effort"
+APPLIED_FROM_COMMANDS = "recorded commands (no effort in the bag)"
+"""Where the applied torque comes from (``applied_torque_from``)."""
+
+
+class ChainStepper:
+    """The chain stepped over consecutive recorded steps, block by block, as one run.
+
+    The applied torque is the recorded effort, or (``from_effort`` False) the previous step's recorded
+    command, zero at the first step; the last command is carried to the next block.
+
+    Args:
+        settings: The chain to run.
+        dt: Control period (s).
+        from_effort: Whether the bag has the effort at every step.
+    """
+
+    def __init__(self, settings: ChainSettings, dt: float, *, from_effort: bool) -> None:
+        self.chain = settings.build()
+        self.dt = dt
+        self.from_effort = from_effort
+        self.applied_source = APPLIED_FROM_EFFORT if from_effort else APPLIED_FROM_COMMANDS
+        self._previous_command = np.zeros((1, 2))
+
+    def step(
+        self,
+        measured: FloatArray,
+        applied: FloatArray | None,
+        recorded_command: FloatArray,
+        reference: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:
+        """Steps the chain over the next steps.
+
+        Args:
+            measured: Measured positions (rad), shape (n, 2).
+            applied: Recorded effort (N m), shape (n, 2) (ignored unless ``from_effort``).
+            recorded_command: Recorded commands (N m), shape (n, 2).
+            reference: q_d, q_d', q_d'' (rad, rad/s, rad/s^2), shape (n, 3, 2).
+
+        Returns:
+            Offline commands and disturbance estimates (N m), each shape (n, 2).
+        """
+        if self.from_effort and applied is not None:
+            rows = applied.tolist()
+        else:
+            rows = np.vstack([self._previous_command, recorded_command[:-1]]).tolist()
+            self._previous_command = recorded_command[-1:].copy()
+        steps = len(rows)
+        command = np.empty((steps, 2))
+        estimate = np.empty((steps, 2))
+        chain, dt = self.chain, self.dt
+        for k, (y, tau, r) in enumerate(zip(measured.tolist(), rows, reference.tolist(), strict=True)):
+            command[k] = chain.step_floats((y[0], y[1]), (tau[0], tau[1]), r, dt)
+            estimate[k] = chain.disturbance_estimate
+        return command, estimate
+
+
 @dataclass(frozen=True, eq=False)
 class RerunResult:
     """The offline chain's outputs beside the recorded ones, at the recorded steps.
@@ -158,7 +224,6 @@ class RerunResult:
         recorded_command: Recorded torque command (N m), shape (N, 2).
         estimate: Offline disturbance estimate (N m), shape (N, 2) (zeros without FLESO).
         recorded_estimate: Recorded estimate, or None.
-        internals: Offline chain internals by key, each (N, 2).
         applied_source: ``"recorded effort"`` or ``"recorded commands (no effort in the bag)"``.
     """
 
@@ -168,7 +233,6 @@ class RerunResult:
     recorded_command: FloatArray
     estimate: FloatArray
     recorded_estimate: FloatArray | None
-    internals: Mapping[str, FloatArray]
     applied_source: str
 
     @property
@@ -178,7 +242,7 @@ class RerunResult:
 
 
 def rerun(run: RecordedRun, settings: ChainSettings) -> RerunResult:
-    """Runs the chain over the recorded steps.
+    """Runs the chain over the recorded steps held in memory (``smm-bag rerun`` streams: ``rerun_stream``).
 
     Args:
         run: The recorded run.
@@ -187,27 +251,12 @@ def rerun(run: RecordedRun, settings: ChainSettings) -> RerunResult:
     Returns:
         Offline and recorded outputs side by side.
     """
-    chain = settings.build()
-    dt = run.manifest.control_period_ns / 1e9
-    if run.applied_torque is not None:
-        applied, source = run.applied_torque, "recorded effort"
-    else:
-        applied = np.vstack([np.zeros((1, 2)), run.command_torque[:-1]])
-        source = "recorded commands (no effort in the bag)"
-    steps = run.t_ns.size
-    command = np.empty((steps, 2))
-    estimate = np.empty((steps, 2))
-    snapshots: list[Mapping[str, FloatArray]] = []
-    measured = run.measured_position.tolist()
-    applied_rows = applied.tolist()
-    references = run.reference.tolist()
-    for k in range(steps):
-        y, tau = measured[k], applied_rows[k]
-        command[k] = chain.step_floats((y[0], y[1]), (tau[0], tau[1]), references[k], dt)
-        internals = chain.internals
-        estimate[k] = internals["disturbance_estimate"]
-        snapshots.append(internals)
-    keys = tuple(snapshots[0]) if snapshots else ()
+    stepper = ChainStepper(
+        settings, run.manifest.control_period_ns / 1e9, from_effort=run.applied_torque is not None
+    )
+    command, estimate = stepper.step(
+        run.measured_position, run.applied_torque, run.command_torque, run.reference
+    )
     return RerunResult(
         settings=settings,
         t_ns=run.t_ns,
@@ -215,6 +264,5 @@ def rerun(run: RecordedRun, settings: ChainSettings) -> RerunResult:
         recorded_command=run.command_torque,
         estimate=estimate,
         recorded_estimate=run.disturbance_estimate,
-        internals={key: np.array([snapshot[key] for snapshot in snapshots]) for key in keys},
-        applied_source=source,
+        applied_source=stepper.applied_source,
     )

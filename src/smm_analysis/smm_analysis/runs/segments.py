@@ -22,7 +22,14 @@ from smm_analysis.runs.rerun import CHAIN_NODES
 from smm_analysis.runs.stream import StepStream
 from smm_analysis.runs.window import TimeBound, TimeWindow
 
-__all__ = ["GAP_PERIODS", "MIN_SEGMENT_NS", "Segment", "SegmentSearch", "find_segments"]
+__all__ = [
+    "GAP_PERIODS",
+    "MIN_SEGMENT_NS",
+    "Segment",
+    "SegmentSearch",
+    "find_segments",
+    "parameter_values",
+]
 
 MIN_SEGMENT_NS = 1_000_000_000
 """Shortest segment reported (ns of stamps, first to last step)."""
@@ -77,14 +84,14 @@ class _Change:
     reason: str
 
 
-def parameter_changes(path: Path | str) -> list[_Change]:
-    """Parameter events of :data:`WATCHED_NODES` with new or changed parameters, in stamp order.
+def _events(path: Path | str) -> list[tuple[int, str, list[Any]]]:
+    """``(stamp ns, node name, [rcl_interfaces/msg/Parameter])`` of each parameter event, new and changed.
 
     Raises:
         CorruptBagError: An event that does not decode as ``rcl_interfaces/msg/ParameterEvent``.
     """
     store = get_typestore(Stores.ROS2_JAZZY)
-    changes = []
+    events = []
     with BagReader(Path(path)) as reader:
         if PARAMETER_EVENTS not in reader.topics:
             return []
@@ -97,16 +104,55 @@ def parameter_changes(path: Path | str) -> list[_Change]:
                     f"{path}: a {PARAMETER_EVENTS} message does not decode ({error})"
                 ) from None
             node = str(event.node).rstrip("/").split("/")[-1]
-            names = [
-                str(p.name)
-                for p in (*event.new_parameters, *event.changed_parameters)
-                if str(p.name) not in _IGNORED_PARAMETERS
-            ]
-            if node not in WATCHED_NODES or not names:
-                continue
             stamp = int(event.stamp.sec) * 1_000_000_000 + int(event.stamp.nanosec)
+            events.append((stamp, node, [*event.new_parameters, *event.changed_parameters]))
+    return sorted(events, key=lambda event: event[0])
+
+
+def parameter_changes(path: Path | str) -> list[_Change]:
+    """Parameter events of :data:`WATCHED_NODES` with new or changed parameters, in stamp order.
+
+    Raises:
+        CorruptBagError: An event that does not decode as ``rcl_interfaces/msg/ParameterEvent``.
+    """
+    changes = []
+    for stamp, node, parameters in _events(path):
+        names = [str(p.name) for p in parameters if str(p.name) not in _IGNORED_PARAMETERS]
+        if node in WATCHED_NODES and names:
             changes.append(_Change(stamp, f"{node}: {', '.join(sorted(names))} changed"))
-    return sorted(changes, key=lambda change: change.stamp_ns)
+    return changes
+
+
+_VALUE_FIELDS = {
+    1: "bool_value",
+    2: "integer_value",
+    3: "double_value",
+    4: "string_value",
+    6: "bool_array_value",
+    7: "integer_array_value",
+    8: "double_array_value",
+    9: "string_array_value",
+}
+"""``rcl_interfaces/msg/ParameterValue`` type codes and their fields (5, byte arrays: no gain is one)."""
+
+
+def parameter_values(path: Path | str, node: str, until_ns: int) -> dict[str, Any]:
+    """Values ``/parameter_events`` set on ``node`` (its name) at stamps <= ``until_ns`` (the last of each).
+
+    Raises:
+        CorruptBagError: An event that does not decode as ``rcl_interfaces/msg/ParameterEvent``.
+    """
+    values: dict[str, Any] = {}
+    for stamp, name, parameters in _events(path):
+        if stamp > until_ns or name != node:
+            continue
+        for parameter in parameters:
+            field_name = _VALUE_FIELDS.get(int(parameter.value.type))
+            if field_name is None:
+                continue
+            value = getattr(parameter.value, field_name)
+            values[str(parameter.name)] = value.tolist() if isinstance(value, np.ndarray) else value
+    return values
 
 
 def find_segments(path: Path | str, *, progress: Callable[[int, int], None] | None = None) -> SegmentSearch:
