@@ -222,6 +222,7 @@ def test_metrics_document_names_runs_by_manifest_and_keeps_every_bag() -> None:
         "steps": 3,
         "incomplete_steps": 2,
         "late_messages": {},
+        "ahead_messages": {},
         "window": "",
         "duration_s": 2.0,
         "seed": 7,
