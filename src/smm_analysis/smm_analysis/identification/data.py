@@ -7,25 +7,35 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import butter, filtfilt, savgol_filter
 
 from smm_analysis.errors import IdentificationInputError, NotEnoughDataError, SaturatedRunError, StopsRunError
+from smm_analysis.identification.exclusions import Intervals, Saturation, Stops, flagged_count, flags_of
 from smm_analysis.identification.regressor import regressor
 
-__all__ = ["FilterSettings", "PreparedRun", "Segment", "prepare_run"]
+__all__ = [
+    "Exclusions",
+    "FilterSettings",
+    "Filters",
+    "PreparedRun",
+    "Segment",
+    "filters_for",
+    "prepare_run",
+    "smoothed",
+    "stretch_rows",
+    "stretches",
+]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 _NS_PER_S = 1e9
 # A stretch at the torque's largest magnitude counts from this length (s).
 _PLATEAU_MIN_DURATION = 0.05
-# A joint at a stop: within this fraction of its range from an extreme, |q'| below _STOP_VELOCITY, this long.
-_STOP_BAND = 0.01
-_STOP_VELOCITY = 0.02
+# A joint at a stop (exclusions.Stops) counts from this length (s).
 _STOP_MIN_DURATION = 0.2
 
 
@@ -118,9 +128,6 @@ class PreparedRun:
         settings: The filter settings applied.
         sample_period: Control period (s).
         warnings: What was left out and why, one line each.
-        raw_time: Stamps since the first (s), shape (N,), for plots.
-        raw_position: Measured positions (rad), shape (N, 2), for plots.
-        raw_torque: Applied torques (N m), shape (N, 2), for plots.
     """
 
     name: str
@@ -128,9 +135,6 @@ class PreparedRun:
     settings: FilterSettings
     sample_period: float
     warnings: tuple[str, ...] = ()
-    raw_time: FloatArray = field(default_factory=lambda: np.zeros(0))
-    raw_position: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
-    raw_torque: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
     def used_rows(self) -> int:
@@ -146,27 +150,6 @@ def _as_series(name: str, value: ArrayLike, length: int | None) -> FloatArray:
     if not np.all(np.isfinite(array)):
         raise IdentificationInputError(f"{name} holds NaN or infinite values")
     return array
-
-
-def _plateaus(
-    values: FloatArray, level: float, min_samples: int, tolerance: float, *, inner_only: bool = False
-) -> BoolArray:
-    """Samples in runs of >= min_samples consecutive samples with |values - level| <= tolerance.
-
-    ``inner_only``: runs touching the first or the last sample are not counted (rest before or after).
-    """
-    near = np.abs(values - level) <= tolerance
-    flagged = np.zeros_like(near)
-    start = None
-    for index, value in enumerate([*near.tolist(), False]):
-        if value and start is None:
-            start = index
-        elif not value and start is not None:
-            touches_end = start == 0 or index == near.size
-            if index - start >= min_samples and not (inner_only and touches_end):
-                flagged[start:index] = True
-            start = None
-    return flagged
 
 
 def _guarded_rest(slow: BoolArray, period: float, guard_time: float) -> BoolArray:
@@ -187,35 +170,197 @@ def _guarded_rest(slow: BoolArray, period: float, guard_time: float) -> BoolArra
     return result
 
 
-def _at_stops(q: FloatArray, period: float, window: int, order: int) -> BoolArray:
-    """Samples where a joint is held at an extreme of its range (a stop) for _STOP_MIN_DURATION or more.
-
-    A hold at the start or the end of the run is the rest before or after the motion, not a stop.
-    """
-    # Savitzky-Golay, not the Butterworth: the low-pass rings at the corner a stop makes.
-    smooth = savgol_filter(q, window, order, axis=0)
-    velocity = savgol_filter(q, window, order, deriv=1, delta=period, axis=0)
-    stopped = np.zeros_like(q, dtype=bool)
-    min_samples = max(round(_STOP_MIN_DURATION / period), 2)
-    for joint in (0, 1):
-        low, high = float(smooth[:, joint].min()), float(smooth[:, joint].max())
-        band = _STOP_BAND * max(high - low, 1e-9)
-        slow = np.abs(velocity[:, joint]) < _STOP_VELOCITY
-        for extreme in (low, high):
-            held = slow & (np.abs(smooth[:, joint] - extreme) <= band)
-            stopped[:, joint] |= _plateaus(held.astype(np.float64), 1.0, min_samples, 0.0, inner_only=True)
-    return stopped
-
-
-def _stretches(t_ns: NDArray[np.int64], period_ns: float) -> list[slice]:
-    breaks = np.flatnonzero(np.diff(t_ns) > 1.5 * period_ns) + 1
-    bounds = [0, *breaks.tolist(), t_ns.size]
-    return [slice(begin, end) for begin, end in itertools.pairwise(bounds)]
-
-
 def _odd_window(seconds: float, period: float, order: int) -> int:
     window = max(round(seconds / period), order + 2)
     return window if window % 2 == 1 else window + 1
+
+
+@dataclass(frozen=True)
+class Filters:
+    """The filters and row rules of one run: its settings at its control period (see :func:`filters_for`).
+
+    Attributes:
+        settings: The filter settings.
+        period_ns: Control period, the median stamp interval (ns).
+        b: Butterworth numerator. a: Its denominator.
+        window: Savitzky-Golay window (samples, odd).
+        edge: Samples left out at each end of a stretch.
+        gravity: g of the regressor (m/s^2). gravity_sign: Its sign.
+    """
+
+    settings: FilterSettings
+    period_ns: float
+    b: FloatArray
+    a: FloatArray
+    window: int
+    edge: int
+    gravity: float
+    gravity_sign: float
+
+    @property
+    def period(self) -> float:
+        """Control period (s)."""
+        return self.period_ns / _NS_PER_S
+
+    @property
+    def padding(self) -> int:
+        """Filtfilt's default padding (samples)."""
+        return 3 * max(len(self.a), len(self.b))
+
+    @property
+    def min_plateau(self) -> int:
+        """Least length of a saturation plateau (samples)."""
+        return max(round(_PLATEAU_MIN_DURATION / self.period), 2)
+
+    @property
+    def min_stop(self) -> int:
+        """Least length of a hold at a stop (samples)."""
+        return max(round(_STOP_MIN_DURATION / self.period), 2)
+
+    @property
+    def shortest_stretch(self) -> int:
+        """A stretch of at most this many samples is too short to filter and is left out."""
+        return max(2 * self.edge + self.window, self.padding + 1)
+
+    @property
+    def overlap(self) -> int:
+        """Samples each side of a piece of a stretch so that its rows equal the whole stretch's.
+
+        The low-pass's start and end transients decay as rho^k (rho: the largest pole magnitude); this is
+        where rho^k < :data:`TRANSIENT`, plus the Savitzky-Golay half window and the rest guard
+        (docs/IDENTIFICATION.md, "Streaming").
+        """
+        rho = float(np.max(np.abs(np.roots(self.a))))
+        decay = math.ceil(math.log(TRANSIENT) / math.log(rho))
+        return decay + self.window // 2 + round(self.settings.rest_guard / self.period) + 2
+
+
+TRANSIENT = 1e-16
+"""Relative size of the low-pass's start transient left at the rows a piece keeps (about one rounding)."""
+
+
+def filters_for(
+    name: str,
+    settings: FilterSettings,
+    period_ns: float,
+    steps: int,
+    duration: float,
+    *,
+    gravity: float,
+    gravity_sign: float,
+) -> Filters:
+    """The filters of a run of ``steps`` stamps over ``duration`` (s), ``period_ns`` apart (median).
+
+    Raises:
+        IdentificationInputError: The cutoff is not below the Nyquist frequency.
+        NotEnoughDataError: Too few steps to filter.
+    """
+    period = period_ns / _NS_PER_S
+    if not settings.cutoff < 0.5 / period:
+        raise IdentificationInputError(
+            f"cutoff {settings.cutoff:g} Hz is not below the Nyquist frequency {0.5 / period:g} Hz"
+        )
+    b, a = butter(settings.order, settings.cutoff, fs=1.0 / period)
+    filters = Filters(
+        settings=settings,
+        period_ns=period_ns,
+        b=np.asarray(b, dtype=np.float64),
+        a=np.asarray(a, dtype=np.float64),
+        window=_odd_window(settings.savgol_window, period, settings.savgol_order),
+        edge=round(settings.edge / period),
+        gravity=gravity,
+        gravity_sign=gravity_sign,
+    )
+    if steps <= max(filters.padding, filters.window) + 2 * filters.edge:
+        raise NotEnoughDataError(
+            f"{name}: {steps} control steps ({duration:.3g} s), too short to filter and identify "
+            f"(at least {settings.min_duration:g} s of motion needed)"
+        )
+    return filters
+
+
+def smoothed(filters: Filters, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Savitzky-Golay q (rad) and q' (rad/s) of consecutive samples, shape (n, 2) each (finds the stops).
+
+    Savitzky-Golay, not the Butterworth: the low-pass rings at the corner a stop makes.
+    """
+    order, period = filters.settings.savgol_order, filters.period
+    smooth = savgol_filter(q, filters.window, order, axis=0)
+    velocity = savgol_filter(q, filters.window, order, deriv=1, delta=period, axis=0)
+    return smooth, velocity
+
+
+def stretch_rows(
+    filters: Filters,
+    time: FloatArray,
+    q: FloatArray,
+    tau: FloatArray,
+    *,
+    offset: int,
+    length: int,
+    rows: tuple[int, int],
+    excluded: BoolArray,
+) -> tuple[Segment, int]:
+    """Rows ``rows`` [first, stop) of a stretch of ``length`` samples, from its samples [offset, offset + n).
+
+    Row k is the interval from sample k to k + 1 of the stretch. Given the whole stretch the rows are exact;
+    given :attr:`Filters.overlap` samples more on each side (where the stretch has them) they agree to
+    :data:`TRANSIENT` (docs/IDENTIFICATION.md, "Streaming").
+
+    Args:
+        filters: The run's filters.
+        time: Times since the run's first stamp (s), shape (n,).
+        q: Measured positions (rad), shape (n, 2).
+        tau: Applied torques (N m), shape (n, 2).
+        offset: Index of the first sample given in the stretch.
+        length: Samples in the stretch.
+        rows: The rows wanted, stretch indices.
+        excluded: Saturated or at a stop, of the rows' end samples, shape (stop - first, 2).
+
+    Returns:
+        The rows, and how many joint rows were left out at rest (within the edges).
+    """
+    settings, period = filters.settings, filters.period
+    n = time.size
+    # Savitzky-Golay states (their passband is far above the cutoff), then one low-pass on both sides.
+    q_s, qd, qdd = (
+        savgol_filter(q, filters.window, settings.savgol_order, deriv=deriv, delta=period, axis=0)
+        for deriv in (0, 1, 2)
+    )
+    b, a = filters.b, filters.a
+    y = regressor(q_s, qd, qdd, gravity=filters.gravity, gravity_sign=filters.gravity_sign)
+    columns = filtfilt(b, a, y, axis=0)
+    tau_f = filtfilt(b, a, tau, axis=0)
+    q_f = filtfilt(b, a, q_s, axis=0)
+    qd = filtfilt(b, a, qd, axis=0)
+    qdd = filtfilt(b, a, qdd, axis=0)
+    # Interval k runs from stamp k-1 to stamp k: states at its midpoint, torque recorded at stamp k.
+    mid = (slice(0, n - 1), slice(1, n))
+    velocity = 0.5 * (qd[mid[0]] + qd[mid[1]])
+    resting = _guarded_rest(np.abs(velocity) < settings.rest_velocity, period, settings.rest_guard)
+    first, stop = rows[0] - offset, rows[1] - offset
+    index = np.arange(rows[0], rows[1])
+    keep = (index >= max(filters.edge - 1, 0)) & (index < length - 1 - filters.edge)
+    keep = np.repeat(keep[:, None], 2, axis=1)
+    resting = resting[first:stop]
+    part = slice(first, stop)
+    segment = Segment(
+        time=0.5 * (time[mid[0]] + time[mid[1]])[part],
+        position=0.5 * (q_f[mid[0]] + q_f[mid[1]])[part],
+        velocity=velocity[part],
+        acceleration=0.5 * (qdd[mid[0]] + qdd[mid[1]])[part],
+        torque=tau_f[1:][part],
+        columns=0.5 * (columns[mid[0]] + columns[mid[1]])[part],
+        use=keep & ~resting & ~excluded,
+    )
+    return segment, int((resting & keep).sum())
+
+
+def stretches(t_ns: NDArray[np.int64], period_ns: float) -> list[tuple[int, int]]:
+    """Runs of steps without a missing one, [start, stop) indices into ``t_ns``."""
+    breaks = np.flatnonzero(np.diff(t_ns) > 1.5 * period_ns) + 1
+    bounds = [0, *breaks.tolist(), t_ns.size]
+    return list(itertools.pairwise(bounds))
 
 
 def prepare_run(
@@ -229,7 +374,9 @@ def prepare_run(
     gravity_sign: float = 1.0,
     command: ArrayLike | None = None,
 ) -> PreparedRun:
-    """Filters and differentiates one run and picks its usable rows.
+    """Filters and differentiates one run held in memory and picks its usable rows.
+
+    ``smm-bag identify`` streams instead (:mod:`smm_analysis.identification.streaming`, the same steps).
 
     Args:
         name: Label for reports (the bag folder).
@@ -261,109 +408,108 @@ def prepare_run(
         raise IdentificationInputError("t_ns must be strictly increasing")
     q = _as_series("position", position, stamps.size)
     tau = _as_series("torque", torque, stamps.size)
-    period_ns = float(np.median(np.diff(stamps)))
-    period = period_ns / _NS_PER_S
-    if not settings.cutoff < 0.5 / period:
-        raise IdentificationInputError(
-            f"cutoff {settings.cutoff:g} Hz is not below the Nyquist frequency {0.5 / period:g} Hz"
-        )
+    commanded = None if command is None else _as_series("command", command, stamps.size)
     time = (stamps - stamps[0]).astype(np.float64) / _NS_PER_S
-    b, a = butter(settings.order, settings.cutoff, fs=1.0 / period)
-    window = _odd_window(settings.savgol_window, period, settings.savgol_order)
-    min_plateau = max(round(_PLATEAU_MIN_DURATION / period), 2)
-    padding = 3 * max(len(a), len(b))
-    if stamps.size <= max(padding, window) + 2 * round(settings.edge / period):
-        raise NotEnoughDataError(
-            f"{name}: {stamps.size} control steps ({time[-1]:.3g} s), too short to filter and identify "
-            f"(at least {settings.min_duration:g} s of motion needed)"
-        )
-    edge = round(settings.edge / period)
-    # Saturation: a torque clipped by a limit sits exactly at its largest magnitude.
-    saturated = np.zeros_like(tau, dtype=bool)
-    for joint in (0, 1):
-        magnitude = np.abs(tau[:, joint])
-        peak = float(magnitude.max())
-        if np.ptp(tau[:, joint]) <= 1e-9 * max(peak, 1e-12):
-            continue  # a constant torque (a joint not driven) is not a clipped one; the rank check names it
-        saturated[:, joint] = _plateaus(magnitude, peak, min_plateau, 1e-9 * max(peak, 1e-12))
-    if command is not None:
-        commanded = np.abs(_as_series("command", command, stamps.size))
-        beyond = (commanded > 1.01 * np.abs(tau).max(axis=0)).astype(np.float64)
-        for joint in (0, 1):
-            saturated[:, joint] |= _plateaus(beyond[:, joint], 1.0, min_plateau, 0.0)
-    stopped = _at_stops(q, period, window, settings.savgol_order)
-    segments: list[Segment] = []
-    counts = {"edges": 0, "rest": 0}
-    for stretch in _stretches(stamps, period_ns):
-        n = stretch.stop - stretch.start
-        if n <= max(2 * edge + window, padding + 1):
-            counts["edges"] += n
-            continue
-        # Savitzky-Golay states (their passband is far above the cutoff), then one low-pass on both sides.
-        q_s, qd, qdd = (
-            savgol_filter(q[stretch], window, settings.savgol_order, deriv=deriv, delta=period, axis=0)
-            for deriv in (0, 1, 2)
-        )
-        columns = filtfilt(b, a, regressor(q_s, qd, qdd, gravity=gravity, gravity_sign=gravity_sign), axis=0)
-        tau_f = filtfilt(b, a, tau[stretch], axis=0)
-        q_f = filtfilt(b, a, q_s, axis=0)
-        qd = filtfilt(b, a, qd, axis=0)
-        qdd = filtfilt(b, a, qdd, axis=0)
-        # Interval k runs from stamp k-1 to stamp k: states at its midpoint, torque recorded at stamp k.
-        mid = (slice(0, n - 1), slice(1, n))
-        keep = np.ones((n - 1, 2), dtype=bool)
-        keep[: max(edge - 1, 0)] = False
-        keep[n - 1 - edge :] = False
-        counts["edges"] += int((~keep).sum()) // 2 + 1
-        velocity = 0.5 * (qd[mid[0]] + qd[mid[1]])
-        resting = _guarded_rest(np.abs(velocity) < settings.rest_velocity, period, settings.rest_guard)
-        counts["rest"] += int((resting & keep).sum())
-        excluded = saturated[stretch][1:] | stopped[stretch][1:]
-        segments.append(
-            Segment(
-                time=0.5 * (time[stretch][:-1] + time[stretch][1:]),
-                position=0.5 * (q_f[mid[0]] + q_f[mid[1]]),
-                velocity=velocity,
-                acceleration=0.5 * (qdd[mid[0]] + qdd[mid[1]]),
-                torque=tau_f[1:],
-                columns=0.5 * (columns[mid[0]] + columns[mid[1]]),
-                use=keep & ~resting & ~excluded,
-            )
-        )
-    warnings = _exclusion_warnings(
-        name, saturated=saturated, stopped=stopped, counts=counts, period=period, settings=settings
+    filters = filters_for(
+        name,
+        settings,
+        float(np.median(np.diff(stamps))),
+        stamps.size,
+        float(time[-1]),
+        gravity=gravity,
+        gravity_sign=gravity_sign,
     )
-    usable = sum(float(segment.use.any(axis=1).sum()) for segment in segments) * period
-    if usable < settings.min_duration:
-        raise NotEnoughDataError(
-            f"{name}: {usable:.3g} s of usable motion, identification needs at least "
-            f"{settings.min_duration:g} s (after leaving out {settings.edge:g} s at the ends of stretches, "
-            f"joints at rest, saturation and the stops)"
+    saturation = Saturation(np.abs(tau).max(axis=0), np.ptp(tau, axis=0), filters.min_plateau)
+    saturation.feed(tau, commanded)
+    smooth, velocity = smoothed(filters, q)
+    stops = Stops(smooth.min(axis=0), smooth.max(axis=0), filters.min_stop)
+    stops.feed(smooth, velocity)
+    exclusions = Exclusions(stamps.size, saturation.finish(), stops.finish())
+    segments: list[Segment] = []
+    rest = 0
+    for begin, end in stretches(stamps, filters.period_ns):
+        n = end - begin
+        if n <= filters.shortest_stretch:
+            continue
+        segment, resting = stretch_rows(
+            filters,
+            time[begin:end],
+            q[begin:end],
+            tau[begin:end],
+            offset=0,
+            length=n,
+            rows=(0, n - 1),
+            excluded=exclusions.of(begin + 1, end),
         )
+        segments.append(segment)
+        rest += resting
+    usable = sum(int(segment.use.any(axis=1).sum()) for segment in segments)
+    warnings = exclusions.warnings(name, rest, usable, filters)
     return PreparedRun(
         name=name,
         segments=tuple(segments),
         settings=settings,
-        sample_period=period,
+        sample_period=filters.period,
         warnings=tuple(warnings),
-        raw_time=time,
-        raw_position=q,
-        raw_torque=tau,
     )
+
+
+@dataclass(frozen=True)
+class Exclusions:
+    """The samples of a run left out: saturated and at a stop, as intervals per joint.
+
+    Attributes:
+        steps: Samples in the run.
+        saturated: Saturated sample intervals per joint.
+        stopped: Sample intervals at a stop per joint.
+    """
+
+    steps: int
+    saturated: tuple[Intervals, Intervals]
+    stopped: tuple[Intervals, Intervals]
+
+    def of(self, start: int, stop: int) -> BoolArray:
+        """Samples [start, stop) saturated or at a stop, shape (stop - start, 2)."""
+        return flags_of(self.saturated, start, stop) | flags_of(self.stopped, start, stop)
+
+    def warnings(self, name: str, rest: int, usable: int, filters: Filters) -> list[str]:
+        """What was left out, one line each, given ``rest`` joint rows at rest and ``usable`` rows.
+
+        Raises:
+            SaturatedRunError, StopsRunError: More than ``max_excluded`` of the run.
+            NotEnoughDataError: Less usable time than ``min_duration``.
+        """
+        settings = filters.settings
+        warnings = _exclusion_warnings(
+            name,
+            saturated=flagged_count(self.saturated),
+            stopped=flagged_count(self.stopped),
+            rows=self.steps,
+            rest=rest,
+            period=filters.period,
+            settings=settings,
+        )
+        if usable * filters.period < settings.min_duration:
+            raise NotEnoughDataError(
+                f"{name}: {usable * filters.period:.3g} s of usable motion, identification needs at least "
+                f"{settings.min_duration:g} s (after leaving out {settings.edge:g} s at the ends of "
+                "stretches, joints at rest, saturation and the stops)"
+            )
+        return warnings
 
 
 def _exclusion_warnings(
     name: str,
     *,
-    saturated: BoolArray,
-    stopped: BoolArray,
-    counts: dict[str, int],
+    saturated: NDArray[np.int64],
+    stopped: NDArray[np.int64],
+    rows: int,
+    rest: int,
     period: float,
     settings: FilterSettings,
 ) -> list[str]:
     warnings = []
-    rows = saturated.shape[0]
-    for label, flags, error in (
+    for label, flagged, error in (
         (
             "the torque saturated (at its largest magnitude, or commanded beyond it)",
             saturated,
@@ -371,7 +517,7 @@ def _exclusion_warnings(
         ),
         ("a joint at a mechanical stop (position held at its extreme)", stopped, StopsRunError),
     ):
-        fractions = flags.sum(axis=0) / rows
+        fractions = flagged / rows
         if fractions.max() > settings.max_excluded:
             joints = [
                 f"{joint} {fraction:.0%}"
@@ -381,12 +527,12 @@ def _exclusion_warnings(
                 f"{name}: {label} for {', '.join(joints)} of the run, more than max_excluded "
                 f"{settings.max_excluded:.0%}: record a run within the limits"
             )
-        if flags.any():
-            seconds = float(flags.sum(axis=0).max()) * period
+        if flagged.any():
+            seconds = float(flagged.max()) * period
             warnings.append(f"{name}: left out {seconds:.3g} s with {label}")
-    if counts["rest"]:
+    if rest:
         warnings.append(
-            f"{name}: left out {counts['rest']} joint rows at rest or turning round "
+            f"{name}: left out {rest} joint rows at rest or turning round "
             f"(|q'| < {settings.rest_velocity:g} rad/s and {settings.rest_guard:g} s around)"
         )
     return warnings

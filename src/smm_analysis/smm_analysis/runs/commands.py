@@ -25,7 +25,7 @@ from smm_analysis.runs.segments import MIN_SEGMENT_NS, find_segments
 from smm_analysis.runs.stream import StepStream
 from smm_analysis.runs.window import TimeWindow
 
-__all__ = ["AnalyzeOptions", "RerunOptions", "analyze", "rerun_command"]
+__all__ = ["AnalyzeOptions", "RerunOptions", "analyze", "rerun_command", "streams_of"]
 
 
 @dataclass(frozen=True)
@@ -41,11 +41,13 @@ class AnalyzeOptions:
     segments: bool = False
 
 
-def _runs(bag: Path, options: AnalyzeOptions, err: TextIO) -> list[tuple[StepStream, str | None]]:
-    """The streams to analyse in ``bag``: the window, or each segment (with its label) for ``--segments``."""
-    progress = Progress(f"reading {bag.name}", 1, err, enabled=not options.quiet)
-    if not options.segments:
-        return [(StepStream(bag, window=options.window, progress=progress), None)]
+def streams_of(
+    bag: Path, *, window: TimeWindow, segments: bool, quiet: bool, err: TextIO
+) -> list[tuple[StepStream, str | None]]:
+    """The streams to read in ``bag``: the window, or each segment (with its label) for ``--segments``."""
+    progress = Progress(f"reading {bag.name}", 1, err, enabled=not quiet)
+    if not segments:
+        return [(StepStream(bag, window=window, progress=progress), None)]
     search = find_segments(bag, progress=progress)
     if search.short_segments or search.disarmed_steps:
         err.write(
@@ -57,7 +59,7 @@ def _runs(bag: Path, options: AnalyzeOptions, err: TextIO) -> list[tuple[StepStr
     runs: list[tuple[StepStream, str | None]] = []
     for segment in search.segments:
         label = f"segment {segment.number}"
-        progress = Progress(f"{label} of {bag.name}", 1, err, enabled=not options.quiet)
+        progress = Progress(f"{label} of {bag.name}", 1, err, enabled=not quiet)
         stream = StepStream(bag, window=segment.window, progress=progress)
         runs.append((stream, f"{stream.label} {label} ({segment.reason})"))
     return runs
@@ -71,7 +73,10 @@ def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextI
     drawing = options.out is not None and options.plots
     try:
         for bag in options.bags:
-            for stream, label in _runs(bag, options, err):
+            streams = streams_of(
+                bag, window=options.window, segments=options.segments, quiet=options.quiet, err=err
+            )
+            for stream, label in streams:
                 consumers = []
                 if drawing:
                     name = label if label is not None else stream.label
