@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import butter, filtfilt, savgol_filter
+from scipy.signal import butter, filtfilt, lfilter, savgol_filter
 
 from smm_analysis.errors import IdentificationInputError, NotEnoughDataError, SaturatedRunError, StopsRunError
 from smm_analysis.identification.exclusions import Intervals, Saturation, Stops, flagged_count, flags_of
@@ -226,17 +226,43 @@ class Filters:
     def overlap(self) -> int:
         """Samples each side of a piece of a stretch so that its rows equal the whole stretch's.
 
-        The low-pass's start and end transients decay as rho^k (rho: the largest pole magnitude); this is
-        where rho^k < :data:`TRANSIENT`, plus the Savitzky-Golay half window and the rest guard
-        (docs/IDENTIFICATION.md, "Streaming").
+        The low-pass's start and end transients at the cut are bounded by the tail sum of its impulse
+        response times the signal's range; this is where that tail falls below :data:`TRANSIENT`, plus the
+        Savitzky-Golay half window and the rest guard (docs/IDENTIFICATION.md, "Streaming").
         """
-        rho = float(np.max(np.abs(np.roots(self.a))))
-        decay = math.ceil(math.log(TRANSIENT) / math.log(rho))
+        tail = _impulse_tail(self.b, self.a)
+        decay = int(np.argmax(tail < TRANSIENT))
         return decay + self.window // 2 + round(self.settings.rest_guard / self.period) + 2
+
+    @property
+    def piece_tolerance(self) -> float:
+        """Bound on |a filtered value from a piece - from the whole stretch| / the series' largest |value|.
+
+        Each of the two runs of the forward and the backward pass rounds differently once started from
+        different states: u * sum|a| * sum|g| per pass (g: impulse response of 1/A(z), the rounding's path
+        to the output), four such, plus twice the transient left at the cut (docs/IDENTIFICATION.md).
+        """
+        unit = float(np.finfo(np.float64).eps) / 2.0
+        noise_gain = float(np.abs(_impulse_response(np.ones(1), self.a)).sum())
+        return 4.0 * unit * float(np.abs(self.a).sum()) * noise_gain + 2.0 * TRANSIENT
 
 
 TRANSIENT = 1e-16
-"""Relative size of the low-pass's start transient left at the rows a piece keeps (about one rounding)."""
+"""Tail sum of the low-pass's impulse response beyond the overlap (relative size of the cut's transient)."""
+
+
+def _impulse_response(b: FloatArray, a: FloatArray) -> FloatArray:
+    """Impulse response of b/a until it has decayed below TRANSIENT / 100 of its largest value."""
+    rho = float(np.max(np.abs(np.roots(a))))
+    length = math.ceil(math.log(TRANSIENT / 100.0) / math.log(rho)) + 100 * len(a)
+    response: FloatArray = lfilter(b, a, np.r_[1.0, np.zeros(length - 1)])
+    return response
+
+
+def _impulse_tail(b: FloatArray, a: FloatArray) -> FloatArray:
+    """sum_{i >= k} |h_i| for each k."""
+    tail: FloatArray = np.cumsum(np.abs(_impulse_response(b, a))[::-1])[::-1]
+    return tail
 
 
 def filters_for(

@@ -92,6 +92,7 @@ class Identification:
         rows: Joint rows used.
         settings: The estimation settings.
         largest_torque: Largest |applied torque| over the used rows (N m).
+        bootstrap_condition: Largest condition number of the column-scaled regressor over the replicates.
     """
 
     params: SMMParameters
@@ -107,6 +108,7 @@ class Identification:
     rows: int
     settings: EstimationSettings
     largest_torque: float
+    bootstrap_condition: float
 
 
 def _solve_normal(gram: FloatArray, moment: FloatArray, scale: FloatArray) -> FloatArray:
@@ -215,7 +217,7 @@ def estimate(
         )
     grams = np.tensordot(np.concatenate([run.grams for run in runs]), squared, axes=([1], [0]))
     moments = np.tensordot(np.concatenate([run.moments for run in runs]), squared, axes=([1], [0]))
-    replicates = _bootstrap(grams, moments, scale, settings)
+    replicates, bootstrap_condition = _bootstrap(grams, moments, scale, settings)
     at_bound = tuple(
         name
         for name, value, low in zip(PARAMETER_NAMES, theta, _LOWER, strict=True)
@@ -235,22 +237,27 @@ def estimate(
         rows=sum(run.rows for run in runs),
         settings=settings,
         largest_torque=max(run.largest for run in runs),
+        bootstrap_condition=bootstrap_condition,
     )
 
 
 def _bootstrap(
     grams: FloatArray, moments: FloatArray, scale: FloatArray, settings: EstimationSettings
-) -> FloatArray:
+) -> tuple[FloatArray, float]:
     """Estimates of ``settings.bootstrap`` replicates, each the blocks drawn with replacement (B, 11).
+
+    Also the largest condition number of a replicate's column-scaled regressor.
 
     grams: Weighted Y^T Y per block (b, 11, 11); moments: weighted Y^T tau per block (b, 11).
     """
     generator = np.random.default_rng(settings.seed)
     blocks = grams.shape[0]
     replicates = np.empty((settings.bootstrap, grams.shape[1]))
+    condition = 0.0
     for index in range(settings.bootstrap):
         counts = np.bincount(generator.integers(0, blocks, blocks), minlength=blocks)
-        replicates[index] = _solve_normal(
-            np.tensordot(counts, grams, axes=1), np.tensordot(counts, moments, axes=1), scale
-        )
-    return replicates
+        gram = np.tensordot(counts, grams, axes=1)
+        replicates[index] = _solve_normal(gram, np.tensordot(counts, moments, axes=1), scale)
+        eigenvalues = np.linalg.eigvalsh(gram / np.outer(scale, scale))
+        condition = max(condition, math.sqrt(eigenvalues[-1] / max(eigenvalues[0], 1e-300)))
+    return replicates, condition
