@@ -146,27 +146,29 @@ class _Scan:
 def _spool_bag(stream: StepStream, spool: Spool, excitation: Envelope) -> _Scan:
     """Reads the bag into the spool; refuses steps without a finite position, torque or command."""
     scan = _Scan()
-    for block in stream.blocks():
-        if not np.all(np.isfinite(block.applied_torque)):
-            raise MissingSignalsError(
-                f"{stream.bag}: joint_states carries no effort (the applied torque) at every step: "
-                "identification needs it; record with a plant that reports it (the simulator and the bridge "
-                "do)"
-            )
-        for label, values in (("position", block.measured_position), ("command", block.command_torque)):
-            if not np.all(np.isfinite(values)):
-                raise IdentificationInputError(f"{stream.bag}: {label} holds NaN or infinite values")
-        records = np.empty(block.t_ns.size, dtype=RECORD)
-        records["t"], records["q"] = block.t_ns, block.measured_position
-        records["tau"], records["command"] = block.applied_torque, block.command_torque
-        spool.append(records)
-        scan.add(block.t_ns, block.applied_torque)
-        assert scan.first_ns is not None
-        time = (block.t_ns - scan.first_ns).astype(np.float64) / _NS_PER_S
-        series = {f"q {joint}": block.measured_position[:, j] for j, joint in enumerate(JOINTS)}
-        series |= {f"tau {joint}": block.applied_torque[:, j] for j, joint in enumerate(JOINTS)}
-        excitation.add(time, series)
-    spool.close()
+    try:
+        for block in stream.blocks():
+            if not np.all(np.isfinite(block.applied_torque)):
+                raise MissingSignalsError(
+                    f"{stream.bag}: joint_states carries no effort (the applied torque) at every step: "
+                    "identification needs it; record with a plant that reports it (the simulator and the "
+                    "bridge do)"
+                )
+            for label, values in (("position", block.measured_position), ("command", block.command_torque)):
+                if not np.all(np.isfinite(values)):
+                    raise IdentificationInputError(f"{stream.bag}: {label} holds NaN or infinite values")
+            records = np.empty(block.t_ns.size, dtype=RECORD)
+            records["t"], records["q"] = block.t_ns, block.measured_position
+            records["tau"], records["command"] = block.applied_torque, block.command_torque
+            spool.append(records)
+            scan.add(block.t_ns, block.applied_torque)
+            assert scan.first_ns is not None
+            time = (block.t_ns - scan.first_ns).astype(np.float64) / _NS_PER_S
+            series = {f"q {joint}": block.measured_position[:, j] for j, joint in enumerate(JOINTS)}
+            series |= {f"tau {joint}": block.applied_torque[:, j] for j, joint in enumerate(JOINTS)}
+            excitation.add(time, series)
+    finally:
+        spool.close()
     return scan
 
 
