@@ -254,6 +254,8 @@ def _read_runs(
                 base = _base_model(stream.manifest.parameters)
                 excitation = recorded_excitation(stream.manifest.parameters)
             name = str(bag) if label is None else f"{bag} {label}"
+            if not window.whole:
+                name += f" [{window.describe()}]"
             runs[role].append(
                 read_run(
                     name,

@@ -20,8 +20,9 @@ from numpy.typing import NDArray
 from smm_bag.manifest import RunManifest
 
 from smm_analysis.errors import IdentificationInputError, MissingSignalsError
-from smm_analysis.identification.data import (
-    Exclusions,
+from smm_analysis.identification.data import Exclusions
+from smm_analysis.identification.exclusions import Saturation, Stops
+from smm_analysis.identification.filtering import (
     Filters,
     FilterSettings,
     Segment,
@@ -29,7 +30,6 @@ from smm_analysis.identification.data import (
     smoothed,
     stretch_rows,
 )
-from smm_analysis.identification.exclusions import Saturation, Stops
 from smm_analysis.identification.sums import RunSums
 from smm_analysis.runs.envelope import Envelope
 from smm_analysis.runs.stream import JOINTS, StepStream

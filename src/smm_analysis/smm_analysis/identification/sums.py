@@ -11,7 +11,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from smm_analysis.identification.data import PreparedRun, Segment
+from smm_analysis.identification.data import PreparedRun
+from smm_analysis.identification.filtering import Segment
 
 __all__ = ["RunSums", "sums_of"]
 
