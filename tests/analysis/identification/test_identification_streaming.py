@@ -3,6 +3,7 @@ in memory that does not grow with the bag; windows and segments of a bag are run
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import re
@@ -99,19 +100,16 @@ def _in_memory(bag: Path) -> tuple[Identification, list[float], float, float]:
     return result, scale.tolist(), crest, sine
 
 
-def test_a_bag_streamed_in_pieces_agrees_with_the_run_in_memory_within_the_stated_tolerance(
-    bag: Path, tmp_path: Path
-) -> None:
+def _assert_within_the_stated_tolerance(bag: Path, spool: Path) -> StreamedRun:
     """The bound of docs/IDENTIFICATION.md ("Streaming"): per filtered value delta = piece tolerance x crest
     factor relative to its column's norm; least squares (Golub and Van Loan, thm. 5.3.1) with the weights'
     own perturbation: rho = delta sqrt(11) (2 kappa / cos t + tan t kappa^2) + 2 delta kappa."""
     memory, scale, crest, sine = _in_memory(bag)
-    run = _streamed(bag, tmp_path / "spool")
+    run = _streamed(bag, spool)
     assert sum(1 for _ in run.layout.rows()) >= 5  # the run was cut into pieces
     streamed = estimate([run.sums], settings=BOOTSTRAP)
-    assert streamed.rows == memory.rows and run.warnings == tuple(
-        prepare_run(str(bag), *_arrays(bag)).warnings
-    )
+    assert streamed.rows == memory.rows
+    assert run.warnings == prepare_run(str(bag), *_arrays(bag)).warnings
     delta = run.layout.filters.piece_tolerance * crest
     cosine, tangent = math.sqrt(1.0 - sine**2), sine / math.sqrt(1.0 - sine**2)
 
@@ -136,6 +134,43 @@ def test_a_bag_streamed_in_pieces_agrees_with_the_run_in_memory_within_the_state
     factor = math.sqrt(BOOTSTRAP.bootstrap / (BOOTSTRAP.bootstrap - 1))
     assert np.all(np.abs(streamed.standard_error - memory.standard_error) <= factor * per_parameter)
     assert np.all(np.abs(streamed.interval - memory.interval) <= per_parameter[:, None])
+    return run
+
+
+def test_a_bag_streamed_in_pieces_agrees_with_the_run_in_memory_within_the_stated_tolerance(
+    bag: Path, tmp_path: Path
+) -> None:
+    _assert_within_the_stated_tolerance(bag, tmp_path / "spool")
+
+
+def test_a_gap_saturation_and_a_stop_are_found_in_pieces_as_in_memory(
+    excitation: Trajectory, tmp_path: Path
+) -> None:
+    """Beta held at its largest position for 0.5 s (that step repeated), alpha's applied torque at its peak
+    for 0.1 s, then 50 steps missing (two stretches)."""
+    n = excitation.t_ns.size
+    top = int(np.argmax(excitation.measured_position[:, 1]))
+    assert 1000 < top < n - 1000
+    order = np.r_[np.arange(top), np.full(500, top), np.arange(top, n)]
+    keep = np.ones(order.size, dtype=bool)
+    keep[3000:3050] = False
+    order = order[keep]
+    period = round(excitation.control_period * 1e9)
+    fields = {
+        name: value[order]
+        for name, value in vars(excitation).items()
+        if isinstance(value, np.ndarray) and value.shape[:1] == (n,)
+    }
+    fields["t_ns"] = excitation.t_ns[0] + period * np.flatnonzero(keep)
+    fields["applied_torque"][4000:4100, 0] = np.abs(excitation.applied_torque[:, 0]).max()
+    internals = {name: values[order] for name, values in excitation.internals.items()}
+    edited = dataclasses.replace(excitation, **fields, internals=internals)
+    path = tmp_path / "edited"
+    write_trajectory_bag(edited, path, internals=False)
+    run = _assert_within_the_stated_tolerance(path, tmp_path / "spool")
+    assert len(run.layout.stretches) == 2
+    assert any("saturated" in warning for warning in run.warnings)
+    assert any("stop" in warning for warning in run.warnings)
 
 
 def _arrays(bag: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -248,7 +248,7 @@ def read_run(
     layout = _Layout(spool, filters, scan.first_ns, tuple(itertools.pairwise(bounds)), exclusions, piece)
     # Pass 3: the rows, into the sums.
     sums = RunSums(name, block)
-    rest = usable = 0
+    rest = usable = done = 0
     for opening, closing, rows, resting in layout.rows():
         if opening:
             sums.start_stretch(float(rows.time[0]))
@@ -257,7 +257,8 @@ def read_run(
             sums.end_stretch()
         rest += resting
         usable += int(rows.use.any(axis=1).sum())
-        report(2 * steps + int(rows.time.size))
+        done += int(rows.time.size)
+        report(2 * steps + done)
     warnings = exclusions.warnings(name, rest, usable, filters)
     report(3 * steps)
     return StreamedRun(
