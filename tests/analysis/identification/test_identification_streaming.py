@@ -25,6 +25,7 @@ from smm_analysis.identification import (
 )
 from smm_analysis.identification.estimate import estimate
 from smm_analysis.identification.exclusions import Plateaus
+from smm_analysis.identification.filtering import filters_for, stretch_rows
 from smm_analysis.identification.streaming import StreamedRun, _Scan, read_run
 from smm_analysis.identification.truth import draw_plant, simulate_excitation
 from smm_analysis.runs.from_trajectory import write_trajectory_bag
@@ -177,6 +178,35 @@ def _arrays(bag: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     run = load_run(bag)
     assert run.applied_torque is not None
     return run.t_ns, run.measured_position, run.applied_torque
+
+
+def test_rows_of_pieces_are_the_whole_stretchs_within_the_piece_tolerance(bag: Path) -> None:
+    """Each filtered series of every piece within Filters.piece_tolerance of its largest |value|."""
+    t_ns, q, tau = _arrays(bag)
+    time = (t_ns - t_ns[0]) / 1e9
+    filters = filters_for("run", FilterSettings(), 1e6, time.size, time[-1], gravity=9.81, gravity_sign=1.0)
+    n, overlap = time.size, filters.overlap
+    excluded = np.zeros((n - 1, 2), dtype=bool)
+    whole, _ = stretch_rows(filters, time, q, tau, offset=0, length=n, rows=(0, n - 1), excluded=excluded)
+    for first in range(0, n - 1, 1000):
+        stop = min(first + 1000, n - 1)
+        low, high = max(first - overlap, 0), min(stop + 1 + overlap, n)
+        piece, _ = stretch_rows(
+            filters,
+            time[low:high],
+            q[low:high],
+            tau[low:high],
+            offset=low,
+            length=n,
+            rows=(first, stop),
+            excluded=excluded[first:stop],
+        )
+        assert np.array_equal(piece.time, whole.time[first:stop])
+        assert np.array_equal(piece.use, whole.use[first:stop])
+        for name in ("position", "velocity", "acceleration", "torque", "columns"):
+            mine, theirs = getattr(piece, name), getattr(whole, name)
+            largest = np.abs(theirs).max(axis=0)
+            assert np.all(np.abs(mine - theirs[first:stop]) <= filters.piece_tolerance * largest), name
 
 
 def test_one_piece_is_the_run_in_memory_exactly(bag: Path, tmp_path: Path) -> None:
