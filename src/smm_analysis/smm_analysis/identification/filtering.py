@@ -147,10 +147,12 @@ class Filters:
     Attributes:
         settings: The filter settings.
         period_ns: Control period, the median stamp interval (ns).
-        b: Butterworth numerator. a: Its denominator.
+        b: Butterworth numerator.
+        a: Butterworth denominator.
         window: Savitzky-Golay window (samples, odd).
         edge: Samples left out at each end of a stretch.
-        gravity: g of the regressor (m/s^2). gravity_sign: Its sign.
+        gravity: g of the regressor (m/s^2).
+        gravity_sign: Its sign, as ``SMMParameters.gravity_sign``.
     """
 
     settings: FilterSettings
@@ -205,11 +207,12 @@ class Filters:
 
         Each of the two runs of the forward and the backward pass rounds differently once started from
         different states: u * sum|a| * sum|g| per pass (g: impulse response of 1/A(z), the rounding's path
-        to the output), four such, plus twice the transient left at the cut (docs/IDENTIFICATION.md).
+        to the output), four such, plus each pass's transient at the cut, at most TRANSIENT times an input
+        difference of twice the range (docs/IDENTIFICATION.md).
         """
         unit = float(np.finfo(np.float64).eps) / 2.0
         noise_gain = float(np.abs(_impulse_response(np.ones(1), self.a)).sum())
-        return 4.0 * unit * float(np.abs(self.a).sum()) * noise_gain + 2.0 * TRANSIENT
+        return 4.0 * unit * float(np.abs(self.a).sum()) * noise_gain + 4.0 * TRANSIENT
 
 
 TRANSIENT = 1e-16
