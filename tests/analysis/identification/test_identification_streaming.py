@@ -332,3 +332,11 @@ def test_the_median_interval_is_numpys_median_of_them_all(intervals: list[int], 
         part = stamps[begin : begin + cut]
         scan.add(part, np.zeros((part.size, 2)))
     assert scan.median_interval() == float(np.median(np.diff(stamps)))
+
+
+def test_progress_is_reported_unless_quiet(bag: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["identify", str(bag), "--bootstrap", "20"]) == 0
+    err = capsys.readouterr().err
+    assert "reading excite" in err and f"preparing {bag}" in err and "estimating" in err
+    assert main(["identify", str(bag), "--bootstrap", "20", "--quiet"]) == 0
+    assert all(line.startswith("warning: ") for line in capsys.readouterr().err.splitlines())
