@@ -1,12 +1,12 @@
-"""Long bags: time and peak RSS of ``smm-bag analyze`` and ``smm-bag rerun`` on 1 kHz case-2 bags.
+"""Long bags: time and peak RSS of ``smm-bag analyze``, ``rerun`` and ``identify`` on 1 kHz bags.
 
 Run by ``make bench``. For each length in ``--minutes`` (default 1 and 60) a case-2 FPDESO run of the
 offline loop (one minute, repeated back to back for longer bags) is written as a bag into a temporary
-directory (its own process, not measured); then ``smm-bag analyze BAG --out DIR`` and ``smm-bag rerun BAG
---out DIR`` (the chain streamed over the bag, ``rerun.csv`` written) each run as their own process, and
-their wall time, CPU time and peak RSS (``ru_maxrss`` of that process alone, from ``os.wait4``) are
-printed, with the ratios of issue 33's acceptance: the longest run's peak RSS against the shortest's
-(target <= 1.2x) and its time against the shortest's (target <= the length ratio).
+directory (its own process, not measured), and for ``identify`` an ``excite`` run (its 11 s repeated to the
+length); then ``smm-bag analyze``, ``rerun`` (``rerun.csv`` written) and ``identify``, each ``BAG --out
+DIR`` and as its own process, and their wall time, CPU time and peak RSS (``ru_maxrss`` of that process
+alone, from ``os.wait4``) are printed, with the ratios of issue 33's acceptance: the longest run's peak RSS
+against the shortest's (target <= 1.2x) and its time against the shortest's (target <= the length ratio).
 Figures only; nothing asserts.
 """
 
@@ -27,10 +27,14 @@ from pathlib import Path
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.runs.from_trajectory import write_trajectory_bag
 from smm_analysis.scenarios import get_scenario
-minutes, block, path = float(sys.argv[1]), float(sys.argv[2]), Path(sys.argv[3])
-piece = min(minutes, block)
-repeat = max(1, round(minutes / piece))
-trajectory = run_closed_loop(get_scenario("case2").with_duration(60.0 * piece), "fpdeso", seed=0)
+minutes, block, path, scenario = float(sys.argv[1]), float(sys.argv[2]), Path(sys.argv[3]), sys.argv[4]
+if scenario == "excite":  # the excitation's own length, repeated
+    trajectory = run_closed_loop(get_scenario("excite"), "fpdeso", seed=0)
+    repeat = max(1, round(60.0 * minutes / (trajectory.t_ns.size * trajectory.control_period)))
+else:
+    piece = min(minutes, block)
+    repeat = max(1, round(minutes / piece))
+    trajectory = run_closed_loop(get_scenario(scenario).with_duration(60.0 * piece), "fpdeso", seed=0)
 metadata = write_trajectory_bag(trajectory, path, repeat=repeat)
 print(metadata.message_count)
 """
@@ -55,10 +59,14 @@ def measured(command: list[str]) -> tuple[int, float, float, float]:
     return process.returncode, wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
 
 
-def generate(minutes: float, bag: Path) -> int:
-    """Writes a ``minutes``-long case-2 bag (offline loop); returns its message count."""
+SCENARIO_OF = {"analyze": "case2", "rerun": "case2", "identify": "excite"}
+"""The run each command is measured on."""
+
+
+def generate(minutes: float, bag: Path, scenario: str) -> int:
+    """Writes a ``minutes``-long bag of ``scenario`` (offline loop); returns its message count."""
     result = subprocess.run(
-        [sys.executable, "-c", _GENERATE, str(minutes), str(_BLOCK_MINUTES), str(bag)],
+        [sys.executable, "-c", _GENERATE, str(minutes), str(_BLOCK_MINUTES), str(bag), scenario],
         check=True,
         capture_output=True,
         text=True,
@@ -69,7 +77,9 @@ def generate(minutes: float, bag: Path) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", default="1,60", help="comma-separated bag lengths (min), default 1,60")
-    parser.add_argument("--commands", default="analyze,rerun", help="which of analyze,rerun to measure")
+    parser.add_argument(
+        "--commands", default="analyze,rerun,identify", help="which of analyze,rerun,identify to measure"
+    )
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     lengths = [float(value) for value in arguments.minutes.split(",")]
     commands = [name.strip() for name in arguments.commands.split(",") if name.strip()]
@@ -79,25 +89,27 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="bench_long_bag_") as directory:
         workdir = Path(directory)
         for minutes in lengths:
-            bag = workdir / f"case2_{minutes:g}min"
-            start = time.perf_counter()
-            count = generate(minutes, bag)
-            size = sum(p.stat().st_size for p in bag.iterdir()) / 2**20
-            print(
-                f"{minutes:g} min bag: {count:,} messages, {size:,.0f} MiB "
-                f"(generated in {time.perf_counter() - start:.0f} s)"
-            )
-            for name in commands:
-                out = workdir / f"out_{name}_{minutes:g}"
-                command = [sys.executable, "-m", "smm_bag.cli", name, str(bag), "--quiet", "--out", str(out)]
-                code, wall, cpu, rss = measured(command)
-                shutil.rmtree(out, ignore_errors=True)
-                failed |= code != 0
-                results[(name, minutes)] = (wall, cpu, rss)
-                print(f"  smm-bag {name}: wall {wall:7.1f} s, CPU {cpu:7.1f} s, peak RSS {rss:6.0f} MiB")
-            for path in bag.iterdir():
-                path.unlink()
-            bag.rmdir()
+            for scenario in dict.fromkeys(SCENARIO_OF[name] for name in commands):
+                bag = workdir / f"{scenario}_{minutes:g}min"
+                start = time.perf_counter()
+                count = generate(minutes, bag, scenario)
+                size = sum(p.stat().st_size for p in bag.iterdir()) / 2**20
+                print(
+                    f"{minutes:g} min {scenario} bag: {count:,} messages, {size:,.0f} MiB "
+                    f"(generated in {time.perf_counter() - start:.0f} s)"
+                )
+                for name in (name for name in commands if SCENARIO_OF[name] == scenario):
+                    out = workdir / f"out_{name}_{minutes:g}"
+                    command = [sys.executable, "-m", "smm_bag.cli", name, str(bag), "--quiet"]
+                    command += ["--out", str(out)]
+                    code, wall, cpu, rss = measured(command)
+                    shutil.rmtree(out, ignore_errors=True)
+                    failed |= code != 0
+                    results[(name, minutes)] = (wall, cpu, rss)
+                    print(f"  smm-bag {name}: wall {wall:7.1f} s, CPU {cpu:7.1f} s, peak RSS {rss:6.0f} MiB")
+                for path in bag.iterdir():
+                    path.unlink()
+                bag.rmdir()
     shortest, longest = min(lengths), max(lengths)
     if longest > shortest:
         for name in commands:

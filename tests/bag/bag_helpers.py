@@ -84,6 +84,31 @@ def parameter_event(k: int) -> bytes:
     )
 
 
+def gain_event(stamp_ns: int, node: str = "/smm/controller_node", name: str = "fpdeso.robust_gain") -> bytes:
+    """A ParameterEvent (CDR) changing ``name`` of ``node`` (a double array) at ``stamp_ns``."""
+    types = TYPESTORE.types
+    value = types["rcl_interfaces/msg/ParameterValue"](
+        type=8,
+        bool_value=False,
+        integer_value=0,
+        double_value=0.0,
+        string_value="",
+        byte_array_value=np.array([], dtype=np.uint8),
+        bool_array_value=np.array([], dtype=np.bool_),
+        integer_array_value=np.array([], dtype=np.int64),
+        double_array_value=np.array([1.0, 1.0]),
+        string_array_value=[],
+    )
+    event = types["rcl_interfaces/msg/ParameterEvent"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9),
+        node=node,
+        new_parameters=[],
+        changed_parameters=[types["rcl_interfaces/msg/Parameter"](name=name, value=value)],
+        deleted_parameters=[],
+    )
+    return bytes(TYPESTORE.serialize_cdr(event, "rcl_interfaces/msg/ParameterEvent"))
+
+
 TOPICS: dict[str, tuple[str, Any]] = {
     "/smm/joint_states": ("sensor_msgs/msg/JointState", joint_state),
     "/smm/torque_command": ("std_msgs/msg/Float64MultiArray", torque),

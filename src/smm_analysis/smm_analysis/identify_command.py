@@ -1,14 +1,16 @@
 """``smm-bag identify BAG [BAG...] [--validate BAG] [--out DIR]``: the plant's parameters from recorded runs.
 
 The command layer: :func:`add_identify_parser` adds the subcommand to a parser, :func:`identify_command`
-takes the parsed arguments and returns an exit code; the work is :mod:`smm_analysis.identification`.
-Writes ``model.yaml`` (``model.*`` of controller_node and fleso_node), ``REPORT.md`` and PNG figures.
+takes the parsed arguments and returns an exit code; the work is :mod:`smm_analysis.identification`, each
+run streamed in bounded memory (:mod:`smm_analysis.identification.streaming`). Writes ``model.yaml``
+(``model.*`` of controller_node and fleso_node), ``REPORT.md`` and PNG figures.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, TextIO
@@ -16,6 +18,7 @@ from typing import Any, TextIO
 import numpy as np
 from smm_bag.errors import BagError
 from smm_bag.exit_codes import EXIT_MISSING_TOPICS, EXIT_OK, EXIT_USAGE, fail
+from smm_bag.progress import Progress
 from smm_controller.excitation import ExcitationReference
 
 from smm_analysis.errors import IdentificationError, MissingSignalsError
@@ -25,17 +28,16 @@ from smm_analysis.identification import (
     EstimationSettings,
     FilterSettings,
     Identification,
-    PreparedRun,
     RunFit,
-    fit_of,
-    identify,
     parameter_vector,
-    prepare_run,
 )
+from smm_analysis.identification.estimate import estimate
 from smm_analysis.identification.excitation import excitation_quality
-from smm_analysis.identification.plots import write_identification_plots
+from smm_analysis.identification.plots import RunFigures, write_identification_plots
+from smm_analysis.identification.streaming import StreamedRun, draw_fit, read_run
 from smm_analysis.parameters_file import write_parameters_file
-from smm_analysis.runs.recorded import load_run
+from smm_analysis.runs.commands import streams_of
+from smm_analysis.runs.window import TimeWindow, add_window_options, window_from_options
 from smm_dynamics import SMMParameters
 
 __all__ = [
@@ -49,6 +51,11 @@ __all__ = [
 
 #: Nodes that read ``model.*`` (the controller's nominal model), as parameters-file keys.
 MODEL_NODES = ("/**/controller_node", "/**/fleso_node")
+_STREAMING_NOTE = (
+    "each run filtered in pieces with an overlap that leaves the low-pass's transient below one rounding, "
+    "its rows reduced to normal equations per bootstrap block as they come (docs/IDENTIFICATION.md, "
+    '"Streaming").'
+)
 _VALVE_NOTE = (
     "Applied torque: `joint_states` effort, the mean torque over the control interval before each stamp. "
     "On the simulator it is the torque that acted; through the bridge it is the bridge's valve model's "
@@ -70,6 +77,13 @@ def add_identify_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--cutoff", type=float, default=FilterSettings.cutoff, help="low-pass corner (Hz)")
     parser.add_argument("--bootstrap", type=int, default=EstimationSettings.bootstrap, help="replicates")
     parser.add_argument("--no-plots", action="store_true", help="with --out: no figures")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--segments",
+        action="store_true",
+        help="each experiment found in a bag (armed stretches, parameter changes) is a run of its own",
+    )
+    add_window_options(parser)
     return parser
 
 
@@ -122,25 +136,6 @@ def _excitation_lines(reference: ExcitationReference | None) -> list[str]:
     ]
 
 
-def _prepare_bag(bag: Path, run: Any, settings: FilterSettings, base: SMMParameters) -> PreparedRun:
-    """A loaded ``smm_analysis.runs.recorded.RecordedRun`` prepared for identification."""
-    if run.applied_torque is None:
-        raise MissingSignalsError(
-            f"{bag}: joint_states carries no effort (the applied torque): identification needs it; "
-            "record with a plant that reports it (the simulator and the bridge do)"
-        )
-    return prepare_run(
-        str(bag),
-        run.t_ns,
-        run.measured_position,
-        run.applied_torque,
-        settings,
-        gravity=base.gravity,
-        gravity_sign=base.gravity_sign,
-        command=run.command_torque,
-    )
-
-
 def model_sections(params: SMMParameters) -> dict[str, dict[str, object]]:
     """``model.*`` of every node reading the model, for :func:`write_parameters_file`."""
     values: dict[str, object] = {
@@ -181,7 +176,7 @@ def _fit_rows(label: str, fits: Sequence[RunFit]) -> list[str]:
 
 def render_identification(
     result: Identification,
-    runs: Sequence[PreparedRun],
+    runs: Sequence[StreamedRun],
     validation: Sequence[RunFit],
     figures: Sequence[Path] = (),
     excitation: ExcitationReference | None = None,
@@ -191,6 +186,8 @@ def render_identification(
         "# Identification report",
         "",
         f"Runs: {', '.join(run.name for run in runs)}. {result.rows} joint rows used.",
+        "",
+        f"Read in bounded memory: {_STREAMING_NOTE}",
         "",
         f"Filtering: {runs[0].settings.describe()}.",
         "",
@@ -236,6 +233,45 @@ def add_identify(subparsers: Any) -> None:
     add_identify_parser(subparsers).set_defaults(handler=identify_command)
 
 
+def _read_runs(
+    args: argparse.Namespace,
+    *,
+    window: TimeWindow,
+    settings: FilterSettings,
+    block: float,
+    directory: Path,
+    err: TextIO,
+) -> tuple[list[StreamedRun], list[StreamedRun], SMMParameters, ExcitationReference | None]:
+    """The identification and validation runs of the bags (their windows or segments), streamed."""
+    runs: dict[str, list[StreamedRun]] = {"identification": [], "validation": []}
+    base: SMMParameters | None = None
+    excitation: ExcitationReference | None = None
+    bags = [*((bag, "identification") for bag in args.bags), *((bag, "validation") for bag in args.validate)]
+    for bag, role in bags:
+        streams = streams_of(bag, window=window, segments=args.segments, quiet=args.quiet, err=err)
+        for stream, label in streams:
+            if base is None:
+                base = _base_model(stream.manifest.parameters)
+                excitation = recorded_excitation(stream.manifest.parameters)
+            name = str(bag) if label is None else f"{bag} {label}"
+            if not window.whole:
+                name += f" [{window.describe()}]"
+            runs[role].append(
+                read_run(
+                    name,
+                    stream,
+                    directory / f"{len(runs['identification']) + len(runs['validation'])}.spool",
+                    settings,
+                    gravity=base.gravity,
+                    gravity_sign=base.gravity_sign,
+                    block=block,
+                    progress=Progress(f"preparing {name}", 1, err, enabled=not args.quiet),
+                )
+            )
+    assert base is not None
+    return runs["identification"], runs["validation"], base, excitation
+
+
 def identify_command(
     args: argparse.Namespace, stdout: TextIO | None = None, stderr: TextIO | None = None
 ) -> int:
@@ -244,56 +280,74 @@ def identify_command(
     try:
         settings = FilterSettings(cutoff=args.cutoff)
         estimation = EstimationSettings(bootstrap=args.bootstrap)
+        window = window_from_options(args)
     except ValueError as error:
         err.write(f"smm-bag: error: {error}\n")
         return EXIT_USAGE
-    try:
-        runs: list[PreparedRun] = []
-        validation_runs: list[PreparedRun] = []
-        base: SMMParameters | None = None
-        excitation: ExcitationReference | None = None
-        for bag, role in [
-            *((bag, runs) for bag in args.bags),
-            *((bag, validation_runs) for bag in args.validate),
-        ]:
-            err.write(f"reading {bag}\n")
-            recorded = load_run(bag)
-            if base is None:
-                base = _base_model(recorded.manifest.parameters)
-                excitation = recorded_excitation(recorded.manifest.parameters)
-            role.append(_prepare_bag(bag, recorded, settings, base))
-        err.write(f"estimating ({estimation.bootstrap} bootstrap replicates)\n")
-        result = identify(runs, base, estimation)
-    except BagError as error:
-        return fail(error, err)
-    except MissingSignalsError as error:
-        err.write(f"smm-bag: error: {error}\n")
-        return EXIT_MISSING_TOPICS
-    except IdentificationError as error:
-        err.write(f"smm-bag: error: {error}\n")
+    if args.segments and not window.whole:
+        err.write("smm-bag: error: --segments finds its own windows: give it without --start / --end\n")
         return EXIT_USAGE
-    validation = [fit_of(run, result.params) for run in validation_runs]
-    for run in [*runs, *validation_runs]:
-        for warning in run.warnings:
-            err.write(f"warning: {warning}\n")
-    figures: list[Path] = []
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        if not args.no_plots:
-            figures = write_identification_plots(
-                runs, list(result.fits), list(zip(validation_runs, validation, strict=True)), args.out
+    with tempfile.TemporaryDirectory(prefix="smm-identify-") as directory:
+        try:
+            runs, validation_runs, base, excitation = _read_runs(
+                args,
+                window=window,
+                settings=settings,
+                block=estimation.block,
+                directory=Path(directory),
+                err=err,
             )
-        model = write_parameters_file(
-            args.out / "model.yaml",
-            model_sections(result.params),
-            comment=f"Identified by smm-bag identify from {', '.join(str(bag) for bag in args.bags)}.\n"
-            "Use with --params-file (controller_node, fleso_node); see REPORT.md.",
-        )
-        report = args.out / "REPORT.md"
-        report.write_text(
-            render_identification(result, runs, validation, figures, excitation), encoding="utf-8"
-        )
-        err.write(f"wrote {model}, {report} and {len(figures)} figures\n")
+            if not args.quiet:
+                err.write(f"estimating ({estimation.bootstrap} bootstrap replicates)\n")
+            result = estimate([run.sums for run in runs], base, estimation)
+        except BagError as error:
+            return fail(error, err)
+        except MissingSignalsError as error:
+            err.write(f"smm-bag: error: {error}\n")
+            return EXIT_MISSING_TOPICS
+        except IdentificationError as error:
+            err.write(f"smm-bag: error: {error}\n")
+            return EXIT_USAGE
+        validation = [RunFit(run.name, run.sums.nrmse(result.theta)) for run in validation_runs]
+        for run in [*runs, *validation_runs]:
+            for warning in run.warnings:
+                err.write(f"warning: {warning}\n")
+        figures: list[Path] = []
+        if args.out is not None:
+            args.out.mkdir(parents=True, exist_ok=True)
+            if not args.no_plots:
+                figures = write_identification_plots(
+                    [
+                        RunFigures(
+                            role,
+                            run.name,
+                            fit.nrmse,
+                            draw_fit(
+                                run,
+                                result.theta,
+                                Progress(f"drawing {run.name}", 1, err, enabled=not args.quiet),
+                            ),
+                            run.excitation,
+                        )
+                        for role, group, fits in (
+                            ("identification", runs, result.fits),
+                            ("validation", validation_runs, validation),
+                        )
+                        for run, fit in zip(group, fits, strict=True)
+                    ],
+                    args.out,
+                )
+            model = write_parameters_file(
+                args.out / "model.yaml",
+                model_sections(result.params),
+                comment=f"Identified by smm-bag identify from {', '.join(run.name for run in runs)}.\n"
+                "Use with --params-file (controller_node, fleso_node); see REPORT.md.",
+            )
+            report = args.out / "REPORT.md"
+            report.write_text(
+                render_identification(result, runs, validation, figures, excitation), encoding="utf-8"
+            )
+            err.write(f"wrote {model}, {report} and {len(figures)} figures\n")
     out.write("\n".join(_estimate_lines(result)) + "\n")
     out.write(
         f"rank {result.rank} of {len(PARAMETER_NAMES)}, condition number {result.condition_number:.3g}\n"

@@ -6,9 +6,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
-from bag.bag_helpers import TYPESTORE
+from bag.bag_helpers import gain_event
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.runs.from_trajectory import write_trajectory_bag
 from smm_analysis.runs.indices import evaluate_stream
@@ -22,30 +21,6 @@ from smm_controller import FPDESOConfig
 from smm_dynamics import SMMParameters
 
 S = 1_000_000_000
-
-
-def _gain_event(stamp_ns: int, node: str = "/smm/controller_node", name: str = "fpdeso.robust_gain") -> bytes:
-    types = TYPESTORE.types
-    value = types["rcl_interfaces/msg/ParameterValue"](
-        type=8,
-        bool_value=False,
-        integer_value=0,
-        double_value=0.0,
-        string_value="",
-        byte_array_value=np.array([], dtype=np.uint8),
-        bool_array_value=np.array([], dtype=np.bool_),
-        integer_array_value=np.array([], dtype=np.int64),
-        double_array_value=np.array([1.0, 1.0]),
-        string_array_value=[],
-    )
-    event = types["rcl_interfaces/msg/ParameterEvent"](
-        stamp=types["builtin_interfaces/msg/Time"](sec=stamp_ns // S, nanosec=stamp_ns % S),
-        node=node,
-        new_parameters=[],
-        changed_parameters=[types["rcl_interfaces/msg/Parameter"](name=name, value=value)],
-        deleted_parameters=[],
-    )
-    return bytes(TYPESTORE.serialize_cdr(event, "rcl_interfaces/msg/ParameterEvent"))
 
 
 @pytest.fixture(scope="module")
@@ -66,9 +41,9 @@ def three_experiments(tmp_path_factory: pytest.TempPathFactory) -> Path:
         bag,
         then=(retuned, second),
         parameter_events=[
-            (0, _gain_event(0, name="use_sim_time")),  # ignored: not a gain
-            (change, _gain_event(change)),
-            (scenario, _gain_event(scenario, node="/smm/reference_node", name="scenario")),
+            (0, gain_event(0, name="use_sim_time")),  # ignored: not a gain
+            (change, gain_event(change)),
+            (scenario, gain_event(scenario, node="/smm/reference_node", name="scenario")),
         ],
     )
     return bag

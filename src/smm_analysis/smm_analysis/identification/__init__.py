@@ -1,7 +1,8 @@
 """Identification of the SMM's parameters from recorded runs (docs/IDENTIFICATION.md)."""
 
-from smm_analysis.identification.data import FilterSettings, PreparedRun, Segment, prepare_run
+from smm_analysis.identification.data import PreparedRun, prepare_run
 from smm_analysis.identification.estimate import EstimationSettings, Identification, RunFit, fit_of, identify
+from smm_analysis.identification.filtering import FilterSettings, Segment
 from smm_analysis.identification.regressor import (
     PARAMETER_NAMES,
     PARAMETER_UNITS,

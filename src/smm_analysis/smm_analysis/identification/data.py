@@ -1,111 +1,32 @@
-"""Identification data from a run: positions and applied torques, filtered zero-phase, differentiated.
+"""Identification data from a run held in memory: filtered zero-phase, differentiated, rows picked.
 
 Filtering, row selection and their settings: docs/IDENTIFICATION.md, "How the data are prepared".
 """
 
 from __future__ import annotations
 
-import itertools
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import butter, filtfilt, savgol_filter
 
 from smm_analysis.errors import IdentificationInputError, NotEnoughDataError, SaturatedRunError, StopsRunError
-from smm_analysis.identification.regressor import regressor
+from smm_analysis.identification.exclusions import Intervals, Saturation, Stops, flagged_count, flags_of
+from smm_analysis.identification.filtering import (
+    Filters,
+    FilterSettings,
+    Segment,
+    filters_for,
+    smoothed,
+    stretch_rows,
+    stretches,
+)
 
-__all__ = ["FilterSettings", "PreparedRun", "Segment", "prepare_run"]
+__all__ = ["Exclusions", "FilterSettings", "PreparedRun", "Segment", "prepare_run"]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 _NS_PER_S = 1e9
-# A stretch at the torque's largest magnitude counts from this length (s).
-_PLATEAU_MIN_DURATION = 0.05
-# A joint at a stop: within this fraction of its range from an extreme, |q'| below _STOP_VELOCITY, this long.
-_STOP_BAND = 0.01
-_STOP_VELOCITY = 0.02
-_STOP_MIN_DURATION = 0.2
-
-
-@dataclass(frozen=True)
-class FilterSettings:
-    """How a run is filtered and which samples are used (reported with every estimate).
-
-    Attributes:
-        cutoff: Corner frequency of the zero-phase Butterworth low-pass (Hz), > 0, below Nyquist.
-        order: Order of the Butterworth filter (applied twice by filtfilt), integer >= 1.
-        savgol_window: Length of the Savitzky-Golay derivative window (s), > 0.
-        savgol_order: Polynomial order of the Savitzky-Golay window, integer >= 2.
-        edge: Time left out at both ends of every stretch (filter transients) (s), >= 0.
-        rest_velocity: A joint's row is left out while its filtered |q'| is below this (rad/s), >= 0.
-        rest_guard: ... and within this time of such a row (turning round, at rest) (s), >= 0.
-        min_duration: Least usable time over all stretches (s), > 0.
-        max_excluded: Largest fraction of rows saturation or the stops may take before the run is refused,
-            in (0, 1].
-    """
-
-    cutoff: float = 4.0
-    order: int = 4
-    savgol_window: float = 0.101
-    savgol_order: int = 4
-    edge: float = 0.3
-    rest_velocity: float = 0.02
-    rest_guard: float = 0.25
-    min_duration: float = 2.0
-    max_excluded: float = 0.2
-
-    def __post_init__(self) -> None:
-        for name in ("cutoff", "savgol_window", "min_duration"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-        for name in ("edge", "rest_velocity", "rest_guard"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        for name, least in (("order", 1), ("savgol_order", 2)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < least:
-                raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
-        if not 0.0 < self.max_excluded <= 1.0:
-            raise ValueError(f"max_excluded must be in (0, 1], got {self.max_excluded!r}")
-
-    def describe(self) -> str:
-        """One line for reports."""
-        return " ".join(
-            (
-                f"Savitzky-Golay states (scipy.signal.savgol_filter), window {self.savgol_window:g} s,",
-                f"order {self.savgol_order}; zero-phase Butterworth low-pass (scipy.signal.filtfilt),",
-                f"order {self.order}, cutoff {self.cutoff:g} Hz, on the regressor and the torques alike;",
-                f"{self.edge:g} s left out at each end of a stretch; a joint's rows left out below",
-                f"|q'| = {self.rest_velocity:g} rad/s and {self.rest_guard:g} s around",
-            )
-        )
-
-
-@dataclass(frozen=True)
-class Segment:
-    """One contiguous stretch, at the midpoints of its control intervals.
-
-    Attributes:
-        time: Midpoint times since the run's first stamp (s), shape (n,).
-        position: Filtered q (rad), shape (n, 2).
-        velocity: q' (rad/s), shape (n, 2).
-        acceleration: q'' (rad/s^2), shape (n, 2).
-        torque: Filtered applied torque (N m), shape (n, 2).
-        columns: Filtered regressor Y (N m per parameter unit), shape (n, 2, 11).
-        use: Which joint rows enter the estimate, shape (n, 2).
-    """
-
-    time: FloatArray
-    position: FloatArray
-    velocity: FloatArray
-    acceleration: FloatArray
-    torque: FloatArray
-    columns: FloatArray
-    use: BoolArray
 
 
 @dataclass(frozen=True)
@@ -118,9 +39,6 @@ class PreparedRun:
         settings: The filter settings applied.
         sample_period: Control period (s).
         warnings: What was left out and why, one line each.
-        raw_time: Stamps since the first (s), shape (N,), for plots.
-        raw_position: Measured positions (rad), shape (N, 2), for plots.
-        raw_torque: Applied torques (N m), shape (N, 2), for plots.
     """
 
     name: str
@@ -128,9 +46,6 @@ class PreparedRun:
     settings: FilterSettings
     sample_period: float
     warnings: tuple[str, ...] = ()
-    raw_time: FloatArray = field(default_factory=lambda: np.zeros(0))
-    raw_position: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
-    raw_torque: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
     def used_rows(self) -> int:
@@ -148,76 +63,6 @@ def _as_series(name: str, value: ArrayLike, length: int | None) -> FloatArray:
     return array
 
 
-def _plateaus(
-    values: FloatArray, level: float, min_samples: int, tolerance: float, *, inner_only: bool = False
-) -> BoolArray:
-    """Samples in runs of >= min_samples consecutive samples with |values - level| <= tolerance.
-
-    ``inner_only``: runs touching the first or the last sample are not counted (rest before or after).
-    """
-    near = np.abs(values - level) <= tolerance
-    flagged = np.zeros_like(near)
-    start = None
-    for index, value in enumerate([*near.tolist(), False]):
-        if value and start is None:
-            start = index
-        elif not value and start is not None:
-            touches_end = start == 0 or index == near.size
-            if index - start >= min_samples and not (inner_only and touches_end):
-                flagged[start:index] = True
-            start = None
-    return flagged
-
-
-def _guarded_rest(slow: BoolArray, period: float, guard_time: float) -> BoolArray:
-    """Rows at rest or within ``guard_time`` of a row at rest, per joint.
-
-    At rest and while a joint turns round, the friction is not f_c sign(q') of the filtered q' (the joint
-    sticks for a few ms; a plant whose Coulomb term has sign(0) = 0 chatters there), and the low-pass spreads
-    that over about 1/cutoff around it.
-    """
-    guard = round(guard_time / period)
-    result = slow.copy()
-    if guard == 0:
-        return result
-    for joint in (0, 1):
-        if slow[:, joint].any():
-            counts = np.convolve(slow[:, joint].astype(np.float64), np.ones(2 * guard + 1), mode="same")
-            result[:, joint] |= counts > 0.5
-    return result
-
-
-def _at_stops(q: FloatArray, period: float, window: int, order: int) -> BoolArray:
-    """Samples where a joint is held at an extreme of its range (a stop) for _STOP_MIN_DURATION or more.
-
-    A hold at the start or the end of the run is the rest before or after the motion, not a stop.
-    """
-    # Savitzky-Golay, not the Butterworth: the low-pass rings at the corner a stop makes.
-    smooth = savgol_filter(q, window, order, axis=0)
-    velocity = savgol_filter(q, window, order, deriv=1, delta=period, axis=0)
-    stopped = np.zeros_like(q, dtype=bool)
-    min_samples = max(round(_STOP_MIN_DURATION / period), 2)
-    for joint in (0, 1):
-        low, high = float(smooth[:, joint].min()), float(smooth[:, joint].max())
-        band = _STOP_BAND * max(high - low, 1e-9)
-        slow = np.abs(velocity[:, joint]) < _STOP_VELOCITY
-        for extreme in (low, high):
-            held = slow & (np.abs(smooth[:, joint] - extreme) <= band)
-            stopped[:, joint] |= _plateaus(held.astype(np.float64), 1.0, min_samples, 0.0, inner_only=True)
-    return stopped
-
-
-def _stretches(t_ns: NDArray[np.int64], period_ns: float) -> list[slice]:
-    breaks = np.flatnonzero(np.diff(t_ns) > 1.5 * period_ns) + 1
-    bounds = [0, *breaks.tolist(), t_ns.size]
-    return [slice(begin, end) for begin, end in itertools.pairwise(bounds)]
-
-
-def _odd_window(seconds: float, period: float, order: int) -> int:
-    window = max(round(seconds / period), order + 2)
-    return window if window % 2 == 1 else window + 1
-
-
 def prepare_run(
     name: str,
     t_ns: ArrayLike,
@@ -229,7 +74,9 @@ def prepare_run(
     gravity_sign: float = 1.0,
     command: ArrayLike | None = None,
 ) -> PreparedRun:
-    """Filters and differentiates one run and picks its usable rows.
+    """Filters and differentiates one run held in memory and picks its usable rows.
+
+    ``smm-bag identify`` streams instead (:mod:`smm_analysis.identification.streaming`, the same steps).
 
     Args:
         name: Label for reports (the bag folder).
@@ -261,109 +108,108 @@ def prepare_run(
         raise IdentificationInputError("t_ns must be strictly increasing")
     q = _as_series("position", position, stamps.size)
     tau = _as_series("torque", torque, stamps.size)
-    period_ns = float(np.median(np.diff(stamps)))
-    period = period_ns / _NS_PER_S
-    if not settings.cutoff < 0.5 / period:
-        raise IdentificationInputError(
-            f"cutoff {settings.cutoff:g} Hz is not below the Nyquist frequency {0.5 / period:g} Hz"
-        )
+    commanded = None if command is None else _as_series("command", command, stamps.size)
     time = (stamps - stamps[0]).astype(np.float64) / _NS_PER_S
-    b, a = butter(settings.order, settings.cutoff, fs=1.0 / period)
-    window = _odd_window(settings.savgol_window, period, settings.savgol_order)
-    min_plateau = max(round(_PLATEAU_MIN_DURATION / period), 2)
-    padding = 3 * max(len(a), len(b))
-    if stamps.size <= max(padding, window) + 2 * round(settings.edge / period):
-        raise NotEnoughDataError(
-            f"{name}: {stamps.size} control steps ({time[-1]:.3g} s), too short to filter and identify "
-            f"(at least {settings.min_duration:g} s of motion needed)"
-        )
-    edge = round(settings.edge / period)
-    # Saturation: a torque clipped by a limit sits exactly at its largest magnitude.
-    saturated = np.zeros_like(tau, dtype=bool)
-    for joint in (0, 1):
-        magnitude = np.abs(tau[:, joint])
-        peak = float(magnitude.max())
-        if np.ptp(tau[:, joint]) <= 1e-9 * max(peak, 1e-12):
-            continue  # a constant torque (a joint not driven) is not a clipped one; the rank check names it
-        saturated[:, joint] = _plateaus(magnitude, peak, min_plateau, 1e-9 * max(peak, 1e-12))
-    if command is not None:
-        commanded = np.abs(_as_series("command", command, stamps.size))
-        beyond = (commanded > 1.01 * np.abs(tau).max(axis=0)).astype(np.float64)
-        for joint in (0, 1):
-            saturated[:, joint] |= _plateaus(beyond[:, joint], 1.0, min_plateau, 0.0)
-    stopped = _at_stops(q, period, window, settings.savgol_order)
-    segments: list[Segment] = []
-    counts = {"edges": 0, "rest": 0}
-    for stretch in _stretches(stamps, period_ns):
-        n = stretch.stop - stretch.start
-        if n <= max(2 * edge + window, padding + 1):
-            counts["edges"] += n
-            continue
-        # Savitzky-Golay states (their passband is far above the cutoff), then one low-pass on both sides.
-        q_s, qd, qdd = (
-            savgol_filter(q[stretch], window, settings.savgol_order, deriv=deriv, delta=period, axis=0)
-            for deriv in (0, 1, 2)
-        )
-        columns = filtfilt(b, a, regressor(q_s, qd, qdd, gravity=gravity, gravity_sign=gravity_sign), axis=0)
-        tau_f = filtfilt(b, a, tau[stretch], axis=0)
-        q_f = filtfilt(b, a, q_s, axis=0)
-        qd = filtfilt(b, a, qd, axis=0)
-        qdd = filtfilt(b, a, qdd, axis=0)
-        # Interval k runs from stamp k-1 to stamp k: states at its midpoint, torque recorded at stamp k.
-        mid = (slice(0, n - 1), slice(1, n))
-        keep = np.ones((n - 1, 2), dtype=bool)
-        keep[: max(edge - 1, 0)] = False
-        keep[n - 1 - edge :] = False
-        counts["edges"] += int((~keep).sum()) // 2 + 1
-        velocity = 0.5 * (qd[mid[0]] + qd[mid[1]])
-        resting = _guarded_rest(np.abs(velocity) < settings.rest_velocity, period, settings.rest_guard)
-        counts["rest"] += int((resting & keep).sum())
-        excluded = saturated[stretch][1:] | stopped[stretch][1:]
-        segments.append(
-            Segment(
-                time=0.5 * (time[stretch][:-1] + time[stretch][1:]),
-                position=0.5 * (q_f[mid[0]] + q_f[mid[1]]),
-                velocity=velocity,
-                acceleration=0.5 * (qdd[mid[0]] + qdd[mid[1]]),
-                torque=tau_f[1:],
-                columns=0.5 * (columns[mid[0]] + columns[mid[1]]),
-                use=keep & ~resting & ~excluded,
-            )
-        )
-    warnings = _exclusion_warnings(
-        name, saturated=saturated, stopped=stopped, counts=counts, period=period, settings=settings
+    filters = filters_for(
+        name,
+        settings,
+        float(np.median(np.diff(stamps))),
+        stamps.size,
+        float(time[-1]),
+        gravity=gravity,
+        gravity_sign=gravity_sign,
     )
-    usable = sum(float(segment.use.any(axis=1).sum()) for segment in segments) * period
-    if usable < settings.min_duration:
-        raise NotEnoughDataError(
-            f"{name}: {usable:.3g} s of usable motion, identification needs at least "
-            f"{settings.min_duration:g} s (after leaving out {settings.edge:g} s at the ends of stretches, "
-            f"joints at rest, saturation and the stops)"
+    saturation = Saturation(np.abs(tau).max(axis=0), np.ptp(tau, axis=0), filters.min_plateau)
+    saturation.feed(tau, commanded)
+    smooth, velocity = smoothed(filters, q)
+    stops = Stops(smooth.min(axis=0), smooth.max(axis=0), filters.min_stop)
+    stops.feed(smooth, velocity)
+    exclusions = Exclusions(stamps.size, saturation.finish(), stops.finish())
+    segments: list[Segment] = []
+    rest = 0
+    for begin, end in stretches(stamps, filters.period_ns):
+        n = end - begin
+        if n <= filters.shortest_stretch:
+            continue
+        segment, resting = stretch_rows(
+            filters,
+            time[begin:end],
+            q[begin:end],
+            tau[begin:end],
+            offset=0,
+            length=n,
+            rows=(0, n - 1),
+            excluded=exclusions.of(begin + 1, end),
         )
+        segments.append(segment)
+        rest += resting
+    usable = sum(int(segment.use.any(axis=1).sum()) for segment in segments)
+    warnings = exclusions.warnings(name, rest, usable, filters)
     return PreparedRun(
         name=name,
         segments=tuple(segments),
         settings=settings,
-        sample_period=period,
+        sample_period=filters.period,
         warnings=tuple(warnings),
-        raw_time=time,
-        raw_position=q,
-        raw_torque=tau,
     )
+
+
+@dataclass(frozen=True)
+class Exclusions:
+    """The samples of a run left out: saturated and at a stop, as intervals per joint.
+
+    Attributes:
+        steps: Samples in the run.
+        saturated: Saturated sample intervals per joint.
+        stopped: Sample intervals at a stop per joint.
+    """
+
+    steps: int
+    saturated: tuple[Intervals, Intervals]
+    stopped: tuple[Intervals, Intervals]
+
+    def of(self, start: int, stop: int) -> BoolArray:
+        """Samples [start, stop) saturated or at a stop, shape (stop - start, 2)."""
+        return flags_of(self.saturated, start, stop) | flags_of(self.stopped, start, stop)
+
+    def warnings(self, name: str, rest: int, usable: int, filters: Filters) -> list[str]:
+        """What was left out, one line each, given ``rest`` joint rows at rest and ``usable`` rows.
+
+        Raises:
+            SaturatedRunError, StopsRunError: More than ``max_excluded`` of the run.
+            NotEnoughDataError: Less usable time than ``min_duration``.
+        """
+        settings = filters.settings
+        warnings = _exclusion_warnings(
+            name,
+            saturated=flagged_count(self.saturated),
+            stopped=flagged_count(self.stopped),
+            rows=self.steps,
+            rest=rest,
+            period=filters.period,
+            settings=settings,
+        )
+        if usable * filters.period < settings.min_duration:
+            raise NotEnoughDataError(
+                f"{name}: {usable * filters.period:.3g} s of usable motion, identification needs at least "
+                f"{settings.min_duration:g} s (after leaving out {settings.edge:g} s at the ends of "
+                "stretches, joints at rest, saturation and the stops)"
+            )
+        return warnings
 
 
 def _exclusion_warnings(
     name: str,
     *,
-    saturated: BoolArray,
-    stopped: BoolArray,
-    counts: dict[str, int],
+    saturated: NDArray[np.int64],
+    stopped: NDArray[np.int64],
+    rows: int,
+    rest: int,
     period: float,
     settings: FilterSettings,
 ) -> list[str]:
     warnings = []
-    rows = saturated.shape[0]
-    for label, flags, error in (
+    for label, flagged, error in (
         (
             "the torque saturated (at its largest magnitude, or commanded beyond it)",
             saturated,
@@ -371,7 +217,7 @@ def _exclusion_warnings(
         ),
         ("a joint at a mechanical stop (position held at its extreme)", stopped, StopsRunError),
     ):
-        fractions = flags.sum(axis=0) / rows
+        fractions = flagged / rows
         if fractions.max() > settings.max_excluded:
             joints = [
                 f"{joint} {fraction:.0%}"
@@ -381,12 +227,12 @@ def _exclusion_warnings(
                 f"{name}: {label} for {', '.join(joints)} of the run, more than max_excluded "
                 f"{settings.max_excluded:.0%}: record a run within the limits"
             )
-        if flags.any():
-            seconds = float(flags.sum(axis=0).max()) * period
+        if flagged.any():
+            seconds = float(flagged.max()) * period
             warnings.append(f"{name}: left out {seconds:.3g} s with {label}")
-    if counts["rest"]:
+    if rest:
         warnings.append(
-            f"{name}: left out {counts['rest']} joint rows at rest or turning round "
+            f"{name}: left out {rest} joint rows at rest or turning round "
             f"(|q'| < {settings.rest_velocity:g} rad/s and {settings.rest_guard:g} s around)"
         )
     return warnings

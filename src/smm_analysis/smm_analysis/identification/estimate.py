@@ -20,9 +20,10 @@ from smm_analysis.identification.regressor import (
     parameter_vector,
     parameters_from_vector,
 )
+from smm_analysis.identification.sums import RunSums, sums_of
 from smm_dynamics import SMMParameters, mass_matrix
 
-__all__ = ["EstimationSettings", "Identification", "RunFit", "fit_of", "identify"]
+__all__ = ["EstimationSettings", "Identification", "RunFit", "estimate", "fit_of", "identify"]
 
 FloatArray = NDArray[np.float64]
 _LOWER = np.array([1e-9] * 4 + [0.0] * 5 + [-np.inf] * 2)
@@ -62,22 +63,14 @@ class EstimationSettings:
 
 @dataclass(frozen=True)
 class RunFit:
-    """Torque prediction of a model on one prepared run.
+    """How well a model predicts one run's torque.
 
     Attributes:
         name: The run.
-        time: Times of the used samples (s), shape (n,).
-        measured: Filtered applied torque (N m), shape (n, 2).
-        predicted: The model's torque (N m), shape (n, 2).
-        use: Rows used, shape (n, 2).
         nrmse: RMS(measured - predicted) / RMS(measured) per joint over the used rows.
     """
 
     name: str
-    time: FloatArray
-    measured: FloatArray
-    predicted: FloatArray
-    use: NDArray[np.bool_]
     nrmse: tuple[float, float]
 
 
@@ -99,6 +92,7 @@ class Identification:
         rows: Joint rows used.
         settings: The estimation settings.
         largest_torque: Largest |applied torque| over the used rows (N m).
+        bootstrap_condition: Largest condition number of the column-scaled regressor over the replicates.
     """
 
     params: SMMParameters
@@ -114,36 +108,7 @@ class Identification:
     rows: int
     settings: EstimationSettings
     largest_torque: float
-
-
-@dataclass(frozen=True)
-class _Rows:
-    matrix: FloatArray  # (R, 11)
-    torque: FloatArray  # (R,)
-    joint: NDArray[np.int64]  # (R,)
-    block: NDArray[np.int64]  # (R,)
-
-
-def _rows(runs: Sequence[PreparedRun], block: float) -> _Rows:
-    matrices, torques, joints, blocks = [], [], [], []
-    next_block = 0
-    for run in runs:
-        for segment in run.segments:
-            y = segment.columns
-            ids = next_block + ((segment.time - segment.time[0]) // block).astype(np.int64)
-            next_block = int(ids.max()) + 1
-            for joint in (0, 1):
-                use = segment.use[:, joint]
-                matrices.append(y[use, joint, :])
-                torques.append(segment.torque[use, joint])
-                joints.append(np.full(int(use.sum()), joint, dtype=np.int64))
-                blocks.append(ids[use])
-    return _Rows(
-        matrix=np.concatenate(matrices),
-        torque=np.concatenate(torques),
-        joint=np.concatenate(joints),
-        block=np.concatenate(blocks),
-    )
+    bootstrap_condition: float
 
 
 def _solve_normal(gram: FloatArray, moment: FloatArray, scale: FloatArray) -> FloatArray:
@@ -156,27 +121,27 @@ def _solve_normal(gram: FloatArray, moment: FloatArray, scale: FloatArray) -> Fl
     return solution
 
 
-def _solve(matrix: FloatArray, torque: FloatArray, scale: FloatArray) -> FloatArray:
-    return _solve_normal(matrix.T @ matrix, matrix.T @ torque, scale)
-
-
-def _weights(rows: _Rows, theta: FloatArray) -> FloatArray:
-    residual = rows.torque - rows.matrix @ theta
-    weights = np.ones_like(residual)
+def _weights(
+    gram: FloatArray, moment: FloatArray, square: FloatArray, count: FloatArray, theta: FloatArray
+) -> FloatArray:
+    """1 / RMS of each joint's residual (1 for a joint without rows), from its sums, shape (2,)."""
+    weights = np.ones(2)
     for joint in (0, 1):
-        mine = rows.joint == joint
-        rms = float(np.sqrt(np.mean(residual[mine] ** 2))) if mine.any() else 1.0
-        weights[mine] = 1.0 / max(rms, 1e-12)
+        if count[joint] > 0:
+            residual = square[joint] - 2.0 * theta @ moment[joint] + theta @ gram[joint] @ theta
+            weights[joint] = 1.0 / max(math.sqrt(max(float(residual), 0.0) / count[joint]), 1e-12)
     return weights
 
 
-def _inseparable(scaled: FloatArray, tolerance: float) -> tuple[int, FloatArray, list[str]]:
-    singular: FloatArray = np.linalg.svd(scaled, compute_uv=False).astype(np.float64)
+def _inseparable(scaled_gram: FloatArray, tolerance: float) -> tuple[int, FloatArray, list[str]]:
+    """Rank, singular values (largest first) and inseparable parameters of A_s, from A_s^T A_s."""
+    eigenvalues, vectors = np.linalg.eigh(scaled_gram)
+    order = np.argsort(eigenvalues)[::-1]
+    singular: FloatArray = np.sqrt(np.clip(eigenvalues[order], 0.0, None))
     rank = int(np.sum(singular > tolerance * singular[0]))
-    if rank == scaled.shape[1]:
+    if rank == scaled_gram.shape[1]:
         return rank, singular, []
-    _, _, vt = np.linalg.svd(scaled, full_matrices=False)
-    null = vt[rank:]
+    null = vectors[:, order[rank:]].T
     involved = np.sqrt(np.sum(null**2, axis=0)) > 0.1
     return rank, singular, [name for name, flag in zip(PARAMETER_NAMES, involved, strict=True) if flag]
 
@@ -189,35 +154,25 @@ def _min_mass_eigenvalue(params: SMMParameters, workspace: tuple[float, float]) 
 
 
 def fit_of(run: PreparedRun, params: SMMParameters) -> RunFit:
-    """The torque ``params`` predict on ``run`` and its NRMSE per joint over the used rows."""
-    times, measured, predicted, use = [], [], [], []
-    for segment in run.segments:
-        y = segment.columns
-        times.append(segment.time)
-        measured.append(segment.torque)
-        predicted.append(y @ parameter_vector(params))
-        use.append(segment.use)
-    time, meas, pred = (np.concatenate(parts).astype(np.float64) for parts in (times, measured, predicted))
-    used = np.concatenate(use).astype(bool)
-    nrmse = tuple(
-        float(
-            np.sqrt(np.mean((meas[used[:, j], j] - pred[used[:, j], j]) ** 2))
-            / np.sqrt(np.mean(meas[used[:, j], j] ** 2))
-        )
-        if used[:, j].any()
-        else math.nan
-        for j in (0, 1)
-    )
-    return RunFit(run.name, time, meas, pred, used, (nrmse[0], nrmse[1]))
+    """The NRMSE per joint of the torque ``params`` predict on ``run``, over the used rows."""
+    return RunFit(run.name, sums_of(run, EstimationSettings.block).nrmse(parameter_vector(params)))
 
 
 def identify(
     runs: Sequence[PreparedRun], base: SMMParameters | None = None, settings: EstimationSettings | None = None
 ) -> Identification:
-    """Estimates the 11 parameters from prepared runs.
+    """Estimates the 11 parameters from runs prepared in memory (see :func:`estimate`)."""
+    settings = settings if settings is not None else EstimationSettings()
+    return estimate([sums_of(run, settings.block) for run in runs], base, settings)
+
+
+def estimate(
+    runs: Sequence[RunSums], base: SMMParameters | None = None, settings: EstimationSettings | None = None
+) -> Identification:
+    """Estimates the 11 parameters from the sums of runs.
 
     Args:
-        runs: Prepared identification runs (at least one).
+        runs: The sums of the identification runs (at least one), their blocks of ``settings.block`` s.
         base: Supplies gravity, its sign and L (default ``SMMParameters()``); its other values are not used.
         settings: Estimation settings (default :class:`EstimationSettings`).
 
@@ -229,29 +184,30 @@ def identify(
         NotPhysicalError: M(q) of the estimate is not positive definite over the workspace.
     """
     if not runs:
-        raise ValueError("identify needs at least one prepared run")
+        raise ValueError("estimate needs at least one run")
     base = base if base is not None else SMMParameters()
     settings = settings if settings is not None else EstimationSettings()
-    rows = _rows(runs, settings.block)
-    scale = np.sqrt(np.sum(rows.matrix**2, axis=0))
+    totals = [run.totals() for run in runs]
+    gram, moment, square, count = (np.sum([total[part] for total in totals], axis=0) for part in range(4))
+    scale = np.sqrt(np.diag(gram.sum(axis=0)))
     dead = [name for name, value in zip(PARAMETER_NAMES, scale, strict=True) if value == 0.0]
     if dead:
         raise NotExcitingError(
             f"the data do not excite {', '.join(dead)} at all (rank < {len(PARAMETER_NAMES)}): "
             "record a run in which every joint moves both ways (the excite scenario)"
         )
-    first = _solve(rows.matrix, rows.torque, scale)
-    weights = _weights(rows, first)
-    weighted, target = rows.matrix * weights[:, None], rows.torque * weights
-    scale = np.sqrt(np.sum(weighted**2, axis=0))
-    rank, singular, inseparable = _inseparable(weighted / scale, settings.rank_tolerance)
+    first = _solve_normal(gram.sum(axis=0), moment.sum(axis=0), scale)
+    squared = _weights(gram, moment, square, count, first) ** 2
+    weighted, target = np.tensordot(squared, gram, axes=1), np.tensordot(squared, moment, axes=1)
+    scale = np.sqrt(np.diag(weighted))
+    rank, singular, inseparable = _inseparable(weighted / np.outer(scale, scale), settings.rank_tolerance)
     if inseparable:
         raise NotExcitingError(
             f"the data cannot separate {', '.join(inseparable)} (rank {rank} of {len(PARAMETER_NAMES)}, "
             f"condition number {singular[0] / singular[-1]:.3g}): record a richer excitation "
             "(the excite scenario) instead of inventing values for them"
         )
-    theta = _solve(weighted, target, scale)
+    theta = _solve_normal(weighted, target, scale)
     params = parameters_from_vector(theta, base)
     min_eigenvalue = _min_mass_eigenvalue(params, settings.workspace)
     if not min_eigenvalue > 0.0:
@@ -259,7 +215,9 @@ def identify(
             f"M(q) of the estimate is not positive definite on |q| <= {settings.workspace} rad "
             f"(smallest eigenvalue {min_eigenvalue:.3g} kg m^2): the data do not pin the inertias down"
         )
-    replicates = _bootstrap(weighted, target, scale, rows.block, settings)
+    grams = np.tensordot(np.concatenate([run.grams for run in runs]), squared, axes=([1], [0]))
+    moments = np.tensordot(np.concatenate([run.moments for run in runs]), squared, axes=([1], [0]))
+    replicates, bootstrap_condition = _bootstrap(grams, moments, scale, settings)
     at_bound = tuple(
         name
         for name, value, low in zip(PARAMETER_NAMES, theta, _LOWER, strict=True)
@@ -275,32 +233,31 @@ def identify(
         condition_number=float(singular[0] / singular[-1]),
         singular_values=singular,
         min_mass_eigenvalue=min_eigenvalue,
-        fits=tuple(fit_of(run, params) for run in runs),
-        rows=int(rows.torque.size),
+        fits=tuple(RunFit(run.name, run.nrmse(theta)) for run in runs),
+        rows=sum(run.rows for run in runs),
         settings=settings,
-        largest_torque=float(np.abs(rows.torque).max()),
+        largest_torque=max(run.largest for run in runs),
+        bootstrap_condition=bootstrap_condition,
     )
 
 
 def _bootstrap(
-    matrix: FloatArray,
-    torque: FloatArray,
-    scale: FloatArray,
-    block: NDArray[np.int64],
-    settings: EstimationSettings,
-) -> FloatArray:
+    grams: FloatArray, moments: FloatArray, scale: FloatArray, settings: EstimationSettings
+) -> tuple[FloatArray, float]:
+    """Estimates of ``settings.bootstrap`` replicates, each the blocks drawn with replacement (B, 11).
+
+    Also the largest condition number of a replicate's column-scaled regressor.
+
+    grams: Weighted Y^T Y per block (b, 11, 11); moments: weighted Y^T tau per block (b, 11).
+    """
     generator = np.random.default_rng(settings.seed)
-    blocks = np.unique(block)
-    grams = np.empty((blocks.size, matrix.shape[1], matrix.shape[1]))
-    moments = np.empty((blocks.size, matrix.shape[1]))
-    for index, value in enumerate(blocks):
-        mine = block == value
-        grams[index] = matrix[mine].T @ matrix[mine]
-        moments[index] = matrix[mine].T @ torque[mine]
-    replicates = np.empty((settings.bootstrap, matrix.shape[1]))
+    blocks = grams.shape[0]
+    replicates = np.empty((settings.bootstrap, grams.shape[1]))
+    condition = 0.0
     for index in range(settings.bootstrap):
-        counts = np.bincount(generator.integers(0, blocks.size, blocks.size), minlength=blocks.size)
-        replicates[index] = _solve_normal(
-            np.tensordot(counts, grams, axes=1), np.tensordot(counts, moments, axes=1), scale
-        )
-    return replicates
+        counts = np.bincount(generator.integers(0, blocks, blocks), minlength=blocks)
+        gram = np.tensordot(counts, grams, axes=1)
+        replicates[index] = _solve_normal(gram, np.tensordot(counts, moments, axes=1), scale)
+        eigenvalues = np.linalg.eigvalsh(gram / np.outer(scale, scale))
+        condition = max(condition, math.sqrt(eigenvalues[-1] / max(eigenvalues[0], 1e-300)))
+    return replicates, condition

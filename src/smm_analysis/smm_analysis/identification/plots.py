@@ -1,7 +1,9 @@
-"""Figures of an identification: measured vs predicted torque, residuals, the excitation (PNG, Agg)."""
+"""Figures of an identification, from envelopes of the runs: torque and model, residuals, the excitation."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -11,47 +13,59 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from smm_analysis.closed_loop import Trajectory
-from smm_analysis.identification.data import PreparedRun
-from smm_analysis.identification.estimate import RunFit
 from smm_analysis.lumped import LumpedDisturbance
+from smm_analysis.runs.envelope import Envelope
 
-__all__ = ["lumped_figure", "write_identification_plots"]
+__all__ = ["RunFigures", "lumped_figure", "write_identification_plots"]
 
 _JOINTS = ("alpha", "beta")
 
 
-def _slug(index: int, role: str) -> str:
-    return f"{role}{index + 1}"
+@dataclass(frozen=True)
+class RunFigures:
+    """What the figures of one run show.
+
+    Attributes:
+        role: ``identification`` or ``validation``.
+        name: The run.
+        nrmse: Torque NRMSE per joint.
+        fit: Envelope of ``measured``, ``model``, ``used`` and ``left out`` residual per joint (N m).
+        excitation: Envelope of ``q`` (rad) and ``tau`` (N m) per joint.
+    """
+
+    role: str
+    name: str
+    nrmse: tuple[float, float]
+    fit: Envelope
+    excitation: Envelope
 
 
-def _torque_figure(fit: RunFit, path: Path, title: str) -> Path:
+def _torque_figure(run: RunFigures, path: Path) -> Path:
     figure, axes = plt.subplots(2, 2, figsize=(11, 6), sharex=True, squeeze=False)
     for joint, name in enumerate(_JOINTS):
-        used = fit.use[:, joint]
         top, bottom = axes[0, joint], axes[1, joint]
-        top.plot(fit.time, fit.measured[:, joint], lw=0.8, label="measured (filtered)")
-        top.plot(fit.time, fit.predicted[:, joint], lw=0.8, ls="--", label="model")
-        top.set_title(f"{name}: NRMSE {fit.nrmse[joint]:.3g}")
+        top.plot(*run.fit.line(f"measured {name}"), lw=0.8, label="measured (filtered)")
+        top.plot(*run.fit.line(f"model {name}"), lw=0.8, ls="--", label="model")
+        top.set_title(f"{name}: NRMSE {run.nrmse[joint]:.3g}")
         top.set_ylabel("torque (N m)")
-        residual = fit.measured[:, joint] - fit.predicted[:, joint]
-        bottom.plot(fit.time[used], residual[used], ".", ms=1, label="used")
-        bottom.plot(fit.time[~used], residual[~used], ".", ms=1, color="0.7", label="left out")
+        bottom.plot(*run.fit.line(f"used {name}"), ".", ms=1, label="used")
+        bottom.plot(*run.fit.line(f"left out {name}"), ".", ms=1, color="0.7", label="left out")
         bottom.set_ylabel("residual (N m)")
         bottom.set_xlabel("time (s)")
         top.legend(fontsize="small")
         bottom.legend(fontsize="small", markerscale=6)
-    figure.suptitle(title)
+    figure.suptitle(f"{run.role} run {run.name} (min/max per column of steps)")
     figure.tight_layout()
     figure.savefig(path, dpi=120)
     plt.close(figure)
     return path
 
 
-def _excitation_figure(run: PreparedRun, path: Path) -> Path:
+def _excitation_figure(run: RunFigures, path: Path) -> Path:
     figure, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
-    for joint, name in enumerate(_JOINTS):
-        axes[0].plot(run.raw_time, run.raw_position[:, joint], lw=0.8, label=name)
-        axes[1].plot(run.raw_time, run.raw_torque[:, joint], lw=0.6, label=name)
+    for name in _JOINTS:
+        axes[0].plot(*run.excitation.line(f"q {name}"), lw=0.8, label=name)
+        axes[1].plot(*run.excitation.line(f"tau {name}"), lw=0.6, label=name)
     axes[0].set_ylabel("measured position (rad)")
     axes[1].set_ylabel("applied torque (N m)")
     axes[1].set_xlabel("time (s)")
@@ -64,21 +78,15 @@ def _excitation_figure(run: PreparedRun, path: Path) -> Path:
     return path
 
 
-def write_identification_plots(
-    runs: list[PreparedRun], fits: list[RunFit], validation: list[tuple[PreparedRun, RunFit]], directory: Path
-) -> list[Path]:
-    """Writes torque_<run>.png and excitation_<run>.png for identification and validation runs."""
+def write_identification_plots(runs: Sequence[RunFigures], directory: Path) -> list[Path]:
+    """Writes torque_<role><n>.png and excitation_<role><n>.png per run (n counts within a role, from 1)."""
     directory.mkdir(parents=True, exist_ok=True)
     written = []
-    for index, (run, fit) in enumerate(zip(runs, fits, strict=True)):
-        slug = _slug(index, "identification")
-        written.append(
-            _torque_figure(fit, directory / f"torque_{slug}.png", f"identification run {run.name}")
-        )
-        written.append(_excitation_figure(run, directory / f"excitation_{slug}.png"))
-    for index, (run, fit) in enumerate(validation):
-        slug = _slug(index, "validation")
-        written.append(_torque_figure(fit, directory / f"torque_{slug}.png", f"validation run {run.name}"))
+    numbers: dict[str, int] = {}
+    for run in runs:
+        numbers[run.role] = numbers.get(run.role, 0) + 1
+        slug = f"{run.role}{numbers[run.role]}"
+        written.append(_torque_figure(run, directory / f"torque_{slug}.png"))
         written.append(_excitation_figure(run, directory / f"excitation_{slug}.png"))
     return written
 

@@ -24,7 +24,7 @@ from smm_analysis.runs.segments import MIN_SEGMENT_NS, Segment, find_segments, p
 from smm_analysis.runs.stream import AHEAD_LIMIT_NS, StepStream
 from smm_analysis.runs.window import TimeWindow
 
-__all__ = ["AnalyzeOptions", "RerunOptions", "analyze", "rerun_command"]
+__all__ = ["AnalyzeOptions", "RerunOptions", "analyze", "rerun_command", "streams_of"]
 
 
 @dataclass(frozen=True)
@@ -66,12 +66,14 @@ def _stream(
     return StepStream(bag, window=window, progress=Progress(label, 1, err, enabled=not quiet))
 
 
-def _runs(bag: Path, options: AnalyzeOptions, err: TextIO) -> list[tuple[StepStream, str | None]]:
-    """The streams to analyse in ``bag``: the window, or each segment (with its label) for ``--segments``."""
+def streams_of(
+    bag: Path, *, window: TimeWindow, segments: bool, quiet: bool, err: TextIO
+) -> list[tuple[StepStream, str | None]]:
+    """The streams to read in ``bag``: the window, or each segment (with its label) for ``--segments``."""
     runs: list[tuple[StepStream, str | None]] = []
-    for window, segment in _windows(bag, options.window, options.segments, options.quiet, err):
+    for window_, segment in _windows(bag, window, segments, quiet, err):
         doing = "reading" if segment is None else ""
-        stream = _stream(bag, window, segment, doing=doing, quiet=options.quiet, err=err)
+        stream = _stream(bag, window_, segment, doing=doing, quiet=quiet, err=err)
         label = None if segment is None else f"{stream.label} segment {segment.number} ({segment.reason})"
         runs.append((stream, label))
     return runs
@@ -85,7 +87,10 @@ def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextI
     drawing = options.out is not None and options.plots
     try:
         for bag in options.bags:
-            for stream, label in _runs(bag, options, err):
+            streams = streams_of(
+                bag, window=options.window, segments=options.segments, quiet=options.quiet, err=err
+            )
+            for stream, label in streams:
                 consumers = []
                 if drawing:
                     name = label if label is not None else stream.label
