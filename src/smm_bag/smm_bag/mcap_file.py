@@ -39,6 +39,10 @@ RawMessage = tuple[int, int, int, bytes]
 """``(channel id, log time ns, publish time ns, data)``."""
 
 
+_FAULT_AROUND = 1 << 17
+"""Bytes before a block that a page fault in it may map again (twice Linux's ``fault_around_bytes``)."""
+
+
 @dataclass(frozen=True)
 class _Block:
     offset: int
@@ -75,6 +79,20 @@ class McapFile:
         self.blocks: list[_Block] = []
         if not self._from_summary():
             self._from_scan()
+        ordered = sorted(self.blocks, key=lambda block: block.offset)
+        self._region: dict[int, tuple[int, int]] = {
+            block.offset: (
+                max(0, min(previous.offset if previous is not None else 0, block.offset - _FAULT_AROUND)),
+                following.offset if following is not None else block.end,
+            )
+            for previous, block, following in zip(
+                [None, *ordered[:-1]], ordered, [*ordered[1:], None], strict=True
+            )
+        }
+        """Per block, the bytes released after reading it: from the previous block's start (at least
+        :data:`_FAULT_AROUND` back) to the next block's. The kernel maps a window around each page fault,
+        back over blocks already released and the records between blocks (a chunk's message indexes, never
+        read): released again with the block's own, or they stay mapped, about 16 bytes per message."""
 
     def _from_summary(self) -> bool:
         """Takes the index from a complete summary; False if there is none."""
@@ -157,7 +175,7 @@ class McapFile:
     def _block(self, block: _Block, wanted: set[int] | None) -> Iterator[RawMessage]:
         if not block.chunk:
             yield from _parse(self.data, block.offset, block.end, wanted, self.path)
-            _release(self.data, block.offset, block.end)
+            _release(self.data, *self._region[block.offset])
             return
         fields = chunk_fields(self.data, block.offset, len(self.data))
         if fields is None:
@@ -165,7 +183,7 @@ class McapFile:
         _, size, crc, compression, start, length = fields
         try:
             records = decompress(compression, bytes(self.data[start : start + length]), size)
-            _release(self.data, block.offset, start + length)
+            _release(self.data, *self._region[block.offset])
         except (*PARSE_ERRORS, RuntimeError, MemoryError) as error:
             raise CorruptBagError(f"{self.path}: damaged chunk ({error})") from None
         if crc and zlib.crc32(records) != crc:
