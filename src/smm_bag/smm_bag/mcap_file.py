@@ -80,19 +80,15 @@ class McapFile:
         if not self._from_summary():
             self._from_scan()
         ordered = sorted(self.blocks, key=lambda block: block.offset)
-        self._region: dict[int, tuple[int, int]] = {
-            block.offset: (
-                max(0, min(previous.offset if previous is not None else 0, block.offset - _FAULT_AROUND)),
-                following.offset if following is not None else block.end,
-            )
-            for previous, block, following in zip(
-                [None, *ordered[:-1]], ordered, [*ordered[1:], None], strict=True
-            )
-        }
+        self._region: dict[int, tuple[int, int]] = {}
         """Per block, the bytes released after reading it: from the previous block's start (at least
         :data:`_FAULT_AROUND` back) to the next block's. The kernel maps a window around each page fault,
         back over blocks already released and the records between blocks (a chunk's message indexes, never
         read): released again with the block's own, or they stay mapped, about 16 bytes per message."""
+        for number, block in enumerate(ordered):
+            previous = ordered[number - 1].offset if number else 0
+            following = ordered[number + 1].offset if number + 1 < len(ordered) else block.end
+            self._region[block.offset] = (max(0, min(previous, block.offset - _FAULT_AROUND)), following)
 
     def _from_summary(self) -> bool:
         """Takes the index from a complete summary; False if there is none."""
