@@ -197,10 +197,8 @@ class DirectBridgeNode(HwBridgeNode):
         """Steps the chain on the core's measurement and sends its command; a failing chain faults."""
         self._answered_stamp = None
         stamp_ns = core.stamp_ns
-        try:
-            result = self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
-        except Exception as error:  # a bug in a law: the loop cannot go on
-            self.fail(f"control chain failed at stamp {stamp_ns} ns: {type(error).__name__}: {error}")
+        result = self._stepped(core)
+        if result is None:
             return True
         if isinstance(result, Refusal):
             if result.chain_failed:
@@ -215,13 +213,17 @@ class DirectBridgeNode(HwBridgeNode):
 
     def rehearse_in_place(self, core: BridgeCore, rx_ns: int) -> bool:
         """The preflight: steps the chain as :meth:`answer_in_place` does, and sends nothing of it."""
+        result = self._stepped(core)
+        return result is not None and not isinstance(result, Refusal)
+
+    def _stepped(self, core: BridgeCore) -> StepResult | None:
+        """The hosted controller's answer to the core's measurement; None after a raising law faulted."""
         stamp_ns = core.stamp_ns
         try:
-            result = self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
+            return self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
         except Exception as error:  # a bug in a law: the loop cannot go on
             self.fail(f"control chain failed at stamp {stamp_ns} ns: {type(error).__name__}: {error}")
-            return False
-        return not isinstance(result, Refusal)
+            return None
 
     def end_rehearsal(self) -> None:
         """The hosted chain forgets the rehearsal (its reference starts at the first armed measurement)."""
