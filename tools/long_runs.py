@@ -24,13 +24,19 @@ from smm_bag.loss import loss_from_json
 from smm_bag.reader import BagReader
 
 __all__ = [
+    "WARMUP_S",
     "BagCheck",
     "LaunchedGraph",
     "RssSeries",
     "check_bag",
+    "dump_json",
     "rss_kib",
     "slope_per_hour",
+    "verdict",
 ]
+
+WARMUP_S = 60.0
+"""Seconds of a run left out of the RSS slopes (imports, first allocations)."""
 
 _STARTED = re.compile(r"\[smm-launch\] (?:started|respawned) (\S+) \(pid (\d+)")
 _PAGE_KIB = os.sysconf("SC_PAGE_SIZE") // 1024
@@ -269,3 +275,9 @@ def check_bag(path: Path, stamped: Sequence[str], period_ns: int) -> BagCheck:
 def dump_json(path: Path, data: object) -> None:
     """Writes ``data`` as indented JSON."""
     path.write_text(json.dumps(data, indent=2, default=str))
+
+
+def verdict(failures: Sequence[str]) -> int:
+    """Prints the run's result line; the exit code: 0 when no criterion failed, else 1."""
+    print("result: " + ("PASS" if not failures else "FAIL: " + "; ".join(failures)))
+    return 0 if not failures else 1

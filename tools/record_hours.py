@@ -15,10 +15,9 @@ import sys
 import time
 from pathlib import Path
 
-from long_runs import LaunchedGraph, check_bag, dump_json
+from long_runs import WARMUP_S, LaunchedGraph, check_bag, dump_json, verdict
 
 STAMPED = ("/smm/joint_states", "/smm/torque_command", "/clock")
-WARMUP_S = 60.0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -100,8 +99,7 @@ def run(arguments: argparse.Namespace) -> int:
             "failures": failures,
         },
     )
-    print("result: " + ("PASS" if not failures else "FAIL: " + "; ".join(failures)))
-    return 0 if not failures else 1
+    return verdict(failures)
 
 
 def main() -> int:

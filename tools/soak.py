@@ -21,11 +21,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 import soak_faults as faults
-from long_runs import LaunchedGraph, check_bag, dump_json
+from long_runs import WARMUP_S, LaunchedGraph, check_bag, dump_json, verdict
 from smm_bag.cdr import stamp_of
 from smm_bag.reader import BagReader
 
-WARMUP_S = 60.0
 STAMPED = ("/smm/joint_states",)
 JOINT_STATES = "/smm/joint_states"
 PERIOD_NS = 1_000_000
@@ -257,8 +256,7 @@ def report(
             "failures": failures,
         },
     )
-    print("result: " + ("PASS" if not failures else "FAIL: " + "; ".join(failures)))
-    return 0 if not failures else 1
+    return verdict(failures)
 
 
 def main() -> int:
