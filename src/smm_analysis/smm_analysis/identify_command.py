@@ -37,7 +37,7 @@ from smm_analysis.identification.plots import RunFigures, write_identification_p
 from smm_analysis.identification.streaming import StreamedRun, draw_fit, read_run
 from smm_analysis.parameters_file import write_parameters_file
 from smm_analysis.runs.commands import streams_of
-from smm_analysis.runs.window import TimeWindow, add_window_options, window_from_options
+from smm_analysis.runs.window import TimeWindow, add_reading_options, window_from_options
 from smm_dynamics import SMMParameters
 
 __all__ = [
@@ -77,13 +77,11 @@ def add_identify_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--cutoff", type=float, default=FilterSettings.cutoff, help="low-pass corner (Hz)")
     parser.add_argument("--bootstrap", type=int, default=EstimationSettings.bootstrap, help="replicates")
     parser.add_argument("--no-plots", action="store_true", help="with --out: no figures")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument(
-        "--segments",
-        action="store_true",
-        help="each experiment found in a bag (armed stretches, parameter changes) is a run of its own",
+    add_reading_options(
+        parser,
+        segments_help="each experiment found in a bag (armed stretches, parameter changes) is a run of "
+        "its own",
     )
-    add_window_options(parser)
     return parser
 
 

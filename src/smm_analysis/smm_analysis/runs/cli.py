@@ -7,7 +7,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from smm_analysis.runs.commands import AnalyzeOptions, RerunOptions, analyze, rerun_command
-from smm_analysis.runs.window import TimeWindow, add_window_options, window_from_options
+from smm_analysis.runs.window import TimeWindow, add_reading_options, window_from_options
 
 __all__ = ["add_analyze", "add_rerun"]
 
@@ -21,13 +21,10 @@ def add_analyze(subparsers: argparse._SubParsersAction[argparse.ArgumentParser])
     parser.add_argument("--json", action="store_true", help="print metrics.json's schema instead of a table")
     parser.add_argument("--out", type=Path, help="write metrics.json, REPORT.md and PNG figures here")
     parser.add_argument("--no-plots", action="store_true", help="with --out: no figures")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument(
-        "--segments",
-        action="store_true",
-        help="find the experiments in each bag (armed stretches, parameter changes) and report each",
+    add_reading_options(
+        parser,
+        segments_help="find the experiments in each bag (armed stretches, parameter changes) and report each",
     )
-    add_window_options(parser)
     parser.set_defaults(
         handler=lambda options: _windowed(
             parser,
@@ -84,13 +81,10 @@ def add_rerun(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -
         help="per-step tolerance, relative to the largest recorded |value| of each joint (default: what a "
         "bag recorded on another machine passes, 1e-9 and isolated sign flips; 0: bit for bit)",
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument(
-        "--segments",
-        action="store_true",
-        help="find the experiments in the bag (as analyze --segments) and re-run each alone",
+    add_reading_options(
+        parser,
+        segments_help="find the experiments in the bag (as analyze --segments) and re-run each alone",
     )
-    add_window_options(parser)
     parser.set_defaults(
         handler=lambda options: _windowed(
             parser,

@@ -11,7 +11,7 @@ import argparse
 from dataclasses import dataclass
 from decimal import Decimal, InvalidOperation
 
-__all__ = ["TimeBound", "TimeWindow", "add_window_options", "parse_bound", "window_from_options"]
+__all__ = ["TimeBound", "TimeWindow", "add_reading_options", "parse_bound", "window_from_options"]
 
 _NS = 1_000_000_000
 
@@ -80,8 +80,10 @@ def parse_bound(text: str) -> TimeBound:
     return TimeBound(int((seconds * _NS).to_integral_value()), absolute)
 
 
-def add_window_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--start`` and ``--end`` to a subcommand."""
+def add_reading_options(parser: argparse.ArgumentParser, *, segments_help: str) -> None:
+    """Add what every command reading a bag's steps takes: ``--quiet``, ``--segments``, ``--start/--end``."""
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--segments", action="store_true", help=segments_help)
     help_text = "s from the run's first step, or @bag time in s"
     parser.add_argument("--start", metavar="T", help=f"analyse from T on ({help_text})")
     parser.add_argument("--end", metavar="T", help=f"analyse up to T, excluded ({help_text})")
