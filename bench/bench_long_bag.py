@@ -7,7 +7,9 @@ length); then ``smm-bag analyze``, ``rerun`` (``rerun.csv`` written) and ``ident
 DIR`` and as its own process, and their wall time, CPU time and peak RSS (``ru_maxrss`` of that process
 alone, from ``os.wait4``) are printed, with the ratios of issue 33's acceptance: the longest run's peak RSS
 against the shortest's (target <= 1.2x) and its time against the shortest's (target <= the length ratio).
-Figures only; nothing asserts.
+``--against-memory``: also the indices of the longest case-2 bag computed in memory (``load_run`` and
+``evaluate``, as ``analyze`` did before it streamed; about 2.8 MiB of memory per MiB of bag) against the
+streamed ones, with the largest relative difference and the stated tolerance. Figures only; nothing asserts.
 """
 
 from __future__ import annotations
@@ -37,6 +39,29 @@ else:
     trajectory = run_closed_loop(get_scenario(scenario).with_duration(60.0 * piece), "fpdeso", seed=0)
 metadata = write_trajectory_bag(trajectory, path, repeat=repeat)
 print(metadata.message_count)
+"""
+_AGAINST_MEMORY = """
+import sys
+from smm_analysis.runs.accumulate import SUM_RELATIVE_TOLERANCE
+from smm_analysis.runs.indices import evaluate, evaluate_stream
+from smm_analysis.runs.recorded import load_run
+from smm_analysis.runs.stream import StepStream
+streamed = evaluate_stream(StepStream(sys.argv[1]))
+in_memory = evaluate(load_run(sys.argv[1]))
+worst, exact = 0.0, True
+for joint, indices in in_memory.joints.items():
+    exact &= streamed.joints[joint].Ma == indices.Ma
+    for name in ("Ave", "RMS", "eps_u", "du_rms"):
+        a, b = getattr(streamed.joints[joint], name), getattr(indices, name)
+        worst = max(worst, abs(a - b) / abs(b) if b else abs(a))
+for axis, error in in_memory.end_effector.items():
+    exact &= streamed.end_effector[axis].max_mm == error.max_mm
+    a, b = streamed.end_effector[axis].rms_mm, error.rms_mm
+    worst = max(worst, abs(a - b) / abs(b) if b else abs(a))
+exact &= streamed.run.steps == in_memory.run.steps
+print(f"steps {streamed.run.steps:,} both; maxima and counts {'equal' if exact else 'DIFFER'}; "
+      f"largest relative difference of the sums {worst:.1e} (tolerance {SUM_RELATIVE_TOLERANCE:g}): "
+      f"{'within' if exact and worst <= SUM_RELATIVE_TOLERANCE else 'OUTSIDE'}")
 """
 _BLOCK_MINUTES = 1.0
 """Longer bags repeat a run of this many minutes back to back (the offline loop holds its whole run, about
@@ -74,11 +99,30 @@ def generate(minutes: float, bag: Path, scenario: str) -> int:
     return int(result.stdout.split()[-1])
 
 
+def against_memory(bag: Path) -> None:
+    """Prints the streamed indices of ``bag`` against the in-memory computation (one process, both)."""
+    start = time.perf_counter()
+    process = subprocess.Popen(
+        [sys.executable, "-c", _AGAINST_MEMORY, str(bag)], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    output, errors = process.communicate()
+    wall = time.perf_counter() - start
+    if process.returncode != 0:
+        print(f"  in memory: exited {process.returncode}: {errors.decode()[-500:]}")
+        return
+    print(f"  in memory vs streamed ({wall:.0f} s, both in one process): {output.decode().strip()}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", default="1,60", help="comma-separated bag lengths (min), default 1,60")
     parser.add_argument(
         "--commands", default="analyze,rerun,identify", help="which of analyze,rerun,identify to measure"
+    )
+    parser.add_argument(
+        "--against-memory",
+        action="store_true",
+        help="also compare the longest case-2 bag's streamed indices with the in-memory computation",
     )
     arguments = parser.parse_args(sys.argv[1:] if argv is None else argv)
     lengths = [float(value) for value in arguments.minutes.split(",")]
@@ -107,6 +151,8 @@ def main(argv: list[str] | None = None) -> int:
                     failed |= code != 0
                     results[(name, minutes)] = (wall, cpu, rss)
                     print(f"  smm-bag {name}: wall {wall:7.1f} s, CPU {cpu:7.1f} s, peak RSS {rss:6.0f} MiB")
+                if arguments.against_memory and scenario == "case2" and minutes == max(lengths):
+                    against_memory(bag)
                 for path in bag.iterdir():
                     path.unlink()
                 bag.rmdir()
