@@ -22,6 +22,7 @@ from lifecycle_msgs.msg import State, Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
+from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Trigger
 
 VALIDITY_TICKS = 10
@@ -135,7 +136,7 @@ class Operator:
     """What an operator does through ROS: e-stop, re-arm, lifecycle, parameters (rclpy, own node)."""
 
     def __init__(self) -> None:
-        rclpy.init()
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # Ctrl-C ends the soak, graph stopped
         self._rclpy = rclpy
         self.node = rclpy.create_node("soak_operator")
         self._types = {

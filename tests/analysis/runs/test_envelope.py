@@ -1,12 +1,16 @@
-"""runs.envelope: bounded columns whatever the length, and a one-step spike survives into the figure."""
+"""runs.envelope and figures: columns bounded whatever the length, a spike survives, one figure at a time."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from analysis.runs.block_helpers import step_block
+from matplotlib.figure import Figure
 from smm_analysis.runs.envelope import Envelope
-from smm_analysis.runs.plots import RunFigures, _figure
+from smm_analysis.runs.plots import RunFigures, _figure, write_plots
 from smm_bag.manifest import RunManifest
 
 
@@ -60,3 +64,21 @@ def test_a_one_step_spike_in_an_hour_of_steps_reaches_the_figure() -> None:
     drawn = np.concatenate([np.asarray(line.get_ydata(), dtype=np.float64) for line in beta.lines])
     assert np.nanmax(drawn) == 42.0
     assert max(np.asarray(line.get_xydata()).shape[0] for line in beta.lines) <= 2 * 2048
+
+
+def test_figures_are_written_one_at_a_time(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    figures = RunFigures("run", RunManifest(), "ground truth")
+    size = 5000
+    figures.add(step_block(np.arange(size, dtype=np.int64) * 1_000_000, torque=np.ones((size, 2))))
+    open_at_save: list[int] = []
+    open_before = len(plt.get_fignums())
+    save = Figure.savefig
+
+    def counting_save(self: Figure, *args: object, **kwargs: object) -> None:
+        open_at_save.append(len(plt.get_fignums()))
+        save(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Figure, "savefig", counting_save)
+    written = write_plots([figures], tmp_path)
+    assert sum(path.endswith(".png") for path in written.values()) == len(open_at_save) >= 3
+    assert max(open_at_save) == open_before + 1  # one canvas at a time, not seven

@@ -259,10 +259,9 @@ def write_plots(runs: Sequence[RunFigures], out: Path) -> dict[str, str]:
     out.mkdir(parents=True, exist_ok=True)
     for run in runs:
         run.finish()
-    figures = {name: _figure(runs, name) for name in _PANELS}
-    figures["latency"] = _latency_figure(runs)
     written: dict[str, str] = {}
-    for name, figure in figures.items():
+    for name in PLOTS:  # one figure at a time: drawn, saved and closed before the next is built
+        figure = _latency_figure(runs) if name == "latency" else _figure(runs, name)
         if figure is None:
             written[name] = "not recorded in these bags"
             continue
