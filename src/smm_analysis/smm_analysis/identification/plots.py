@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt
 from smm_analysis.closed_loop import Trajectory
 from smm_analysis.lumped import LumpedDisturbance
 from smm_analysis.runs.envelope import Envelope
+from smm_analysis.runs.plots import drawing
 
 __all__ = ["RunFigures", "lumped_figure", "write_identification_plots"]
 
@@ -83,11 +84,12 @@ def write_identification_plots(runs: Sequence[RunFigures], directory: Path) -> l
     directory.mkdir(parents=True, exist_ok=True)
     written = []
     numbers: dict[str, int] = {}
-    for run in runs:
-        numbers[run.role] = numbers.get(run.role, 0) + 1
-        slug = f"{run.role}{numbers[run.role]}"
-        written.append(_torque_figure(run, directory / f"torque_{slug}.png"))
-        written.append(_excitation_figure(run, directory / f"excitation_{slug}.png"))
+    with drawing():
+        for run in runs:
+            numbers[run.role] = numbers.get(run.role, 0) + 1
+            slug = f"{run.role}{numbers[run.role]}"
+            written.append(_torque_figure(run, directory / f"torque_{slug}.png"))
+            written.append(_excitation_figure(run, directory / f"excitation_{slug}.png"))
     return written
 
 

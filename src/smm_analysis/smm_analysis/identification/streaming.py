@@ -39,7 +39,7 @@ __all__ = ["PIECE_ROWS", "RECORD", "StreamedRun", "draw_fit", "read_run"]
 FloatArray = NDArray[np.float64]
 RECORD = np.dtype([("t", "<i8"), ("q", "<f8", (2,)), ("tau", "<f8", (2,)), ("command", "<f8", (2,))])
 """One spooled step: stamp (ns), measured q (rad), applied and commanded torque (N m)."""
-PIECE_ROWS = 32_768
+PIECE_ROWS = 16_384
 """Rows filtered at once (besides :attr:`Filters.overlap` samples on each side)."""
 _NS_PER_S = 1e9
 
