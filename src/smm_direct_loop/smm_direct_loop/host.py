@@ -197,7 +197,7 @@ class DirectBridgeNode(HwBridgeNode):
         """Steps the chain on the core's measurement and sends its command; a failing chain faults."""
         self._answered_stamp = None
         stamp_ns = core.stamp_ns
-        result = self._stepped(core)
+        result = self._stepped(core, stamp_ns)
         if result is None:
             return True
         if isinstance(result, Refusal):
@@ -213,12 +213,11 @@ class DirectBridgeNode(HwBridgeNode):
 
     def rehearse_in_place(self, core: BridgeCore, rx_ns: int) -> bool:
         """The preflight: steps the chain as :meth:`answer_in_place` does, and sends nothing of it."""
-        result = self._stepped(core)
+        result = self._stepped(core, core.stamp_ns)
         return result is not None and not isinstance(result, Refusal)
 
-    def _stepped(self, core: BridgeCore) -> StepResult | None:
-        """The hosted controller's answer to the core's measurement; None after a raising law faulted."""
-        stamp_ns = core.stamp_ns
+    def _stepped(self, core: BridgeCore, stamp_ns: int) -> StepResult | None:
+        """The hosted controller's answer to the measurement stamped ``stamp_ns``; None after a law raised."""
         try:
             return self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
         except Exception as error:  # a bug in a law: the loop cannot go on

@@ -495,10 +495,11 @@ class HwBridgeNode(LifecycleNode):
             armed = core.state in (BridgeState.ARMING, BridgeState.ARMED)
             publish = armed and core.control_tick
             rehearsal = None if armed or frame is None else self.rehearsal
-            tick = core.stamp_ns // core.config.period_ns
             control = rehearsal is not None and core.control_tick
             rehearsed = False
+            tick = 0
             if rehearsal is not None:
+                tick = core.stamp_ns // core.config.period_ns
                 rehearsal.on_feedback(tick, now, control)
                 rehearsed = control and self.rehearse_in_place(core, now)
             answered = publish and self.answer_in_place(core, now)
