@@ -451,9 +451,11 @@ def decode_feedback(data: bytes | bytearray | memoryview) -> FeedbackFrame:
 
 
 def _plain_feedback(raw: bytes) -> FeedbackFrame | None:
-    """The frame :func:`decode` gives for ``raw`` (FEEDBACK_SIZE bytes) when it is a valid feedback frame that
-    needs no field check, in one unpack (the receiving thread's case); None for any other, left to
-    :func:`decode`."""
+    """:func:`decode`'s frame for ``raw`` (FEEDBACK_SIZE bytes) in one unpack; None unless it is a plain one.
+
+    Plain: a valid feedback frame whose fields need no check (the receiving thread's case); any other is
+    left to :func:`decode`, which names what is wrong.
+    """
     (
         magic,
         version,
@@ -490,8 +492,7 @@ def _plain_feedback(raw: bytes) -> FeedbackFrame | None:
         or not session
         or status & ~_STATUS_MASK
         or max(adc0, adc1, adc2, adc3) > ADC_MAX
-        or out_a == _CODE_MIN_WIRE
-        or out_b == _CODE_MIN_WIRE
+        or _CODE_MIN_WIRE in (out_a, out_b)
         or crc != zlib.crc32(raw[: -_CRC.size])
     ):
         return None
