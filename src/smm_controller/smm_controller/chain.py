@@ -111,6 +111,11 @@ class ControlChain:
         self.limiter.reset()
         self._disturbance = (0.0, 0.0)
 
+    def prepare(self) -> None:
+        """Does ahead what the next step needs no measurement for (the FLESO's model terms); optional."""
+        if self.fleso is not None:
+            self.fleso.prepare()
+
     def step(
         self, y: npt.ArrayLike, tau_applied: npt.ArrayLike, reference: npt.ArrayLike, dt: float
     ) -> FloatArray:

@@ -275,6 +275,14 @@ class ControllerCore:
             self._last_command = torque  # the applied torque of the next step when the plant gives none
         return torque
 
+    def prepare(self) -> None:
+        """The fused chain's work for the next step that needs no measurement, done ahead (optional).
+
+        The direct loop calls it after its send, in the time until the next measurement.
+        """
+        if self.chain is not None:
+            self.chain.prepare()
+
     def step_law(
         self,
         position: tuple[float, float],

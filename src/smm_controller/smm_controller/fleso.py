@@ -107,6 +107,7 @@ class FLESO:
         self._x3 = [0.0, 0.0]
         self._error = [0.0, 0.0]
         self._last: tuple[float, ...] = (0.0,) * 10
+        self._ahead: tuple[float, float, float, float, float, float, float] | None = None
 
     def reconfigure(self, config: FLESOConfig, *, params: SMMParameters | None = None) -> None:
         """Takes new gains (and optionally a new nominal model) for the next step and keeps the state.
@@ -124,9 +125,20 @@ class FLESO:
         check_instance("config", config, FLESOConfig)
         if params is not None:
             self.model = NominalModel.shared(check_instance("params", params, SMMParameters))
+            self._ahead = None
         if config.grid_points != self.config.grid_points:
             self._batch = _bandwidth_batch(config.grid_points)
         self.config = config
+
+    def prepare(self) -> None:
+        """Evaluates the model at the current estimate, the part of the next step no measurement changes.
+
+        A loop with idle time after its send calls this there; the next step then takes the terms instead
+        of evaluating them (the same values, so the same step).
+        """
+        if self._initialised:
+            x1, x2 = self._x1, self._x2
+            self._ahead = self.model.bias(x1[0], x1[1], x2[0], x2[1])
 
     def step(self, y: npt.ArrayLike, tau_applied: npt.ArrayLike, dt: float) -> FloatArray:
         """Advances the observer to the current sample.
@@ -163,7 +175,8 @@ class FLESO:
         x1a, x1b = x1
         x2a, x2b = x2
         # Prediction to t_k with the model and the torque that acted over [t_{k-1}, t_k].
-        m11, m12, m22, c0, c1, g0, g1 = model.bias(x1a, x1b, x2a, x2b)
+        ahead, self._ahead = self._ahead, None
+        m11, m12, m22, c0, c1, g0, g1 = model.bias(x1a, x1b, x2a, x2b) if ahead is None else ahead
         r0 = tau0 - c0 - g0
         r1 = tau1 - c1 - g1
         if config.compensate_friction:

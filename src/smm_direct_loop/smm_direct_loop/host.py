@@ -229,7 +229,10 @@ class DirectBridgeNode(HwBridgeNode):
         self.controller.forget_rehearsal()
 
     def after_feedback(self, sample: JointSample) -> None:
-        """The ROS side of the tick, after the command went out: the controller's topics, the bridge's."""
+        """The ROS side of the tick after the send, then the next tick's work that needs no measurement.
+
+        The controller's topics, the bridge's, then :meth:`ControllerCore.prepare` (under the tick lock).
+        """
         stamp = self._answered_stamp
         if stamp is None:
             return
@@ -239,6 +242,8 @@ class DirectBridgeNode(HwBridgeNode):
         if core is not None:
             self.publish_internals(core, stamp)
         self.publish_us.add((time.monotonic_ns() - started) / 1e3)
+        with self.controller.tick_lock:  # the next tick's work that needs no measurement, off its path
+            self.controller.core.prepare()
 
     def on_configure(self, state: Any) -> Any:
         """As the bridge's, and the loop statistics start anew."""
