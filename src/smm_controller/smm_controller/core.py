@@ -140,6 +140,8 @@ class ControllerCore:
         """Time of the sampled reference: t = 0 at the first answered stamp (sampled reference only)."""
         self.last_reference: Sequence[Sequence[float]] = _ZERO_REFERENCE
         """Reference rows of the last step (3x2)."""
+        self._ahead_rows: tuple[ReferenceGenerator, int, Sequence[Sequence[float]]] | None = None
+        """(generator, stamp ns, its rows) sampled ahead by :meth:`prepare`."""
         self.chain: ControlChain | None = None
         """TD -> FLESO -> law (fused chain), else None."""
         self._last_command = (0.0, 0.0)
@@ -230,6 +232,7 @@ class ControllerCore:
         if self.plausibility is not None:
             self.plausibility.reset()
         self.reference_clock = ReferenceClock(self._announce)
+        self._ahead_rows = None
         self._last_command = (0.0, 0.0)
 
     # --------------------------------------------------------------------------------------- per step
@@ -253,7 +256,11 @@ class ControllerCore:
         """
         if self._reference is None:
             raise RuntimeError("this core samples no reference: its steps are given the rows")
-        return self._reference().rows(self.reference_clock.time_s(stamp_ns))
+        generator = self._reference()
+        ahead = self._ahead_rows
+        if ahead is not None and ahead[0] is generator and ahead[1] == stamp_ns:
+            return ahead[2]
+        return generator.rows(self.reference_clock.time_s(stamp_ns))
 
     def step(
         self,
@@ -276,12 +283,19 @@ class ControllerCore:
         return torque
 
     def prepare(self) -> None:
-        """The fused chain's work for the next step that needs no measurement, done ahead (optional).
+        """The work of the next step that needs no measurement, done ahead (optional; the same steps).
 
-        The direct loop calls it after its send, in the time until the next measurement.
+        The fused chain's (:meth:`ControlChain.prepare`) and the sampled reference one control period
+        after the last answered stamp. The direct loop calls it after its send, before the next measurement.
         """
         if self.chain is not None:
             self.chain.prepare()
+        last = self.admission.gate.last_stamp_ns
+        started = self.reference_clock.first_stamp_ns is not None
+        if self._reference is not None and last is not None and started:
+            stamp = last + self.period_ns
+            generator = self._reference()
+            self._ahead_rows = (generator, stamp, generator.rows(self.reference_clock.time_s(stamp)))
 
     def step_law(
         self,
