@@ -196,12 +196,17 @@ class MamdaniBatch:
         n_outputs = self._n_outputs
         pair_centroids = self._pair_centroids
         crisp = [0.0] * self._n_rows
-        four_rules: list[tuple[int, tuple[tuple[int, float], ...]]] = []
+        # The systems whose four rules fire, and per rule its strength slots (one per output) and level.
+        four_rules: list[int] = []
+        slots: list[int] = []
+        levels: list[float] = []
         for system_index, (plan, x) in enumerate(zip(self._lattice_plan, inputs, strict=True)):
             if len(x) != 2:
                 return None
             x0, x1 = x
-            (low, high, spacing, last, sides), (low1, high1, spacing1, last1, sides1), radix, _, labels = plan
+            first, second, radix, targets, labels = plan
+            low, high, spacing, last, sides = first
+            low1, high1, spacing1, last1, sides1 = second
             if not (low <= x0 <= high and low1 <= x1 <= high1):
                 return None
             i = int((x0 - low) // spacing)
@@ -225,16 +230,16 @@ class MamdaniBatch:
             both_i = degree_i > 0.0 and degree_i1 > 0.0
             both_j = degree_j > 0.0 and degree_j1 > 0.0
             if both_i and both_j:
-                four_rules.append(
-                    (
-                        system_index,
-                        (
-                            (cell, degree_i if degree_i < degree_j else degree_j),
-                            (cell + 1, degree_i if degree_i < degree_j1 else degree_j1),
-                            (cell + radix, degree_i1 if degree_i1 < degree_j else degree_j),
-                            (cell + radix + 1, degree_i1 if degree_i1 < degree_j1 else degree_j1),
-                        ),
-                    )
+                four_rules.append(system_index)
+                slots += targets[cell]
+                slots += targets[cell + 1]
+                slots += targets[cell + radix]
+                slots += targets[cell + radix + 1]
+                levels += (
+                    degree_i if degree_i < degree_j else degree_j,
+                    degree_i if degree_i < degree_j1 else degree_j1,
+                    degree_i1 if degree_i1 < degree_j else degree_j,
+                    degree_i1 if degree_i1 < degree_j1 else degree_j1,
                 )
                 continue
             # The one (or first) label of each input that fires, as a cell offset and a degree.
@@ -272,31 +277,23 @@ class MamdaniBatch:
                 else:
                     crisp[row + o] = pair_centroids[o].pair(label, level, other_label, other_level)
         if four_rules:
-            self._clip_and_defuzzify(four_rules, crisp)
+            self._clip_and_defuzzify(four_rules, slots, levels, crisp)
         return crisp
 
     def _clip_and_defuzzify(
-        self, systems: list[tuple[int, tuple[tuple[int, float], ...]]], crisp: list[float]
+        self, systems: list[int], slots: list[int], levels: list[float], crisp: list[float]
     ) -> None:
-        """Numpy min/max/centroid of the given systems' four fired rules each."""
-        assert self._lattice_plan is not None
-        slots: list[int] = []
-        firings: list[float] = []
-        for system_index, fired in systems:
-            targets = self._lattice_plan[system_index][3]
-            for cell, level in fired:
-                slots += targets[cell]
-                firings.append(level)
+        """Numpy min/max/centroid of the given systems' four fired rules each (their slots and levels)."""
         firing, firing_view, gathered, gathered_view, aggregated, aggregated_view = self._lattice_buffers[
             len(systems) - 1
         ]
-        firing[:] = firings
+        firing[:] = levels
         self._sample_table.take(slots, 0, gathered, "clip")
         np.minimum(gathered_view, firing_view, out=gathered_view)
         np.maximum.reduce(gathered_view, axis=1, out=aggregated_view)
         values = np.dot(aggregated, self._weights).tolist()
         n_outputs = self._n_outputs
-        for k, (system_index, _) in enumerate(systems):
+        for k, system_index in enumerate(systems):
             for o in range(n_outputs):
                 area, moment = values[k * n_outputs + o]
                 crisp[system_index * n_outputs + o] = moment / area if area > 0.0 else ZERO_AREA_FALLBACK
