@@ -337,16 +337,10 @@ class ControllerCore:
             The torque to send (the last one again for a re-sent stamp), or why there is none.
         """
         verdict = self.admission.admit(topic, stamp_ns, (position, effort), clock_ns)
-        if verdict.admission is Admission.RESYNC and verdict.backward:
-            self.reset()
-        if verdict.answer_again:
-            last = self._last_answer
-            if last is not None and last.stamp_ns == stamp_ns:
-                return last._replace(verdict=verdict, duplicate=True)
-            return Refusal(stamp_ns, "duplicates_answered", "re-sent stamp whose step gave no torque", topic)
-        if not verdict.accepted:
-            assert verdict.counter is not None
-            return Refusal(stamp_ns, verdict.counter, verdict.message, topic)
+        if verdict.admission is not Admission.NEW:  # a new stamp, the common case, needs none of this
+            answer = self._not_new(verdict, stamp_ns, topic)
+            if answer is not None:
+                return answer
         refused = self.implausible(topic, stamp_ns, position)
         if refused is not None:
             return refused
@@ -361,6 +355,20 @@ class ControllerCore:
         answer = Command(stamp_ns, torque, verdict)
         self._last_answer = answer
         return answer
+
+    def _not_new(self, verdict: Verdict, stamp_ns: int, topic: str) -> StepResult | None:
+        """The answer to a stamp the gate did not find new; None after a time jump (it is stepped)."""
+        if verdict.admission is Admission.RESYNC and verdict.backward:
+            self.reset()
+        if verdict.answer_again:
+            last = self._last_answer
+            if last is not None and last.stamp_ns == stamp_ns:
+                return last._replace(verdict=verdict, duplicate=True)
+            return Refusal(stamp_ns, "duplicates_answered", "re-sent stamp whose step gave no torque", topic)
+        if not verdict.accepted:
+            assert verdict.counter is not None
+            return Refusal(stamp_ns, verdict.counter, verdict.message, topic)
+        return None
 
     def _failed(self, stamp_ns: int, error: Exception) -> Refusal:
         message = output_failure_text(stamp_ns, error)

@@ -284,7 +284,7 @@ _FEEDBACK_FIELDS: Final[tuple[str, ...]] = tuple(item.name for item in fields(Fe
 def _unchecked(cls: type[_Frame], names: tuple[str, ...], values: tuple[Any, ...]) -> _Frame:
     """A frame of ``cls`` without ``__post_init__``: for values its checks are known to pass."""
     frame = object.__new__(cls)
-    frame.__dict__.update(zip(names, values, strict=True))
+    frame.__dict__.update(zip(names, values, strict=False))  # both from the field list: equal lengths
     return frame
 
 
