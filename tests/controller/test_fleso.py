@@ -161,12 +161,15 @@ _TORQUE = st.floats(-200.0, 200.0, allow_nan=False)
 def test_prepare_ahead_changes_no_step(
     samples: list[tuple[float, float, float, float]], prepared: list[bool], new_model_at: int
 ) -> None:
-    """Steps with prepare() between some of them equal those without, bit for bit, across a model change."""
+    """Steps with prepare() between some of them equal those without, bit for bit, across a model change.
+
+    Given the next position (the TD's), right or wrong, or none.
+    """
     other = dataclasses.replace(PARAMS, I55=2.0 * PARAMS.I55)
     plain, ahead = FLESO(None, PARAMS), FLESO(None, PARAMS)
     for k, (y0, y1, tau0, tau1) in enumerate(samples):
         if prepared[k]:
-            ahead.prepare()
+            ahead.prepare(((y0, y1), (y1, y0), None)[k % 3])
         if k == new_model_at:  # a new nominal model after prepare(): its terms are not taken
             for observer in (plain, ahead):
                 observer.reconfigure(observer.config, params=other)

@@ -289,7 +289,7 @@ class ControllerCore:
         after the last answered stamp. The direct loop calls it after its send, before the next measurement.
         """
         if self.chain is not None:
-            self.chain.prepare()
+            self.chain.prepare(self.control_period)
         last = self.admission.gate.last_stamp_ns
         started = self.reference_clock.first_stamp_ns is not None
         if self._reference is not None and last is not None and started:

@@ -130,15 +130,18 @@ class FLESO:
             self._batch = _bandwidth_batch(config.grid_points)
         self.config = config
 
-    def prepare(self) -> None:
-        """Evaluates the model at the current estimate, the part of the next step no measurement changes.
+    def prepare(self, next_y: tuple[float, float] | None = None) -> None:
+        """Evaluates the model where the next step will: at the current estimate, and M at ``next_y``.
 
-        A loop with idle time after its send calls this there; the next step then takes the terms instead
-        of evaluating them (the same values, so the same step).
+        ``next_y``: the next step's position when known ahead (the TD's, rad). A loop with idle time after
+        its send calls this there; the next step then takes the terms instead of evaluating them (the same
+        values, so the same step).
         """
         if self._initialised:
             x1, x2 = self._x1, self._x2
             self._ahead = self.model.bias(x1[0], x1[1], x2[0], x2[1])
+        if next_y is not None:
+            self.model.mass(next_y[0], next_y[1])  # the model keeps the last M it evaluated
 
     def step(self, y: npt.ArrayLike, tau_applied: npt.ArrayLike, dt: float) -> FloatArray:
         """Advances the observer to the current sample.
