@@ -151,7 +151,7 @@ def run(observed: bool) -> dict[str, Any]:
 
 
 def profile(frames: int) -> None:
-    """cProfile of the controller's part of a tick (``command_for``, ``publish_answer``), no subscriber."""
+    """cProfile of the controller's part of a tick (``command_for``, ``publish_answer``, ``prepare``)."""
     import cProfile
     import math
     import pstats
@@ -181,6 +181,7 @@ def profile(frames: int) -> None:
         controller.command_for(stamp_ns, position, effort)
         command_ns.append(time.perf_counter_ns() - started)
         controller.publish_answer()
+        controller.core.prepare()  # after the send, as the direct loop does
     chain = make_chain("fpdeso", SMMParameters())
     chain_ns: list[int] = []
     rows = ((0.1, 0.1), (0.0, 0.0), (0.0, 0.0))
@@ -199,10 +200,11 @@ def profile(frames: int) -> None:
     for stamp_ns, position, effort in measurements[half:]:
         controller.command_for(stamp_ns, position, effort)
         controller.publish_answer()
+        controller.core.prepare()
     profiler.disable()
     controller.destroy_node()  # type: ignore[no-untyped-call]
     rclpy.shutdown(context=context)
-    print(f"cProfile of {frames - half} ticks' controller part (command_for, then publish_answer):")
+    print(f"cProfile of {frames - half} ticks' controller part (command_for, publish_answer, prepare):")
     pstats.Stats(profiler).sort_stats("tottime").print_stats(18)
 
 

@@ -6,6 +6,8 @@ import math
 from typing import Any
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from smm_controller.chain import make_chain
 from smm_controller.core import Command, ControllerCore, CoreSettings, Refusal, default_gains
 from smm_controller.fleso import FLESOConfig
@@ -35,7 +37,8 @@ def make_core(algorithm: str = "fpdeso", **overrides: Any) -> ControllerCore:
         measurement_limits=MeasurementLimits(),
     )
     reference = overrides.pop("reference", SineReference())
-    return ControllerCore(settings, InputAdmission(StampPolicy(), 1e-3), reference=lambda: reference)
+    sampled = overrides.pop("sampled", lambda: reference)
+    return ControllerCore(settings, InputAdmission(StampPolicy(), 1e-3), reference=sampled)
 
 
 def position(k: int) -> tuple[float, float]:
@@ -133,3 +136,45 @@ def test_new_gains_reach_the_running_law_in_place() -> None:
     core.set_gains("pid", PIDConfig(kp=(50.0, 50.0)))
     assert core.law is law and law.config.kp == (50.0, 50.0)  # type: ignore[attr-defined]
     assert (law.internals["i"] == integral).all()  # the integral is kept (the I term, ki unchanged)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    gaps=st.lists(st.integers(1, 3), min_size=3, max_size=25),
+    prepared=st.lists(st.booleans(), min_size=25, max_size=25),
+    switch_reference_at=st.integers(0, 25),
+    back_at=st.integers(0, 25),
+)
+def test_prepare_ahead_changes_no_answer(
+    gaps: list[int], prepared: list[bool], switch_reference_at: int, back_at: int
+) -> None:
+    """Answers with prepare() after some equal those without, bit for bit.
+
+    Across lost stamps, a new reference generator after prepare(), and stamps that go back (refused, then
+    a run that starts again: a reset).
+    """
+    generators = [SineReference()]
+    ahead, plain = (make_core(sampled=lambda: generators[0]) for _ in range(2))
+    stamp = 1
+    for k, gap in enumerate(gaps):
+        if prepared[k]:
+            ahead.prepare()
+        if k == switch_reference_at:
+            generators[0] = SineReference(amplitude=(0.5, 0.25))  # a parameter change: a new generator
+        stamp = 1 if k == back_at else stamp + gap
+        measurement = (TOPIC, stamp * PERIOD_NS, position(stamp), (0.1, -0.1), 0)
+        assert ahead.measurement(*measurement) == plain.measurement(*measurement)
+        assert ahead.last_reference == plain.last_reference
+
+
+def test_a_reset_forgets_the_reference_sampled_ahead() -> None:
+    """prepare() sampled stamp 11 at t = 10 ms; once the run starts again at stamp 5 it is t = 6 ms."""
+    ahead, plain = make_core(), make_core()
+    stamps = [*range(1, 11), *range(1, 12)]  # back to 1: four refused, a reset at 5 (t = 0 there)
+    for k, stamp in enumerate(stamps):
+        if k == 9:
+            ahead.prepare()
+        measurement = (TOPIC, stamp * PERIOD_NS, position(stamp), (0.1, -0.1), 0)
+        assert ahead.measurement(*measurement) == plain.measurement(*measurement)
+        assert ahead.last_reference == plain.last_reference
+    assert plain.admission.counters.time_jumps == 1 and plain.reference_clock.first_stamp_ns == 5 * PERIOD_NS

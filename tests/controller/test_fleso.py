@@ -6,6 +6,8 @@ import dataclasses
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from smm_controller.fleso import FLESO, FLESOConfig, observer_gains
 from smm_controller.fuzzy_batch import evaluate_system
@@ -144,3 +146,32 @@ def test_velocity_of_a_noise_free_ramp_is_its_slope(slope: float) -> None:
     assert fleso.velocity_floats() == tuple(fleso.internals["x2_hat"])
     assert_allclose(fleso.velocity_floats(), (slope, 0.0), rtol=0, atol=1e-9)
     assert_allclose(fleso.internals["x3_hat"], (0.0, 0.0), atol=1e-7)
+
+
+_JOINT = st.floats(-1.0, 1.0, allow_nan=False)
+_TORQUE = st.floats(-200.0, 200.0, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    samples=st.lists(st.tuples(_JOINT, _JOINT, _TORQUE, _TORQUE), min_size=2, max_size=12),
+    prepared=st.lists(st.booleans(), min_size=12, max_size=12),
+    new_model_at=st.integers(0, 12),
+)
+def test_prepare_ahead_changes_no_step(
+    samples: list[tuple[float, float, float, float]], prepared: list[bool], new_model_at: int
+) -> None:
+    """Steps with prepare() between some of them equal those without, bit for bit, across a model change.
+
+    Given the next position (the TD's), right or wrong, or none.
+    """
+    other = dataclasses.replace(PARAMS, I55=2.0 * PARAMS.I55)
+    plain, ahead = FLESO(None, PARAMS), FLESO(None, PARAMS)
+    for k, (y0, y1, tau0, tau1) in enumerate(samples):
+        if prepared[k]:
+            ahead.prepare(((y0, y1), (y1, y0), None)[k % 3])
+        if k == new_model_at:  # a new nominal model after prepare(): its terms are not taken
+            for observer in (plain, ahead):
+                observer.reconfigure(observer.config, params=other)
+        assert ahead.step_floats(y0, y1, tau0, tau1, DT) == plain.step_floats(y0, y1, tau0, tau1, DT)
+        assert ahead.velocity_floats() == plain.velocity_floats()

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from smm_controller.fuzzy import (
@@ -345,3 +345,72 @@ def test_single_input_within_the_means_never_takes_the_general_path(monkeypatch:
         assert_allclose(
             batch.evaluate_flat(inputs), _dense_reference((reference, reference), inputs), rtol=0.0, atol=ATOL
         )
+
+
+def _fired_rules(system: MamdaniSystem, x: Sequence[float]) -> list[tuple[int, float]]:
+    """(antecedent cell, AND = min of the degrees) of each rule firing at ``x``, from lattice_pair."""
+    first, second = system.inputs
+    pair_e, pair_ce = first.lattice_pair(x[0]), second.lattice_pair(x[1])
+    assert pair_e is not None and pair_ce is not None
+    (i, degree_i, degree_i1), (j, degree_j, degree_j1) = pair_e, pair_ce
+    radix = len(second.labels)
+    return [
+        ((i + a) * radix + j + b, min(degree_a, degree_b))
+        for a, degree_a in ((0, degree_i), (1, degree_i1))
+        if degree_a > 0.0
+        for b, degree_b in ((0, degree_j), (1, degree_j1))
+        if degree_b > 0.0
+    ]
+
+
+_TABLES: dict[tuple[MamdaniSystem, int], LabelPairCentroids] = {}
+
+
+def _label_table_reference(system: MamdaniSystem, fired: list[tuple[int, float]]) -> list[float]:
+    """Each output's clipped labels (the max level per label) through LabelPairCentroids."""
+    n_outputs, n_labels = len(system.outputs), system.n_labels
+    concluded = [
+        tuple(slot - o * n_labels for o, slot in enumerate(slots))
+        for slots in system.slot_table(range(n_outputs * n_labels))
+    ]
+    weights = centroid_weights(system.grid)
+    crisp = []
+    for o in range(n_outputs):
+        levels: dict[int, float] = {}
+        for cell, level in fired:
+            label = concluded[cell][o]
+            levels[label] = max(levels.get(label, 0.0), level)
+        key = (system, o)
+        if key not in _TABLES:
+            _TABLES[key] = LabelPairCentroids(system.output_samples[:, o, :], weights)
+        table = _TABLES[key]
+        if len(levels) == 1:
+            crisp.append(table.single(*levels.popitem()))
+        else:
+            (a, level_a), (b, level_b) = levels.items()
+            crisp.append(table.pair(a, level_a, b, level_b))
+    return crisp
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    on_peak=st.sampled_from([*PEAKS, -1.5, 1.5]),
+    free=st.floats(-1.0, 1.0, allow_nan=False, allow_subnormal=True),
+    peak_first=st.booleans(),
+    other=st.tuples(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0)),  # on the lattice too (else the dense path)
+)
+def test_one_or_two_rules_are_the_label_tables_of_lattice_pair_bit_for_bit(
+    pd_systems: tuple[MamdaniSystem, MamdaniSystem],
+    on_peak: float,
+    free: float,
+    peak_first: bool,
+    other: tuple[float, float],
+) -> None:
+    """One input on a peak (or clipped to an end): 1 or 2 rules, each output from the label tables."""
+    point = max(-1.0, min(1.0, on_peak))
+    x = (point, free) if peak_first else (free, point)
+    fired = _fired_rules(pd_systems[0], x)
+    assume(len(fired) <= 2 and (len(fired) == 1 or abs(fired[0][1] + fired[1][1] - 1.0) <= 1e-9))
+    crisp = MamdaniBatch(pd_systems).evaluate_flat((x, other))
+    n_outputs = len(pd_systems[0].outputs)
+    assert crisp[:n_outputs] == _label_table_reference(pd_systems[0], fired)

@@ -162,3 +162,15 @@ def test_step_rejects_bad_input(bad: object) -> None:
 def test_step_rejects_bad_dt(dt: float) -> None:
     with pytest.raises(ValueError, match="dt"):
         TrackingDifferentiator().step([0.0, 0.0], dt)
+
+
+@settings(deadline=None, max_examples=100)
+@given(samples=st.lists(st.tuples(errors, errors), min_size=1, max_size=10))
+def test_next_position_is_the_x1_of_the_next_step(samples: list[tuple[float, float]]) -> None:
+    """Known a step ahead (it needs no measurement), bit for bit; None before the first step."""
+    td = TrackingDifferentiator()
+    assert td.next_position(1e-3) is None
+    for v0, v1 in samples:
+        td.step_floats(v0, v1, 1e-3)
+        predicted = td.next_position(1e-3)
+        assert predicted == td.step_floats(-v1, v0, 1e-3)[:2]

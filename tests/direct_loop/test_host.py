@@ -214,3 +214,60 @@ def test_spin_us_is_validated() -> None:
     for bad in (-1, 100_001, 1.5, True):
         with pytest.raises(ValueError, match="spin_us"):
             LoopSettings(spin_us=bad)  # type: ignore[arg-type]
+
+
+def test_the_work_done_ahead_after_each_send_changes_no_answer(direct: Bench) -> None:
+    """Each answer is bit for bit that of a core stepped on the same measurements without prepare().
+
+    The direct loop calls ControllerCore.prepare after each send (the FLESO's model terms and the next
+    reference, done ahead); the plain core has the hosted one's settings and forgets the rehearsal too.
+    """
+    from rclpy.parameter import Parameter
+    from smm_controller.core import ControllerCore, CoreSettings
+    from smm_node_runtime.admission import InputAdmission
+
+    from smm_msgs_py import topics
+
+    controller = direct.controller
+    controller.set_parameters([Parameter("algorithm", value="fpdeso")])  # the law with the FLESO
+    calls: list[tuple[Any, ...]] = []
+    step, forget = controller.command_for, controller.forget_rehearsal
+
+    def recorded_step(stamp_ns: int, position: Any, effort: Any) -> Any:
+        calls.append((stamp_ns, position, effort, step(stamp_ns, position, effort)))
+        return calls[-1][-1]
+
+    def recorded_forget() -> None:
+        calls.append(())
+        forget()
+
+    controller.command_for, controller.forget_rehearsal = recorded_step, recorded_forget
+    direct.start()
+    assert direct.spin_until(lambda: len(calls) > 400, 10.0)
+    with direct.node._lock:  # between two ticks
+        answers = list(calls)
+    hosted = controller.core
+    assert hosted.chain is not None and hosted.chain.fleso is not None and hosted.plausibility is not None
+    settings = CoreSettings(
+        algorithm=hosted.algorithm,
+        gains=hosted.gains,
+        model=hosted.model,
+        output_limits=hosted.limiter.config,
+        control_period=hosted.control_period,
+        chain=True,
+        td=hosted.td,
+        fleso=hosted.fleso,
+        measurement_limits=hosted.plausibility.limits,
+    )
+    reference = controller.reference
+    plain = ControllerCore(
+        settings,
+        InputAdmission(hosted.admission.gate.policy, hosted.control_period),
+        reference=lambda: reference.generator,
+    )
+    for call in answers:
+        if not call:
+            plain.reset()  # the rehearsal is forgotten
+            continue
+        stamp_ns, position, effort, answer = call
+        assert plain.measurement(topics.JOINT_STATES, stamp_ns, position, effort, 0) == answer

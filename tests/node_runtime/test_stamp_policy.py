@@ -180,3 +180,15 @@ def test_refused_stamps_never_move_the_mark(stamps: list[int]) -> None:
 def test_stamp_policy_bounds(field_name: str, value: object) -> None:
     with pytest.raises(ValueError, match=field_name):
         StampPolicy(**{field_name: value})  # type: ignore[arg-type]
+
+
+def test_a_new_policy_or_period_applies_from_the_next_stamp() -> None:
+    """The gate keeps its limits in ns; assigning a policy or a period recomputes them."""
+    gate = StampGate(StampPolicy(max_ahead_periods=100, clock_tolerance=1.0), control_period=1e-3)
+    gate.mark_answered(1_000_000)
+    assert gate.classify(4_000_000) is Admission.NEW
+    gate.policy = StampPolicy(max_ahead_periods=2, clock_tolerance=0.001)
+    assert gate.max_ahead_ns == 2_000_000 and gate.classify(4_000_000) is Admission.AHEAD
+    assert gate.classify(2_500_000, now_ns=1_000_000) is Admission.FUTURE
+    gate.control_period = 2e-3
+    assert gate.max_ahead_ns == 4_000_000 and gate.classify(4_000_000) is Admission.NEW

@@ -111,6 +111,14 @@ class ControlChain:
         self.limiter.reset()
         self._disturbance = (0.0, 0.0)
 
+    def prepare(self, dt: float) -> None:
+        """Does ahead what the next step (of length ``dt``, s) needs no measurement for; optional.
+
+        The FLESO's model terms at its estimate and at the TD's next position.
+        """
+        if self.fleso is not None:
+            self.fleso.prepare(self.td.next_position(dt))
+
     def step(
         self, y: npt.ArrayLike, tau_applied: npt.ArrayLike, reference: npt.ArrayLike, dt: float
     ) -> FloatArray:

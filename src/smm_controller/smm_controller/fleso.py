@@ -107,6 +107,7 @@ class FLESO:
         self._x3 = [0.0, 0.0]
         self._error = [0.0, 0.0]
         self._last: tuple[float, ...] = (0.0,) * 10
+        self._ahead: tuple[float, float, float, float, float, float, float] | None = None
 
     def reconfigure(self, config: FLESOConfig, *, params: SMMParameters | None = None) -> None:
         """Takes new gains (and optionally a new nominal model) for the next step and keeps the state.
@@ -124,9 +125,23 @@ class FLESO:
         check_instance("config", config, FLESOConfig)
         if params is not None:
             self.model = NominalModel.shared(check_instance("params", params, SMMParameters))
+            self._ahead = None
         if config.grid_points != self.config.grid_points:
             self._batch = _bandwidth_batch(config.grid_points)
         self.config = config
+
+    def prepare(self, next_y: tuple[float, float] | None = None) -> None:
+        """Evaluates the model where the next step will: at the current estimate, and M at ``next_y``.
+
+        ``next_y``: the next step's position when known ahead (the TD's, rad). A loop with idle time after
+        its send calls this there; the next step then takes the terms instead of evaluating them (the same
+        values, so the same step).
+        """
+        if self._initialised:
+            x1, x2 = self._x1, self._x2
+            self._ahead = self.model.bias(x1[0], x1[1], x2[0], x2[1])
+        if next_y is not None:
+            self.model.mass(next_y[0], next_y[1])  # the model keeps the last M it evaluated
 
     def step(self, y: npt.ArrayLike, tau_applied: npt.ArrayLike, dt: float) -> FloatArray:
         """Advances the observer to the current sample.
@@ -150,54 +165,60 @@ class FLESO:
         x2 = self._x2
         x3 = self._x3
         model = self.model
+        config = self.config
         if not self._initialised:
             x1[0] = y0
             x1[1] = y1
             x2[0] = x2[1] = x3[0] = x3[1] = 0.0
             self._error[0] = self._error[1] = 0.0
             self._initialised = True
-            w_nominal = self.config.w0
+            w_nominal = config.w0
             self._last = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, w_nominal[0], w_nominal[1], 0.0, 0.0)
             return 0.0, 0.0
+        x1a, x1b = x1
+        x2a, x2b = x2
         # Prediction to t_k with the model and the torque that acted over [t_{k-1}, t_k].
-        m11, m12, m22, c0, c1, g0, g1 = model.bias(x1[0], x1[1], x2[0], x2[1])
+        ahead, self._ahead = self._ahead, None
+        m11, m12, m22, c0, c1, g0, g1 = model.bias(x1a, x1b, x2a, x2b) if ahead is None else ahead
         r0 = tau0 - c0 - g0
         r1 = tau1 - c1 - g1
-        if self.config.compensate_friction:
-            friction0, friction1 = model.friction(x2[0], x2[1])
+        if config.compensate_friction:
+            friction0, friction1 = model.friction(x2a, x2b)
             r0 -= friction0
             r1 -= friction1
         det = m11 * m22 - m12 * m12
         acc0 = (m22 * r0 - m12 * r1) / det
         acc1 = (m11 * r1 - m12 * r0) / det
-        p10 = x1[0] + dt * x2[0]
-        p11 = x1[1] + dt * x2[1]
-        p20 = x2[0] + dt * (x3[0] + acc0)
-        p21 = x2[1] + dt * (x3[1] + acc1)
+        p10 = x1a + dt * x2a
+        p11 = x1b + dt * x2b
+        p20 = x2a + dt * (x3[0] + acc0)
+        p21 = x2b + dt * (x3[1] + acc1)
         # Fuzzy bandwidth from the innovation and its rate.
         e0 = y0 - p10
         e1 = y1 - p11
-        rate0 = (e0 - self._error[0]) / dt
-        rate1 = (e1 - self._error[1]) / dt
-        self._error[0] = e0
-        self._error[1] = e1
-        config = self.config
-        s0 = _clip_unit(config.k_s1[0] * e0 + config.k_s2[0] * rate0)
-        s1 = _clip_unit(config.k_s1[1] * e1 + config.k_s2[1] * rate1)
+        error = self._error
+        rate0 = (e0 - error[0]) / dt
+        rate1 = (e1 - error[1]) / dt
+        error[0] = e0
+        error[1] = e1
+        (k_s1a, k_s1b), (k_s2a, k_s2b) = config.k_s1, config.k_s2
+        s0 = _clip_unit(k_s1a * e0 + k_s2a * rate0)
+        s1 = _clip_unit(k_s1b * e1 + k_s2b * rate1)
         f0, f1 = self._batch.evaluate_flat(((s0,), (s1,)))
-        w0 = max(config.w0[0] + config.k_w[0] * f0, config.w_min[0])
-        w1 = max(config.w0[1] + config.k_w[1] * f1, config.w_min[1])
+        (w0a, w0b), (k_wa, k_wb), (w_mina, w_minb) = config.w0, config.k_w, config.w_min
+        w0 = max(w0a + k_wa * f0, w_mina)
+        w1 = max(w0b + k_wb * f1, w_minb)
         l10, l20, l30 = observer_gains(w0)
         l11, l21, l31 = observer_gains(w1)
         x1[0] = p10 + dt * l10 * e0
         x1[1] = p11 + dt * l11 * e1
         x2[0] = p20 + dt * l20 * e0
         x2[1] = p21 + dt * l21 * e1
-        x3[0] += dt * l30 * e0
-        x3[1] += dt * l31 * e1
+        x3a = x3[0] = x3[0] + dt * l30 * e0
+        x3b = x3[1] = x3[1] + dt * l31 * e1
         n11, n12, n22 = model.mass(y0, y1)
-        xi0 = -(n11 * x3[0] + n12 * x3[1])
-        xi1 = -(n12 * x3[0] + n22 * x3[1])
+        xi0 = -(n11 * x3a + n12 * x3b)
+        xi1 = -(n12 * x3a + n22 * x3b)
         self._last = (e0, e1, rate0, rate1, s0, s1, w0, w1, xi0, xi1)
         return xi0, xi1
 

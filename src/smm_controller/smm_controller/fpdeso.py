@@ -119,23 +119,24 @@ class FPDESOController(TorqueLaw):
         dt: float,
     ) -> tuple[float, float]:
         """Same as :meth:`step` on floats (reference as nested 3x2 lists); returns (tau_a, tau_b)."""
-        position, velocity, acceleration = reference
+        (position0, position1), (velocity0, velocity1), (acceleration0, acceleration1) = reference
         q0, q1 = q
         qd0, qd1 = q_dot
         xi0, xi1 = disturbance_estimate
-        e0 = position[0] - q0
-        e1 = position[1] - q1
-        ed0 = velocity[0] - qd0
-        ed1 = velocity[1] - qd1
+        e0 = position0 - q0
+        e1 = position1 - q1
+        ed0 = velocity0 - qd0
+        ed1 = velocity1 - qd1
         kp0, kp1, kd0, kd1 = self.schedule.step_floats(e0, e1, ed0, ed1)
         u0 = kp0 * e0 + kd0 * ed0
         u1 = kp1 * e1 + kd1 * ed1
-        m11, m12, m22, c0, c1, g0, g1 = self.model.bias(q0, q1, qd0, qd1)
-        ff0 = m11 * acceleration[0] + m12 * acceleration[1] + c0 + g0
-        ff1 = m12 * acceleration[0] + m22 * acceleration[1] + c1 + g1
+        model = self.model
+        m11, m12, m22, c0, c1, g0, g1 = model.bias(q0, q1, qd0, qd1)
+        ff0 = m11 * acceleration0 + m12 * acceleration1 + c0 + g0
+        ff1 = m12 * acceleration0 + m22 * acceleration1 + c1 + g1
         config = self.config
         if config.compensate_friction:
-            friction0, friction1 = self.model.friction(qd0, qd1)
+            friction0, friction1 = model.friction(qd0, qd1)
             ff0 += friction0
             ff1 += friction1
         fb0 = m11 * u0 + m12 * u1
@@ -144,10 +145,9 @@ class FPDESOController(TorqueLaw):
         z0 = m22 * ed0 - m12 * ed1
         z1 = m11 * ed1 - m12 * ed0
         det = m11 * m22 - m12 * m12
-        b_d = config.robust_gain
-        phi = config.boundary_layer
-        v0 = -b_d[0] * robust_switch(z0 / det, phi[0])
-        v1 = -b_d[1] * robust_switch(z1 / det, phi[1])
+        (b_d0, b_d1), (phi0, phi1) = config.robust_gain, config.boundary_layer
+        v0 = -b_d0 * robust_switch(z0 / det, phi0)
+        v1 = -b_d1 * robust_switch(z1 / det, phi1)
         tau0 = ff0 + fb0 + xi0 - v0
         tau1 = ff1 + fb1 + xi1 - v1
         self._last = (kp0, kp1, kd0, kd1, u0, u1, ff0, ff1, fb0, fb1, xi0, xi1, v0, v1, tau0, tau1)

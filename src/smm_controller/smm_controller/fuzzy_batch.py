@@ -189,22 +189,25 @@ class MamdaniBatch:
         from :class:`LabelPairCentroids`; with four, the concluded MFs are clipped, max-aggregated and
         defuzzified in numpy, for all such systems at once. The lattice lookup is
         :meth:`FuzzyVariable.lattice_pair` inlined (the same expressions; a test pins the result to the
-        dense evaluation): this runs every control step.
+        dense evaluation), and the cases are told apart by which of the four degrees are positive, with
+        no list of the fired rules: this runs every control step.
         """
         assert self._lattice_plan is not None
         n_outputs = self._n_outputs
-        outputs = range(n_outputs)
         pair_centroids = self._pair_centroids
         crisp = [0.0] * self._n_rows
-        four_rules: list[tuple[int, list[tuple[int, float]]]] = []
-        for system_index, ((first, second, radix, _, labels), x) in enumerate(
-            zip(self._lattice_plan, inputs, strict=True)
-        ):
+        # The systems whose four rules fire, and per rule its strength slots (one per output) and level.
+        four_rules: list[int] = []
+        slots: list[int] = []
+        levels: list[float] = []
+        for system_index, (plan, x) in enumerate(zip(self._lattice_plan, inputs, strict=True)):
             if len(x) != 2:
                 return None
             x0, x1 = x
+            first, second, radix, targets, labels = plan
             low, high, spacing, last, sides = first
-            if not low <= x0 <= high:
+            low1, high1, spacing1, last1, sides1 = second
+            if not (low <= x0 <= high and low1 <= x1 <= high1):
                 return None
             i = int((x0 - low) // spacing)
             if i > last:  # noqa: PLR1730 (faster than min() here)
@@ -212,76 +215,85 @@ class MamdaniBatch:
             peak_left, falling_width, foot_right, rising_width = sides[i]
             degree_i = (peak_left - x0) / falling_width
             degree_i1 = (x0 - foot_right) / rising_width
-            low, high, spacing, last, sides = second
-            if not low <= x1 <= high:
-                return None
-            j = int((x1 - low) // spacing)
-            if j > last:  # noqa: PLR1730 (faster than min() here)
-                j = last
-            peak_left, falling_width, foot_right, rising_width = sides[j]
+            j = int((x1 - low1) // spacing1)
+            if j > last1:  # noqa: PLR1730 (faster than min() here)
+                j = last1
+            peak_left, falling_width, foot_right, rising_width = sides1[j]
             degree_j = (peak_left - x1) / falling_width
             degree_j1 = (x1 - foot_right) / rising_width
-            # Clamp at 1 as lattice_pair does; a degree <= 0 fires no rule.
+            # Clamp at 1 as lattice_pair does; a degree <= 0 fires no rule. AND = min.
             degree_i = 1.0 if degree_i > 1.0 else degree_i
             degree_i1 = 1.0 if degree_i1 > 1.0 else degree_i1
             degree_j = 1.0 if degree_j > 1.0 else degree_j
             degree_j1 = 1.0 if degree_j1 > 1.0 else degree_j1
-            # Cells (i, j), (i, j + 1), (i + 1, j), (i + 1, j + 1) with a positive AND = min.
             cell = i * radix + j
-            fired = []
+            both_i = degree_i > 0.0 and degree_i1 > 0.0
+            both_j = degree_j > 0.0 and degree_j1 > 0.0
+            if both_i and both_j:
+                four_rules.append(system_index)
+                slots += targets[cell]
+                slots += targets[cell + 1]
+                slots += targets[cell + radix]
+                slots += targets[cell + radix + 1]
+                levels += (
+                    degree_i if degree_i < degree_j else degree_j,
+                    degree_i if degree_i < degree_j1 else degree_j1,
+                    degree_i1 if degree_i1 < degree_j else degree_j,
+                    degree_i1 if degree_i1 < degree_j1 else degree_j1,
+                )
+                continue
+            # The one (or first) label of each input that fires, as a cell offset and a degree.
             if degree_i > 0.0:
-                if degree_j > 0.0:
-                    fired.append((cell, degree_i if degree_i < degree_j else degree_j))
-                if degree_j1 > 0.0:
-                    fired.append((cell + 1, degree_i if degree_i < degree_j1 else degree_j1))
-            if degree_i1 > 0.0:
-                if degree_j > 0.0:
-                    fired.append((cell + radix, degree_i1 if degree_i1 < degree_j else degree_j))
-                if degree_j1 > 0.0:
-                    fired.append((cell + radix + 1, degree_i1 if degree_i1 < degree_j1 else degree_j1))
-            row = system_index * n_outputs
-            if len(fired) == 1:
-                ((cell, level),) = fired
-                for o in outputs:
-                    crisp[row + o] = pair_centroids[o].single(labels[cell][o], level)
-            elif len(fired) == 2 and abs(fired[0][1] + fired[1][1] - 1.0) <= _UNIT_SUM_TOLERANCE:
-                (cell, level), (other_cell, other_level) = fired
-                for o in outputs:
-                    label, other_label = labels[cell][o], labels[other_cell][o]
-                    if label == other_label:
-                        crisp[row + o] = pair_centroids[o].single(label, max(level, other_level))
-                    else:
-                        crisp[row + o] = pair_centroids[o].pair(label, level, other_label, other_level)
-            elif len(fired) == 4:
-                four_rules.append((system_index, fired))
+                di = degree_i
+            elif degree_i1 > 0.0:
+                di, cell = degree_i1, cell + radix
             else:
-                return None  # none, or two whose sum is not 1: impossible on a partition of unity
+                return None
+            if degree_j > 0.0:
+                dj = degree_j
+            elif degree_j1 > 0.0:
+                dj, cell = degree_j1, cell + 1
+            else:
+                return None
+            level = di if di < dj else dj
+            row = system_index * n_outputs
+            rule = labels[cell]
+            if not (both_i or both_j):
+                for o in range(n_outputs):
+                    crisp[row + o] = pair_centroids[o].single(rule[o], level)
+                continue
+            # Two rules, in the order of the cells: (i, j) and (i + 1, j), or (i, j) and (i, j + 1).
+            if both_i:
+                other_cell, other_level = cell + radix, (degree_i1 if degree_i1 < dj else dj)
+            else:
+                other_cell, other_level = cell + 1, (di if di < degree_j1 else degree_j1)
+            if abs(level + other_level - 1.0) > _UNIT_SUM_TOLERANCE:
+                return None  # two whose sum is not 1: impossible on a partition of unity
+            other_rule = labels[other_cell]
+            for o in range(n_outputs):
+                label, other_label = rule[o], other_rule[o]
+                if label == other_label:
+                    crisp[row + o] = pair_centroids[o].single(label, max(level, other_level))
+                else:
+                    crisp[row + o] = pair_centroids[o].pair(label, level, other_label, other_level)
         if four_rules:
-            self._clip_and_defuzzify(four_rules, crisp)
+            self._clip_and_defuzzify(four_rules, slots, levels, crisp)
         return crisp
 
     def _clip_and_defuzzify(
-        self, systems: list[tuple[int, list[tuple[int, float]]]], crisp: list[float]
+        self, systems: list[int], slots: list[int], levels: list[float], crisp: list[float]
     ) -> None:
-        """Numpy min/max/centroid of the given systems' four fired rules each."""
-        assert self._lattice_plan is not None
-        slots: list[int] = []
-        firings: list[float] = []
-        for system_index, fired in systems:
-            targets = self._lattice_plan[system_index][3]
-            for cell, level in fired:
-                slots += targets[cell]
-                firings.append(level)
+        """Numpy min/max/centroid of the given systems' four fired rules each (their slots and levels)."""
         firing, firing_view, gathered, gathered_view, aggregated, aggregated_view = self._lattice_buffers[
             len(systems) - 1
         ]
-        firing[:] = firings
+        firing[:] = levels
         self._sample_table.take(slots, 0, gathered, "clip")
         np.minimum(gathered_view, firing_view, out=gathered_view)
         np.maximum.reduce(gathered_view, axis=1, out=aggregated_view)
         values = np.dot(aggregated, self._weights).tolist()
         n_outputs = self._n_outputs
-        for k, (system_index, _) in enumerate(systems):
+        for k, system_index in enumerate(systems):
             for o in range(n_outputs):
                 area, moment = values[k * n_outputs + o]
                 crisp[system_index * n_outputs + o] = moment / area if area > 0.0 else ZERO_AREA_FALLBACK

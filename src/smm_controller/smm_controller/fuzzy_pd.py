@@ -143,17 +143,18 @@ class FuzzyPDGainSchedule:
     def step_floats(self, e0: float, e1: float, ed0: float, ed1: float) -> tuple[float, float, float, float]:
         """Same as :meth:`step` on floats: returns (kp_alpha, kp_beta, kd_alpha, kd_beta)."""
         config = self.config
-        k_e = config.k_e
-        k_de = config.k_de
-        x0 = _clip_unit(k_e[0] * e0)
-        x1 = _clip_unit(k_e[1] * e1)
-        c0 = _clip_unit(k_de[0] * ed0)
-        c1 = _clip_unit(k_de[1] * ed1)
+        (k_e0, k_e1), (k_de0, k_de1) = config.k_e, config.k_de
+        x0 = _clip_unit(k_e0 * e0)
+        x1 = _clip_unit(k_e1 * e1)
+        c0 = _clip_unit(k_de0 * ed0)
+        c1 = _clip_unit(k_de1 * ed1)
         fe0, fde0, fe1, fde1 = self._batch.evaluate_flat(((x0, c0), (x1, c1)))
-        kp0 = config.kp0[0] + config.k1[0] * fe0
-        kp1 = config.kp0[1] + config.k1[1] * fe1
-        kd0 = config.kd0[0] + config.k2[0] * fde0
-        kd1 = config.kd0[1] + config.k2[1] * fde1
+        (kp00, kp01), (k10, k11) = config.kp0, config.k1
+        (kd00, kd01), (k20, k21) = config.kd0, config.k2
+        kp0 = kp00 + k10 * fe0
+        kp1 = kp01 + k11 * fe1
+        kd0 = kd00 + k20 * fde0
+        kd1 = kd01 + k21 * fde1
         self._last = (x0, x1, c0, c1, fe0, fe1, fde0, fde1, kp0, kp1, kd0, kd1)
         return kp0, kp1, kd0, kd1
 

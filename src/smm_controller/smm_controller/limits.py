@@ -153,8 +153,10 @@ def track_saturation(
     law: object, unlimited: tuple[float, float], limited: tuple[float, float], dt: float
 ) -> None:
     """Tell ``law`` that its output was limited, if it tracks saturation (back-calculation anti-windup)."""
+    if limited == unlimited:  # the common case, decided before the finiteness and protocol checks
+        return
     finite = all(math.isfinite(value) for value in (*unlimited, *limited))
-    if limited != unlimited and finite and isinstance(law, SaturationTracking):
+    if finite and isinstance(law, SaturationTracking):
         law.track_saturation(unlimited, limited, dt)
 
 

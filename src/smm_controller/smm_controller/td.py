@@ -179,6 +179,16 @@ class TrackingDifferentiator:
         x2[1] += dt * accel1
         return x1[0], x1[1], x2[0], x2[1]
 
+    def next_position(self, dt: float) -> tuple[float, float] | None:
+        """x1 after the next step of length ``dt`` (rad), None before the first step.
+
+        It needs no measurement: eq. 24 moves x1 with the previous x2.
+        """
+        if not self._initialised:
+            return None
+        x1, x2 = self._x1, self._x2
+        return x1[0] + dt * x2[0], x1[1] + dt * x2[1]
+
     @property
     def internals(self) -> Mapping[str, FloatArray]:
         """Read-only copies: x1 (rad), x2 (rad/s), input (rad), each shape (2,)."""

@@ -197,7 +197,7 @@ class DirectBridgeNode(HwBridgeNode):
         """Steps the chain on the core's measurement and sends its command; a failing chain faults."""
         self._answered_stamp = None
         stamp_ns = core.stamp_ns
-        result = self._stepped(core)
+        result = self._stepped(core, stamp_ns)
         if result is None:
             return True
         if isinstance(result, Refusal):
@@ -213,12 +213,11 @@ class DirectBridgeNode(HwBridgeNode):
 
     def rehearse_in_place(self, core: BridgeCore, rx_ns: int) -> bool:
         """The preflight: steps the chain as :meth:`answer_in_place` does, and sends nothing of it."""
-        result = self._stepped(core)
+        result = self._stepped(core, core.stamp_ns)
         return result is not None and not isinstance(result, Refusal)
 
-    def _stepped(self, core: BridgeCore) -> StepResult | None:
-        """The hosted controller's answer to the core's measurement; None after a raising law faulted."""
-        stamp_ns = core.stamp_ns
+    def _stepped(self, core: BridgeCore, stamp_ns: int) -> StepResult | None:
+        """The hosted controller's answer to the measurement stamped ``stamp_ns``; None after a law raised."""
         try:
             return self.controller.command_for(stamp_ns, core.position_floats, core.applied_torque_floats)
         except Exception as error:  # a bug in a law: the loop cannot go on
@@ -230,7 +229,10 @@ class DirectBridgeNode(HwBridgeNode):
         self.controller.forget_rehearsal()
 
     def after_feedback(self, sample: JointSample) -> None:
-        """The ROS side of the tick, after the command went out: the controller's topics, the bridge's."""
+        """The ROS side of the tick after the send, then the next tick's work that needs no measurement.
+
+        The controller's topics, the bridge's, then :meth:`ControllerCore.prepare` (under the tick lock).
+        """
         stamp = self._answered_stamp
         if stamp is None:
             return
@@ -240,6 +242,8 @@ class DirectBridgeNode(HwBridgeNode):
         if core is not None:
             self.publish_internals(core, stamp)
         self.publish_us.add((time.monotonic_ns() - started) / 1e3)
+        with self.controller.tick_lock:  # the next tick's work that needs no measurement, off its path
+            self.controller.core.prepare()
 
     def on_configure(self, state: Any) -> Any:
         """As the bridge's, and the loop statistics start anew."""

@@ -485,8 +485,6 @@ class HwBridgeNode(LifecycleNode):
             if core is None or self._transport is None:
                 return
             frame = core.on_datagram(data, now)
-            if frame is not None and self.tally is not None and core.last_feedback is not None:
-                self.tally.on_feedback(core.last_feedback)
             # lockstep: the board re-sends its unanswered feedback; so do we (a DDS sample may be lost)
             resent = core.config.lockstep and core.last_rejection is Reason.DUPLICATE
             if frame is None and not resent:
@@ -495,10 +493,11 @@ class HwBridgeNode(LifecycleNode):
             armed = core.state in (BridgeState.ARMING, BridgeState.ARMED)
             publish = armed and core.control_tick
             rehearsal = None if armed or frame is None else self.rehearsal
-            tick = core.stamp_ns // core.config.period_ns
             control = rehearsal is not None and core.control_tick
             rehearsed = False
+            tick = 0
             if rehearsal is not None:
+                tick = core.stamp_ns // core.config.period_ns
                 rehearsal.on_feedback(tick, now, control)
                 rehearsed = control and self.rehearse_in_place(core, now)
             answered = publish and self.answer_in_place(core, now)
@@ -506,6 +505,8 @@ class HwBridgeNode(LifecycleNode):
                 out = core.next_frame(now)
                 if out is not None:
                     self._transmit(out)
+            if frame is not None and self.tally is not None:  # the run's figures: after the send
+                self.tally.on_feedback(frame)
             if rehearsed and rehearsal is not None:
                 rehearsal.on_answer(tick, time.monotonic_ns())
             if not publish and (not control or self.direct):

@@ -185,7 +185,10 @@ class BridgeCore:
             raise ValueError(f"host_session must be an int in [1, 2**32), got {host_session!r}")
         self._config = config
         self._host_session = host_session
+        self._period_ns = config.period_ns
         self._period_s = config.period_ns / 1e9
+        self._command_dt = config.period_ns * 1e-9
+        """dt of the valve's rate limit per command (s), as ``period_ns * 1e-9``."""
         self._limits = (float(config.soft_limits[0]), float(config.soft_limits[1]))
         self._validity = config.validity
         self._stale_ticks = config.stale_ticks
@@ -341,7 +344,7 @@ class BridgeCore:
     @property
     def stamp_ns(self) -> int:
         """Stamp of the last admitted measurement: unwrapped board tick * period (ns)."""
-        return self._admission.tick * self._config.period_ns
+        return self._admission.tick * self._period_ns
 
     @property
     def position(self) -> FloatArray:
@@ -388,8 +391,7 @@ class BridgeCore:
             return self._refuse(Refusal.INVALID)
         if self.state not in (BridgeState.ARMING, BridgeState.ARMED):
             return self._refuse(Refusal.INACTIVE)
-        period = self._config.period_ns
-        tick, remainder = divmod(int(stamp_ns), period)
+        tick, remainder = divmod(int(stamp_ns), self._period_ns)
         entry = self._recent.get(tick) if remainder == 0 else None
         if entry is None:
             return self._refuse(Refusal.UNKNOWN_STAMP)
@@ -403,7 +405,7 @@ class BridgeCore:
         cut_a = (position_a >= limit_a and alpha > 0.0) or (position_a <= -limit_a and alpha < 0.0)
         cut_b = (position_b >= limit_b and beta > 0.0) or (position_b <= -limit_b and beta < 0.0)
         self._cut = (cut_a, cut_b)
-        codes = self._valve.step_floats((0.0 if cut_a else alpha, 0.0 if cut_b else beta), period * 1e-9)
+        codes = self._valve.step_floats((0.0 if cut_a else alpha, 0.0 if cut_b else beta), self._command_dt)
         self._pending = _Pending(codes, entry[0], entry[1], tick, rx_ns)
         last = self._last
         # lockstep: the board re-sends the feedback it built before it locked to us (the board itself drops

@@ -59,6 +59,11 @@ _FEEDBACK_BODY: Final[struct.Struct] = struct.Struct("<IIII4HHHIHhhHIII")
 _CRC: Final[struct.Struct] = struct.Struct("<I")
 _COMMAND_PACK: Final[struct.Struct] = struct.Struct(_HEADER.format + _COMMAND_BODY.format[1:])
 _FEEDBACK_PACK: Final[struct.Struct] = struct.Struct(_HEADER.format + _FEEDBACK_BODY.format[1:])
+_FEEDBACK_FRAME: Final[struct.Struct] = struct.Struct(_FEEDBACK_PACK.format + _CRC.format[1:])
+_BODY: Final[int] = 6
+"""Values of the header in an unpacked frame; the body's follow."""
+_PAD: Final[int] = 14
+"""Index of the reserved (pad) field in an unpacked feedback body."""
 HEADER_SIZE: Final[int] = _HEADER.size
 COMMAND_SIZE: Final[int] = HEADER_SIZE + _COMMAND_BODY.size + _CRC.size
 FEEDBACK_SIZE: Final[int] = HEADER_SIZE + _FEEDBACK_BODY.size + _CRC.size
@@ -283,7 +288,7 @@ _FEEDBACK_FIELDS: Final[tuple[str, ...]] = tuple(item.name for item in fields(Fe
 def _unchecked(cls: type[_Frame], names: tuple[str, ...], values: tuple[Any, ...]) -> _Frame:
     """A frame of ``cls`` without ``__post_init__``: for values its checks are known to pass."""
     frame = object.__new__(cls)
-    frame.__dict__.update(zip(names, values, strict=True))
+    frame.__dict__.update(zip(names, values, strict=False))  # both from the field list: equal lengths
     return frame
 
 
@@ -381,6 +386,21 @@ def decode(data: bytes | bytearray | memoryview) -> CommandFrame | FeedbackFrame
         if session and not flags & ~_COMMAND_FLAGS_MASK and _CODE_MIN_WIRE not in (code_a, code_b):
             return _unchecked(CommandFrame, _COMMAND_FIELDS, command)
         return CommandFrame(*command)
+    body = _FEEDBACK_BODY.unpack_from(raw, HEADER_SIZE)
+    if body[_PAD] != 0:
+        raise ProtocolError(Reason.FIELD, f"reserved field is {body[_PAD]}, must be 0")
+    feedback, plain = _feedback_fields(session, seq, body)
+    if plain:
+        return _unchecked(FeedbackFrame, _FEEDBACK_FIELDS, feedback)
+    return FeedbackFrame(*feedback)
+
+
+def _feedback_fields(session: int, seq: int, body: tuple[Any, ...]) -> tuple[tuple[Any, ...], bool]:
+    """A feedback frame's fields from the header's session and seq and the unpacked body, and whether plain.
+
+    Plain: no field needs the checking constructor (struct's unsigned fields are in range; what a wire
+    frame can still get wrong is the session, status bits, A/D range and the code -32768).
+    """
     (
         tick,
         host_session,
@@ -396,13 +416,11 @@ def decode(data: bytes | bytearray | memoryview) -> CommandFrame | FeedbackFrame
         applied_age,
         out_a,
         out_b,
-        pad,
+        _,
         late,
         crc_errors,
         dropped,
-    ) = _FEEDBACK_BODY.unpack_from(raw, HEADER_SIZE)
-    if pad != 0:
-        raise ProtocolError(Reason.FIELD, f"reserved field is {pad}, must be 0")
+    ) = body
     feedback = (
         session,
         seq,
@@ -419,14 +437,13 @@ def decode(data: bytes | bytearray | memoryview) -> CommandFrame | FeedbackFrame
         crc_errors,
         dropped,
     )
-    if (
-        session
+    plain = (
+        session != 0
         and not status & ~_STATUS_MASK
         and max(adc0, adc1, adc2, adc3) <= ADC_MAX
         and _CODE_MIN_WIRE not in (out_a, out_b)
-    ):
-        return _unchecked(FeedbackFrame, _FEEDBACK_FIELDS, feedback)
-    return FeedbackFrame(*feedback)
+    )
+    return feedback, plain
 
 
 def decode_command(data: bytes | bytearray | memoryview) -> CommandFrame:
@@ -439,7 +456,33 @@ def decode_command(data: bytes | bytearray | memoryview) -> CommandFrame:
 
 def decode_feedback(data: bytes | bytearray | memoryview) -> FeedbackFrame:
     """:func:`decode`, and a TYPE error unless it is a feedback frame."""
+    if type(data) is bytes and len(data) == FEEDBACK_SIZE:
+        plain = _plain_feedback(data)
+        if plain is not None:
+            return plain
     frame = decode(data)
     if not isinstance(frame, FeedbackFrame):
         raise ProtocolError(Reason.TYPE, "expected a feedback frame, got a command frame")
     return frame
+
+
+def _plain_feedback(raw: bytes) -> FeedbackFrame | None:
+    """:func:`decode`'s frame for ``raw`` (FEEDBACK_SIZE bytes) in one unpack; None unless it is a plain one.
+
+    Plain: a valid feedback frame whose fields need no check (the receiving thread's case); any other is
+    left to :func:`decode`, which names what is wrong.
+    """
+    values = _FEEDBACK_FRAME.unpack(raw)
+    magic, version, frame_type, length, session, seq = values[:_BODY]
+    body = values[_BODY:-1]
+    if (
+        magic != MAGIC
+        or length != FEEDBACK_SIZE
+        or version != VERSION
+        or frame_type != _FEEDBACK_TYPE
+        or body[_PAD] != 0
+        or values[-1] != zlib.crc32(raw[: -_CRC.size])
+    ):
+        return None
+    feedback, plain = _feedback_fields(session, seq, body)
+    return _unchecked(FeedbackFrame, _FEEDBACK_FIELDS, feedback) if plain else None

@@ -16,6 +16,7 @@ from smm_hw_bridge.protocol import FeedbackFrame, StatusBit, u32_diff
 
 __all__ = ["EXIT_NOT_CONTROLLED", "RunTally", "VerdictConfig"]
 
+_ENABLED: Final[int] = int(StatusBit.ENABLED)
 EXIT_NOT_CONTROLLED: Final[int] = 3
 """Exit code of a hardware run that did not control (never armed, never live, too many late ticks)."""
 
@@ -80,7 +81,7 @@ class RunTally:
         last, self._last = self._last, frame
         if last is not None and last.session == frame.session:
             self.missed_ticks += max(0, u32_diff(frame.tick, last.tick) - 1)
-        enabled = bool(frame.status & StatusBit.ENABLED)
+        enabled = bool(frame.status & _ENABLED)  # an int: IntFlag arithmetic costs a flag object
         if enabled:
             self.live_ticks += 1
             if self._first_live is None:
@@ -93,7 +94,7 @@ class RunTally:
             return  # a reboot, or the same tick re-sent (lockstep)
         divider = self.divider
         answered = frame.tick - frame.applied_age  # the tick the command on the valves answers
-        dead_before = not last.status & StatusBit.ENABLED  # frames lost after a frame not live: not live
+        dead_before = not last.status & _ENABLED  # frames lost after a frame not live: not live
         # the control ticks in (last.tick, frame.tick]: each ends the period that began N ticks before
         for end in range(frame.tick - (frame.tick % divider), frame.tick - ticks, -divider):
             if u32_diff(end, first) < self.settle_ticks:

@@ -78,13 +78,40 @@ class StampGate:
     def __init__(
         self, policy: StampPolicy | None = None, control_period: float = DEFAULT_CONTROL_PERIOD
     ) -> None:
-        self.policy = policy if policy is not None else StampPolicy()
-        self.control_period = control_period
+        self._policy = policy if policy is not None else StampPolicy()
+        self._control_period = control_period
+        self._window_ns = self._tolerance_ns = 0
+        self._set_limits()
         self._last_stamp_ns: int | None = None
         self._track_ns: int | None = None
         self._track_length = 0
         self.last_jump: tuple[int, int] | None = None
         """``(old mark, new stamp)`` (ns) of the last resynchronisation, None before any."""
+
+    @property
+    def policy(self) -> StampPolicy:
+        """The limits; new ones apply from the next stamp."""
+        return self._policy
+
+    @policy.setter
+    def policy(self, policy: StampPolicy) -> None:
+        self._policy = policy
+        self._set_limits()
+
+    @property
+    def control_period(self) -> float:
+        """Control period (s), the unit of ``max_ahead_periods``."""
+        return self._control_period
+
+    @control_period.setter
+    def control_period(self, control_period: float) -> None:
+        self._control_period = control_period
+        self._set_limits()
+
+    def _set_limits(self) -> None:
+        """The policy's limits in ns, once per change instead of per stamp."""
+        self._window_ns = self._policy.max_ahead_periods * round(self._control_period * _NS_PER_S)
+        self._tolerance_ns = round(self._policy.clock_tolerance * _NS_PER_S)
 
     @property
     def last_stamp_ns(self) -> int | None:
@@ -94,22 +121,21 @@ class StampGate:
     @property
     def max_ahead_ns(self) -> int:
         """Largest accepted distance ahead of the last answered stamp (ns)."""
-        return self.policy.max_ahead_periods * round(self.control_period * _NS_PER_S)
+        return self._window_ns
 
     def classify(self, stamp_ns: int, now_ns: int | None = None) -> Admission:
         """Classify ``stamp_ns`` (ns) given the node's clock ``now_ns`` (ns; None or 0: not checked).
 
         Refused stamps advance the jump detection; RESYNC has already forgotten the last answered mark.
         """
-        policy = self.policy
-        if now_ns and stamp_ns > now_ns + round(policy.clock_tolerance * _NS_PER_S):
+        if now_ns and stamp_ns > now_ns + self._tolerance_ns:
             return Admission.FUTURE
         last = self._last_stamp_ns
         if last is None:
             return Admission.NEW
         if stamp_ns == last:
             return Admission.DUPLICATE
-        window = self.max_ahead_ns
+        window = self._window_ns
         if last < stamp_ns <= last + window:
             self._track_ns, self._track_length = None, 0
             return Admission.NEW
@@ -117,7 +143,7 @@ class StampGate:
         follows = track is not None and track <= stamp_ns <= track + window
         self._track_length = self._track_length + 1 if follows else 1
         self._track_ns = stamp_ns
-        if self._track_length >= policy.resync_samples:
+        if self._track_length >= self._policy.resync_samples:
             self.last_jump = (last, stamp_ns)
             self._last_stamp_ns = None
             self._track_ns, self._track_length = None, 0
