@@ -227,6 +227,8 @@ def realtime_hil(
         "bridge.admission.stale_ns": str(20 * period_ns),
         "bridge.host_watchdog_ns": str(10 * period_ns),
         "bridge.link_timeout_ns": str(100 * period_ns),
+        # a loop the preflight finds too slow is measured all the same (its refusal is in the bridge's log)
+        "preflight.force": "true",
     }
     bridge.update(loop_parameters)
     arguments = [text for name, value in bridge.items() for text in ("-p", f"{name}:={value}")]
@@ -271,9 +273,18 @@ def realtime_hil(
     if emulator.returncode not in (0, EXIT_NOT_CONTROLLED) or not record.is_file() or not lines:
         print(f"  the emulator failed (exit {emulator.returncode})")
         return None
-    status: dict[str, Any] = json.loads(lines[-1])
+    summary = next((line for line in reversed(lines) if line.startswith("{")), None)
+    if summary is None:
+        print(f"  the emulator printed no status (exit {emulator.returncode})")
+        return None
+    status: dict[str, Any] = json.loads(summary)  # its stderr's closing words may follow it
     verdict = "controlled" if status["verdict"] is None else f"did not control: {status['verdict']}"
     print(f"  run: {status['figures']}; {verdict}")
+    host_log = (workdir / f"{'direct_loop' if shape == 'direct' else 'hw_bridge_node'}_{tag}.log").read_text(
+        errors="replace"
+    )
+    for line in re.findall(r"preflight: (late .*|ARMING ANYWAY.*?: this host does not hold [^:]*)", host_log):
+        print(f"  preflight: {line}")
     data = np.load(record)
     ticks, q, codes = data["tick"], data["position"], data["codes"]
     live = np.flatnonzero(np.any(codes != 0, axis=1))
@@ -287,11 +298,12 @@ def realtime_hil(
     # The controller's time zero: the stamp of its first measurement, which it logs; the bridge stamps
     # measurements with board tick * period, so it is a time on the board's clock.
     logged = (workdir / f"{controller_log}_{tag}.log").read_text(errors="replace")
-    found = re.search(r"reference t = 0 s at measurement stamp (\d+) ns", logged)
-    if found is None:
+    # The last origin it logged: the preflight's rehearsal logs one before the run restarts the reference.
+    origins = re.findall(r"reference t = 0 s at measurement stamp (\d+) ns", logged)
+    if not origins:
         print("  the controller did not log its reference origin")
         return None
-    status["origin_s"] = int(found.group(1)) * 1e-9
+    status["origin_s"] = int(origins[-1]) * 1e-9
     status["rms"] = tracking_rms(t, q, start_t, seconds, status["origin_s"])
     status["window_s"] = seconds
     bad = np.flatnonzero(~np.all(np.isfinite(q), axis=1) | np.any(np.abs(q) > 2 * np.pi, axis=1))

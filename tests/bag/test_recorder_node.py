@@ -122,6 +122,46 @@ def test_clean_finish_loses_nothing(
     assert times == sorted(times) and times[0] > 1_600_000_000 * 10**9
 
 
+def test_the_manifest_names_the_nodes_whose_parameters_it_could_not_read(
+    ros_context: Any, ros_processes: Any, tmp_path: Path
+) -> None:
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from smm_bag.manifest import RunManifest
+
+    bag = tmp_path / "recorded"
+    recorder = ros_processes.start(
+        "recorder",
+        [sys.executable, "-m", "smm_bag.recorder_node", "--ros-args", "-p", f"output:={bag}"],
+    )
+    shown = rclpy.create_node("shown", namespace="/smm", context=ros_context)
+    shown.declare_parameter("gain", 2.5)
+    # A node that never answers for its parameters, as one that ends before the recorder asks it.
+    silent = rclpy.create_node(
+        "silent", namespace="/smm", context=ros_context, start_parameter_services=False
+    )
+    executor = SingleThreadedExecutor(context=ros_context)
+    for node in (shown, silent):
+        executor.add_node(node)
+    deadline = time.monotonic() + 60.0
+    while silent.count_clients("/smm/silent/list_parameters") == 0:  # the recorder saw it and waits for it
+        assert time.monotonic() < deadline, recorder.logs()
+        executor.spin_once(timeout_sec=0.05)
+    os.killpg(recorder.popen.pid, signal.SIGINT)
+    while recorder.popen.poll() is None and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    assert recorder.popen.wait(timeout=30) == 0, recorder.logs()
+    executor.shutdown()
+    for node in (shown, silent):
+        node.destroy_node()
+    manifest = RunManifest.from_custom_data(read_metadata(bag).custom_data)
+    assert "/smm/silent" in manifest.parameters_unread and "/smm/silent" not in manifest.parameters
+    assert ("/smm/shown" in manifest.parameters) != ("/smm/shown" in manifest.parameters_unread)
+    if "/smm/shown" in manifest.parameters:
+        assert manifest.parameters["/smm/shown"]["gain"] == 2.5
+    assert "gone before its parameter service answered" in recorder.logs()
+
+
 def test_sigkill_then_repair_recovers_everything_flushed(
     ros_context: Any, ros_processes: Any, tmp_path: Path
 ) -> None:

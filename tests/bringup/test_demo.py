@@ -78,7 +78,8 @@ def test_demo_runs_the_graph_and_matches_the_offline_loop(
     manifest = RunManifest.from_custom_data(read_metadata(bag).custom_data)
     assert (manifest.scenario, manifest.controller, manifest.plant) == ("case2", "fpdeso", "sim")
     assert manifest.parameters["/smm/controller_node"]["algorithm"] == "fpdeso"  # every node's parameters
-    assert "/smm/smm_sim_node" in manifest.parameters
+    # The simulator of a 1 s run may end before the recorder reads it (a loaded machine): then it is named.
+    assert "/smm/smm_sim_node" in manifest.parameters or "/smm/smm_sim_node" in manifest.parameters_unread
     analysed = json.loads((out / "analysis" / "metrics.json").read_text())["case2"]["fpdeso"]
     for joint in ("alpha", "beta"):
         assert analysed[joint]["RMS"] == pytest.approx(run["graph"][joint]["RMS"], rel=1e-12)

@@ -31,6 +31,7 @@ class RunManifest:
         clock_mode: ``lockstep`` or ``realtime``.
         namespace: Namespace of the stack's topics.
         parameters: Every node's parameters at start, ``{node: {name: value}}``.
+        parameters_unread: Nodes the recorder saw whose parameters it could not read (gone first).
     """
 
     version: str = ""
@@ -42,6 +43,7 @@ class RunManifest:
     clock_mode: str = ""
     namespace: str = "smm"
     parameters: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    parameters_unread: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.plant not in ("", "sim", "hardware"):
@@ -64,6 +66,8 @@ class RunManifest:
                 {node: dict(values) for node, values in self.parameters.items()}, sort_keys=True
             ),
         }
+        if self.parameters_unread:
+            data["smm.parameters_unread"] = yaml.safe_dump(list(self.parameters_unread))
         return data
 
     @classmethod
@@ -78,6 +82,9 @@ class RunManifest:
             parameters = yaml.safe_load(data.get("smm.parameters", "")) or {}
             if not isinstance(parameters, dict):
                 raise ValueError("smm.parameters is not a mapping")
+            unread = yaml.safe_load(data.get("smm.parameters_unread", "")) or []
+            if not isinstance(unread, list) or not all(isinstance(node, str) for node in unread):
+                raise ValueError("smm.parameters_unread is not a list of node names")
             return cls(
                 version=data.get("smm.version", ""),
                 scenario=data.get("smm.scenario", ""),
@@ -88,6 +95,7 @@ class RunManifest:
                 clock_mode=data.get("smm.clock_mode", ""),
                 namespace=data.get("smm.namespace", "smm"),
                 parameters=parameters,
+                parameters_unread=tuple(unread),
             )
         except (ValueError, yaml.YAMLError) as error:
             raise CorruptBagError(f"malformed run manifest in custom_data: {error}") from None

@@ -390,9 +390,16 @@ class RecorderNode(SmmNode):
         if self.writer.closed:
             return
         drained = self.drain()
+        logger = self.get_logger()  # type: ignore[no-untyped-call]
+        unread = sorted((self._asked | set(self._waiting)) - set(self._node_parameters))
+        if unread:  # a node that ended before its parameter service answered: said, not left out silently
+            self.writer.set_custom_data("smm.parameters_unread", yaml.safe_dump(unread))
+            logger.warning(
+                f"the manifest has no parameters of {', '.join(unread)}: gone before its parameter service "
+                "answered"
+            )
         metadata = self.writer.close()
         (self.writer.path / PUBLISHERS_FILE).unlink(missing_ok=True)
-        logger = self.get_logger()  # type: ignore[no-untyped-call]
         logger.info(
             f"closed {self.writer.path}: {metadata.message_count} messages ({drained} taken at shutdown), "
             f"{self.writer.loss.total_lost} lost, {self.writer.loss.total_missing} samples missing in stamps"
