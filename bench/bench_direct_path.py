@@ -46,7 +46,7 @@ def run(observed: bool) -> dict[str, Any]:
     from std_msgs.msg import Float64MultiArray
 
     from smm_msgs_py import topics
-    from smm_node_runtime import make_executor
+    from smm_node_runtime import make_executor, spin_until_shutdown
 
     class Board(Transport):
         """The emulator's board behind an in-memory link: a new feedback frame each time one is read.
@@ -104,7 +104,8 @@ def run(observed: bool) -> dict[str, Any]:
     executor = make_executor(context)  # the direct_loop process's executor
     for node in (controller, bridge, peer):
         executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
+    stop = threading.Event()
+    spinner = threading.Thread(target=spin_until_shutdown, args=(executor, context, stop.is_set), daemon=True)
     spinner.start()
     try:
         bridge.trigger_configure()  # type: ignore[no-untyped-call]
@@ -141,8 +142,9 @@ def run(observed: bool) -> dict[str, Any]:
     finally:
         if bridge.lifecycle_state == "active":
             bridge.trigger_deactivate()  # type: ignore[no-untyped-call]
-        executor.shutdown()
+        stop.set()  # the spinner ends between two callbacks, then the executor is shut down
         spinner.join(10.0)
+        executor.shutdown()
         bridge.destroy_node()
         controller.destroy_node()  # type: ignore[no-untyped-call]
         peer.destroy_node()  # type: ignore[no-untyped-call]
