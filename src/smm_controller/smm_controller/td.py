@@ -34,15 +34,14 @@ __all__ = [
 ]
 
 #: Speed factor sigma per joint (rad/s^2). For |y| < h^2 sigma the TD is a linear second-order filter
-#: with natural frequency 1/h, so sigma only matters for large jumps. Chosen by the case2 sweep
-#: (``python -m smm_analysis.reproduction.tune_td``, docs/REPRODUCTION.md): at h = 1 ms, case2 RMS is flat
-#: within 0.1 % for sigma in [1e4, 1e6]; 1e5 is the middle of that plateau and keeps the TD linear.
+#: with natural frequency 1/h, so sigma only matters for large jumps. Case-2 RMS is the same within 0.1 %
+#: for sigma in [1e4, 1e6] (``python -m smm_analysis.reproduction.tune_td``); 1e5 is the middle.
 DEFAULT_TD_SPEED: tuple[float, float] = (1.0e5, 1.0e5)
-#: Filter factor h per joint (s), >= the control period. SPEC section 4 asks for the defaults that
-#: minimise case2 tracking RMS: RMS grows monotonically with h (1 ms: 2.9/2.3 mrad, 2 ms: 4.7/3.6,
-#: 5 ms: 11/8.6) so h = t = 1 ms, where eq. 25 equals Han's fhan. The price is control energy: encoder
-#: noise reaches the velocity estimate, and case2 eps_u is about 15x that at h = 2 ms (see the report).
-#: On a bench where valve chatter matters, h = 2 ms is the documented alternative.
+#: Filter factor h per joint (s), >= the control period: h = t = 1 ms, where eq. 25 equals Han's fhan.
+#: With the observer's velocity (the default) the TD feeds only the position. Case-2 RMS (mrad): 9.06 /
+#: 4.62 at 1 ms, 7.76 / 4.15 at 1.5 ms, 7.80 / 4.49 at 2 ms, 12.4 / 8.9 at 5 ms; above 1.5 ms the phase lag
+#: grows RMS and overshoot, and the baselines share the TD, so h stays at t. docs/REPRODUCTION.md, "The
+#: chosen defaults and why".
 DEFAULT_TD_FILTER_FACTOR: tuple[float, float] = (0.001, 0.001)
 
 
