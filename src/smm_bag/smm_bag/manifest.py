@@ -31,7 +31,7 @@ class RunManifest:
         clock_mode: ``lockstep`` or ``realtime``.
         namespace: Namespace of the stack's topics.
         parameters: Every node's parameters at start, ``{node: {name: value}}``.
-        parameters_unread: Nodes the recorder saw whose parameters it could not read (gone first).
+        parameters_unread: Nodes the recorder saw whose parameter service did not answer while recording.
     """
 
     version: str = ""

@@ -392,11 +392,11 @@ class RecorderNode(SmmNode):
         drained = self.drain()
         logger = self.get_logger()  # type: ignore[no-untyped-call]
         unread = sorted((self._asked | set(self._waiting)) - set(self._node_parameters))
-        if unread:  # a node that ended before its parameter service answered: said, not left out silently
+        if unread:  # said, not left out silently
             self.writer.set_custom_data("smm.parameters_unread", yaml.safe_dump(unread))
             logger.warning(
-                f"the manifest has no parameters of {', '.join(unread)}: gone before its parameter service "
-                "answered"
+                f"the manifest has no parameters of {', '.join(unread)}: no answer from the parameter "
+                "service while recording (the node ended first, or does not spin)"
             )
         metadata = self.writer.close()
         (self.writer.path / PUBLISHERS_FILE).unlink(missing_ok=True)
