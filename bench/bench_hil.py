@@ -187,6 +187,7 @@ def realtime_hil(
 
     host, board, control = free_port(), free_port(), free_port()
     record = workdir / f"hil_{tag}.npz"
+    status_file = workdir / f"status_{tag}.json"
     board_seconds = SECONDS + 12.0
     period_ns = round(period * 1e9)
     processes: list[subprocess.Popen[bytes]] = []
@@ -211,7 +212,7 @@ def realtime_hil(
         sys.executable, "-m", "smm_bench_emulator.cli", "--bind", f"127.0.0.1:{board}", "--host",
         f"127.0.0.1:{host}", "--control", f"127.0.0.1:{control}", "--no-valve-lag", "--counts-per-rev",
         str(COUNTS), "--full-scale-torque", str(FULL_SCALE), "--duration", str(board_seconds), "--record",
-        str(record), "--control-period", str(period),
+        str(record), "--control-period", str(period), "--status-file", str(status_file),
     ], board_priority)  # fmt: skip
     bridge = {
         "autostart": "true",
@@ -238,11 +239,11 @@ def realtime_hil(
         params_files=(str(td_yaml(workdir, period)),),
     )
     spec = next(s for s in build_graph(options) if s.name == CONTROLLER_NODE)
-    controller_log = "controller_node"
+    controller_log, bridge_log = "controller_node", "hw_bridge_node"
     if shape == "direct":
         # one process hosting both nodes: controller_node's arguments without its __node remapping
         controller = dataclasses.replace(spec, hosts=(CONTROLLER_NODE, HW_NODE)).ros_arguments()
-        controller_log = "direct_loop"
+        controller_log = bridge_log = "direct_loop"
         direct_argv = [sys.executable, "-m", "smm_direct_loop.host", *controller, *arguments]
         start("direct_loop", direct_argv, host_priority)
     else:
@@ -269,20 +270,17 @@ def realtime_hil(
                 os.killpg(process.pid, signal.SIGKILL)
         for log in logs:
             log.close()
-    lines = (workdir / f"emulator_{tag}.log").read_text(errors="replace").strip().splitlines()
-    if emulator.returncode not in (0, EXIT_NOT_CONTROLLED) or not record.is_file() or not lines:
+    if (
+        emulator.returncode not in (0, EXIT_NOT_CONTROLLED)
+        or not record.is_file()
+        or not status_file.is_file()
+    ):
         print(f"  the emulator failed (exit {emulator.returncode})")
         return None
-    summary = next((line for line in reversed(lines) if line.startswith("{")), None)
-    if summary is None:
-        print(f"  the emulator printed no status (exit {emulator.returncode})")
-        return None
-    status: dict[str, Any] = json.loads(summary)  # its stderr's closing words may follow it
+    status: dict[str, Any] = json.loads(status_file.read_text())
     verdict = "controlled" if status["verdict"] is None else f"did not control: {status['verdict']}"
     print(f"  run: {status['figures']}; {verdict}")
-    host_log = (workdir / f"{'direct_loop' if shape == 'direct' else 'hw_bridge_node'}_{tag}.log").read_text(
-        errors="replace"
-    )
+    host_log = (workdir / f"{bridge_log}_{tag}.log").read_text(errors="replace")
     for line in re.findall(r"preflight: (late .*|ARMING ANYWAY.*?: this host does not hold [^:]*)", host_log):
         print(f"  preflight: {line}")
     data = np.load(record)
