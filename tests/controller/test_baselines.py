@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from smm_controller.baselines import (
@@ -162,3 +163,107 @@ def test_back_calculation_skips_a_joint_without_integral_or_tracking_time_and_go
     # alpha: kp = kd = 0 gives T_t = 0 (pure I: nothing to track with); beta as above.
     pure_integral = PIDConfig(kp=(0.0, 1.0), ki=(1.0, 1.0), kd=(0.0, 0.0))
     assert_allclose(_integral_after_tracking(pure_integral, (5.0, 5.0), (1.0, 1.0)), [0.0, -0.04], rtol=1e-12)
+
+
+def _pair(low: float, high: float) -> st.SearchStrategy[tuple[float, float]]:
+    """Per-joint floats in [low, high]; subnormals only where the range holds them."""
+    joint = st.floats(low, high, allow_subnormal=low <= 0.0)
+    return st.tuples(joint, joint)
+
+
+class TestPIDConditionalIntegration:
+    """Saturated output: I is held while e pushes it further out and moves by k_i e dt while e pulls it back.
+
+    The integral is wound up inside a wide output limit, then the limit is lowered (``reconfigure`` keeps
+    the integral), so the output is saturated by the integral alone and the error can take either sign.
+    Gains differ per joint: alpha kp = 10, ki = 100; beta kp = 40, ki = 250; dt = 0.01 s.
+    """
+
+    H = 0.01
+    WIDE = PIDConfig(kp=(10.0, 40.0), ki=(100.0, 250.0), kd=(0.0, 0.0), output_limit=(5.0, 7.0))
+    NARROW = PIDConfig(kp=(10.0, 40.0), ki=(100.0, 250.0), kd=(0.0, 0.0), output_limit=(1.0, 1.5))
+
+    def wound_up(self) -> PIDController:
+        """Ten steps at e = (0.2, -0.1) inside (5, 7): I = (0.2, -0.25) per step, then the limit (1, 1.5)."""
+        controller = PIDController(self.WIDE)
+        for k in range(1, 11):
+            tau = controller.step(reference((0.2, -0.1)), ZERO, ZERO, ZERO, self.H)
+            # Inside the limit with e pushing outwards: I moves (the |u| > limit half of the rule).
+            assert_allclose(controller.internals["i"], [0.2 * k, -0.25 * k], rtol=1e-12)
+        assert_allclose(tau, [2.0 + 2.0, -4.0 - 2.5], rtol=1e-12)
+        controller.reconfigure(self.NARROW)
+        return controller
+
+    def test_integral_held_while_saturated_and_the_error_pushes_further(self) -> None:
+        controller = self.wound_up()
+        wound = controller.internals["i"].copy()
+        for _ in range(5):
+            # alpha: p = 0.5, candidate I = 2.05, u = 2.55 > 1; beta: p = -0.8, I = -2.55, u = -3.35 < -1.5.
+            tau = controller.step(reference((0.05, -0.02)), ZERO, ZERO, ZERO, self.H)
+            assert_allclose(tau, [1.0, -1.5], atol=0)
+            assert_allclose(controller.internals["i"], wound, atol=0)
+        assert_allclose(wound, [2.0, -2.5], rtol=1e-12)
+
+    def test_integral_moves_while_saturated_and_the_error_pulls_back(self) -> None:
+        controller = self.wound_up()
+        for k in range(1, 4):
+            # alpha: e = -0.05, I = 2 - 0.05 k, u = 1.5 - 0.05 k > 1; beta: e = 0.02, I = -2.5 + 0.05 k,
+            # u = -1.7 + 0.05 k < -1.5: both still saturated, against the error.
+            tau = controller.step(reference((-0.05, 0.02)), ZERO, ZERO, ZERO, self.H)
+            assert_allclose(tau, [1.0, -1.5], atol=0)
+            assert_allclose(controller.internals["i"], [2.0 - 0.05 * k, -2.5 + 0.05 * k], rtol=1e-12)
+            unclamped = controller.internals["p"] + controller.internals["i"]
+            assert_allclose(unclamped, [1.5 - 0.05 * k, -1.7 + 0.05 * k], rtol=1e-12)
+
+    @settings(deadline=None)
+    @given(
+        config=st.builds(
+            PIDConfig,
+            kp=_pair(0.0, 50.0),
+            ki=_pair(0.1, 300.0),
+            kd=_pair(0.0, 2.0),
+            derivative_filter=_pair(10.0, 2000.0),
+        ),
+        dt=st.floats(1e-4, 1e-3, allow_subnormal=False),
+        segments=st.lists(
+            st.tuples(_pair(-1.0, 1.0), _pair(0.2, 5.0), st.integers(1, 40)), min_size=2, max_size=8
+        ),
+    )
+    def test_saturated_integral_held_with_the_error_and_moves_against_it(
+        self,
+        config: PIDConfig,
+        dt: float,
+        segments: list[tuple[tuple[float, float], tuple[float, float], int]],
+    ) -> None:
+        """Segments of constant error, each with its output limit (reconfigured, the integral kept).
+
+        After each step u = p + I + d (unclamped). Saturated in the error's direction (|u| > limit,
+        e u > 0): I is held, so it never grows. Saturated against the error: I moved by k_i e dt. One step's
+        k_i |e| dt <= 300 * 1e-3 = 0.3 stays below the output range 2 * 0.2, so holding I can never leave the
+        output saturated on the side opposite to the error. Examples without both kinds of step are discarded.
+        """
+        controller = PIDController(config)
+        held = opposed = 0
+        for error, limit, repeats in segments:
+            controller.reconfigure(dataclasses.replace(config, output_limit=limit))
+            for _ in range(repeats):
+                before = controller.internals["i"].copy()
+                controller.step(reference(error), ZERO, ZERO, ZERO, dt)
+                internals = controller.internals
+                after = internals["i"]
+                unclamped = internals["p"] + after + internals["d"]
+                for j in range(2):
+                    if abs(unclamped[j]) <= limit[j]:
+                        continue
+                    if error[j] * unclamped[j] > 0.0:
+                        held += 1
+                        assert after[j] == before[j], f"joint {j}: I grew while saturated with e = {error[j]}"
+                    elif error[j] * unclamped[j] < 0.0:
+                        opposed += 1
+                        step = config.ki[j] * error[j] * dt
+                        scale = 1e-15 * (abs(before[j]) + abs(step)) + np.finfo(float).tiny
+                        assert after[j] == pytest.approx(before[j] + step, rel=1e-12, abs=scale), (
+                            f"joint {j}: I did not move while saturated against e = {error[j]}"
+                        )
+        event(f"held steps: {'some' if held else 'none'}; opposed steps: {'some' if opposed else 'none'}")
+        assume(held > 0 and opposed > 0)
