@@ -17,6 +17,14 @@ RECORDER_PRIORITY_OFFSET: Final[int] = 10
 """The recorder runs this much below the loop (at least 1): above the host's ordinary processes, which
 otherwise starve it of the CPU the loop leaves (measured: half of a 1 kHz run lost at normal priority)."""
 MAX_PRIORITY: Final[int] = 99
+OBSERVER_SPARE_CPUS: Final[int] = 2
+"""An observer (the recorder) runs SCHED_FIFO only with this many CPUs beyond one per loop process: one for
+it, one for everything else (docs/SOAK.md, "Real time beside the loop")."""
+
+
+def observer_fifo_allowed(loop_processes: int, cpus: int) -> bool:
+    """Whether an observer may run SCHED_FIFO beside ``loop_processes`` real-time ones on ``cpus`` CPUs."""
+    return cpus >= loop_processes + OBSERVER_SPARE_CPUS
 
 
 def fifo_allowed(priority: int) -> bool:

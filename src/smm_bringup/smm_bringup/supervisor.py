@@ -20,12 +20,13 @@ from types import FrameType
 from typing import Any, Final, TextIO
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+from smm_hw_bridge.idle_states import CPU_DMA_LATENCY, IdleStateHold, hold_idle_states
 from smm_hw_bridge.preflight import EXIT_PREFLIGHT_REFUSED
 from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 
 from smm_bringup.errors import GraphError
 from smm_bringup.graph_nodes import PLANT_NODE_NAMES, RECORDER_NODE, NodeSpec, expected_publishers
-from smm_bringup.realtime import fifo_allowed, fifo_preexec
+from smm_bringup.realtime import fifo_allowed, fifo_preexec, observer_fifo_allowed
 
 __all__ = [
     "EXIT_CONFIGURATION_ERROR",
@@ -36,6 +37,7 @@ __all__ = [
     "ExecutableNotFoundError",
     "GraphProcesses",
     "RespawnPolicy",
+    "hold_idle_states_for",
     "launch_processes",
     "resolve_executable",
 ]
@@ -128,7 +130,8 @@ class RespawnPolicy:
     """``--respawn``: restart a node process that exited, as launch's ``respawn``/``respawn_delay``.
 
     Every node but the recorder (its bag folder exists) is restarted with its command line when it exits
-    while the graph runs, unless it is a plant process that completed the run (exit 0 or 3).
+    while the graph runs, unless it is a plant process that completed the run (exit 0 or 3) or refused to
+    arm at preflight (exit 4: final until a person changes something; a respawn would refuse again).
 
     Attributes:
         delay_s: Seconds between the exit and the restart, in [0, 60].
@@ -149,7 +152,7 @@ class RespawnPolicy:
     def applies(self, spec: NodeSpec, code: int) -> bool:
         """True when a node ``spec`` that exited with ``code`` is to be restarted."""
         completed = spec.name in PLANT_NODE_NAMES and code in (EXIT_OK, EXIT_NOT_CONTROLLED)
-        return spec.name != RECORDER_NODE and not completed
+        return spec.name != RECORDER_NODE and not completed and code != EXIT_PREFLIGHT_REFUSED
 
 
 @dataclass
@@ -306,6 +309,14 @@ def _fifo_priorities(specs: Sequence[NodeSpec]) -> dict[str, int]:
         )
         return {}
     cpus = len(os.sched_getaffinity(0))
+    loop = len(wanted) - (RECORDER_NODE in wanted)
+    if RECORDER_NODE in wanted and not observer_fifo_allowed(loop, cpus):
+        del wanted[RECORDER_NODE]
+        _say(
+            f"{RECORDER_NODE} at normal priority: {loop} loop process(es) under SCHED_FIFO on {cpus} CPU(s); "
+            "a real-time recorder would share their CPUs and the kernel's RT budget (it needs "
+            f"{loop + 2} CPUs: docs/SOAK.md, 'Real time beside the loop')"
+        )
     if len(wanted) >= cpus:
         _say(
             f"{len(wanted)} processes under SCHED_FIFO on {cpus} CPU(s): when they need more CPU than there "
@@ -398,7 +409,7 @@ def launch_processes(
     """
     processes = GraphProcesses(specs, child_environment(env), stop_grace_s)
     request = _StopRequest()
-    with _stop_signals(request):
+    with _stop_signals(request), hold_idle_states_for(specs):
         try:
             processes.start()
             while not request.event.wait(_POLL_S):
@@ -416,7 +427,12 @@ def launch_processes(
                     _report_stop(codes, expected_done=spec.name)
                     return EXIT_NOT_CONTROLLED if EXIT_NOT_CONTROLLED in codes.values() else EXIT_OK
                 if code == EXIT_PREFLIGHT_REFUSED:
-                    _say(f"{spec.name} refused to arm at preflight; stopping the graph", sys.stderr)
+                    final = (
+                        " (not respawned: final until a person changes a setting or the load)"
+                        if respawn is not None
+                        else ""
+                    )
+                    _say(f"{spec.name} refused to arm at preflight{final}; stopping the graph", sys.stderr)
                     _report_stop(processes.stop(), expected_done=spec.name)
                     return EXIT_PREFLIGHT_REFUSED
                 _say(f"node {spec.name} exited with code {code}; stopping the graph", sys.stderr)
@@ -429,6 +445,22 @@ def launch_processes(
         finally:
             # Whatever happened above (including an exception), no child may outlive the launcher.
             processes.stop()
+
+
+@contextlib.contextmanager
+def hold_idle_states_for(specs: Sequence[NodeSpec], device: Path = CPU_DMA_LATENCY) -> Any:
+    """While a real-time run (a node asks for SCHED_FIFO) lasts: ``device`` held at 0, said either way."""
+    if not any(spec.rt_priority for spec in specs):
+        yield None
+        return
+    hold: IdleStateHold = hold_idle_states(0, device)
+    _say(hold.statement, None if hold.held else sys.stderr)
+    try:
+        yield hold
+    finally:
+        if hold.held:
+            hold.close()
+            _say(f"idle states: released {device}")
 
 
 def _report_stop(codes: Mapping[str, int], expected_done: str | None = None) -> None:
