@@ -6,11 +6,13 @@ from __future__ import annotations
 import os
 import stat
 import struct
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 from smm_bringup.graph_nodes import DIRECT_LOOP, EMULATOR_NODE, RECORDER_NODE, SIM_NODE, NodeSpec
-from smm_bringup.realtime import observer_fifo_allowed
+from smm_bringup.realtime import OBSERVER_NICE, fifo_preexec, observer_fifo_allowed
 from smm_bringup.supervisor import (
     EXIT_PREFLIGHT_REFUSED,
     RespawnPolicy,
@@ -74,9 +76,38 @@ def test_the_recorder_runs_at_normal_priority_without_the_cpus_for_it(
     monkeypatch.setattr(supervisor.os, "sched_getaffinity", lambda _pid: set(range(cpus)))
     priorities = supervisor._fifo_priorities([RECORDER, *LOOP])
     assert priorities[EMULATOR_NODE] == 70 and priorities[DIRECT_LOOP] == 55  # the loop keeps its priority
-    assert (RECORDER_NODE in priorities) is recorder_fifo
-    said = f"{RECORDER_NODE} at normal priority: 2 loop process(es) under SCHED_FIFO on {cpus} CPU(s)"
+    assert priorities[RECORDER_NODE] == (40 if recorder_fifo else OBSERVER_NICE)
+    said = f"{RECORDER_NODE} at normal policy, nice {OBSERVER_NICE}: 2 loop process(es) under SCHED_FIFO"
     assert (said in capsys.readouterr().out) is not recorder_fifo
+
+
+def test_a_negative_priority_is_a_nice_value_under_normal_scheduling_for_the_process_and_its_session() -> (
+    None
+):
+    probe = (
+        "import os, pathlib; group = pathlib.Path('/proc/self/autogroup'); "
+        "print(os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0), "
+        "group.read_text().split()[-1] if group.exists() else 'none', end='')"
+    )
+    niced = subprocess.run(
+        [sys.executable, "-c", probe],
+        preexec_fn=fifo_preexec(-5),
+        start_new_session=True,  # as GraphProcesses starts a node: a session, so an autogroup, of its own
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    policy, nice, group = niced.split()
+    before = os.getpriority(os.PRIO_PROCESS, 0)
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, -5)
+        allowed = True
+    except OSError:
+        allowed = False
+    os.setpriority(os.PRIO_PROCESS, 0, before)  # raising a nice value back is always allowed
+    assert int(policy) == os.SCHED_OTHER
+    assert int(nice) == (-5 if allowed else before)  # refused: the child starts as it was
+    assert group in ("none", "-5" if allowed else "0")  # no autogroups (kernel option off): nothing to set
 
 
 def test_a_preflight_refusal_is_not_respawned() -> None:

@@ -26,7 +26,7 @@ from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 
 from smm_bringup.errors import GraphError
 from smm_bringup.graph_nodes import PLANT_NODE_NAMES, RECORDER_NODE, NodeSpec, expected_publishers
-from smm_bringup.realtime import fifo_allowed, fifo_preexec, observer_fifo_allowed
+from smm_bringup.realtime import OBSERVER_NICE, fifo_allowed, fifo_preexec, observer_fifo_allowed
 
 __all__ = [
     "EXIT_CONFIGURATION_ERROR",
@@ -212,7 +212,9 @@ class GraphProcesses:
             priority = fifo.get(spec.name, 0)
             popen = self._spawn(command, priority)
             self.children.append(_Child(spec, popen, tuple(command), priority))
-            scheduling = f", SCHED_FIFO {priority}" if priority else ""
+            scheduling = (
+                f", SCHED_FIFO {priority}" if priority > 0 else f", nice {priority}" if priority else ""
+            )
             _say(f"started {spec.name} (pid {popen.pid}{scheduling}): {' '.join(command)}")
             if spec is recorder:
                 _wait_for_recorder(spec, popen)
@@ -299,7 +301,10 @@ class GraphProcesses:
 
 
 def _fifo_priorities(specs: Sequence[NodeSpec]) -> dict[str, int]:
-    """``{node: SCHED_FIFO priority}`` of the specs asking for one, if the system allows it (else says so)."""
+    """``{node: SCHED_FIFO priority}`` of the specs asking for one, if the system allows it (else says so).
+
+    A recorder without the CPUs for SCHED_FIFO gets a nice value instead (negative: ``fifo_preexec``).
+    """
     wanted = {spec.name: spec.rt_priority for spec in specs if spec.rt_priority}
     if wanted and not fifo_allowed(max(wanted.values())):
         _say(
@@ -311,15 +316,16 @@ def _fifo_priorities(specs: Sequence[NodeSpec]) -> dict[str, int]:
     cpus = len(os.sched_getaffinity(0))
     loop = len(wanted) - (RECORDER_NODE in wanted)
     if RECORDER_NODE in wanted and not observer_fifo_allowed(loop, cpus):
-        del wanted[RECORDER_NODE]
+        wanted[RECORDER_NODE] = OBSERVER_NICE
         _say(
-            f"{RECORDER_NODE} at normal priority: {loop} loop process(es) under SCHED_FIFO on {cpus} CPU(s); "
-            "a real-time recorder would share their CPUs and the kernel's RT budget (it needs "
-            f"{loop + 2} CPUs: docs/SOAK.md, 'Real time beside the loop')"
+            f"{RECORDER_NODE} at normal policy, nice {OBSERVER_NICE}: {loop} loop process(es) under "
+            f"SCHED_FIFO on {cpus} CPU(s); a real-time recorder would share their CPUs and the kernel's RT "
+            f"budget (it needs {loop + 2} CPUs: docs/SOAK.md, 'Real time beside the loop')"
         )
-    if len(wanted) >= cpus:
+    fifo = sum(priority > 0 for priority in wanted.values())
+    if fifo >= cpus:
         _say(
-            f"{len(wanted)} processes under SCHED_FIFO on {cpus} CPU(s): when they need more CPU than there "
+            f"{fifo} processes under SCHED_FIFO on {cpus} CPU(s): when they need more CPU than there "
             "is, they starve every other process and the kernel's RT throttling stops them all, the emulator "
             "included, for up to 50 ms a second (docs/LAUNCH.md, 'Real time on a small machine'); "
             "--rt-priority 0 runs them at normal priority",
