@@ -24,6 +24,7 @@ import soak_faults as faults
 from long_runs import WARMUP_S, LaunchedGraph, check_bag, dump_json, verdict
 from smm_bag.cdr import stamp_of
 from smm_bag.reader import BagReader
+from smm_hw_bridge.preflight import EXIT_PREFLIGHT_REFUSED
 
 STAMPED = ("/smm/joint_states",)
 JOINT_STATES = "/smm/joint_states"
@@ -163,11 +164,12 @@ def run(arguments: argparse.Namespace) -> int:
         operator.close()
         final_status = board.status() or {}
         board.close()
+        ended_min = graph.elapsed() / 60 if graph.process.poll() is not None else None
         code = graph.stop()
     load_end = uptime()
     return report(
         arguments=arguments, out=out, graph=graph, results=results, code=code,
-        final_status=final_status, load_start=load_start, load_end=load_end,
+        final_status=final_status, load_start=load_start, load_end=load_end, ended_min=ended_min,
     )  # fmt: skip
 
 
@@ -181,10 +183,16 @@ def report(
     final_status: dict,  # type: ignore[type-arg]
     load_start: str,
     load_end: str,
+    ended_min: float | None = None,
 ) -> int:
-    """Prints the tables; the exit code."""
+    """Prints the tables; the exit code. ``ended_min``: when smm-launch ended by itself (min), else None."""
     failures: list[str] = []
     print(f"\nsmm-launch exit code {code}")
+    if ended_min is not None:
+        refused = code == EXIT_PREFLIGHT_REFUSED
+        why = " (a respawn refused to arm at preflight: final, not respawned)" if refused else ""
+        failures.append(f"smm-launch ended by itself after {ended_min:.1f} min with code {code}{why}")
+        print(failures[-1])
     print(f"load at start: {load_start}\nload at end:   {load_end}")
     header = ("fault", "count", "failed", "null ticks max", "recovery s max", "median")
     print("\n{:<20} {:>5} {:>6} {:>15} {:>15} {:>7}".format(*header))

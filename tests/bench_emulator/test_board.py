@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from smm_bench_emulator.board import BoardConfig, BoardCore
 from smm_hw_bridge.protocol import (
@@ -232,3 +233,14 @@ def test_valve_deadband_and_supply_scale_the_torque() -> None:
 def test_invalid_board_configs_are_rejected(kwargs: dict[str, object]) -> None:
     with pytest.raises(ValueError):
         BoardConfig(**kwargs)  # type: ignore[arg-type]
+
+
+def test_the_a_d_noise_is_the_seeded_generator_s_one_draw_per_tick() -> None:
+    sigma, seed = 2.0, 11
+    core = BoardCore(BoardConfig(plant=PLANT, adc_noise=sigma, seed=seed))
+    drawn = [decode_feedback(core.tick_realtime()).adc for _ in range(2500)]  # past two blocks of draws
+    reference = np.random.default_rng(seed)
+    supply = 10.0 / (25.0 / 4095.0)
+    for adc in drawn:
+        expected = np.array([supply, 2048.0, 2048.0, 2048.0]) + reference.normal(0.0, sigma, 4)
+        assert adc == tuple(int(min(max(round(v), 0), 4095)) for v in expected)

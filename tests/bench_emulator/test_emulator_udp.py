@@ -274,3 +274,31 @@ def test_a_realtime_run_counted_from_live_output_that_never_arms_stops_at_its_st
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["ticks"] > 10  # 10 ticks of board time passed, but none was live: the run goes on
     assert summary["verdict"] == "the bridge never armed: no tick latched an enabled command within 0.3 s"
+
+
+def test_the_realtime_loop_reads_only_the_socket_its_wait_found_readable() -> None:
+    """A control request is answered when its socket is readable, not at a wake-up for a command frame."""
+    emu = Emulator(
+        EmulatorConfig(
+            board=BoardConfig(plant=PlantConfig(encoder_counts_per_rev=CPR), adc_noise=0.0),
+            bind=(LOOPBACK, 0),
+            host=(LOOPBACK, 9),
+            control=(LOOPBACK, 0),
+        )
+    )
+    frames: list[bytes] = []
+    emu.transport.receive = lambda timeout_s=0.0: frames.pop() if frames else None  # type: ignore[method-assign]
+    try:
+        assert emu._wait(0) == []  # nothing to read: no wait, no read
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as client:
+            client.settimeout(5.0)
+            client.sendto(json.dumps({"status": True}).encode(), emu.control_address)  # type: ignore[arg-type]
+            frames.append(b"a junk frame")
+            emu._drain([emu.transport.fileno()])  # the frame's socket only
+            assert frames == []
+            readable = emu._wait(5_000_000_000)
+            assert readable == [emu._control.fileno()]  # type: ignore[union-attr]
+            emu._drain(readable)
+            assert json.loads(client.recv(65536))["ok"] is True
+    finally:
+        emu.close()

@@ -43,6 +43,8 @@ def test_a_refused_preflight_exits_4_with_its_figures_and_reason(ros_processes: 
     assert code == EXIT_PREFLIGHT_REFUSED, logs
     assert "preflight: rehearsed the loop with output disabled (safe frames) at 1000 Hz control" in logs
     assert "preflight: feedback->command" in logs and "preflight: wake-up" in logs
+    assert "preflight: idle states: CPU wake-up latency " in logs  # the setting, whatever it is here
+    assert "[smm-launch] idle states: holding " in logs or "[smm-launch] idle states: cannot hold " in logs
     refused = "direct_loop: refused to arm at preflight: this host does not hold 1000 Hz control: 100.00 %"
     assert refused in logs
     assert "none of the candidate rates holds (1000, 500, 250 Hz)" in logs

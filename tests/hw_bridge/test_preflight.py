@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from smm_hw_bridge.idle_states import NO_LIMIT_US, IdleStates
 from smm_hw_bridge.preflight import (
     WARM_UP_S,
     PreflightConfig,
@@ -174,3 +175,25 @@ def test_tick_grid_follows_a_drifting_board_clock() -> None:
     after = arrivals - grid
     assert after.min() >= 0
     assert np.abs(after - jitter).max() <= 2  # the drift is taken out, the jitter remains
+
+
+def test_the_rehearsal_reports_the_idle_state_setting_beside_the_wake_up() -> None:
+    held = IdleStates(0, (("POLL", 0), ("C1", 2)))
+    recorder = RehearsalRecorder(PERIOD, idle_states=held)
+    record(recorder, range(2000), way_ns=40_000, answer_ns=100_000)
+    lines = judge(recorder.figures(), 0.01).lines()
+    wake = next(i for i, line in enumerate(lines) if line.startswith("wake-up"))
+    assert lines[wake + 1] == f"idle states: {held.statement()}"
+
+
+def test_a_refusal_names_the_idle_states_only_when_they_are_not_held() -> None:
+    slow = [300.0] * 900 + [3000.0] * 100
+
+    def refusal(idle: IdleStates | None) -> str:
+        rehearsal = RehearsalFigures(PERIOD, 1, tuple(slow), (10.0,) * len(slow), 0, idle)
+        return judge(rehearsal, 0.01).refusal(direct_loop=True, realtime=True)
+
+    assert "/dev/cpu_dma_latency" in refusal(IdleStates(NO_LIMIT_US, (("POLL", 0), ("C6", 133))))
+    assert "/dev/cpu_dma_latency" in refusal(IdleStates(None, (), "permission denied"))
+    assert "/dev/cpu_dma_latency" not in refusal(IdleStates(0, (("POLL", 0), ("C6", 133))))
+    assert "/dev/cpu_dma_latency" not in refusal(None)

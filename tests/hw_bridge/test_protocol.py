@@ -424,3 +424,8 @@ def test_decoded_and_trusted_frames_behave_as_checked_ones() -> None:
             frame.seq = 1  # type: ignore[misc]
     with pytest.raises(p.ProtocolError, match=r"^field: session must be != 0"):
         dataclasses.replace(trusted, session=0)  # an externally built frame is still checked
+    feedback = p.FeedbackFrame.trusted(*(getattr(FEEDBACK, f.name) for f in dataclasses.fields(FEEDBACK)))
+    assert feedback == FEEDBACK and hash(feedback) == hash(FEEDBACK)
+    assert p.encode(feedback) == _feedback_bytes()
+    with pytest.raises(p.ProtocolError, match=r"^field: session must be != 0"):
+        dataclasses.replace(feedback, session=0)

@@ -36,6 +36,8 @@ __all__ = ["BoardConfig", "BoardCore"]
 
 _U32 = 1 << 32
 _APPLIED_KEPT = 200_000
+_NOISE_BLOCK = 1000
+"""Ticks of A/D noise drawn at once (the same values as one draw per tick: the generator's order)."""
 
 
 @dataclass(frozen=True)
@@ -104,6 +106,7 @@ class BoardCore:
     def __init__(self, config: BoardConfig) -> None:
         self._config = config
         self._rng = np.random.default_rng(config.seed)
+        self._noise: list[list[float]] = []
         self.plant = SimulatedPlant(config.plant)
         self._quantum = 2.0 * math.pi / config.plant.encoder_counts_per_rev
         self.injected_faults = 0
@@ -317,9 +320,10 @@ class BoardCore:
         return raw[0], raw[1]
 
     def _adc(self) -> tuple[int, int, int, int]:
-        noise = (
-            self._rng.normal(0.0, self._config.adc_noise, 4) if self._config.adc_noise > 0 else np.zeros(4)
-        )
+        sigma = self._config.adc_noise
+        if sigma > 0 and not self._noise:
+            self._noise = self._rng.normal(0.0, sigma, (_NOISE_BLOCK, 4)).tolist()[::-1]
+        noise = self._noise.pop() if sigma > 0 else (0.0, 0.0, 0.0, 0.0)
         values = [self.supply_pressure / self._config.bar_per_code, 2048.0, 2048.0, 2048.0]
         return tuple(int(min(max(round(v + n), 0), ADC_MAX)) for v, n in zip(values, noise, strict=True))  # type: ignore[return-value]
 
@@ -345,21 +349,21 @@ class BoardCore:
             if active is None
             else min(u32_diff(self.tick, active.answers_tick), NO_COMMAND_AGE)
         )
-        frame = FeedbackFrame(
-            session=self.session,
-            seq=self._fb_seq,
-            tick=self.tick,
-            host_session=self.host_session,
-            counts=self.counts(),
-            adc=self._adc(),
-            status=self._status(),
-            faults=self.faults,
-            applied_seq=0 if active is None else active.seq,
-            applied_age=age,
-            output_codes=self.output_codes(),
-            late_commands=self.late_commands,
-            crc_errors=self.crc_errors,
-            dropped_frames=self.dropped_frames,
+        frame = FeedbackFrame.trusted(  # every field below is kept in range by this class
+            self.session,
+            self._fb_seq,
+            self.tick,
+            self.host_session,
+            self.counts(),
+            self._adc(),
+            self._status(),
+            self.faults,
+            0 if active is None else active.seq,
+            age,
+            self.output_codes(),
+            self.late_commands,
+            self.crc_errors,
+            self.dropped_frames,
         )
         self.last_feedback = frame
         return encode(frame)

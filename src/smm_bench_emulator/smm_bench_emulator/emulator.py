@@ -11,7 +11,7 @@ import json
 import select
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -178,7 +178,16 @@ class Emulator:
         if self.config.duration_ticks and counted >= self.config.duration_ticks:
             self.running = False
 
-    def _drain(self) -> None:
+    def _drain(self, readable: Collection[int] | None = None) -> None:
+        """Reads what waits on the ``readable`` descriptors (:meth:`_wait`'s), or on both sockets (None)."""
+        if readable is not None and not readable:
+            return
+        if readable is None or self.transport.fileno() in readable:
+            self._read_frames()
+        if self._control is not None and (readable is None or self._control.fileno() in readable):
+            self._read_requests()
+
+    def _read_frames(self) -> None:
         while (data := self.transport.receive(0.0)) is not None:
             arrived = self._clock()  # before the board parses it: a real board's parse takes microseconds
             stamp = self.transport.last_stamp_ns
@@ -194,14 +203,16 @@ class Emulator:
                     if command.enabled:
                         self.last_enabled_ns = self.last_command_ns
                         self.tally.armed = True
-        if self._control is not None:
-            while True:
-                try:
-                    request, source = self._control.recvfrom(4096)
-                except BlockingIOError:
-                    break
-                reply = self.handle(request)
-                self._control.sendto(json.dumps(reply).encode(), source)
+
+    def _read_requests(self) -> None:
+        assert self._control is not None
+        while True:
+            try:
+                request, source = self._control.recvfrom(4096)
+            except BlockingIOError:
+                break
+            reply = self.handle(request)
+            self._control.sendto(json.dumps(reply).encode(), source)
 
     def handle(self, request: bytes) -> dict[str, Any]:
         """Carries out one JSON control request and returns the reply."""
@@ -277,9 +288,11 @@ class Emulator:
             return f"the lockstep run never started: no step within its start timeout of {timeout:g} s"
         return self.tally.verdict()
 
-    def _wait(self, timeout_ns: int) -> None:
+    def _wait(self, timeout_ns: int) -> list[int]:
+        """Sleeps until a socket is readable or ``timeout_ns`` (ns) passed; the readable descriptors."""
         sources = [self.transport.fileno()] + ([self._control.fileno()] if self._control is not None else [])
-        select.select(sources, [], [], max(timeout_ns, 0) / 1e9)
+        readable: list[int] = select.select(sources, [], [], max(timeout_ns, 0) / 1e9)[0]
+        return readable
 
     def run(self) -> None:
         """Runs until ``stop`` is requested or ``duration_ticks`` have passed."""
@@ -299,18 +312,15 @@ class Emulator:
             if timeout and not self.tally.live_ticks and now - started > timeout:
                 self.never_started, self.running = True, False
                 break
-            if now < deadline:
-                self._wait(deadline - now)
-                self._drain()
-                continue
-            self._drain()
+            if now < deadline:  # asleep to the tick's deadline; a datagram is read when it comes
+                self._drain(self._wait(deadline - now))
+                continue  # the last wait timed out with nothing to read: tick now, no read before it
             self._send(self.board.tick_realtime())
             deadline += period
             now = self._clock()
             if now > deadline:
                 self.overruns += 1  # the ticks still run, the board's clock is the plant's, but never
-                self._wait(self.config.min_idle_ns)  # back to back: the host's threads need the CPU
-                self._drain()
+                self._drain(self._wait(self.config.min_idle_ns))  # back to back: the host needs the CPU
 
     def _run_lockstep(self) -> None:
         resend = self.config.resend_ns

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable
+from pathlib import Path
 from typing import Final
 
 DEFAULT_HARDWARE_PRIORITY: Final[int] = 50
@@ -17,6 +19,17 @@ RECORDER_PRIORITY_OFFSET: Final[int] = 10
 """The recorder runs this much below the loop (at least 1): above the host's ordinary processes, which
 otherwise starve it of the CPU the loop leaves (measured: half of a 1 kHz run lost at normal priority)."""
 MAX_PRIORITY: Final[int] = 99
+OBSERVER_SPARE_CPUS: Final[int] = 2
+"""An observer (the recorder) runs SCHED_FIFO only with this many CPUs beyond one per loop process: one for
+it, one for everything else (docs/SOAK.md, "Real time beside the loop")."""
+OBSERVER_NICE: Final[int] = -10
+"""Otherwise it runs at normal policy with this nice value: ahead of the host's ordinary processes, outside
+the kernel's real-time budget."""
+
+
+def observer_fifo_allowed(loop_processes: int, cpus: int) -> bool:
+    """Whether an observer may run SCHED_FIFO beside ``loop_processes`` real-time ones on ``cpus`` CPUs."""
+    return cpus >= loop_processes + OBSERVER_SPARE_CPUS
 
 
 def fifo_allowed(priority: int) -> bool:
@@ -34,9 +47,18 @@ def fifo_allowed(priority: int) -> bool:
 
 
 def fifo_preexec(priority: int) -> Callable[[], None]:
-    """A ``Popen(preexec_fn=...)`` that puts the child under SCHED_FIFO before it starts any thread."""
+    """A ``Popen(preexec_fn=...)`` that puts the child under SCHED_FIFO before it starts any thread.
+
+    A negative ``priority`` is a nice value under normal scheduling instead (left as it is where refused).
+    """
 
     def apply() -> None:
+        if priority < 0:
+            with contextlib.suppress(OSError):
+                os.setpriority(os.PRIO_PROCESS, 0, priority)
+            with contextlib.suppress(OSError):  # a session is an autogroup: a nice counts only inside it
+                Path("/proc/self/autogroup").write_text(str(priority))
+            return
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
 
     return apply

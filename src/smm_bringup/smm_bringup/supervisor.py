@@ -20,12 +20,13 @@ from types import FrameType
 from typing import Any, Final, TextIO
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+from smm_hw_bridge.idle_states import CPU_DMA_LATENCY, IdleStateHold, hold_idle_states
 from smm_hw_bridge.preflight import EXIT_PREFLIGHT_REFUSED
 from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 
 from smm_bringup.errors import GraphError
 from smm_bringup.graph_nodes import PLANT_NODE_NAMES, RECORDER_NODE, NodeSpec, expected_publishers
-from smm_bringup.realtime import fifo_allowed, fifo_preexec
+from smm_bringup.realtime import OBSERVER_NICE, fifo_allowed, fifo_preexec, observer_fifo_allowed
 
 __all__ = [
     "EXIT_CONFIGURATION_ERROR",
@@ -36,6 +37,7 @@ __all__ = [
     "ExecutableNotFoundError",
     "GraphProcesses",
     "RespawnPolicy",
+    "hold_idle_states_for",
     "launch_processes",
     "resolve_executable",
 ]
@@ -128,7 +130,8 @@ class RespawnPolicy:
     """``--respawn``: restart a node process that exited, as launch's ``respawn``/``respawn_delay``.
 
     Every node but the recorder (its bag folder exists) is restarted with its command line when it exits
-    while the graph runs, unless it is a plant process that completed the run (exit 0 or 3).
+    while the graph runs, unless it is a plant process that completed the run (exit 0 or 3) or refused to
+    arm at preflight (exit 4: final until a person changes something; a respawn would refuse again).
 
     Attributes:
         delay_s: Seconds between the exit and the restart, in [0, 60].
@@ -149,7 +152,7 @@ class RespawnPolicy:
     def applies(self, spec: NodeSpec, code: int) -> bool:
         """True when a node ``spec`` that exited with ``code`` is to be restarted."""
         completed = spec.name in PLANT_NODE_NAMES and code in (EXIT_OK, EXIT_NOT_CONTROLLED)
-        return spec.name != RECORDER_NODE and not completed
+        return spec.name != RECORDER_NODE and not completed and code != EXIT_PREFLIGHT_REFUSED
 
 
 @dataclass
@@ -209,7 +212,9 @@ class GraphProcesses:
             priority = fifo.get(spec.name, 0)
             popen = self._spawn(command, priority)
             self.children.append(_Child(spec, popen, tuple(command), priority))
-            scheduling = f", SCHED_FIFO {priority}" if priority else ""
+            scheduling = (
+                f", SCHED_FIFO {priority}" if priority > 0 else f", nice {priority}" if priority else ""
+            )
             _say(f"started {spec.name} (pid {popen.pid}{scheduling}): {' '.join(command)}")
             if spec is recorder:
                 _wait_for_recorder(spec, popen)
@@ -296,7 +301,10 @@ class GraphProcesses:
 
 
 def _fifo_priorities(specs: Sequence[NodeSpec]) -> dict[str, int]:
-    """``{node: SCHED_FIFO priority}`` of the specs asking for one, if the system allows it (else says so)."""
+    """``{node: SCHED_FIFO priority}`` of the specs asking for one, if the system allows it (else says so).
+
+    A recorder without the CPUs for SCHED_FIFO gets a nice value instead (negative: ``fifo_preexec``).
+    """
     wanted = {spec.name: spec.rt_priority for spec in specs if spec.rt_priority}
     if wanted and not fifo_allowed(max(wanted.values())):
         _say(
@@ -306,9 +314,18 @@ def _fifo_priorities(specs: Sequence[NodeSpec]) -> dict[str, int]:
         )
         return {}
     cpus = len(os.sched_getaffinity(0))
-    if len(wanted) >= cpus:
+    loop = len(wanted) - (RECORDER_NODE in wanted)
+    if RECORDER_NODE in wanted and not observer_fifo_allowed(loop, cpus):
+        wanted[RECORDER_NODE] = OBSERVER_NICE
         _say(
-            f"{len(wanted)} processes under SCHED_FIFO on {cpus} CPU(s): when they need more CPU than there "
+            f"{RECORDER_NODE} at normal policy, nice {OBSERVER_NICE}: {loop} loop process(es) under "
+            f"SCHED_FIFO on {cpus} CPU(s); a real-time recorder would share their CPUs and the kernel's RT "
+            f"budget (it needs {loop + 2} CPUs: docs/SOAK.md, 'Real time beside the loop')"
+        )
+    fifo = sum(priority > 0 for priority in wanted.values())
+    if fifo >= cpus:
+        _say(
+            f"{fifo} processes under SCHED_FIFO on {cpus} CPU(s): when they need more CPU than there "
             "is, they starve every other process and the kernel's RT throttling stops them all, the emulator "
             "included, for up to 50 ms a second (docs/LAUNCH.md, 'Real time on a small machine'); "
             "--rt-priority 0 runs them at normal priority",
@@ -398,7 +415,7 @@ def launch_processes(
     """
     processes = GraphProcesses(specs, child_environment(env), stop_grace_s)
     request = _StopRequest()
-    with _stop_signals(request):
+    with _stop_signals(request), hold_idle_states_for(specs):
         try:
             processes.start()
             while not request.event.wait(_POLL_S):
@@ -416,7 +433,12 @@ def launch_processes(
                     _report_stop(codes, expected_done=spec.name)
                     return EXIT_NOT_CONTROLLED if EXIT_NOT_CONTROLLED in codes.values() else EXIT_OK
                 if code == EXIT_PREFLIGHT_REFUSED:
-                    _say(f"{spec.name} refused to arm at preflight; stopping the graph", sys.stderr)
+                    final = (
+                        " (not respawned: final until a person changes a setting or the load)"
+                        if respawn is not None
+                        else ""
+                    )
+                    _say(f"{spec.name} refused to arm at preflight{final}; stopping the graph", sys.stderr)
                     _report_stop(processes.stop(), expected_done=spec.name)
                     return EXIT_PREFLIGHT_REFUSED
                 _say(f"node {spec.name} exited with code {code}; stopping the graph", sys.stderr)
@@ -429,6 +451,22 @@ def launch_processes(
         finally:
             # Whatever happened above (including an exception), no child may outlive the launcher.
             processes.stop()
+
+
+@contextlib.contextmanager
+def hold_idle_states_for(specs: Sequence[NodeSpec], device: Path = CPU_DMA_LATENCY) -> Any:
+    """While a real-time run (a node asks for SCHED_FIFO) lasts: ``device`` held at 0, said either way."""
+    if not any(spec.rt_priority for spec in specs):
+        yield None
+        return
+    hold: IdleStateHold = hold_idle_states(0, device)
+    _say(hold.statement, None if hold.held else sys.stderr)
+    try:
+        yield hold
+    finally:
+        if hold.held:
+            hold.close()
+            _say(f"idle states: released {device}")
 
 
 def _report_stop(codes: Mapping[str, int], expected_done: str | None = None) -> None:

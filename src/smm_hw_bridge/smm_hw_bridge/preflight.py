@@ -15,6 +15,7 @@ import numpy as np
 from smm_schema.ranges import bounds, check_bounds
 
 from smm_hw_bridge.control_rate import BOARD_TICK_HZ, CONTROL_RATES_HZ
+from smm_hw_bridge.idle_states import IdleStates, read_idle_states
 
 __all__ = [
     "CANDIDATE_DIVIDERS",
@@ -72,6 +73,7 @@ class RehearsalFigures:
             the tick's time taken from the arrivals' lower envelope (so without the frame's way there).
         wakeup_us: Per feedback frame: its arrival after that tick (us).
         unanswered: Control periods without an answer (frame lost, refused, or no command came).
+        idle_states: The CPUs' idle-state setting during the rehearsal; None when not known.
     """
 
     board_period_ns: int
@@ -79,6 +81,7 @@ class RehearsalFigures:
     feedback_to_command_us: tuple[float, ...]
     wakeup_us: tuple[float, ...]
     unanswered: int = 0
+    idle_states: IdleStates | None = None
 
     @property
     def periods(self) -> int:
@@ -139,6 +142,7 @@ class PreflightVerdict:
         """The figures block, one statement per line."""
         figures = self.figures
         predicted = " / ".join(f"{100.0 * share:.2f} % at {rate:g} Hz" for rate, share in self.predicted)
+        idle = figures.idle_states
         return [
             f"rehearsed the loop with output disabled (safe frames) at {figures.rate_hz:g} Hz control "
             f"({figures.divider} board tick(s) of {figures.board_period_ns / 1e6:g} ms per period): "
@@ -146,6 +150,7 @@ class PreflightVerdict:
             f"feedback->command (from the board's tick, the host's estimate): "
             f"{_percentiles(figures.feedback_to_command_us)}",
             f"wake-up (feedback frame arrival after the board's tick): {_percentiles(figures.wakeup_us)}",
+            *([] if idle is None else [f"idle states: {idle.statement()}"]),
             f"late {100.0 * self.late_share:.2f} % of control periods "
             f"({figures.unanswered} unanswered), limit {100.0 * self.late_limit:g} % "
             f"(a rate holds at most {100.0 * self.allowed:g} % here); "
@@ -168,7 +173,12 @@ class PreflightVerdict:
             + ", ".join(f"{r:g}" for r, _ in self.predicted)
             + " Hz)"
         )
+        idle = self.figures.idle_states
         options = [] if realtime else ["real-time priority (--rt-priority N; needs an rtprio limit)"]
+        if idle is not None and not idle.held:
+            options.append(
+                "CPUs kept out of deep idle states (/dev/cpu_dma_latency held at 0: docs/LAUNCH.md)"
+            )
         options.append("an isolated core (isolcpus, taskset)")
         if not direct_loop:
             options.append("the direct loop (--loop direct)")
@@ -216,9 +226,16 @@ class RehearsalRecorder:
         board_period_ns: The board's tick (ns), > 0.
         divider: Board ticks per control period (the chain answers one tick in so many), >= 1.
         added_latency_us: Added to every answer's time (us), >= 0 (:class:`PreflightConfig`).
+        idle_states: The CPUs' idle-state setting to report; None: read now (:func:`read_idle_states`).
     """
 
-    def __init__(self, board_period_ns: int, divider: int = 1, added_latency_us: float = 0.0) -> None:
+    def __init__(
+        self,
+        board_period_ns: int,
+        divider: int = 1,
+        added_latency_us: float = 0.0,
+        idle_states: IdleStates | None = None,
+    ) -> None:
         if board_period_ns <= 0 or divider < 1 or added_latency_us < 0.0:
             raise ValueError(
                 f"need board_period_ns > 0, divider >= 1, added_latency_us >= 0, got {board_period_ns!r}, "
@@ -227,6 +244,7 @@ class RehearsalRecorder:
         self.board_period_ns = board_period_ns
         self.divider = divider
         self.added_ns = round(added_latency_us * 1e3)
+        self.idle_states = read_idle_states() if idle_states is None else idle_states
         self._arrivals: dict[int, int] = {}
         self._control: set[int] = set()
         self._answers: dict[int, int] = {}
@@ -255,7 +273,7 @@ class RehearsalRecorder:
         period = self.board_period_ns
         ticks = np.array(sorted(self._arrivals), dtype=np.int64)
         if ticks.size == 0:
-            return RehearsalFigures(period, self.divider, (), (), 0)
+            return RehearsalFigures(period, self.divider, (), (), 0, self.idle_states)
         arrivals = np.array([self._arrivals[t] for t in ticks], dtype=np.int64)
         grid = tick_grid(ticks, arrivals, period)
         judged = ticks >= ticks[0] + round(WARM_UP_S * 1e9 / period)
@@ -272,7 +290,9 @@ class RehearsalRecorder:
             kept = ticks[judged]
             unanswered += (int(kept[-1] - kept[0]) + 1 - kept.size) // self.divider
         wakeups = ((arrivals[judged] - grid[judged]) / 1e3).tolist()
-        return RehearsalFigures(period, self.divider, tuple(latencies), tuple(wakeups), unanswered)
+        return RehearsalFigures(
+            period, self.divider, tuple(latencies), tuple(wakeups), unanswered, self.idle_states
+        )
 
 
 def tick_grid(ticks: np.ndarray, arrivals_ns: np.ndarray, period_ns: int) -> np.ndarray:

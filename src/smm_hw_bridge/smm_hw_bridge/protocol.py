@@ -279,6 +279,11 @@ class FeedbackFrame:
         _check_u("applied_age", self.applied_age, 16)
         _check_codes("output_codes", self.output_codes, CODE_MAX)
 
+    @classmethod
+    def trusted(cls, *values: Any) -> FeedbackFrame:
+        """A frame of the fields in their order, which the caller keeps in range (the board's own state)."""
+        return _unchecked(cls, _FEEDBACK_FIELDS, values)
+
 
 _Frame = TypeVar("_Frame", CommandFrame, FeedbackFrame)
 _COMMAND_FIELDS: Final[tuple[str, ...]] = tuple(item.name for item in fields(CommandFrame))
