@@ -20,3 +20,10 @@ def test_a_malformed_list_of_unread_nodes_is_a_corrupt_manifest(text: str) -> No
     data = RunManifest().to_custom_data() | {"smm.parameters_unread": text}
     with pytest.raises(CorruptBagError, match="run manifest"):
         RunManifest.from_custom_data(data)
+
+
+@pytest.mark.parametrize(("seed", "text"), [(0, "0"), (7, "7"), (None, "")])
+def test_seed_0_is_recorded_as_0_and_only_an_unknown_seed_as_empty(seed: int | None, text: str) -> None:
+    data = RunManifest(seed=seed).to_custom_data()
+    assert data["smm.seed"] == text
+    assert RunManifest.from_custom_data(data).seed == seed

@@ -103,7 +103,12 @@ def test_options_reach_the_right_nodes() -> None:
         )
     )
     by_name = {spec.name: dict(spec.parameters) for spec in specs}
-    assert by_name["smm_sim_node"] == {"clock_mode": "realtime", "duration": 2.5, "seed": 11}
+    assert by_name["smm_sim_node"] == {
+        "clock_mode": "realtime",
+        "duration": 2.5,
+        "seed": 11,
+        "verdict.late_limit": 0.01,
+    }
     assert by_name["controller_node"] == {"algorithm": "npd", "chain": "external"}
     assert by_name["td_node"] == {}
 
@@ -164,6 +169,51 @@ def test_the_late_limit_reaches_the_emulator_and_the_bridge_as_their_units() -> 
     specs = build_graph(GraphOptions(plant="hardware", clock_mode="realtime", late_limit=2.5))
     assert dict(specs[0].parameters)["late-limit"] == 2.5  # percent
     assert dict(specs[1].parameters)["verdict.late_limit"] == 0.025  # fraction
+
+
+def test_the_late_limit_reaches_the_realtime_simulator_and_lockstep_is_not_judged() -> None:
+    sim = build_graph(GraphOptions(clock_mode="realtime", late_limit=2.5))[0]
+    assert (sim.name, dict(sim.parameters)["verdict.late_limit"]) == (graph_nodes.SIM_NODE, 0.025)
+    lockstep = build_graph(GraphOptions(clock_mode="lockstep", late_limit=2.5))[0]
+    assert "verdict.late_limit" not in dict(lockstep.parameters)
+
+
+@pytest.mark.parametrize("layout", [{}, {"chain": "split", "reference": "node", "record": "bag"}])
+def test_lockstep_simulator_runs_give_the_controller_side_sim_time(layout: dict[str, str]) -> None:
+    """The simulator publishes /clock in lockstep; the nodes it drives take their time from it. The
+    simulator (the clock's source) and the recorder (flushing and stamping on the wall clock) do not."""
+    specs = build_graph(GraphOptions(clock_mode="lockstep", **layout))  # type: ignore[arg-type]
+    keeping_wall_time = {graph_nodes.SIM_NODE, graph_nodes.RECORDER_NODE}
+    for spec in specs:
+        assert (dict(spec.parameters).get("use_sim_time") is True) == (spec.name not in keeping_wall_time)
+        if spec.name not in keeping_wall_time:
+            assert "-p" in spec.ros_arguments() and "use_sim_time:=true" in spec.ros_arguments()
+    assert len(specs) > 1
+    for options in (
+        GraphOptions(clock_mode="realtime", **layout),  # type: ignore[arg-type]
+        GraphOptions(plant="hardware", clock_mode="lockstep", **layout),  # type: ignore[arg-type]
+    ):  # no /clock: wall time
+        assert all("use_sim_time" not in dict(spec.parameters) for spec in build_graph(options))
+
+
+@pytest.mark.parametrize(
+    ("seed", "file_seed", "recorded"), [(None, None, 0), (None, 7, 7), (3, 7, 3), (0, None, 0)]
+)
+def test_the_recorder_is_told_the_seed_the_simulator_runs_with(
+    tmp_path: Path, seed: int | None, file_seed: int | None, recorded: int
+) -> None:
+    """No --seed: the simulator's seed from the parameter files, else its default (0), not 'unknown'."""
+    files: tuple[str, ...] = ()
+    if file_seed is not None:
+        extra = tmp_path / "seed.yaml"
+        extra.write_text(f"/**/smm_sim_node:\n  ros__parameters:\n    seed: {file_seed}\n")
+        files = (str(extra),)
+    specs = build_graph(GraphOptions(record=str(tmp_path / "bag"), seed=seed, params_files=files))
+    recorder = next(spec for spec in specs if spec.name == graph_nodes.RECORDER_NODE)
+    assert dict(recorder.parameters)["seed"] == recorded
+    hardware = build_graph(GraphOptions(plant="hardware", record=str(tmp_path / "bag"), seed=seed))
+    recorder = next(spec for spec in hardware if spec.name == graph_nodes.RECORDER_NODE)
+    assert dict(recorder.parameters)["seed"] == (-1 if seed is None else seed)
 
 
 @pytest.mark.parametrize(

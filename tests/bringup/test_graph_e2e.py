@@ -230,7 +230,10 @@ def test_realtime_graph_runs_for_its_duration_and_answers(
         ),
     )
     code = wait_exit(launcher, LAUNCH_TIMEOUT_S)
-    assert code == 0, launcher.logs()
+    if answers:
+        assert code == 0, launcher.logs()
+    else:  # a machine that did not keep up: the run completed, judged as not controlled (exit 3)
+        assert code == 0 or (code == 3 and "run: did not control:" in launcher.logs()), launcher.logs()
     figures = json.loads(stats.read_text())
     assert figures["clock_mode"] == "realtime"
     assert figures["steps"] == rate_hz * duration_s
@@ -253,3 +256,23 @@ def test_composed_mode_reports_an_invalid_parameter_and_exits_2(ros_domain_id: i
     )
     assert result.returncode == 2, result.stdout + result.stderr
     assert "smm_sim_node: invalid parameter" in result.stderr and "noise_std" in result.stderr
+
+
+def test_a_recorded_lockstep_run_without_seed_records_the_simulators_seed_0_and_its_sim_time(
+    ros_processes: Any, tmp_path: Path
+) -> None:
+    from smm_bag.manifest import RunManifest
+    from smm_bag.metadata import read_metadata
+
+    bag = tmp_path / "bag"
+    arguments = launcher_argv("--duration", "1", "--record", str(bag))
+    launcher = ros_processes.start("smm-launch-record", arguments)
+    assert wait_exit(launcher, LAUNCH_TIMEOUT_S) == 0, launcher.logs()
+    data = read_metadata(bag).custom_data
+    assert data["smm.seed"] == "0" and "seed 0" in launcher.logs()  # what the simulator said it used
+    manifest = RunManifest.from_custom_data(data)
+    # The controller's parameters as the recorder read them (a loaded machine may stop it first: named then).
+    controller = "/smm/controller_node"
+    assert controller in manifest.parameters or controller in manifest.parameters_unread
+    if controller in manifest.parameters:
+        assert manifest.parameters[controller]["use_sim_time"] is True

@@ -114,3 +114,27 @@ def test_a_realtime_run_more_late_than_its_limit_exits_3(ros_processes: Any) -> 
         "[smm-launch] run: did not control: " in logs
         and "were late or not live, above the limit of 0 %" in logs
     )
+
+
+@pytest.mark.parametrize("composed", [False, True])
+def test_a_realtime_simulator_run_that_did_not_control_exits_3_as_the_hardware_path(
+    ros_domain_id: int, composed: bool, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """No controller (the test's own domain): every tick of the 1 s run applies zero torque, so the run did
+    not control on any machine; the supervisor (and composed mode) pass the simulator's exit 3 on."""
+    from smm_bringup.composed import launch_composed
+    from smm_bringup.graph import build_graph
+    from smm_bringup.graph_nodes import CONTROLLER_NODE
+    from smm_bringup.graph_options import GraphOptions
+    from smm_bringup.supervisor import launch_processes
+    from smm_node_runtime.run_verdict import EXIT_NOT_CONTROLLED
+
+    options = GraphOptions(clock_mode="realtime", scenario="case1", duration=1.0)
+    specs = [spec for spec in build_graph(options) if spec.name != CONTROLLER_NODE]
+    code = launch_composed(specs) if composed else launch_processes(specs, stop_grace_s=5.0)
+    assert code == EXIT_NOT_CONTROLLED
+    logs = "".join(capfd.readouterr())
+    reason = "run: did not control: no torque command reached the plant: all 1000 ticks applied zero torque"
+    assert reason in logs, logs
+    if not composed:
+        assert "smm_sim_node: the run did not control (exit code 3; its reason above)" in logs

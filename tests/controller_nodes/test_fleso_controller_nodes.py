@@ -477,6 +477,20 @@ def test_a_valid_gain_change_acts_on_the_next_step(make_rig: Any, ros_context: A
     assert not np.allclose(direct_torque(old_law, MS), direct_torque(new_law, MS))
 
 
+def test_a_runtime_gain_change_is_logged_with_its_old_and_new_value(
+    make_rig: Any, ros_context: Any, capfd: pytest.CaptureFixture[str]
+) -> None:
+    node = ControllerNode(context=ros_context)
+    make_rig(node)
+    capfd.readouterr()
+    (result,) = node.set_parameters([Parameter("fpdeso.fuzzy.k_e", value=[3.0, 6.0])])
+    assert result.successful
+    logged = [line for line in "".join(capfd.readouterr()).splitlines() if "fpdeso.fuzzy.k_e" in line]
+    assert len(logged) == 1 and logged[0].endswith(
+        "[controller_node]: parameter fpdeso.fuzzy.k_e: [2.0, 6.0] -> [3.0, 6.0]"
+    ), logged
+
+
 def test_pid_gain_change_keeps_the_integrator_and_acts_on_the_next_step(
     make_rig: Any, ros_context: Any
 ) -> None:

@@ -121,6 +121,20 @@ def test_accepted_change_swaps_the_whole_config_once(node: Any) -> None:
     assert before == Gains()  # the old instance is untouched
 
 
+def test_an_accepted_change_logs_each_changed_value_once_and_a_refused_one_nothing(
+    node: Any, capfd: pytest.CaptureFixture[str]
+) -> None:
+    ConfigParameters(node, "gains", Gains())
+    capfd.readouterr()
+    assert node.set_parameters_atomically(
+        [Parameter("gains.k", value=[3.0, 4.0]), Parameter("gains.limit", value=5.0)]  # limit unchanged
+    ).successful
+    assert not node.set_parameters([Parameter("gains.mode", value="c")])[0].successful
+    lines = [line for line in "".join(capfd.readouterr()).splitlines() if "parameter gains." in line]
+    assert len(lines) == 1, lines
+    assert lines[0].endswith("[binding_test]: parameter gains.k: [1.0, 2.0] -> [3.0, 4.0]")
+
+
 def test_extra_check_rejects_with_its_message(node: Any) -> None:
     def check(gains: Gains) -> None:
         if gains.limit > 10.0:

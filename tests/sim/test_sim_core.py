@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from smm_node_runtime.health import Level
+from smm_node_runtime.run_verdict import VerdictConfig
 from smm_sim.core import (
     DEADLINE_MISS_WARN_FRACTION,
     PUBLISHED_STAMPS_KEPT,
@@ -239,6 +240,96 @@ def test_realtime_run_ends_after_its_duration() -> None:
     core = realtime(duration=0.005)
     run_realtime(core, 5, answer=(0.0, 0.0), start_ns=T0)
     assert core.finished and core.steps == 5
+
+
+# ---- the real-time verdict (docs/LAUNCH.md, "Shutdown and exit codes") ---------------------------------
+
+SETTLE = VerdictConfig(late_limit=0.01, settle_s=0.01)  # 10 ticks of 1 ms settle
+
+
+def judged(answers: list[bool], *, verdict: VerdictConfig = SETTLE, command_timeout: float = 0.05) -> SimCore:
+    """A real-time run of one tick per entry; ``True``: the measurement before that tick was answered."""
+    config = SimNodeConfig(clock_mode="realtime", command_timeout=command_timeout)
+    core = SimCore(PlantParameters(), config, T0, verdict)
+    now = T0
+    core.sent(now)
+    for answered in answers:
+        if answered:
+            assert core.on_command(core.stamp_ns, (0.0, 0.0), now + 1000) is CommandOutcome.ACCEPTED
+        now += PERIOD
+        core.tick(now)
+        core.sent(now)
+    return core
+
+
+def test_a_realtime_run_without_any_command_did_not_control() -> None:
+    core = judged([False] * 20)
+    assert core.run_verdict() == "no torque command reached the plant: all 20 ticks applied zero torque"
+    assert core.statistics()["verdict"] == core.run_verdict()
+
+
+def test_the_verdict_judges_the_ticks_after_the_settling_time_from_the_first_command() -> None:
+    # 5 ticks before the first command (zero torque, not judged), 10 settling ticks, then 100 judged.
+    core = judged([False] * 5 + [True] * 110)
+    assert (core.first_live_tick, core.judged_ticks, core.late_judged) == (5, 100, 0)
+    assert core.run_verdict() is None
+    assert core.verdict_figures() == (
+        "late 0 of 100 periods of 1 ms after the first 0.01 s live (0.00 %), "
+        "5 zero-torque ticks before the first command (not judged)"
+    )
+
+
+@pytest.mark.parametrize(("late", "controlled"), [(1, True), (2, False)])
+def test_deadline_misses_above_the_late_limit_mean_the_run_did_not_control(
+    late: int, controlled: bool
+) -> None:
+    # A measurement left unanswered makes the next tick miss its deadline; the command in force holds.
+    answers = [True] * 110
+    for index in range(late):
+        answers[50 + 10 * index] = False
+    core = judged(answers)
+    assert (core.judged_ticks, core.late_judged, core.zero_torque_judged) == (100, late, 0)
+    if controlled:
+        assert core.run_verdict() is None
+    else:
+        assert core.run_verdict() == (
+            "2.00 % of the control periods after the first 0.01 s live were late or not live, above the "
+            "limit of 1 %"
+        )
+
+
+def test_the_users_run_of_a_fifth_of_the_deadlines_missed_did_not_control() -> None:
+    # 7,883 of 40,000 steps missed their deadline (19.7 %): one in five here, the same verdict.
+    core = judged([True] * 10 + [index % 5 != 0 for index in range(1000)])
+    assert core.deadline_misses == 200 and core.zero_torque_judged == 0
+    reason = core.run_verdict()
+    assert reason is not None and reason.startswith("20.00 % of the control periods")
+
+
+def test_a_zero_torque_tick_after_the_settling_time_means_the_run_did_not_control() -> None:
+    # Four unanswered measurements with a 2 ms timeout: the held command times out for three ticks (more
+    # than 2 ms old at each); below a late limit of 100 % the zero torque alone is the reason.
+    answers = [True] * 110
+    answers[60:64] = [False] * 4
+    core = judged(answers, verdict=VerdictConfig(late_limit=1.0, settle_s=0.01), command_timeout=0.002)
+    assert core.command_timeouts == 3 and core.zero_torque_judged == 3
+    assert core.run_verdict() == (
+        "3 ticks after the first 0.01 s live applied zero torque (no valid command within command_timeout "
+        "2 ms)"
+    )
+
+
+def test_zero_torque_while_settling_is_not_judged() -> None:
+    answers = [True] * 110
+    answers[2:6] = [False] * 4  # times out for three ticks within the first 10 after the first command
+    core = judged(answers, command_timeout=0.002)
+    assert core.command_timeouts == 3 and core.zero_torque_judged == 0 and core.late_judged == 0
+    assert core.run_verdict() is None
+
+
+def test_a_lockstep_run_is_not_judged() -> None:
+    core = lockstep()
+    assert core.run_verdict() is None and core.statistics()["verdict"] is None
 
 
 # ---- health and statistics ------------------------------------------------------------------------

@@ -343,3 +343,62 @@ def test_start_gate_parameter_has_a_range(make_harness: Any) -> None:
 
     with pytest.raises(SimParameterError, match="min_subscribers"):
         make_harness(**LOCKSTEP, **{"start.min_subscribers": -1})
+
+
+def test_a_realtime_run_with_no_controller_exits_3_and_says_it_did_not_control(ros_domain_id: int) -> None:
+    """Nothing answers (the test's own domain): every tick applies zero torque, whatever the machine."""
+    from smm_bringup.graph_nodes import NodeSpec
+    from smm_bringup.supervisor import resolve_executable
+
+    spec = NodeSpec(
+        "smm_sim",
+        "smm_sim_node",
+        "smm_sim_node",
+        "smm_sim.sim_node:SimNode",
+        parameters=(("clock_mode", "realtime"), ("max_steps", 50)),
+    )
+    result = subprocess.run(
+        spec.command_line(resolve_executable(spec)), capture_output=True, text=True, timeout=60, check=False
+    )
+    assert result.returncode == 3, result.stdout + result.stderr
+    reason = "no torque command reached the plant: all 50 ticks applied zero torque"
+    assert f"smm_sim_node: the run did not control: {reason}" in result.stderr
+    assert f"run: did not control: {reason} (late 0 of 0 periods" in result.stderr
+
+
+def test_a_realtime_run_missing_its_deadlines_did_not_control(
+    make_harness: Any, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """Only every other measurement is answered, so at least every other tick misses its deadline however
+    fast or slow the machine; the command in force holds within its 0.5 s timeout."""
+    from rclpy.parameter import Parameter
+
+    h = make_harness(clock_mode="realtime", command_timeout=0.5, **{"verdict.settle_s": 0.0})
+    h.wait_matched()
+    answered: set[int] = set()
+
+    def answer_even() -> bool:
+        for stamp in h.stamps():
+            if stamp // PERIOD_NS % 2 == 0 and stamp not in answered:
+                answered.add(stamp)
+                h.send([0.0, 0.0], stamp)
+        return h.sim.core.judged_ticks >= 200
+
+    assert h.spin_until(answer_even, timeout_s=30.0)
+    assert h.sim.set_parameters([Parameter("max_steps", value=h.sim.core.steps + 1)])[0].successful
+    assert h.spin_until(h.sim.done.done)
+    core = h.sim.core
+    assert core.late_judged >= core.judged_ticks // 2 - 1, core.statistics()
+    reason = h.sim.run_verdict()
+    assert reason is not None and "were late or not live, above the limit of 1 %" in reason
+    closing = [line for line in "".join(capfd.readouterr()).splitlines() if "run: did not control:" in line]
+    assert len(closing) == 1 and "late or not live" in closing[0] and "periods of 1 ms" in closing[0]
+
+
+def test_a_lockstep_run_is_not_judged_by_deadlines(make_harness: Any) -> None:
+    h = make_harness(**LOCKSTEP, max_steps=3)
+    h.wait_matched()
+    for step in range(3):
+        h.send([0.0, 0.0], step * PERIOD_NS)
+        assert h.spin_until(lambda step=step: h.sim.core.steps == step + 1)
+    assert h.sim.done.done() and h.sim.run_verdict() is None

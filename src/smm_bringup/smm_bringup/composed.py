@@ -17,6 +17,7 @@ from smm_bringup.graph_nodes import NAMESPACE, PLANT_NODE_NAMES, NodeSpec, param
 from smm_bringup.supervisor import (
     _POLL_S,
     EXIT_NODE_FAILED,
+    EXIT_NOT_CONTROLLED,
     EXIT_OK,
     _say,
     _stop_signals,
@@ -34,8 +35,9 @@ def launch_composed(specs: Sequence[NodeSpec]) -> int:
     ``parameter_overrides``; the namespace is applied as a global remapping of the context.
 
     Returns:
-        0 when the plant completed its run, 128 + signal number after Ctrl-C / SIGTERM, 1 when a node
-        failed (its exception is reported).
+        0 when the plant completed its run, 3 when it completed a real-time run that did not control (its
+        ``run_verdict``), 128 + signal number after Ctrl-C / SIGTERM, 1 when a node failed (its exception
+        is reported).
     """
     if any(not spec.node_class for spec in specs):
         names = [spec.name for spec in specs if not spec.node_class]
@@ -83,6 +85,11 @@ def launch_composed(specs: Sequence[NodeSpec]) -> int:
                             _say(f"the plant failed: {done.exception()}", sys.stderr)
                             return EXIT_NODE_FAILED
                         _say("the plant completed its run; stopping the graph")
+                        judge = getattr(plant, "run_verdict", None)
+                        reason = judge() if judge is not None else None
+                        if reason is not None:
+                            _say(f"run: did not control: {reason}", sys.stderr)
+                            return EXIT_NOT_CONTROLLED
                         return EXIT_OK
                 else:
                     executor.spin_once(timeout_sec=_POLL_S * 4)

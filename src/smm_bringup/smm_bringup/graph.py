@@ -30,7 +30,7 @@ from smm_bringup.graph_nodes import (
     NodeSpec,
 )
 from smm_bringup.graph_options import SCENARIO_NAMES, GraphOptions
-from smm_bringup.hardware_graph import hardware_specs
+from smm_bringup.hardware_graph import hardware_specs, simulator_settings
 from smm_bringup.parameter_files import ParameterValue, load_parameter_file, package_file
 from smm_bringup.realtime import (
     BOARD_PRIORITY_OFFSET,
@@ -39,6 +39,7 @@ from smm_bringup.realtime import (
     MAX_PRIORITY,
     RECORDER_PRIORITY_OFFSET,
 )
+from smm_sim.config import PlantParameters
 
 __all__ = ["build_graph", "control_rate_file", "control_rate_settings", "scenario_file"]
 
@@ -51,6 +52,8 @@ _CONTROLLER_NODES: Final[tuple[tuple[str, str], ...]] = (
 )
 _JOINT_STATES_READERS: Final[tuple[str, ...]] = (TD_NODE, FLESO_NODE, REFERENCE_NODE)
 """Controller-side nodes subscribing ``joint_states`` (controller_node too, when the chain is fused)."""
+_SIM_TIME: Final[tuple[tuple[str, ParameterValue], ...]] = (("use_sim_time", True),)
+"""The controller side of a lockstep simulator run keeps the simulator's ``/clock`` (docs/LAUNCH.md)."""
 
 
 def scenario_file(name: str) -> Path:
@@ -96,6 +99,8 @@ def _sim_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], 
         parameters.append(("seed", options.seed))
     if options.control_divider > 1:  # the plant integrates at the board's 1 ms step at every control rate
         parameters.append(("substeps", options.control_divider))
+    if options.clock_mode == "realtime":  # judged as the hardware path is (exit 3)
+        parameters.append(("verdict.late_limit", options.late_limit / 100.0))
     return tuple(parameters) + _period_parameters(options)
 
 
@@ -191,6 +196,8 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
             if name == CONTROLLER_NODE
             else _period_parameters(options)
         )
+        if options.plant == "sim" and options.clock_mode == "lockstep":
+            parameters = (*parameters, *_SIM_TIME)
         controller_side.append(
             NodeSpec(
                 package="smm_controller",
@@ -203,7 +210,7 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
         )
     recorder: tuple[NodeSpec, ...] = ()
     if options.record is not None:
-        recorder = (_recorder_spec(options),)
+        recorder = (_recorder_spec(options, shared_files),)
         # Step 0 waits for the recorder (and every node reading joint_states) to be matched.
         readers = sum(spec.name in _JOINT_STATES_READERS for spec in controller_side) + (
             1 if fused and options.loop == "topics" else 0
@@ -236,13 +243,22 @@ def _with_priority(spec: NodeSpec, options: GraphOptions) -> NodeSpec:
     return dataclasses.replace(spec, rt_priority=priority)
 
 
-def _recorder_spec(options: GraphOptions) -> NodeSpec:
+def _simulator_seed(options: GraphOptions, files: Sequence[str]) -> int | None:
+    """The noise seed the simulator runs with: ``--seed``, else the ``files``', else its default."""
+    if options.seed is not None:
+        return options.seed
+    seed = simulator_settings(files).get("seed", PlantParameters().seed)
+    return seed if isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0 else None
+
+
+def _recorder_spec(options: GraphOptions, files: Sequence[str]) -> NodeSpec:
     """``recorder_node`` writing ``options.record``, with the run manifest's entries as parameters."""
     assert options.record is not None
+    seed = _simulator_seed(options, files) if options.plant == "sim" else options.seed
     parameters: tuple[tuple[str, ParameterValue], ...] = (
         ("output", str(Path(options.record).resolve())),
         ("scenario", options.scenario or ""),
-        ("seed", -1 if options.seed is None else options.seed),
+        ("seed", -1 if seed is None else seed),
         ("plant", options.plant),
         ("controller", options.algorithm),
         ("clock_mode", options.clock_mode),

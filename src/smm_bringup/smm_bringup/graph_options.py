@@ -95,8 +95,9 @@ class GraphOptions:
         loop: ``"auto"`` (default), ``"topics"`` or ``"direct"`` (``plant="hardware"``, fused chain,
             reference sampled by the controller): see :data:`LOOPS`. ``"auto"`` is resolved on
             construction, so the instance holds ``"topics"`` or ``"direct"``.
-        late_limit: ``hardware``: percent of the ticks after the first second of live output that may be
-            late or not live before the run counts as not controlled (exit 3, docs/LAUNCH.md), in [0, 100].
+        late_limit: ``hardware``, and the simulator in real time: percent of the ticks after the first second
+            of live output that may be late or not live before the run counts as not controlled (exit 3,
+            docs/LAUNCH.md), in [0, 100].
         preflight: ``hardware`` in real time: seconds the bridge rehearses the loop with output disabled
             before arming (``preflight.duration_s``, in [0, 30], 0 skips it); ``None``: its default (3 s).
         force: ``hardware``: arm even when the preflight finds the control rate is not held (a warning).

@@ -21,7 +21,7 @@ from smm_bringup.graph_nodes import (
 from smm_bringup.graph_options import GraphOptions, split_endpoint
 from smm_bringup.parameter_files import ParameterValue, load_parameter_file
 
-__all__ = ["EMULATOR_BOARD", "EMULATOR_HOST", "hardware_specs"]
+__all__ = ["EMULATOR_BOARD", "EMULATOR_HOST", "hardware_specs", "simulator_settings"]
 
 EMULATOR_BOARD: Final[str] = "127.0.0.1:50101"
 EMULATOR_HOST: Final[str] = "127.0.0.1:50100"
@@ -119,7 +119,8 @@ def hardware_specs(
     return (emulator, bridge)
 
 
-def _simulator_settings(files: Sequence[str]) -> dict[str, Any]:
+def simulator_settings(files: Sequence[str]) -> dict[str, Any]:
+    """What the parameter ``files`` set for the simulator (its section of each, later files winning)."""
     sim: dict[str, Any] = {}
     for path in files:
         sim.update(load_parameter_file(path, f"/{NAMESPACE}/{SIM_NODE}"))
@@ -128,7 +129,7 @@ def _simulator_settings(files: Sequence[str]) -> dict[str, Any]:
 
 def _scenario_duration(files: Sequence[str]) -> float | None:
     """The simulator's ``duration`` the parameter ``files`` set (s), None if none."""
-    value = _simulator_settings(files).get("duration")
+    value = simulator_settings(files).get("duration")
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
@@ -138,7 +139,7 @@ def _emulator_plant(files: Sequence[str]) -> list[tuple[str, ParameterValue]]:
     Raises:
         ParameterFileError: A per-joint noise the emulator cannot take (it takes one std for both joints).
     """
-    sim = _simulator_settings(files)
+    sim = simulator_settings(files)
     options: list[tuple[str, ParameterValue]] = []
     if "noise_std" in sim:
         noise = sim["noise_std"]

@@ -165,8 +165,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=GraphOptions.late_limit,
         metavar="PERCENT",
-        help="hardware: exit 3 (did not control) when more than this percentage of the enabled ticks after "
-        "the first second were late",
+        help="hardware, and the simulator in real time: exit 3 (did not control) when more than this "
+        "percentage of the control periods after the first second live were late or not live",
     )
     parser.add_argument(
         "--preflight",

@@ -2,39 +2,27 @@
 
 The board's feedback frames carry its status (``ENABLED``) and the age of the command on the valves; the
 emulator (the frames it sends) and the bridge (the frames it admits) count them with :class:`RunTally`, so
-both give the same figures. Late is counted per control period (docs/LAUNCH.md, "Control rate").
+both give the same figures. Late is counted per control period (docs/LAUNCH.md, "Control rate"); the limit
+and its words are :mod:`smm_node_runtime.run_verdict`'s, which the real-time simulator judges by too.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Final
 
-from smm_schema.ranges import at_least, bounds, check_bounds
+from smm_node_runtime.run_verdict import (
+    EXIT_NOT_CONTROLLED,
+    VerdictConfig,
+    late_figures,
+    late_fraction,
+    late_reason,
+)
 
 from smm_hw_bridge.protocol import FeedbackFrame, StatusBit, u32_diff
 
 __all__ = ["EXIT_NOT_CONTROLLED", "RunTally", "VerdictConfig"]
 
 _ENABLED: Final[int] = int(StatusBit.ENABLED)
-EXIT_NOT_CONTROLLED: Final[int] = 3
-"""Exit code of a hardware run that did not control (never armed, never live, too many late ticks)."""
-
-
-@dataclass(frozen=True)
-class VerdictConfig:
-    """When a run counts as controlled.
-
-    Attributes:
-        late_limit: Largest fraction of late control periods after ``settle_s`` (0.01 = 1 %).
-        settle_s: Enabled ticks in the first ``settle_s`` seconds of live output are not judged (s).
-    """
-
-    late_limit: float = field(default=0.01, metadata=bounds(0.0, 1.0))
-    settle_s: float = field(default=1.0, metadata=at_least(0.0))
-
-    def __post_init__(self) -> None:
-        check_bounds(self)
 
 
 class RunTally:
@@ -107,16 +95,13 @@ class RunTally:
     @property
     def late_fraction(self) -> float:
         """Late share of the judged control periods (0 before any)."""
-        return self.late_periods / self.periods if self.periods else 0.0
+        return late_fraction(self.late_periods, self.periods)
 
     def figures(self) -> str:
         """``late L of N periods of T ms after the first S s live (P %), T live ticks in all``."""
         missed = f", {self.missed_ticks} ticks without a frame here" if self.missed_ticks else ""
-        return (
-            f"late {self.late_periods} of {self.periods} periods of {self.period_ms:g} ms after the first "
-            f"{self.config.settle_s:g} s live ({100.0 * self.late_fraction:.2f} %), "
-            f"{self.live_ticks} live ticks in all{missed}"
-        )
+        late = late_figures(self.late_periods, self.periods, self.period_ms, self.config)
+        return f"{late}, {self.live_ticks} live ticks in all{missed}"
 
     def verdict(self) -> str | None:
         """Why the run did not control, or None if it did."""
@@ -124,10 +109,4 @@ class RunTally:
             return "the bridge never armed: no enabled command reached the board"
         if not self.live_ticks:
             return "the output never went live: no board tick latched an enabled command"
-        if self.late_fraction > self.config.late_limit:
-            return (
-                f"{100.0 * self.late_fraction:.2f} % of the control periods after the first "
-                f"{self.config.settle_s:g} s live were late or not live, above the limit of "
-                f"{100.0 * self.config.late_limit:g} %"
-            )
-        return None
+        return late_reason(self.late_periods, self.periods, self.config)

@@ -140,9 +140,9 @@ class ConfigParameters(Generic[ConfigT]):
     On construction the parameters are declared and the initial config is built from them. Afterwards each
     ``set_parameters`` request touching this prefix is validated by building the whole new config
     (:func:`config_from_parameters`); a failure rejects the request with the ``ValueError`` message as
-    ``reason``; a success replaces :attr:`config` by the new instance once ROS has stored the values, and
-    calls ``on_change(new_config)`` if given. Readers take :attr:`config` once per step, so a step sees one
-    consistent config.
+    ``reason``; a success replaces :attr:`config` by the new instance once ROS has stored the values, logs
+    each changed value (``parameter <name>: <old> -> <new>``), and calls ``on_change(new_config)`` if given.
+    Readers take :attr:`config` once per step, so a step sees one consistent config.
 
     Args:
         node: The node owning the parameters.
@@ -182,6 +182,8 @@ class ConfigParameters(Generic[ConfigT]):
             check(self._config)
         fields = config_fields(self._config_cls)
         self._names = frozenset(parameter_name(prefix, field.name) for field in fields)
+        self._fields = {parameter_name(prefix, field.name): field for field in fields}
+        self._log = node.get_logger()  # type: ignore[no-untyped-call]
         # Registered after the declarations: declare_parameter runs these callbacks one parameter at a time.
         node.add_on_set_parameters_callback(self._validate)
         node.add_post_set_parameters_callback(self._commit)
@@ -245,6 +247,13 @@ class ConfigParameters(Generic[ConfigT]):
         if not overrides:
             return
         # Cannot fail: _validate built the same config from the same values moments ago.
-        self._config = config_from_parameters(self._config_cls, self._config, overrides, self._prefix)
+        old = self._config
+        self._config = config_from_parameters(self._config_cls, old, overrides, self._prefix)
+        for name in sorted(overrides):
+            field = self._fields[name]
+            before = parameter_value(field, value_at(old, field.path))
+            after = parameter_value(field, value_at(self._config, field.path))
+            if before != after:
+                self._log.info(f"parameter {name}: {before!r} -> {after!r}")
         if self._on_change is not None:
             self._on_change(self._config)

@@ -17,6 +17,7 @@ from typing import Any, Final
 
 import numpy as np
 from smm_node_runtime.health import Health, Level, worst
+from smm_node_runtime.run_verdict import VerdictConfig, late_figures, late_reason
 
 from smm_sim.config import PlantParameters, SimNodeConfig
 from smm_sim.plant import GroundTruth, Measurement, SimulatedPlant
@@ -164,11 +165,15 @@ class SimCore:
         config: The run's behaviour; ``clock_mode`` and whether the run is recorded (``record_file`` set)
             are fixed here, the rest may change with :meth:`reconfigure`.
         now_ns: Monotonic time at start (ns): the first real-time tick is due one period later.
+        verdict: When a real-time run counts as controlled (:meth:`run_verdict`).
     """
 
-    def __init__(self, plant: PlantParameters, config: SimNodeConfig, now_ns: int) -> None:
+    def __init__(
+        self, plant: PlantParameters, config: SimNodeConfig, now_ns: int, verdict: VerdictConfig | None = None
+    ) -> None:
         self.plant_parameters = plant
         self.config = config
+        self.verdict = verdict or VerdictConfig()
         self.clock_mode = config.clock_mode
         self.plant = SimulatedPlant(plant.plant_config)
         self.plant.reset(np.asarray(plant.initial_position))
@@ -187,6 +192,15 @@ class SimCore:
         """Real-time ticks that applied zero torque because the command in force had timed out."""
         self.deadline_misses = 0
         self.late_ticks = 0
+        self.first_live_tick: int | None = None
+        """Real time: the first tick (step index) that applied a command; None while none did."""
+        self.judged_ticks = 0
+        """Real time: ticks from ``verdict.settle_s`` after :attr:`first_live_tick` on (judged periods)."""
+        self.late_judged = 0
+        """Of :attr:`judged_ticks`, those that missed their deadline or applied zero torque."""
+        self.zero_torque_judged = 0
+        """Of :attr:`judged_ticks`, those that applied zero torque (the command in force had timed out)."""
+        self._settle_ticks = round(self.verdict.settle_s * _NS_PER_S / self.period_ns)
         self.ticks_on_stop = 0
         """Steps that ended with a joint on its mechanical stop."""
         self.published: dict[str, int] = {}
@@ -280,11 +294,13 @@ class SimCore:
         if now_ns - self._next_tick_ns > self.period_ns:
             self.late_ticks += 1
         self._next_tick_ns = max(self._next_tick_ns + self.period_ns, now_ns)
-        if not self._answered_previous:
+        missed = not self._answered_previous
+        if missed:
             self.deadline_misses += 1
         received = self._command_received_ns
         timed_out: int | None = None
-        if received is None or now_ns - received > self.config.command_timeout * _NS_PER_S:
+        stale = received is None or now_ns - received > self.config.command_timeout * _NS_PER_S
+        if stale:
             command, stamp_ns = (0.0, 0.0), -1
             self.stale_ticks += 1
             if received is not None:
@@ -293,10 +309,54 @@ class SimCore:
                 timed_out = now_ns - received
         else:
             command, stamp_ns = self._command, self._command_stamp_ns
+        self._judge(missed=missed, zero_torque=stale)
         self._step(command, stamp_ns, now_ns)
         if not self.finished:
             self._answered_previous = False
         return timed_out
+
+    def _judge(self, *, missed: bool, zero_torque: bool) -> None:
+        """Count the tick about to step for the verdict (docs/LAUNCH.md, "Shutdown and exit codes")."""
+        if self.first_live_tick is None:
+            if zero_torque:
+                return  # not live yet: no command has arrived
+            self.first_live_tick = self.steps
+        if self.steps - self.first_live_tick < self._settle_ticks:
+            return
+        self.judged_ticks += 1
+        if missed or zero_torque:
+            self.late_judged += 1
+        if zero_torque:
+            self.zero_torque_judged += 1
+
+    def run_verdict(self) -> str | None:
+        """Real time: why the run did not control, or None if it did (always None in lockstep).
+
+        It did not control when no command ever reached the plant, when a tick after the settling time
+        applied zero torque (the command in force had timed out), or when more than ``verdict.late_limit``
+        of the ticks after the settling time missed their deadline or applied zero torque.
+        """
+        if self.clock_mode != "realtime":
+            return None
+        if self.first_live_tick is None:
+            return f"no torque command reached the plant: all {self.steps} ticks applied zero torque"
+        reasons = []
+        if self.zero_torque_judged:
+            reasons.append(
+                f"{self.zero_torque_judged} ticks after the first {self.verdict.settle_s:g} s live applied "
+                f"zero torque (no valid command within command_timeout "
+                f"{self.config.command_timeout * 1e3:g} ms)"
+            )
+        late = late_reason(self.late_judged, self.judged_ticks, self.verdict)
+        if late is not None:
+            reasons.append(late)
+        return "; ".join(reasons) or None
+
+    def verdict_figures(self) -> str:
+        """``late L of N periods of T ms after the first S s live (P %), Z zero-torque ticks before live``."""
+        late = late_figures(self.late_judged, self.judged_ticks, self.dt * 1e3, self.verdict)
+        before = self.first_live_tick if self.first_live_tick is not None else self.steps
+        return f"{late}, {before} zero-torque ticks before the first command (not judged)"
 
     def sent(self, now_ns: int) -> None:
         """The current measurement was published at ``now_ns``."""
@@ -366,6 +426,10 @@ class SimCore:
             "stale_ticks": self.stale_ticks,
             "deadline_misses": self.deadline_misses,
             "late_ticks": self.late_ticks,
+            "judged_ticks": self.judged_ticks,
+            "late_judged": self.late_judged,
+            "zero_torque_judged": self.zero_torque_judged,
+            "verdict": self.run_verdict(),
             "latency": self.latency.summary(),
             "stepping_wall_s": stepping_s,
             "steps_per_wall_second": (self.steps - 1) / stepping_s if stepping_s > 0.0 else math.nan,

@@ -24,6 +24,7 @@ from smm_msgs_py.conversions import JointSample, clock_msg, msg_to_torque, sampl
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
 from smm_node_runtime.parameters import ConfigParameters
+from smm_node_runtime.run_verdict import EXIT_NOT_CONTROLLED, VerdictConfig
 from std_msgs.msg import Float64MultiArray
 
 from smm_msgs_py import topics
@@ -79,6 +80,7 @@ class SimNode(SmmNode):
             self._node_parameters = ConfigParameters(
                 self, "", SimNodeConfig(), on_change=self._on_config_change
             )
+            self._verdict = ConfigParameters(self, "verdict", VerdictConfig(), read_only=True)
         except ValueError as error:
             self.destroy_node()
             raise SimParameterError(str(error)) from error
@@ -87,7 +89,9 @@ class SimNode(SmmNode):
         # Registered after the declarations, which run the set-parameters callbacks too.
         self.add_on_set_parameters_callback(self._refuse_startup_only)
         config = self._node_parameters.config
-        self.core = SimCore(self._plant_parameters.config, config, time.monotonic_ns())
+        self.core = SimCore(
+            self._plant_parameters.config, config, time.monotonic_ns(), verdict=self._verdict.config
+        )
         """The simulator's logic: plant, counters, statistics, record (read it from the executor's thread)."""
         self.done: Future = Future()  # type: ignore[no-untyped-call]
         """Completed (result: number of steps) when the run reached ``max_steps`` / ``duration``."""
@@ -298,6 +302,8 @@ class SimNode(SmmNode):
             core.write_outputs()
             self._log_statistics()
             self._log.info(f"run complete after {core.steps} steps ({core.stamp_ns / _NS_PER_S:g} s)")
+            if core.clock_mode == "realtime":
+                self._log_verdict()
             unacknowledged = wait_for_delivery(self, _DELIVERY_TIMEOUT_S)
             if unacknowledged:
                 self._log.warning(
@@ -309,10 +315,23 @@ class SimNode(SmmNode):
             self.context.try_shutdown()
         return True
 
+    def run_verdict(self) -> str | None:
+        """Real time: why the run did not control, or None if it did (:meth:`SimCore.run_verdict`)."""
+        return self.core.run_verdict()
+
+    def _log_verdict(self) -> None:
+        reason, figures = self.core.run_verdict(), self.core.verdict_figures()
+        if reason is None:
+            self._log.info(f"run: controlled ({figures})")
+        else:
+            self._log.error(f"run: did not control: {reason} ({figures})")
+
     def destroy_node(self) -> None:
-        """Write the outputs of an unfinished run (stopped by Ctrl-C), then destroy the node."""
+        """Write the outputs and verdict of an unfinished run (stopped by Ctrl-C), then destroy the node."""
         if hasattr(self, "_ended") and not self._ended:
             self.core.write_outputs()
+            if self.core.clock_mode == "realtime":
+                self._log_verdict()
         super().destroy_node()  # type: ignore[no-untyped-call]
 
 
@@ -325,7 +344,8 @@ def _value_at(config: object, name: str) -> Any:
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``smm_sim_node``.
 
-    Exit codes: 0 at the step limit or on Ctrl-C / SIGTERM, 1 when the plant diverged, 2 on a bad parameter.
+    Exit codes: 0 at the step limit or on Ctrl-C / SIGTERM, 1 when the plant diverged, 2 on a bad parameter,
+    3 when a real-time run did not control (:meth:`SimCore.run_verdict`; judged after Ctrl-C too).
 
     Args:
         args: Command line (``--ros-args ...``); None for ``sys.argv``.
@@ -349,6 +369,10 @@ def main(args: Sequence[str] | None = None) -> int:
     if failure is not None:
         print(f"{NODE_NAME}: {failure}", file=sys.stderr)
         return 1
+    reason = nodes[0].run_verdict() if nodes else None
+    if reason is not None:
+        print(f"{NODE_NAME}: the run did not control: {reason}", file=sys.stderr, flush=True)
+        return EXIT_NOT_CONTROLLED
     return 0
 
 
