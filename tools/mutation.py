@@ -181,7 +181,7 @@ def mutmut_config(modules: Sequence[Module], also_copy: Sequence[str] = ()) -> s
             f"source_paths = {array([f'src/{package}'])}",
             f"only_mutate = {array(f'src/{m.path}' for m in modules)}",
             f"pytest_add_cli_args_test_selection = {array(tests)}",
-            'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
+            'pytest_add_cli_args = ["-p", "no:cacheprovider", "-m", "not ros and not realtime"]',
             "use_git_change_detection = false",
             f"also_copy = {array(also_copy)}",
             "",

@@ -48,6 +48,17 @@ def test_mutmut_config_is_valid_toml_for_one_package(driver: ModuleType) -> None
         driver.mutmut_config([modules[0], driver.Module("smm_sim/plant.py", ("tests/sim",))])
 
 
+def test_mutmut_runs_deselect_tests_that_start_ros(driver: ModuleType) -> None:
+    from _pytest.mark.expression import Expression
+
+    args = tomllib.loads(driver.mutmut_config([driver.Module("smm_controller/td.py", ("tests/controller",))], []))
+    cli = args["tool"]["mutmut"]["pytest_add_cli_args"]
+    expression = Expression.compile(cli[cli.index("-m") + 1])
+    assert not expression.evaluate(lambda marker: marker == "ros")  # a node test in tests/controller is not run
+    assert not expression.evaluate(lambda marker: marker == "realtime")
+    assert expression.evaluate(lambda marker: marker == "slow") and expression.evaluate(lambda marker: False)
+
+
 def test_classify_scores_killed_over_non_equivalent(driver: ModuleType) -> None:
     codes = {
         "m.x_f__mutmut_1": 1,
