@@ -51,10 +51,11 @@ def test_mutmut_config_is_valid_toml_for_one_package(driver: ModuleType) -> None
 def test_mutmut_runs_deselect_tests_that_start_ros(driver: ModuleType) -> None:
     from _pytest.mark.expression import Expression
 
-    args = tomllib.loads(driver.mutmut_config([driver.Module("smm_controller/td.py", ("tests/controller",))], []))
+    module = driver.Module("smm_controller/td.py", ("tests/controller",))
+    args = tomllib.loads(driver.mutmut_config([module], []))
     cli = args["tool"]["mutmut"]["pytest_add_cli_args"]
     expression = Expression.compile(cli[cli.index("-m") + 1])
-    assert not expression.evaluate(lambda marker: marker == "ros")  # a node test in tests/controller is not run
+    assert not expression.evaluate(lambda marker: marker == "ros")  # node tests in tests/controller
     assert not expression.evaluate(lambda marker: marker == "realtime")
     assert expression.evaluate(lambda marker: marker == "slow") and expression.evaluate(lambda marker: False)
 
