@@ -21,10 +21,9 @@ from smm_bringup import graph_nodes
 SECTIONS: dict[str, dict[str, Any]] = {
     "/**": {"td": {"speed": [5000.0, 6000.0]}, "fpdeso": {"fuzzy": {"kp0": [100.0, 110.0]}}},
     "/smm/controller_node": {"fpdeso": {"fuzzy": {"kp0": [200.0, 210.0]}}, "fleso": {"w0": [30.0, 31.0]}},
-    "/other/controller_node": {"fpdeso": {"fuzzy": {"kp0": [900.0, 910.0]}}, "td": {"speed": [1.0, 1.0]}},
     "/**/controller_node": {"fleso": {"w0": [40.0, 41.0], "k_w": [12.0, 21.0]}},
 }
-"""A wildcard, an exact key of the graph's controller_node, a key for another namespace, a node wildcard."""
+"""A wildcard, an exact key of the graph's controller_node, a node wildcard."""
 
 
 def _write(path: Path, keys: list[str], sections: dict[str, dict[str, Any]]) -> Path:
@@ -54,7 +53,7 @@ def test_rerun_and_the_graph_give_controller_node_the_same_values(tmp_path: Path
     launched = _graph_controller_parameters(path)
     assert {name: launched[name] for name in read} == read
     assert chain_settings(read) == chain_settings(launched)
-    # exact key over every wildcard, whatever the order; the other namespace's key is not read
+    # exact key over every wildcard, whatever the order
     assert read["fpdeso.fuzzy.kp0"] == [200.0, 210.0]
     assert read["fleso.w0"] == [30.0, 31.0]
     assert read["fleso.k_w"] == [12.0, 21.0]
@@ -64,7 +63,7 @@ def test_rerun_and_the_graph_give_controller_node_the_same_values(tmp_path: Path
 @pytest.mark.parametrize("first", [TD_NODE, CONTROLLER_NODE])
 def test_controller_node_wins_over_the_split_graphs_nodes(tmp_path: Path, first: str) -> None:
     sections = {
-        f"/smm/{TD_NODE}": {"td": {"speed": [1000.0, 1000.0]}, "measurement": {"max_step": 1.0}},
+        f"/smm/{TD_NODE}": {"td": {"speed": [1000.0, 1000.0]}, "measurement": {"max_speed": [1.0, 1.0]}},
         f"/smm/{FLESO_NODE}": {"fleso": {"w0": [25.0, 26.0]}, "model": {"I11": 0.05}},
         f"/smm/{CONTROLLER_NODE}": {"td": {"speed": [2000.0, 2000.0]}},
     }

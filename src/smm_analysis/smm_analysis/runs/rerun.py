@@ -24,7 +24,7 @@ from smm_node_runtime.parameter_files import (
 )
 from smm_schema.fields import config_from_parameters
 
-from smm_analysis.errors import ParamsFileError
+from smm_analysis.errors import ParamsFileError, UnknownParameterError
 from smm_analysis.runs.recorded import RecordedRun
 from smm_controller import (
     ControlChain,
@@ -33,6 +33,7 @@ from smm_controller import (
     TrackingDifferentiatorConfig,
 )
 from smm_dynamics import SMMParameters
+from smm_node_runtime import parameter_check
 
 __all__ = [
     "APPLIED_FROM_COMMANDS",
@@ -98,12 +99,15 @@ def read_params_files(paths: Sequence[Path], namespace: str = NAMESPACE) -> dict
     """Flat ``{parameter: value}`` the chain runs with, from ROS parameter files read as rcl does.
 
     The files are read as ``smm-launch`` reads them for the graph's nodes (:data:`CHAIN_NODES` under
-    ``/<namespace>``; later files win, ``/**`` and other wildcard keys before exact keys, other namespaces
-    ignored): ``controller_node``'s parameters, which it runs the fused chain with, over ``td_node``'s
-    ``td.*`` and ``fleso_node``'s ``fleso.*`` and ``model.*`` (files written for the split graph).
+    ``/<namespace>``; later files win, ``/**`` and other wildcard keys before exact keys):
+    ``controller_node``'s parameters, which it runs the fused chain with, over ``td_node``'s ``td.*`` and
+    ``fleso_node``'s ``fleso.*`` and ``model.*`` (files written for the split graph). Sections and names
+    are checked as ``smm-launch`` checks them (:func:`smm_node_runtime.parameter_check.check_parameters`).
 
     Raises:
         ParamsFileError: Unreadable file, not a ROS parameter file, or no section for the chain's nodes.
+        UnknownParameterError: A section reaches no node of the stack under ``/<namespace>``, or sets a name
+            that no node it reaches declares.
     """
     prefix = f"/{namespace.strip('/')}" if namespace.strip("/") else ""
     names = {node: f"{prefix}/{node}" for node in CHAIN_NODES}
@@ -116,6 +120,10 @@ def read_params_files(paths: Sequence[Path], namespace: str = NAMESPACE) -> dict
         if not any(node_key_matches(key, name) for key in sections for name in names.values()):
             keys = ", ".join(sections) or "none"
             raise ParamsFileError(f"{path} has no section for {', '.join(names.values())} (its keys: {keys})")
+        try:
+            parameter_check.check_parameters([path], (), {}, namespace)
+        except parameter_check.UnknownParameterError as error:
+            raise UnknownParameterError(str(error)) from None
         for node, name in names.items():
             per_node[node].update(parameters_for(sections, name))
     merged: dict[str, Any] = {}
