@@ -117,13 +117,13 @@ def read_params_files(paths: Sequence[Path], namespace: str = NAMESPACE) -> dict
             sections = read_parameter_file(path)
         except ParameterFileError as error:
             raise ParamsFileError(str(error)) from None
-        if not any(node_key_matches(key, name) for key in sections for name in names.values()):
-            keys = ", ".join(sections) or "none"
-            raise ParamsFileError(f"{path} has no section for {', '.join(names.values())} (its keys: {keys})")
         try:
             parameter_check.check_parameters([path], (), {}, namespace)
         except parameter_check.UnknownParameterError as error:
             raise UnknownParameterError(str(error)) from None
+        if not any(node_key_matches(key, name) for key in sections for name in names.values()):
+            keys = ", ".join(sections) or "none"
+            raise ParamsFileError(f"{path} has no section for {', '.join(names.values())} (its keys: {keys})")
         for node, name in names.items():
             per_node[node].update(parameters_for(sections, name))
     merged: dict[str, Any] = {}
