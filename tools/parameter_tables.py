@@ -125,7 +125,7 @@ def _direct_bridge_names(context: Any) -> set[str]:
         finally:
             bridge.destroy_node()
     finally:
-        controller.destroy_node()
+        controller.destroy_node()  # type: ignore[no-untyped-call]
 
 
 def known_parameters(context: Any) -> dict[str, dict[str, list[str]]]:

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from ros_harness import run_side_by_side
 from smm_bringup.launcher import run
 from smm_bringup.supervisor import EXIT_CONFIGURATION_ERROR, EXIT_OK
 
@@ -58,17 +59,11 @@ def test_smm_launch_exits_2_without_a_traceback_and_starts_nothing(
         [sys.executable, "-m", "smm_bringup.launcher", *extra, "--params-file", str(path)]
         for path in _files(tmp_path)
     ]
-    started = [
-        subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands
-    ]
-    for process, needle in zip(started, ("'fpdeso.fuzzy.kd00'", "'/smm/controler_node'"), strict=True):
-        try:
-            out, err = process.communicate(timeout=TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            out, err = process.communicate()
-            pytest.fail(f"smm-launch ran instead of refusing:\n{out}\n{err}")
-        assert process.returncode == EXIT_CONFIGURATION_ERROR, err
+    results = run_side_by_side(commands, TIMEOUT_S)
+    for (code, out, err), needle in zip(
+        results, ("'fpdeso.fuzzy.kd00'", "'/smm/controler_node'"), strict=True
+    ):
+        assert code == EXIT_CONFIGURATION_ERROR, err
         assert "Traceback" not in err and needle in err, err
         assert len(err.strip().splitlines()) == 1, err
         assert "started" not in out and "created" not in out, out

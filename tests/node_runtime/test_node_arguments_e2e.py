@@ -3,10 +3,10 @@ file and a malformed ``-p`` before any node starts: one line on stderr, exit 2, 
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import pytest
+from ros_harness import run_side_by_side
 from smm_bringup.graph_nodes import NodeSpec
 from smm_bringup.supervisor import resolve_executable
 from smm_node_runtime.parameter_check import known_names
@@ -33,24 +33,8 @@ def _executable(package: str, name: str) -> str:
     return resolve_executable(NodeSpec(package=package, executable=name, name=name, node_class=""))
 
 
-def _run_all(commands: list[list[str]]) -> list[tuple[int, str]]:
-    """Run the commands side by side; (exit code, stderr) of each."""
-    started = [
-        subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands
-    ]
-    results = []
-    for process in started:
-        try:
-            _, err = process.communicate(timeout=TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            _, err = process.communicate()
-            pytest.fail(f"{process.args} started instead of refusing its arguments:\n{err}")
-        results.append((process.returncode, err))
-    return results
-
-
-def _assert_refused(code: int, err: str, *needles: str) -> None:
+def _assert_refused(result: tuple[int, str, str], *needles: str) -> None:
+    code, _, err = result
     assert code == 2, err
     assert "Traceback" not in err, err
     lines = err.strip().splitlines()
@@ -71,12 +55,13 @@ def test_a_node_executable_refuses_an_unknown_name_a_misspelled_section_and_a_mi
     misspelled = node.replace("_node", "_nod")
     section.write_text(f"/{misspelled}:\n  ros__parameters:\n    {known}: 1.0\n")
     missing = tmp_path / "missing.yaml"
-    results = _run_all(
-        [[executable, "--ros-args", "--params-file", str(path)] for path in (typo, section, missing)]
+    results = run_side_by_side(
+        [[executable, "--ros-args", "--params-file", str(path)] for path in (typo, section, missing)],
+        TIMEOUT_S,
     )
-    _assert_refused(*results[0], f"'{known}x'", f"'/**/{node}'", str(typo), f"did you mean '{known}'?")
-    _assert_refused(*results[1], f"'/{misspelled}'", str(section), "reaches no node")
-    _assert_refused(*results[2], str(missing))
+    _assert_refused(results[0], f"'{known}x'", f"'/**/{node}'", str(typo), f"did you mean '{known}'?")
+    _assert_refused(results[1], f"'/{misspelled}'", str(section), "reaches no node")
+    _assert_refused(results[2], str(missing))
 
 
 def test_controller_node_refuses_a_malformed_file_and_malformed_or_unknown_overrides(
@@ -85,16 +70,17 @@ def test_controller_node_refuses_a_malformed_file_and_malformed_or_unknown_overr
     executable = _executable("smm_controller", "controller_node")
     malformed = tmp_path / "malformed.yaml"
     malformed.write_text("/**/controller_node:\n  ros__parameters:\n    fpdeso: [1.0,\n")
-    results = _run_all(
+    results = run_side_by_side(
         [
             [executable, "--ros-args", "--params-file", str(malformed)],
             [executable, "--ros-args", "-p", "fpdeso.fuzzy.kd00:=[1.0, 1.0]"],
             # an unquoted array pasted into a shell: rcl would get "[1.0," and "0.785]"
             [executable, "--ros-args", "-p", "reference.sine.amplitude:=[1.0,", "0.785]"],
             [executable, "--ros-args", "-p", "algorithm"],
-        ]
+        ],
+        TIMEOUT_S,
     )
-    _assert_refused(*results[0], str(malformed), "not valid YAML")
-    _assert_refused(*results[1], "'fpdeso.fuzzy.kd00'", "did you mean 'fpdeso.fuzzy.kd0'?")
-    _assert_refused(*results[2], "reference.sine.amplitude", "not YAML", "quote an array")
-    _assert_refused(*results[3], "-p 'algorithm'", "NAME:=VALUE")
+    _assert_refused(results[0], str(malformed), "not valid YAML")
+    _assert_refused(results[1], "'fpdeso.fuzzy.kd00'", "did you mean 'fpdeso.fuzzy.kd0'?")
+    _assert_refused(results[2], "reference.sine.amplitude", "not YAML", "quote an array")
+    _assert_refused(results[3], "-p 'algorithm'", "NAME:=VALUE")

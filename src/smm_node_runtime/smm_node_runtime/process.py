@@ -195,7 +195,7 @@ def run_nodes(
     stop = _StopSignals()
     stop.install()
     context = Context()
-    nodes: list[Node] = []
+    built: list[Node] = []
     executor: Executor | None = None
     try:
         try:
@@ -209,9 +209,9 @@ def run_nodes(
                 f"ROS refused the command line: {' '.join(str(error).split())}"
             ) from None
         for factory in node_factories:
-            nodes.append(factory(context))
+            built.append(factory(context))
         executor = make_executor(context)
-        for node in nodes:
+        for node in built:
             executor.add_node(node)
         spin_until_shutdown(executor, context, lambda: stop.requested)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -219,7 +219,7 @@ def run_nodes(
     finally:
         if executor is not None:
             executor.shutdown()
-        for node in reversed(nodes):
+        for node in reversed(built):
             node.destroy_node()  # type: ignore[no-untyped-call]
         context.try_shutdown()
         stop.restore()
