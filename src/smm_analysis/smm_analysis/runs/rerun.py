@@ -16,6 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 from smm_controller.chain import build_chain, make_law
 from smm_controller.laws import law_names, law_table
+from smm_node_runtime.parameter_check import UnknownParameterError as UnknownNameError
+from smm_node_runtime.parameter_check import check_parameters
 from smm_node_runtime.parameter_files import (
     ParameterFileError,
     node_key_matches,
@@ -33,7 +35,6 @@ from smm_controller import (
     TrackingDifferentiatorConfig,
 )
 from smm_dynamics import SMMParameters
-from smm_node_runtime import parameter_check
 
 __all__ = [
     "APPLIED_FROM_COMMANDS",
@@ -118,8 +119,8 @@ def read_params_files(paths: Sequence[Path], namespace: str = NAMESPACE) -> dict
         except ParameterFileError as error:
             raise ParamsFileError(str(error)) from None
         try:
-            parameter_check.check_parameters([path], (), {}, namespace)
-        except parameter_check.UnknownParameterError as error:
+            check_parameters([path], (), {}, namespace)
+        except UnknownNameError as error:
             raise UnknownParameterError(str(error)) from None
         if not any(node_key_matches(key, name) for key in sections for name in names.values()):
             keys = ", ".join(sections) or "none"
