@@ -179,3 +179,25 @@ class ProcessGroup:
         """Stop and reap every process of the group, newest first."""
         for process in reversed(self.processes):
             self.stop(process)
+
+
+def run_side_by_side(commands: Sequence[Sequence[str]], timeout_s: float) -> list[tuple[int, str, str]]:
+    """Run commands that should end on their own at once; (exit code, stdout, stderr) of each.
+
+    One still running after ``timeout_s`` (s) is killed and the test fails with its output.
+    """
+    import pytest
+
+    started = [
+        subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands
+    ]
+    results = []
+    for process in started:
+        try:
+            out, err = process.communicate(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            out, err = process.communicate()
+            pytest.fail(f"{process.args} still running after {timeout_s:g} s:\n{out}\n{err}")
+        results.append((process.returncode, out, err))
+    return results

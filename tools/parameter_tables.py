@@ -1,4 +1,4 @@
-"""Writes the parameter tables of docs/NODES.md from the configs each node binds (``make parameter-tables``).
+"""Writes docs/NODES.md's parameter tables and the nodes' known parameter names (``make parameter-tables``).
 
 A table stands between ``<!-- parameters: <module>.<NodeClass>[; name=value, ...] -->`` and
 ``<!-- end of parameters -->``. The node is built in a private rclpy context (the overrides after ``;`` give
@@ -7,6 +7,10 @@ a second start, whose extra parameters are marked as declared only with them), i
 ``smm_schema.tables.parameter_rows``. ``tests/node_runtime/test_parameter_tables.py`` fails when the file is
 out of step.
 
+The names every node of the stack declares, under its defaults and under each read-only setting that adds
+some, go to ``smm_node_runtime/known_parameters.json`` (:data:`KNOWN_NODES`), which every entry point taking a
+parameter file checks names against (``smm_node_runtime.parameter_check``).
+
     .venv/bin/python tools/parameter_tables.py [--check]
 """
 
@@ -14,20 +18,36 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import os
 import re
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import rclpy
 from rclpy.context import Context
 from rclpy.signals import SignalHandlerOptions
+from smm_node_runtime.parameter_check import KNOWN_PARAMETERS_FILE, is_ros_parameter
 from smm_node_runtime.parameters import config_bindings
 from smm_schema.fields import parameter_name
 from smm_schema.tables import TABLE_HEAD, parameter_rows
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "NODES.md"
+KNOWN_NODES: dict[str, tuple[str, tuple[tuple[str, str], ...]]] = {
+    "smm_sim_node": ("smm_sim.sim_node.SimNode", ()),
+    "hw_bridge_node": ("smm_hw_bridge.bridge_node.HwBridgeNode", ()),
+    "reference_node": ("smm_controller.reference_node.ReferenceNode", ()),
+    "td_node": ("smm_controller.td_node.TdNode", ()),
+    "fleso_node": ("smm_controller.fleso_node.FlesoNode", ()),
+    "controller_node": (
+        "smm_controller.controller_node.ControllerNode",
+        (("chain", "internal"), ("reference_source", "internal")),
+    ),
+    "recorder_node": ("smm_bag.recorder_node.RecorderNode", ()),
+}
+"""Node name -> (class, the read-only settings under which it declares more parameters)."""
 TABLE = re.compile(
     r"(<!-- parameters: (?P<spec>[^>]*?) -->\n)(?P<body>.*?)(<!-- end of parameters -->)",
     re.S,
@@ -80,6 +100,58 @@ def table(context: Any, spec: str) -> str:
     return "\n".join([TABLE_HEAD, *rows]) + "\n"
 
 
+def _declared(context: Any, node_path: str, overrides: dict[str, Any]) -> set[str]:
+    """The names a node of class ``node_path`` declares under ``overrides`` (ROS's own left out)."""
+    module_name, _, class_name = node_path.rpartition(".")
+    node = getattr(importlib.import_module(module_name), class_name)(
+        context=context, parameter_overrides=overrides
+    )
+    try:
+        return {name for name in node.list_parameters([], 0).names if not is_ros_parameter(name)}
+    finally:
+        node.destroy_node()
+
+
+def _direct_bridge_names(context: Any) -> set[str]:
+    """The names ``direct_loop``'s bridge declares (its ``loop.*`` besides the bridge's own)."""
+    from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode  # noqa: PLC0415
+
+    internal = {"chain": "internal", "reference_source": "internal"}
+    controller = DirectControllerNode(context=context, parameter_overrides=internal)
+    try:
+        bridge = DirectBridgeNode(controller, context=context)
+        try:
+            return {name for name in bridge.list_parameters([], 0).names if not is_ros_parameter(name)}
+        finally:
+            bridge.destroy_node()
+    finally:
+        controller.destroy_node()  # type: ignore[no-untyped-call]
+
+
+def known_parameters(context: Any) -> dict[str, dict[str, list[str]]]:
+    """``{node name: {"": names under its defaults, "setting=value": names it adds with it}}``.
+
+    ``hw_bridge_node`` holds the direct loop's bridge's names too (the same node name in ``direct_loop``).
+    """
+    known: dict[str, dict[str, list[str]]] = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for node_name, (node_path, settings) in KNOWN_NODES.items():
+            base_overrides = {"output": str(Path(folder) / "bag")} if node_name == "recorder_node" else {}
+            base = _declared(context, node_path, base_overrides)
+            if node_name == "hw_bridge_node":
+                base |= _direct_bridge_names(context)
+            known[node_name] = {"": sorted(base)}
+            for setting, value in settings:
+                extra = _declared(context, node_path, {**base_overrides, setting: value}) - base
+                known[node_name][f"{setting}={value}"] = sorted(extra)
+    return known
+
+
+def known_parameters_text(context: Any) -> str:
+    """The text of ``known_parameters.json``."""
+    return json.dumps(known_parameters(context), indent=1) + "\n"
+
+
 def render(text: str, context: Any) -> str:
     """``text`` with every marked table written anew."""
     return TABLE.sub(lambda m: m.group(1) + table(context, m.group("spec")) + m.group(4), text)
@@ -96,12 +168,16 @@ def main(argv: list[str] | None = None) -> int:
     try:
         old = DOC.read_text()
         new = render(old, context)
+        old_known = KNOWN_PARAMETERS_FILE.read_text() if KNOWN_PARAMETERS_FILE.is_file() else ""
+        new_known = known_parameters_text(context)
     finally:
         context.try_shutdown()
     if arguments.check:
         print("docs/NODES.md parameter tables " + ("in step" if new == old else "out of step"))
-        return 0 if new == old else 1
+        print(f"{KNOWN_PARAMETERS_FILE.name} " + ("in step" if new_known == old_known else "out of step"))
+        return 0 if (new, new_known) == (old, old_known) else 1
     DOC.write_text(new)
+    KNOWN_PARAMETERS_FILE.write_text(new_known)
     return 0
 
 

@@ -7,6 +7,7 @@ import math
 import os
 import py_compile
 import runpy
+import shlex
 import subprocess
 import sys
 import types
@@ -134,7 +135,7 @@ def test_realtime_with_a_scenario_runs_without_end_unless_asked() -> None:
 
 def test_scenario_and_extra_files_are_passed_in_order(tmp_path: Path) -> None:
     extra = tmp_path / "extra.yaml"
-    extra.write_text("/**:\n  ros__parameters:\n    x: 1\n")
+    extra.write_text("/**:\n  ros__parameters:\n    seed: 1\n")
     specs = build_graph(GraphOptions(scenario="case2", params_files=(str(extra),)))
     for spec in specs:
         assert spec.parameter_files == (str(graph.scenario_file("case2")), str(extra.resolve()))
@@ -560,9 +561,12 @@ def test_launcher_reports_bad_values_and_exits_2(capsys: pytest.CaptureFixture[s
 
 def test_dry_run_prints_the_command_lines(capsys: pytest.CaptureFixture[str]) -> None:
     assert run(["--dry-run", "--seed", "3"]) == EXIT_OK
-    lines = capsys.readouterr().out.splitlines()
-    assert [line.split()[0] for line in lines] == FUSED_NODES
-    assert "seed:=3" in lines[0]
+    commands = [shlex.split(line) for line in capsys.readouterr().out.splitlines()]
+    assert [Path(command[0]).name for command in commands] == FUSED_NODES
+    assert all(Path(command[0]).is_absolute() and Path(command[0]).is_file() for command in commands)
+    assert "seed:=3" in commands[0]
+    # an array value is one word once the shell has split the line, as rcl needs it
+    assert "reference.sine.amplitude:=[1.0, 0.785]" in commands[1]
 
 
 # ------------------------------------------------------------------------------------------- launch file

@@ -1,4 +1,5 @@
-"""docs/NODES.md's parameter tables are what the nodes bind (``make parameter-tables`` writes them)."""
+"""docs/NODES.md's parameter tables and ``known_parameters.json`` are what the nodes bind and declare
+(``make parameter-tables`` writes them)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from types import ModuleType
 from typing import Any
 
 import pytest
+from smm_node_runtime.parameter_check import KNOWN_PARAMETERS_FILE, is_ros_parameter
 from smm_schema.ranges import above, at_least, check_bounds
 from smm_schema.tables import TABLE_HEAD, parameter_rows
 
@@ -28,6 +30,31 @@ def test_docs_nodes_md_tables_are_in_step_with_the_nodes(ros_context: Any) -> No
     text = generator.DOC.read_text()
     assert text.count("<!-- parameters: ") >= 5
     assert generator.render(text, ros_context) == text, "run: make parameter-tables"
+
+
+@pytest.mark.ros
+def test_the_known_parameter_names_are_in_step_with_the_nodes(ros_context: Any) -> None:
+    text = _generator().known_parameters_text(ros_context)
+    assert text == KNOWN_PARAMETERS_FILE.read_text(), "run: make parameter-tables"
+
+
+@pytest.mark.ros
+def test_what_rclpy_declares_on_a_bare_node_is_rosown(ros_context: Any) -> None:
+    import rclpy
+    from rclpy.qos_overriding_options import QoSOverridingOptions
+    from std_msgs.msg import Empty
+
+    node = rclpy.create_node("bare", context=ros_context)
+    try:
+        node.create_publisher(
+            Empty, "t", 1, qos_overriding_options=QoSOverridingOptions.with_default_policies()
+        )
+        names = node.list_parameters([], 0).names
+    finally:
+        node.destroy_node()
+    assert {"use_sim_time", "start_type_description_service"} <= set(names)
+    assert any(name.startswith("qos_overrides.") for name in names)
+    assert all(is_ros_parameter(name) for name in names), names
 
 
 def test_a_row_names_type_default_range_and_meaning() -> None:

@@ -14,6 +14,7 @@ __all__ = [
     "SaturatedRunError",
     "StopsRunError",
     "UnknownControllerError",
+    "UnknownParameterError",
     "UnknownScenarioError",
 ]
 
@@ -40,6 +41,10 @@ class ClosedLoopDivergedError(AnalysisError):
 
 class ParamsFileError(AnalysisError):
     """A parameters file for ``smm-bag rerun`` is unreadable or holds invalid gains."""
+
+
+class UnknownParameterError(ParamsFileError):
+    """A parameters file sets a name, or has a node section, that no node of the stack declares."""
 
 
 class IdentificationError(AnalysisError):

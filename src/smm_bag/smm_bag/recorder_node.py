@@ -415,7 +415,7 @@ class RecorderNode(SmmNode):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``recorder_node``: exit 0 after SIGINT/SIGTERM (bag closed), 2 for bad parameters."""
-    return node_main(lambda context: RecorderNode(context=context), args)
+    return node_main(lambda context: RecorderNode(context=context), args, node=RecorderNode.NODE_NAME)
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ from smm_bringup.graph_nodes import (
     SIM_NODE,
     TD_NODE,
     NodeSpec,
+    check_parameters,
 )
 from smm_bringup.graph_options import SCENARIO_NAMES, GraphOptions
 from smm_bringup.hardware_graph import hardware_specs, simulator_settings
@@ -147,7 +148,9 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
 
     Raises:
         PlantNotAvailableError: ``plant="hardware"`` with ``clock_mode="lockstep"`` and a real ``board``.
-        ParameterFileError: A scenario or extra parameter file is missing.
+        ParameterFileError: A scenario or extra parameter file is missing or malformed, or sets a name (or
+            has a node section) no node of the stack declares (docs/LAUNCH.md, "Parameter names are
+            checked").
     """
     if options.plant == "hardware" and options.clock_mode == "lockstep" and options.board is not None:
         raise PlantNotAvailableError(
@@ -225,7 +228,10 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
             dataclasses.replace(spec, parameters=spec.parameters + gate) if spec.name == gated else spec
             for spec in plant_side
         )
-    return tuple(_with_priority(spec, options) for spec in (*recorder, *plant_side, *controller_side))
+    specs = tuple(_with_priority(spec, options) for spec in (*recorder, *plant_side, *controller_side))
+    for spec in specs:
+        check_parameters(spec)
+    return specs
 
 
 def _with_priority(spec: NodeSpec, options: GraphOptions) -> NodeSpec:

@@ -11,8 +11,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
+from smm_bringup.errors import ParameterFileError
 from smm_bringup.parameter_files import ParameterValue, format_parameter_value, load_parameter_file
 from smm_msgs_py import topics
+from smm_node_runtime import parameter_check, parameter_files
 
 __all__ = [
     "CONTROLLER_NODE",
@@ -27,6 +29,7 @@ __all__ = [
     "SIM_NODE",
     "TD_NODE",
     "NodeSpec",
+    "check_parameters",
     "expected_publishers",
     "parameter_overrides",
 ]
@@ -163,3 +166,30 @@ def parameter_overrides(spec: NodeSpec) -> dict[str, Any]:
     for name, value in spec.parameters:
         values[name] = list(value) if isinstance(value, tuple) else value
     return values
+
+
+def check_parameters(spec: NodeSpec) -> None:
+    """Refuse the unknown names and sections of ``spec``'s files and overrides, as its process would.
+
+    :func:`smm_node_runtime.parameter_check.check_parameters`; a process that is not a node of the stack
+    (the bench emulator) is not checked.
+
+    Raises:
+        ParameterFileError: A file is missing or malformed, a section reaches no node, a name is unknown.
+    """
+    names = spec.hosts or ((spec.name,) if spec.name in parameter_check.known_nodes() else ())
+    if not names:
+        return
+    running = {parameter_check.fully_qualified(spec.namespace, name): name for name in names}
+    overrides = [
+        parameter_check.Override(
+            name,
+            list(value) if isinstance(value, tuple) else value,
+            text=f"{name}:={format_parameter_value(value)}",
+        )
+        for name, value in spec.parameters
+    ]
+    try:
+        parameter_check.check_parameters(spec.parameter_files, overrides, running, spec.namespace)
+    except parameter_files.ParameterFileError as error:
+        raise ParameterFileError(str(error)) from error

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import shlex
 import sys
 import tempfile
 from collections.abc import Sequence
@@ -45,6 +46,7 @@ from smm_bringup.supervisor import (
     RespawnPolicy,
     _say,
     launch_processes,
+    resolve_executable,
 )
 
 __all__ = [
@@ -209,7 +211,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --respawn: restarts allowed per node, in [1, 10000]; the next exit stops the graph",
     )
     parser.add_argument("--composed", action="store_true", help="run all nodes in this process")
-    parser.add_argument("--dry-run", action="store_true", help="print the node command lines and exit")
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print the node command lines (full paths, quoted for a POSIX shell) and exit",
+    )
     parser.add_argument(
         "--stop-grace",
         type=float,
@@ -298,7 +304,7 @@ def run(argv: Sequence[str]) -> int:
             raise ValueError("--respawn restarts processes: it cannot be combined with --composed")
         if arguments.dry_run:
             for spec in specs:
-                print(" ".join([spec.executable, *spec.ros_arguments()]))
+                print(shlex.join(spec.command_line(resolve_executable(spec))))
             return EXIT_OK
         if arguments.composed:
             return launch_composed(specs)

@@ -448,7 +448,7 @@ class ControllerNode(MeasurementDrivenNode):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``controller_node``: exit status 0 after Ctrl-C/SIGTERM, 2 for invalid parameters."""
-    return node_main(lambda context: ControllerNode(context=context), args)
+    return node_main(lambda context: ControllerNode(context=context), args, node=ControllerNode.NODE_NAME)
 
 
 if __name__ == "__main__":

@@ -206,7 +206,7 @@ class FlesoNode(MeasurementDrivenNode):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``fleso_node``: exit status 0 after Ctrl-C/SIGTERM, 2 for invalid parameters."""
-    return node_main(lambda context: FlesoNode(context=context), args)
+    return node_main(lambda context: FlesoNode(context=context), args, node=FlesoNode.NODE_NAME)
 
 
 if __name__ == "__main__":

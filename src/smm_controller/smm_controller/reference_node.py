@@ -184,7 +184,7 @@ class ReferenceNode(MeasurementDrivenNode):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``reference_node``: exit status 0 after Ctrl-C/SIGTERM, 2 for invalid parameters."""
-    return node_main(lambda context: ReferenceNode(context=context), args)
+    return node_main(lambda context: ReferenceNode(context=context), args, node=ReferenceNode.NODE_NAME)
 
 
 if __name__ == "__main__":

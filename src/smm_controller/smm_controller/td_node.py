@@ -153,7 +153,7 @@ class TdNode(MeasurementDrivenNode):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``td_node``: exit status 0 after Ctrl-C/SIGTERM, 2 for invalid parameters."""
-    return node_main(lambda context: TdNode(context=context), args)
+    return node_main(lambda context: TdNode(context=context), args, node=TdNode.NODE_NAME)
 
 
 if __name__ == "__main__":

@@ -17,7 +17,6 @@ from typing import Any, Final, Unpack
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.context import Context
-from rclpy.exceptions import ParameterException
 from rclpy.parameter import Parameter
 from smm_controller.controller_node import ControllerNode
 from smm_controller.core import Refusal, StepResult
@@ -30,7 +29,7 @@ from smm_schema.ranges import bounds
 
 from smm_direct_loop.statistics import LoopStatistics, RunningFigures
 from smm_msgs_py import topics
-from smm_node_runtime import Admission, ConfigParameters, Health, NodeOptions, run_nodes
+from smm_node_runtime import Admission, ConfigParameters, Health, NodeOptions, refused, run_nodes
 
 __all__ = ["DirectBridgeNode", "DirectControllerNode", "LoopSettings", "main"]
 
@@ -289,12 +288,11 @@ def main(args: Sequence[str] | None = None) -> int:
         bridges.append(DirectBridgeNode(made[0], context=context))
         return bridges[0]
 
-    try:
-        run_nodes([controller, bridge], args)
-    except (ValueError, ParameterException) as error:
-        print(f"direct_loop: invalid parameter: {error}", file=sys.stderr)
-        return 2
-    return judged_exit(0, bridges[0] if bridges else None, "direct_loop")
+    def run() -> int:
+        run_nodes([controller, bridge], args, nodes=(ControllerNode.NODE_NAME, HwBridgeNode.NODE_NAME))
+        return judged_exit(0, bridges[0] if bridges else None, "direct_loop")
+
+    return refused(run, "direct_loop")
 
 
 if __name__ == "__main__":

@@ -704,7 +704,7 @@ def main(args: Sequence[str] | None = None) -> int:
         made.append(HwBridgeNode(context=context))
         return made[0]
 
-    return judged_exit(node_main(build, args), made[0] if made else None, NODE_NAME)
+    return judged_exit(node_main(build, args, node=NODE_NAME), made[0] if made else None, NODE_NAME)
 
 
 if __name__ == "__main__":

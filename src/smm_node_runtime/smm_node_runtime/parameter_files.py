@@ -11,15 +11,17 @@ import yaml
 
 __all__ = [
     "ParameterFileError",
+    "flat_parameters",
     "load_parameter_file",
     "node_key_matches",
     "parameters_for",
     "read_parameter_file",
+    "yaml_problem",
 ]
 
 
 class ParameterFileError(Exception):
-    """A parameter file is missing or is not a valid ROS 2 parameter file."""
+    """A parameter file (or a ``-p`` override) is missing, malformed, or names what no node declares."""
 
 
 def node_key_matches(key: str, fully_qualified_name: str) -> bool:
@@ -52,6 +54,21 @@ def _flatten(prefix: str, values: Mapping[str, Any], out: dict[str, Any]) -> Non
             out[name] = value
 
 
+def flat_parameters(section: Mapping[str, Any]) -> dict[str, Any]:
+    """A section's ``ros__parameters`` map as ``{dotted name: value}``."""
+    out: dict[str, Any] = {}
+    _flatten("", section, out)
+    return out
+
+
+def yaml_problem(error: yaml.YAMLError) -> str:
+    """A YAML error in one line: what is wrong and where (PyYAML's own message spans several)."""
+    if isinstance(error, yaml.MarkedYAMLError) and error.problem_mark is not None:
+        mark = error.problem_mark
+        return f"{error.problem} (line {mark.line + 1}, column {mark.column + 1})"
+    return " ".join(str(error).split())
+
+
 def read_parameter_file(path: str | Path) -> dict[str, Mapping[str, Any]]:
     """The sections of a ROS 2 parameter file: ``{node key: ros__parameters map}``, in file order.
 
@@ -63,7 +80,7 @@ def read_parameter_file(path: str | Path) -> dict[str, Mapping[str, Any]]:
     except (OSError, UnicodeDecodeError) as error:
         raise ParameterFileError(f"cannot read parameter file {path}: {error}") from error
     except yaml.YAMLError as error:
-        raise ParameterFileError(f"parameter file {path} is not valid YAML: {error}") from error
+        raise ParameterFileError(f"parameter file {path} is not valid YAML: {yaml_problem(error)}") from error
     if not isinstance(content, Mapping):
         raise ParameterFileError(f"parameter file {path} must map node names to sections")
     sections: dict[str, Mapping[str, Any]] = {}
@@ -87,7 +104,7 @@ def parameters_for(sections: Mapping[str, Mapping[str, Any]], fully_qualified_na
     specific: dict[str, Any] = {}
     for key, values in sections.items():
         if node_key_matches(key, fully_qualified_name):
-            _flatten("", values, wildcard if "*" in key else specific)
+            (wildcard if "*" in key else specific).update(flat_parameters(values))
     return {**wildcard, **specific}
 
 

@@ -16,8 +16,12 @@ import rclpy
 from rclpy.context import Context
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+
+from smm_node_runtime.parameter_check import check_node_arguments
+from smm_node_runtime.parameter_files import ParameterFileError
 
 __all__ = [
     "DISCOVERY_RANGE_VARIABLE",
@@ -28,6 +32,7 @@ __all__ = [
     "ensure_localhost_discovery",
     "make_executor",
     "node_main",
+    "refused",
     "run_node",
     "run_nodes",
     "spin_until_shutdown",
@@ -164,8 +169,10 @@ class _StopSignals:
         self._previous.clear()
 
 
-def run_nodes(node_factories: Sequence[NodeFactory], args: Sequence[str] | None = None) -> None:
-    """Initialise ROS, build the nodes, spin them in one executor until shutdown, then clean up.
+def run_nodes(
+    node_factories: Sequence[NodeFactory], args: Sequence[str] | None = None, *, nodes: Sequence[str] = ()
+) -> None:
+    """Check the arguments, initialise ROS, build the nodes, spin them in one executor until shutdown.
 
     SIGINT (Ctrl-C) and SIGTERM end the spin between two callbacks; then the executor is shut down, the
     nodes destroyed (in reverse order) and the context shut down, and the function returns normally.
@@ -175,23 +182,36 @@ def run_nodes(node_factories: Sequence[NodeFactory], args: Sequence[str] | None 
     Args:
         node_factories: One factory per node; all nodes share one context and one executor (composition).
         args: Command-line arguments (``--ros-args ...`` is consumed by ROS); None for ``sys.argv``.
+        nodes: Names of the stack's nodes the factories build: their parameter files and ``-p`` overrides
+            are checked first (:func:`smm_node_runtime.parameter_check.check_node_arguments`).
+
+    Raises:
+        ParameterFileError: A parameter file or override is missing, malformed or names an unknown
+            parameter or node, or rcl refused the arguments; raised before any node exists.
     """
+    if nodes:
+        check_node_arguments(args, nodes)
     ensure_localhost_discovery()
     stop = _StopSignals()
     stop.install()
     context = Context()
-    nodes: list[Node] = []
+    built: list[Node] = []
     executor: Executor | None = None
     try:
-        rclpy.init(
-            args=None if args is None else list(args),
-            context=context,
-            signal_handler_options=SignalHandlerOptions.NO,
-        )
+        try:
+            rclpy.init(
+                args=None if args is None else list(args),
+                context=context,
+                signal_handler_options=SignalHandlerOptions.NO,
+            )
+        except _rclpy.RCLError as error:  # what the check above does not foresee, in rcl's words
+            raise ParameterFileError(
+                f"ROS refused the command line: {' '.join(str(error).split())}"
+            ) from None
         for factory in node_factories:
-            nodes.append(factory(context))
+            built.append(factory(context))
         executor = make_executor(context)
-        for node in nodes:
+        for node in built:
             executor.add_node(node)
         spin_until_shutdown(executor, context, lambda: stop.requested)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -199,31 +219,48 @@ def run_nodes(node_factories: Sequence[NodeFactory], args: Sequence[str] | None 
     finally:
         if executor is not None:
             executor.shutdown()
-        for node in reversed(nodes):
+        for node in reversed(built):
             node.destroy_node()  # type: ignore[no-untyped-call]
         context.try_shutdown()
         stop.restore()
 
 
-def run_node(node_factory: NodeFactory, args: Sequence[str] | None = None) -> None:
-    """Run one node: :func:`run_nodes` with a single factory."""
-    run_nodes([node_factory], args)
+def run_node(node_factory: NodeFactory, args: Sequence[str] | None = None, *, node: str = "") -> None:
+    """Run one node: :func:`run_nodes` with a single factory (``node``: its name in the stack)."""
+    run_nodes([node_factory], args, nodes=(node,) if node else ())
 
 
-def node_main(node_factory: NodeFactory, args: Sequence[str] | None = None) -> int:
-    """Body of a node's console script: :func:`run_node`, with invalid parameters as exit status 2.
+def refused(
+    run: Callable[[], int],
+    process: str,
+    invalid: tuple[type[Exception], ...] = (ValueError, ParameterException),
+) -> int:
+    """``run()``, with refused arguments or initial parameters as one line on stderr and exit status 2.
 
-    A node that refuses its initial parameters (a config ``ValueError``, or rclpy's
-    ``ParameterException``, e.g. an integer array for a double-array parameter) is reported on stderr as
-    ``<node>: invalid parameter: <reason>`` in one line, without a traceback.
-
-    Returns:
-        :data:`EXIT_OK` after a shutdown, :data:`EXIT_INVALID_PARAMETER` when the node refused its
-        parameters.
+    A bad parameter file or ``-p`` (:class:`ParameterFileError`) and a node refusing its initial parameters
+    (``invalid``: a config ``ValueError``, or rclpy's ``ParameterException``, e.g. an integer array for a
+    double-array parameter) are reported as ``<process>: <reason>`` / ``<process>: invalid parameter:
+    <reason>``, without a traceback.
     """
     try:
-        run_node(node_factory, args)
-    except (ValueError, ParameterException) as error:
-        print(f"invalid parameter: {error}", file=sys.stderr)
-        return EXIT_INVALID_PARAMETER
-    return EXIT_OK
+        return run()
+    except ParameterFileError as error:
+        print(f"{process}: {error}", file=sys.stderr)
+    except invalid as error:
+        print(f"{process}: invalid parameter: {error}", file=sys.stderr)
+    return EXIT_INVALID_PARAMETER
+
+
+def node_main(node_factory: NodeFactory, args: Sequence[str] | None = None, *, node: str = "") -> int:
+    """Body of a node's console script: :func:`run_node` of the stack's node ``node``, refusals as exit 2.
+
+    Returns:
+        :data:`EXIT_OK` after a shutdown, :data:`EXIT_INVALID_PARAMETER` when the arguments or the node
+        refused its parameters (:func:`refused`).
+    """
+
+    def run() -> int:
+        run_node(node_factory, args, node=node)
+        return EXIT_OK
+
+    return refused(run, node or "node")

@@ -14,6 +14,7 @@ from typing import Any, Final, Unpack
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.context import Context
+from rclpy.exceptions import ParameterException
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.task import Future
@@ -36,6 +37,7 @@ from smm_node_runtime import (
     Level,
     NodeOptions,
     SmmNode,
+    refused,
     run_node,
     wait_for_delivery,
 )
@@ -360,20 +362,20 @@ def main(args: Sequence[str] | None = None) -> int:
         nodes.append(node)
         return node
 
-    try:
-        run_node(create, args)
-    except SimParameterError as error:
-        print(f"{NODE_NAME}: invalid parameter: {error}", file=sys.stderr)
-        return 2
-    failure = nodes[0].done.exception() if nodes and nodes[0].done.done() else None  # type: ignore[no-untyped-call]
-    if failure is not None:
-        print(f"{NODE_NAME}: {failure}", file=sys.stderr)
-        return 1
-    reason = nodes[0].run_verdict() if nodes else None
-    if reason is not None:
-        print(f"{NODE_NAME}: the run did not control: {reason}", file=sys.stderr, flush=True)
-        return EXIT_NOT_CONTROLLED
-    return 0
+    def run() -> int:
+        run_node(create, args, node=NODE_NAME)
+        done = nodes[0].done if nodes else None
+        failure = done.exception() if done is not None and done.done() else None  # type: ignore[no-untyped-call]
+        if failure is not None:
+            print(f"{NODE_NAME}: {failure}", file=sys.stderr)
+            return 1
+        reason = nodes[0].run_verdict() if nodes else None
+        if reason is not None:
+            print(f"{NODE_NAME}: the run did not control: {reason}", file=sys.stderr, flush=True)
+            return EXIT_NOT_CONTROLLED
+        return 0
+
+    return refused(run, NODE_NAME, (SimParameterError, ParameterException))
 
 
 if __name__ == "__main__":

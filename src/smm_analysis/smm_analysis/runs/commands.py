@@ -13,7 +13,7 @@ from smm_bag.errors import BagError, MissingTopicsError
 from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_CORRUPT, EXIT_OK, EXIT_PARAMS, EXIT_USAGE, fail
 from smm_bag.progress import Progress
 
-from smm_analysis.errors import ParamsFileError
+from smm_analysis.errors import ParamsFileError, UnknownParameterError
 from smm_analysis.runs.agreement import Agreement, Tolerance, tolerance_for
 from smm_analysis.runs.indices import comparison_table, evaluate_stream, metrics_document
 from smm_analysis.runs.plots import RunFigures, write_plots
@@ -161,10 +161,14 @@ def rerun_command(options: RerunOptions, stdout: TextIO | None = None, stderr: T
         return EXIT_USAGE
     runs: list[tuple[dict[str, object], Agreement, str]] = []
     try:
+        read_params_files(options.params_files, StepStream(options.bag).manifest.namespace)  # before reading
         for window, segment in _windows(options.bag, options.window, options.segments, options.quiet, err):
             runs.append(_rerun_window(options, window, segment, tolerance, err))
     except BagError as error:
         return fail(error, err)
+    except UnknownParameterError as error:
+        err.write(f"smm-bag: error: {error}\n")
+        return EXIT_USAGE
     except ParamsFileError as error:
         err.write(f"smm-bag: error: {error}\n")
         return EXIT_PARAMS

@@ -16,6 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 from smm_controller.chain import build_chain, make_law
 from smm_controller.laws import law_names, law_table
+from smm_node_runtime.parameter_check import UnknownParameterError as UnknownNameError
+from smm_node_runtime.parameter_check import check_parameters
 from smm_node_runtime.parameter_files import (
     ParameterFileError,
     node_key_matches,
@@ -24,7 +26,7 @@ from smm_node_runtime.parameter_files import (
 )
 from smm_schema.fields import config_from_parameters
 
-from smm_analysis.errors import ParamsFileError
+from smm_analysis.errors import ParamsFileError, UnknownParameterError
 from smm_analysis.runs.recorded import RecordedRun
 from smm_controller import (
     ControlChain,
@@ -98,12 +100,15 @@ def read_params_files(paths: Sequence[Path], namespace: str = NAMESPACE) -> dict
     """Flat ``{parameter: value}`` the chain runs with, from ROS parameter files read as rcl does.
 
     The files are read as ``smm-launch`` reads them for the graph's nodes (:data:`CHAIN_NODES` under
-    ``/<namespace>``; later files win, ``/**`` and other wildcard keys before exact keys, other namespaces
-    ignored): ``controller_node``'s parameters, which it runs the fused chain with, over ``td_node``'s
-    ``td.*`` and ``fleso_node``'s ``fleso.*`` and ``model.*`` (files written for the split graph).
+    ``/<namespace>``; later files win, ``/**`` and other wildcard keys before exact keys):
+    ``controller_node``'s parameters, which it runs the fused chain with, over ``td_node``'s ``td.*`` and
+    ``fleso_node``'s ``fleso.*`` and ``model.*`` (files written for the split graph). Sections and names
+    are checked as ``smm-launch`` checks them (:func:`smm_node_runtime.parameter_check.check_parameters`).
 
     Raises:
         ParamsFileError: Unreadable file, not a ROS parameter file, or no section for the chain's nodes.
+        UnknownParameterError: A section reaches no node of the stack under ``/<namespace>``, or sets a name
+            that no node it reaches declares.
     """
     prefix = f"/{namespace.strip('/')}" if namespace.strip("/") else ""
     names = {node: f"{prefix}/{node}" for node in CHAIN_NODES}
@@ -113,6 +118,10 @@ def read_params_files(paths: Sequence[Path], namespace: str = NAMESPACE) -> dict
             sections = read_parameter_file(path)
         except ParameterFileError as error:
             raise ParamsFileError(str(error)) from None
+        try:
+            check_parameters([path], (), {}, namespace)
+        except UnknownNameError as error:
+            raise UnknownParameterError(str(error)) from None
         if not any(node_key_matches(key, name) for key in sections for name in names.values()):
             keys = ", ".join(sections) or "none"
             raise ParamsFileError(f"{path} has no section for {', '.join(names.values())} (its keys: {keys})")
