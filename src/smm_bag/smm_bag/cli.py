@@ -1,5 +1,4 @@
-"""``smm-bag``: info, play, repair, convert; other packages add subcommands (entry points
-``smm_bag.commands``).
+"""``smm-bag``: info, play, repair, convert; other packages add subcommands (``smm_bag.commands``).
 
 An entry point of that group names a function that takes the subparsers and adds one subcommand whose
 ``handler`` default maps the parsed options to an exit code (``smm_analysis`` adds ``analyze`` and ``rerun``).

@@ -86,7 +86,15 @@ def check(bag: Path, work: Path) -> Checked:
     after = hashes(target)
     if sqlite:
         seen.outcomes["info"] = f"{info.code} {(info.errors or ['ok'])[0][:200]}"
-        check_sqlite(seen, target, work, found if readable else None, info, repair, before != after)
+        check_sqlite(
+            seen,
+            target,
+            work=work,
+            found=found if readable else None,
+            info=info,
+            repair=repair,
+            changed=before != after,
+        )
         return seen
     for name, result in (("info", info), ("repair", repair)):
         seen.outcomes[name] = (
@@ -125,6 +133,7 @@ def check(bag: Path, work: Path) -> Checked:
 def check_sqlite(
     seen: Checked,
     bag: Path,
+    *,
     work: Path,
     found: list[Key] | None,
     info: Result,
