@@ -196,7 +196,7 @@ class RecorderNode(SmmNode):
         self._pending = still
 
     def _skip(self, topic: str, type_name: str, why: UnknownTypeError) -> None:
-        """A topic whose type is not installed here: one warning, and named in the manifest (as play skips)."""
+        """A topic whose type is not installed here: one warning, named in the manifest (as play skips)."""
         self._skipped[topic] = type_name
         self.get_logger().warning(f"skipping {topic}: {why}")  # type: ignore[no-untyped-call]
         self.writer.set_custom_data("smm.topics_skipped", yaml.safe_dump(self._skipped, sort_keys=True))
@@ -417,9 +417,8 @@ class RecorderNode(SmmNode):
         for line in self.writer.loss.summary_lines():
             logger.info(line)
         if self._skipped:
-            logger.warning(
-                f"{len(self._skipped)} topics skipped (type not installed): {', '.join(sorted(self._skipped))}"
-            )
+            skipped = ", ".join(sorted(self._skipped))
+            logger.warning(f"{len(self._skipped)} topics skipped (type not installed): {skipped}")
 
     def destroy_node(self) -> None:
         """Closes the bag cleanly, then destroys the node."""
