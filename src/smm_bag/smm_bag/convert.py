@@ -1,11 +1,8 @@
 """``smm-bag convert``: a bag this package reads (sqlite3, any MCAP shape) written again as an MCAP bag.
 
-Every topic (counts of zero included) keeps its name, type, serialization format, offered QoS and type
-hash; every message its bytes (rosbag2's message compression undone), receive and send times, in time
-order; the bag keeps its custom data (the run manifest, a recorder's loss report) and ROS distro. Each
-type's definition is the one the source stores (sqlite3 schema 4 on, MCAP schemas), else the installed
-one (:func:`smm_bag.msgdefs.message_definition`), else none, as rosbag2 stores an unknown type (encoding
-and text empty, rosbag2_storage's ``MessageDefinition::empty_message_definition_for``).
+Topics keep name, type, format, QoS and hash; messages their bytes and times; the bag its custom data and
+distro. A type's definition is the one the source stores, else the installed one, else none (encoding and
+text empty, as rosbag2 stores an unknown type). docs/BAGS.md, "smm-bag".
 """
 
 from __future__ import annotations

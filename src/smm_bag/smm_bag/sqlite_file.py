@@ -1,11 +1,8 @@
 """One rosbag2 sqlite3 storage file (``.db3``, rosbag2's default before Iron) opened read-only.
 
-It offers what :class:`smm_bag.mcap_file.McapFile` offers the reader: channels (one per row of ``topics``),
-message counts, the time span, the ``rosbag2`` metadata records (table ``metadata``, schema 3 on) and
-the messages of some channels, stored order or by timestamp. The tables are rosbag2_storage_sqlite3's
-(schemas 1 to 4: ``offered_qos_profiles`` from 2, ``metadata`` from 3, ``message_definitions`` and
-``type_description_hash`` from 4). sqlite3 stores one time per message, the receive time: it is also the
-publish time.
+What :class:`smm_bag.mcap_file.McapFile` offers the reader: channels (the ``topics`` rows), counts, time
+span, ``rosbag2`` metadata records and messages, for rosbag2_storage_sqlite3's schemas 1 to 4. A message's
+one stored time (its receive time) stands for its send time too.
 """
 
 from __future__ import annotations
