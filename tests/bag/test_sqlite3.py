@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+import zstandard
 from bag.bag_helpers import good_bag
 from bag.corpus.run import info_counts, metrics_values
 from mcap.reader import make_reader
@@ -233,3 +234,21 @@ def test_a_folder_of_db3_files_without_metadata_names_the_file_to_give(tmp_path:
         BagReader(bag)
     with BagReader(db3) as reader:
         assert reader.message_count == 12
+
+
+def test_a_file_compressed_sqlite3_bag_reads_as_the_plain_one(tmp_path: Path) -> None:
+    bag = sqlite_bag(tmp_path / "bag")
+    plain = rosbags_read(bag)
+    (db3,) = bag.glob("*.db3")
+    packed = db3.with_name(db3.name + ".zstd")
+    packed.write_bytes(zstandard.ZstdCompressor().compress(db3.read_bytes()))
+    db3.unlink()
+    document = yaml.safe_load((bag / "metadata.yaml").read_text())
+    node = document["rosbag2_bagfile_information"]
+    node.update(relative_file_paths=[packed.name], compression_format="zstd", compression_mode="FILE")
+    for entry in node["files"]:
+        entry["path"] = packed.name
+    (bag / "metadata.yaml").write_text(yaml.safe_dump(document))
+    for given in (bag, packed):
+        with BagReader(given) as reader:
+            assert Counter((m.topic, m.log_time_ns, m.data) for m in reader.messages()) == plain
