@@ -27,7 +27,6 @@ setup(
         "numpy",
         "PyYAML",
         "mcap",
-        "mcap-ros2-support",
         "rosbags",
         "zstandard",
         "lz4",

@@ -1,4 +1,4 @@
-"""``smm-bag play`` of a foreign bag with a topic of a type not installed: one warning, the rest played."""
+"""``smm-bag play`` of a foreign bag (MCAP, sqlite3) with a topic of a type not installed: one warning."""
 
 from __future__ import annotations
 
@@ -8,12 +8,16 @@ from pathlib import Path
 import pytest
 from bag.corpus.run import SMM_BAG
 from bag.corpus.writers import NOT_INSTALLED, not_installed_bag
+from rosbags.rosbag2.enums import StoragePlugin
 
 pytestmark = pytest.mark.ros
 
 
-def test_play_skips_a_topic_of_a_type_not_installed(ros_domain_id: int, tmp_path: Path) -> None:
-    bag = not_installed_bag(tmp_path / "foreign", count=200)
+@pytest.mark.parametrize("storage", [StoragePlugin.MCAP, StoragePlugin.SQLITE3], ids=["mcap", "sqlite3"])
+def test_play_skips_a_topic_of_a_type_not_installed(
+    ros_domain_id: int, tmp_path: Path, storage: StoragePlugin
+) -> None:
+    bag = not_installed_bag(tmp_path / "foreign", count=200, storage=storage)
     done = subprocess.run(
         [str(SMM_BAG), "play", str(bag), "--rate", "4"],
         capture_output=True,

@@ -7,7 +7,6 @@ StreamReader reading every record, never against statistics.
 from __future__ import annotations
 
 import io
-import sqlite3
 from collections import Counter
 from pathlib import Path
 
@@ -137,21 +136,21 @@ def test_metadata_versions_4_to_9_read_and_rebuilt_in_their_own_version(
 
 
 def test_other_storage_is_named_with_its_own_exit_code(tmp_path: Path) -> None:
-    folder = tmp_path / "sqlite_bag"
-    folder.mkdir()
-    sqlite3.connect(folder / "sqlite_bag_0.db3").execute("create table messages (id integer)").close()
+    """ROS 1 and storage plugins not read here (sqlite3 is read: tests/bag/test_sqlite3.py)."""
     ros1 = tmp_path / "old.bag"
     ros1.write_bytes(b"#ROSBAG V2.0\n" + bytes(100))
-    for bag in (folder, folder / "sqlite_bag_0.db3", ros1):
+    folder = tmp_path / "plugin_bag"
+    folder.mkdir()
+    (folder / "metadata.yaml").write_text(
+        yaml.safe_dump({"rosbag2_bagfile_information": {"version": 9, "storage_identifier": "custom_plugin"}})
+    )
+    for bag in (ros1, folder):
         for command in (info, repair):
             err = io.StringIO()
             assert command(bag, stdout=io.StringIO(), stderr=err) == EXIT_OTHER_STORAGE
             line = [text for text in err.getvalue().splitlines() if "error" in text]
-            assert len(line) == 1 and ("sqlite3" in line[0] or "ROS 1" in line[0]), err.getvalue()
-    (folder / "metadata.yaml").write_text(
-        yaml.safe_dump({"rosbag2_bagfile_information": {"version": 9, "storage_identifier": "sqlite3"}})
-    )
-    with pytest.raises(OtherStorageError, match="sqlite3"):
+            assert len(line) == 1 and ("custom_plugin" in line[0] or "ROS 1" in line[0]), err.getvalue()
+    with pytest.raises(OtherStorageError, match="custom_plugin"):
         BagReader(folder)
 
 

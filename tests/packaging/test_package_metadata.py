@@ -21,6 +21,7 @@ ROSDEP_TO_MODULE = {
     "python3-yaml": "yaml",
     "python3-scipy": "scipy",
     "python3-serial": "serial",
+    "python3-rosbags-pip": "rosbags",
 }
 
 

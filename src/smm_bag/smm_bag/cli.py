@@ -1,4 +1,4 @@
-"""``smm-bag``: info, play and repair; other packages add subcommands (entry points ``smm_bag.commands``).
+"""``smm-bag``: info, play, repair, convert; other packages add subcommands (``smm_bag.commands``).
 
 An entry point of that group names a function that takes the subparsers and adds one subcommand whose
 ``handler`` default maps the parsed options to an exit code (``smm_analysis`` adds ``analyze`` and ``rerun``).
@@ -27,10 +27,10 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``smm-bag``."""
     parser = argparse.ArgumentParser(
         prog="smm-bag",
-        description="Inspect, analyse, re-run and repair rosbag2 MCAP bags of the SMM stack.",
+        description="Inspect, analyse, re-run, repair and convert rosbag2 bags (MCAP, sqlite3) of SMM runs.",
         epilog="Exit codes: 0 ok, 1 check failed, 2 usage, 3 not a bag, 4 truncated (run repair), "
         "5 corrupt, 6 missing topics, 7 bad parameters file, 8 repair saved nothing of a file, "
-        "9 not MCAP storage (sqlite3, ROS 1).",
+        "9 storage not read (ROS 1).",
     )
     parser.set_defaults(handler=None)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -65,6 +65,11 @@ def build_parser() -> argparse.ArgumentParser:
     repair.add_argument("bag", type=Path)
     repair.add_argument("--no-backup", action="store_true", help="do not keep damaged files as *.damaged")
 
+    convert = sub.add_parser("convert", help="write a bag (sqlite3 or MCAP) as a new MCAP bag")
+    convert.add_argument("bag", type=Path)
+    convert.add_argument("output", type=Path, help="the new bag folder (must not exist)")
+    convert.add_argument("--compression", choices=("none", "zstd"), default="none", help="MCAP chunks")
+
     for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
         try:
             entry.load()(sub)
@@ -78,6 +83,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     options = build_parser().parse_args(argv)
     if options.command == "info":
         return commands.info(options.bag)
+    if options.command == "convert":
+        return commands.convert(options.bag, options.output, compression=options.compression)
     if options.handler is not None:
         code: int = options.handler(options)
         return code

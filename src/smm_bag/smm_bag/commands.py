@@ -8,8 +8,9 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import Literal, TextIO
 
+from smm_bag.convert import convert_bag
 from smm_bag.errors import BagError
 from smm_bag.exit_codes import EXIT_CHECK_FAILED, EXIT_OK, exit_code
 from smm_bag.exit_codes import fail as _fail
@@ -20,7 +21,7 @@ from smm_bag.progress import Progress
 from smm_bag.repair import repair_bag
 from smm_bag.repair_report import format_repair
 
-__all__ = ["info", "play_command", "repair"]
+__all__ = ["convert", "info", "play_command", "repair"]
 
 
 def info(bag: Path, stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
@@ -30,6 +31,34 @@ def info(bag: Path, stdout: TextIO | None = None, stderr: TextIO | None = None) 
         out.write(format_info(bag) + "\n")
     except BagError as error:
         return _fail(error, err)
+    return EXIT_OK
+
+
+def convert(
+    bag: Path,
+    output: Path,
+    *,
+    compression: Literal["none", "zstd"] = "none",
+    stdout: TextIO | None = None,
+    stderr: TextIO | None = None,
+) -> int:
+    """``smm-bag convert BAG OUTPUT``: the bag (sqlite3 or MCAP) written as a new MCAP bag."""
+    out, err = stdout or sys.stdout, stderr or sys.stderr
+    try:
+        result = convert_bag(
+            bag, output, compression=compression, progress=Progress(f"converting {bag.name}", 1, err)
+        )
+    except BagError as error:
+        return _fail(error, err)
+    out.write(
+        f"{output}: {result.messages} messages on {result.topics} topics, from {result.source_storage} "
+        "to mcap\n"
+    )
+    if result.undefined_types:
+        err.write(
+            "smm-bag: warning: no message definition stored or installed for "
+            f"{', '.join(result.undefined_types)}: stored without one, as rosbag2 does\n"
+        )
     return EXIT_OK
 
 

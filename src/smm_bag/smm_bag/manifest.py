@@ -32,6 +32,7 @@ class RunManifest:
         namespace: Namespace of the stack's topics.
         parameters: Every node's parameters at start, ``{node: {name: value}}``.
         parameters_unread: Nodes the recorder saw whose parameter service did not answer while recording.
+        topics_skipped: Topics the recorder did not record, their type not being installed (topic -> type).
     """
 
     version: str = ""
@@ -44,6 +45,7 @@ class RunManifest:
     namespace: str = "smm"
     parameters: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     parameters_unread: tuple[str, ...] = ()
+    topics_skipped: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.plant not in ("", "sim", "hardware"):
@@ -68,6 +70,8 @@ class RunManifest:
         }
         if self.parameters_unread:
             data["smm.parameters_unread"] = yaml.safe_dump(list(self.parameters_unread))
+        if self.topics_skipped:
+            data["smm.topics_skipped"] = yaml.safe_dump(dict(self.topics_skipped), sort_keys=True)
         return data
 
     @classmethod
@@ -85,6 +89,9 @@ class RunManifest:
             unread = yaml.safe_load(data.get("smm.parameters_unread", "")) or []
             if not isinstance(unread, list) or not all(isinstance(node, str) for node in unread):
                 raise ValueError("smm.parameters_unread is not a list of node names")
+            skipped = yaml.safe_load(data.get("smm.topics_skipped", "")) or {}
+            if not isinstance(skipped, dict) or not all(isinstance(v, str) for v in skipped.values()):
+                raise ValueError("smm.topics_skipped is not a mapping of topics to types")
             return cls(
                 version=data.get("smm.version", ""),
                 scenario=data.get("smm.scenario", ""),
@@ -96,6 +103,7 @@ class RunManifest:
                 namespace=data.get("smm.namespace", "smm"),
                 parameters=parameters,
                 parameters_unread=tuple(unread),
+                topics_skipped={str(topic): kind for topic, kind in skipped.items()},
             )
         except (ValueError, yaml.YAMLError) as error:
             raise CorruptBagError(f"malformed run manifest in custom_data: {error}") from None

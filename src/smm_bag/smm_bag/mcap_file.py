@@ -150,6 +150,13 @@ class McapFile:
         schema = self.schemas.get(channel.schema_id)
         return schema.name if schema is not None else channel.metadata.get("type", "")
 
+    def definition(self, type_name: str) -> tuple[str, str] | None:
+        """``(encoding, text)`` of the schema named ``type_name`` (None if absent or empty)."""
+        for schema in self.schemas.values():
+            if schema.name == type_name and schema.data:
+                return schema.encoding, bytes(schema.data).decode("utf-8", errors="replace")
+        return None
+
     def messages(self, wanted: set[int] | None, ordered: bool) -> Iterator[RawMessage]:
         """Messages of the channels ``wanted`` (all if None): in file order, or by log time if ``ordered``."""
         if not ordered:

@@ -21,6 +21,7 @@ __all__ = [
     "METADATA_FILE",
     "METADATA_VERSION",
     "NO_START_NS",
+    "READABLE_STORAGE",
     "BagMetadata",
     "FileInfo",
     "TopicInfo",
@@ -32,6 +33,8 @@ __all__ = [
 ]
 
 METADATA_FILE = "metadata.yaml"
+READABLE_STORAGE = ("mcap", "sqlite3")
+"""``storage_identifier``s this package reads."""
 METADATA_VERSION = 9
 OLDEST_VERSION = 4
 """The oldest metadata version read (the first with offered QoS profiles; rosbag2 Jazzy reads it)."""
@@ -272,7 +275,7 @@ def read_metadata(directory: Path) -> BagMetadata:
 
     Raises:
         NotABagError: No directory or no ``metadata.yaml``.
-        OtherStorageError: The bag's storage is not MCAP.
+        OtherStorageError: The bag's storage is neither MCAP nor sqlite3.
         CorruptBagError: The file is not valid rosbag2 metadata.
     """
     if not directory.is_dir():
@@ -288,6 +291,6 @@ def read_metadata(directory: Path) -> BagMetadata:
         raise CorruptBagError(f"{path} has no rosbag2_bagfile_information")
     node = document["rosbag2_bagfile_information"]
     storage = node.get("storage_identifier", "mcap") if isinstance(node, Mapping) else "mcap"
-    if storage != "mcap":
-        raise OtherStorageError(f"{directory}: {storage} storage, not MCAP (smm-bag reads only MCAP bags)")
+    if storage not in READABLE_STORAGE:
+        raise OtherStorageError(f"{directory}: {storage} storage (smm-bag reads MCAP and sqlite3 bags)")
     return parse_metadata(document["rosbag2_bagfile_information"], str(path))

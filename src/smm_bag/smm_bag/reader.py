@@ -1,7 +1,8 @@
-"""rosbag2 MCAP bag reader with typed errors: not a bag, other storage, truncated, corrupt, missing topics.
+"""rosbag2 bag reader with typed errors: not a bag, other storage, truncated, corrupt, missing topics.
 
-Reads a bag folder or a bare ``.mcap`` / ``.mcap.zstd`` file (:mod:`smm_bag.storage`), every valid MCAP
-file shape (:mod:`smm_bag.mcap_file`), and checks ``metadata.yaml``'s counts against the files.
+Reads a bag folder or a bare ``.mcap`` / ``.db3`` file (or its ``.zstd``; :mod:`smm_bag.storage`), every
+valid MCAP file shape (:mod:`smm_bag.mcap_file`), sqlite3 files (:mod:`smm_bag.sqlite_file`), and checks
+``metadata.yaml``'s counts against the files.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ import zstandard
 from smm_bag.errors import CorruptBagError, MissingTopicsError, TruncatedBagError
 from smm_bag.mcap_file import McapFile
 from smm_bag.metadata import BagMetadata, FileInfo, TopicInfo, recorded_metadata, topic_from_channel
-from smm_bag.storage import MCAP_MAGIC, is_file_compressed, locate, mapped_file
+from smm_bag.sqlite_file import SqliteFile
+from smm_bag.storage import MCAP_MAGIC, is_file_compressed, locate, mapped_file, plain_file
 
 __all__ = ["MCAP_MAGIC", "BagMessage", "BagReader"]
 
@@ -34,14 +36,14 @@ class BagMessage:
 
 
 class BagReader:
-    """Opens a rosbag2 MCAP bag (folder or bare file) and checks it against its ``metadata.yaml``.
+    """Opens a rosbag2 MCAP or sqlite3 bag (folder or bare file) and checks it against its ``metadata.yaml``.
 
     Args:
-        path: The bag folder, or one ``.mcap`` / ``.mcap.zstd`` file.
+        path: The bag folder, or one ``.mcap`` / ``.db3`` file (or its ``.zstd``).
 
     Raises:
-        NotABagError: Neither a bag folder nor an MCAP file.
-        OtherStorageError: A storage other than MCAP (sqlite3, ROS 1).
+        NotABagError: Neither a bag folder nor a storage file; a folder without ``metadata.yaml``.
+        OtherStorageError: A storage other than MCAP and sqlite3 (ROS 1).
         TruncatedBagError: A file lacks its footer (``smm-bag repair`` rebuilds it).
         CorruptBagError: Bad magic, damaged records, or counts differing from ``metadata.yaml``.
     """
@@ -50,17 +52,14 @@ class BagReader:
         self.path = Path(path)
         location = locate(self.path)
         self._stack = ExitStack()
-        self._files: list[McapFile] = []
+        self._files: list[McapFile | SqliteFile] = []
         try:
             for file in location.files:
                 if not file.is_file():
                     raise CorruptBagError(f"storage file {file} listed in metadata.yaml is missing")
-                mapped = self._stack.enter_context(mapped_file(file))
-                if not mapped.complete:
-                    raise TruncatedBagError(f"{file}: its zstd file compression ends early (file cut)")
-                self._files.append(McapFile(mapped.data, file))
+                self._files.append(self._open(file, location.storage))
             if location.metadata is None:
-                self.metadata = _derived_metadata(self._files)
+                self.metadata = _derived_metadata(self._files, location.storage)
             else:
                 self.metadata = location.metadata
                 self._check_counts()
@@ -68,6 +67,19 @@ class BagReader:
         except BaseException:
             self.close()
             raise
+
+    def _open(self, file: Path, storage: str) -> McapFile | SqliteFile:
+        if storage == "sqlite3":
+            plain, complete = self._stack.enter_context(plain_file(file))
+            if not complete:
+                raise TruncatedBagError(f"{file}: its zstd file compression ends early (file cut)")
+            opened = SqliteFile(plain, file)
+            self._stack.callback(opened.close)
+            return opened
+        mapped = self._stack.enter_context(mapped_file(file))
+        if not mapped.complete:
+            raise TruncatedBagError(f"{file}: its zstd file compression ends early (file cut)")
+        return McapFile(mapped.data, file)
 
     def _stored(self) -> dict[str, int]:
         stored: dict[str, int] = {}
@@ -100,6 +112,14 @@ class BagReader:
     def message_count(self) -> int:
         """Messages in the bag."""
         return self.metadata.message_count
+
+    def stored_definition(self, type_name: str) -> tuple[str, str] | None:
+        """``(encoding, text)`` of the definition of ``type_name`` the storage files hold (None: none)."""
+        for file in self._files:
+            found = file.definition(type_name)
+            if found is not None:
+                return found
+        return None
 
     def require(self, topics: Iterable[str]) -> None:
         """Raises :class:`MissingTopicsError` naming every topic of ``topics`` without messages."""
@@ -192,10 +212,12 @@ def _message_decoder(metadata: BagMetadata) -> Callable[[bytes], bytes]:
     return decode
 
 
-def _derived_metadata(files: list[McapFile]) -> BagMetadata:
+def _derived_metadata(files: list[McapFile | SqliteFile], storage: str) -> BagMetadata:
     """Metadata of bare storage files, from their channels and counts (what ``ros2 bag info file`` shows)."""
     recorded = recorded_metadata([(r.name, r.metadata) for file in files for r in file.metadata])
-    base = recorded if recorded is not None else BagMetadata(ros_distro="")
+    distro = next((f.ros_distro for f in files if isinstance(f, SqliteFile) and f.ros_distro), "")
+    base = recorded if recorded is not None else BagMetadata(ros_distro=distro)
+    base = replace(base, storage_identifier=storage)
     topics: dict[str, TopicInfo] = {}
     counts: dict[str, int] = {}
     infos = []

@@ -162,6 +162,7 @@ class RecorderNode(SmmNode):
         self.paused = False
         self._recorded: dict[str, tuple[Subscription, str]] = {}
         self._pending = list(config.topic_list)
+        self._skipped: dict[str, str] = {}
         self._seen: list[str] = []
         self._asked: set[str] = set()
         self._waiting: dict[str, Any] = {}
@@ -188,8 +189,17 @@ class RecorderNode(SmmNode):
             if type_name is None:
                 still.append(topic)
                 continue
-            self._subscribe(topic, type_name, [info.qos_profile for info in infos])
+            try:
+                self._subscribe(topic, type_name, [info.qos_profile for info in infos])
+            except UnknownTypeError as error:
+                self._skip(topic, type_name, error)
         self._pending = still
+
+    def _skip(self, topic: str, type_name: str, why: UnknownTypeError) -> None:
+        """A topic whose type is not installed here: one warning, named in the manifest (as play skips)."""
+        self._skipped[topic] = type_name
+        self.get_logger().warning(f"skipping {topic}: {why}")  # type: ignore[no-untyped-call]
+        self.writer.set_custom_data("smm.topics_skipped", yaml.safe_dump(self._skipped, sort_keys=True))
 
     def _ask_parameters(self) -> None:
         """Asks every node that appeared for all its parameters (once), for the manifest.
@@ -406,6 +416,9 @@ class RecorderNode(SmmNode):
         )
         for line in self.writer.loss.summary_lines():
             logger.info(line)
+        if self._skipped:
+            skipped = ", ".join(sorted(self._skipped))
+            logger.warning(f"{len(self._skipped)} topics skipped (type not installed): {skipped}")
 
     def destroy_node(self) -> None:
         """Closes the bag cleanly, then destroys the node."""

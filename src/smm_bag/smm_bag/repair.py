@@ -396,6 +396,12 @@ def _sync_directory(directory: Path) -> None:
         os.close(handle)
 
 
+def _not_mcap(bag: Path, storage: str) -> OtherStorageError:
+    return OtherStorageError(
+        f"{bag}: {storage} storage: repair rebuilds MCAP bags only (`smm-bag convert` writes an MCAP copy)"
+    )
+
+
 def _bag_files(bag: Path) -> tuple[BagMetadata | None, str, list[Path]]:
     """The old metadata (None: missing, unreadable or a bare file), what is wrong with it, the storage files.
 
@@ -404,18 +410,19 @@ def _bag_files(bag: Path) -> tuple[BagMetadata | None, str, list[Path]]:
         OtherStorageError: Another storage (sqlite3, ROS 1).
     """
     if bag.is_file():
-        return None, "", list(locate(bag).files)
+        location = locate(bag)
+        if location.storage != "mcap":
+            raise _not_mcap(bag, location.storage)
+        return None, "", list(location.files)
     if not bag.is_dir():
         raise NotABagError(f"{bag} is not a directory (a rosbag2 bag is a folder) nor an MCAP file")
     old, old_problem = _old_metadata(bag)
     if old is not None and old.storage_identifier != "mcap":
-        locate(bag)  # raises OtherStorageError naming it
+        raise _not_mcap(bag, old.storage_identifier)
     paths = _storage_files(bag, old)
     if not any(p.is_file() for p in paths):
         kinds = {kind for item in bag.iterdir() if item.is_file() and (kind := other_storage(item))}
         if kinds:
-            raise OtherStorageError(
-                f"{bag}: {', '.join(sorted(kinds))} storage, not MCAP (smm-bag reads only MCAP bags)"
-            )
+            raise _not_mcap(bag, ", ".join(sorted(kinds)))
         raise NotABagError(f"{bag} holds no .mcap file: nothing to repair")
     return old, old_problem, paths

@@ -21,7 +21,7 @@ from smm_bag.cdr import stamp_of
 from smm_bag.errors import BagExistsError, WriterStateError
 from smm_bag.loss import LossAccounting
 from smm_bag.metadata import BagMetadata, FileInfo, TopicInfo, write_metadata
-from smm_bag.msgdefs import message_definition
+from smm_bag.msgdefs import MessageDefinition, message_definition
 from smm_bag.qos import QosProfile, dump_profiles
 
 __all__ = ["DEFAULT_FLUSH_INTERVAL_NS", "BagWriter", "WriterOptions"]
@@ -57,6 +57,7 @@ class WriterOptions:
         ros_distro: ``ros_distro`` of the metadata.
         period_ns: Expected stamp period of the stamp-checked topics (ns).
         stamped_topics: Topics whose stamps are checked for gaps.
+        loss_report: Store the loss accounting as ``smm.loss`` at close (a copy of a bag keeps its own).
     """
 
     max_duration_ns: int = 0
@@ -69,6 +70,7 @@ class WriterOptions:
     ros_distro: str = "jazzy"
     period_ns: int = 1_000_000
     stamped_topics: frozenset[str] = frozenset()
+    loss_report: bool = True
 
     def __post_init__(self) -> None:
         if self.max_duration_ns < 0:
@@ -127,6 +129,7 @@ class BagWriter:
         self._stream: IO[bytes] | None = None
         self._writer: Writer | None = None
         self._schema_ids: dict[str, int] = {}
+        self._definitions: dict[str, MessageDefinition] = {}
         self._last_flush_ns = clock()
         self._unflushed = 0
         self._written = 0
@@ -173,7 +176,7 @@ class BagWriter:
         assert self._writer is not None
         schema_id = self._schema_ids.get(info.type)
         if schema_id is None:
-            definition = message_definition(info.type)
+            definition = self._definitions[info.type]
             schema_id = self._writer.register_schema(
                 name=info.type, encoding=definition.encoding, data=definition.text.encode("utf-8")
             )
@@ -211,17 +214,20 @@ class BagWriter:
         type_name: str,
         offered_qos_profiles: Sequence[QosProfile] = (),
         serialization_format: str = "cdr",
+        definition: MessageDefinition | None = None,
     ) -> None:
-        """Adds a topic (its schema and channel).
+        """Adds a topic (its schema and channel); ``definition`` given, it is stored as it is.
 
         Raises:
             WriterStateError: The topic exists or the writer is closed.
-            UnknownTypeError: No definition is known for ``type_name``.
+            UnknownTypeError: No definition is given nor known for ``type_name``.
         """
         self._check_open()
         if name in self._topics:
             raise WriterStateError(f"topic {name} already created")
-        definition = message_definition(type_name)
+        if definition is None:
+            definition = message_definition(type_name)
+        self._definitions.setdefault(definition.type, definition)
         info = TopicInfo(
             name=name,
             type=definition.type,
@@ -332,7 +338,8 @@ class BagWriter:
         """Finishes the last file and writes the final ``metadata.yaml``; returns the metadata."""
         if self._closed:
             return self.metadata
-        self._custom_data["smm.loss"] = self.loss.to_json()
+        if self.options.loss_report:
+            self._custom_data["smm.loss"] = self.loss.to_json()
         self._close_file()
         self._closed = True
         metadata = self.metadata

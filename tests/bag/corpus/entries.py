@@ -92,7 +92,7 @@ def _rosbags() -> list[Entry]:
             "rosbags 0.11.9",
             "sqlite3 storage (.db3)",
             lambda root: w.rosbags_bag(root / "rosbags-sqlite3", storage=StoragePlugin.SQLITE3),
-            {"info": OTHER_STORAGE, "repair": OTHER_STORAGE, "analyze": OTHER_STORAGE, "rerun": SKIP},
+            {"info": OK, "repair": OTHER_STORAGE, "analyze": SAME, "rerun": REPRODUCES},
             fast=True,
         )
     )

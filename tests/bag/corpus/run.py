@@ -23,7 +23,7 @@ from typing import Any
 import zstandard
 from bag.corpus import mcap_bytes as mb
 from bag.corpus.entries import SKIP, Entry, Outcome
-from bag.corpus.sample import SAMPLE, file_messages
+from bag.corpus.sample import SAMPLE, Key, file_messages
 
 SMM_BAG = Path(sys.executable).parent / "smm-bag"
 EXIT_NAMES = {
@@ -82,7 +82,15 @@ def storage_files(bag: Path) -> list[Path]:
     """The storage files of a bag folder (repair backups excluded), or the bare file itself."""
     if bag.is_file():
         return [bag]
-    return sorted(p for p in bag.iterdir() if p.name.endswith((".mcap", ".mcap.zstd")))
+    return sorted(p for p in bag.iterdir() if p.name.endswith((".mcap", ".mcap.zstd", ".db3")))
+
+
+def sqlite_messages(path: Path) -> list[Key]:
+    """Every message of one sqlite3 file, by rosbags' reader of that file alone (apsw, not our sqlite3)."""
+    from rosbags.rosbag2 import Reader
+
+    with Reader(path) as reader:
+        return [Key(c.topic, stamp, stamp, bytes(data)) for c, stamp, data in reader.messages()]
 
 
 def file_bytes(path: Path) -> bytes:
@@ -97,7 +105,9 @@ def independent_messages(bag: Path, padded_chunks: bool = False) -> list[mb.Mess
     chunk records, which mcap 1.6.0's StreamReader misreads)."""
     found: list[mb.Message] = []
     for path in storage_files(bag):
-        if padded_chunks or path.name.endswith(".zstd"):
+        if path.name.endswith(".db3"):
+            found += sqlite_messages(path)
+        elif padded_chunks or path.name.endswith(".zstd"):
             found += mb.sequential_read(file_bytes(path)).messages
         else:
             found += file_messages(path)

@@ -1,7 +1,9 @@
 """Bags of an external directory (rosbag2's test bags, the MCAP conformance files): never committed here.
 
 ``make test-bags UPSTREAM=DIR`` runs the corpus checks over every bag folder (one with metadata.yaml) and
-every bare ``.mcap`` file outside such folders under DIR.
+every bare ``.mcap`` or ``.db3`` file outside such folders under DIR. A sqlite3 bag is also converted
+(``smm-bag convert``): the MCAP bag must hold the same messages by mcap's reader and by rosbags', and
+``info`` must count them so.
 """
 
 from __future__ import annotations
@@ -18,8 +20,17 @@ if __package__ in (None, ""):
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from bag.corpus.run import file_bytes, hashes, info_counts, smm_bag, storage_files, topic_messages
-from bag.corpus.sample import file_messages
+from bag.corpus.run import (
+    Result,
+    file_bytes,
+    hashes,
+    info_counts,
+    smm_bag,
+    sqlite_messages,
+    storage_files,
+    topic_messages,
+)
+from bag.corpus.sample import Key, file_messages
 
 
 def bags(directory: str) -> list[Path]:
@@ -28,7 +39,8 @@ def bags(directory: str) -> list[Path]:
         return []
     root = Path(directory)
     folders = sorted({p.parent for p in root.rglob("metadata.yaml")})
-    loose = [p for p in sorted(root.rglob("*.mcap")) if not any(f in p.parents for f in folders)]
+    files = sorted([*root.rglob("*.mcap"), *root.rglob("*.db3")])
+    loose = [p for p in files if not any(f in p.parents for f in folders)]
     return folders + loose
 
 
@@ -50,8 +62,10 @@ def check(bag: Path, work: Path) -> Checked:
     else:
         shutil.copy2(bag, target)
     files = storage_files(target)
+    sqlite = any(path.name.endswith(".db3") for path in files)
     messages: Counter[str] = Counter()
     times: list[int] = []
+    found: list[Key] = []
     readable = True
     for path in files:
         try:
@@ -59,17 +73,29 @@ def check(bag: Path, work: Path) -> Checked:
             if path.name.endswith(".zstd"):
                 readable_path = work / "scratch.mcap"
                 readable_path.write_bytes(file_bytes(path))
-            found = file_messages(readable_path)
-            messages.update(m.topic for m in found)
-            times += [m.log_time for m in found]
-        except Exception as error:  # the independent reader refuses it: not a valid bag by mcap
+            found += sqlite_messages(readable_path) if sqlite else file_messages(readable_path)
+        except Exception as error:  # the independent reader refuses it: not a valid bag by mcap / rosbags
             readable = False
-            seen.outcomes["mcap"] = f"mcap reader: {type(error).__name__}"
+            seen.outcomes["mcap"] = f"{'rosbags' if sqlite else 'mcap'} reader: {type(error).__name__}"
+    messages.update(m.topic for m in found)
+    times += [m.log_time for m in found]
     stale = metadata_disagrees(target, messages, times, files) if readable and files else ""
     before = hashes(target)
     info = smm_bag(["info", str(target)])
     repair = smm_bag(["repair", str(target)])
     after = hashes(target)
+    if sqlite:
+        seen.outcomes["info"] = f"{info.code} {(info.errors or ['ok'])[0][:200]}"
+        check_sqlite(
+            seen,
+            target,
+            work=work,
+            found=found if readable else None,
+            info=info,
+            repair=repair,
+            changed=before != after,
+        )
+        return seen
     for name, result in (("info", info), ("repair", repair)):
         seen.outcomes[name] = (
             f"{result.code} {(result.errors or result.stdout.splitlines()[-1:] or [''])[0][:200]}"
@@ -102,6 +128,61 @@ def check(bag: Path, work: Path) -> Checked:
                 f"{repair.stdout[-400:]} {repair.stderr[-300:]}"
             )
     return seen
+
+
+def check_sqlite(
+    seen: Checked,
+    bag: Path,
+    *,
+    work: Path,
+    found: list[Key] | None,
+    info: Result,
+    repair: Result,
+    changed: bool,
+) -> None:
+    """A sqlite3 bag: info counts as rosbags' reader of each file; repair refuses in one line and changes
+    nothing; convert gives an MCAP bag whose messages mcap's and rosbags' readers and info agree on."""
+    for name, result in (("info", info), ("repair", repair)):
+        if result.traceback:
+            seen.problems.append(f"{name} printed a traceback: {result.stderr[-1500:]}")
+    if repair.code != 9 or len(repair.errors) != 1 or changed:
+        seen.problems.append(f"repair of sqlite3: {repair.code} {repair.stderr[-300:]}, changed {changed}")
+    seen.outcomes["repair"] = f"{repair.code} {(repair.errors or [''])[0][:120]}"
+    if found is None:
+        return
+    counts = Counter(m.topic for m in found)
+    total, topics = info_counts(info.stdout)
+    if info.code != 0 or total != topic_messages(counts) or +topics != +counts:
+        seen.problems.append(f"info: {info.code} {total} {dict(topics)} vs files {dict(counts)}")
+    converted = work / "converted"
+    result = smm_bag(["convert", str(bag), str(converted)])
+    seen.outcomes["convert"] = (
+        f"{result.code} {(result.errors or result.stdout.splitlines()[-1:] or [''])[0][:120]}"
+    )
+    if result.code != 0 or result.traceback:
+        seen.problems.append(f"convert: {result.code} {result.stderr[-600:]}")
+        return
+    mcap_read = Counter(m for path in storage_files(converted) for m in file_messages(path))
+    if mcap_read != Counter(found):
+        seen.problems.append(f"convert: mcap reads {sum(mcap_read.values())} of {len(found)} messages")
+    try:
+        from rosbags.rosbag2 import Reader
+
+        with Reader(converted) as reader:
+            by_rosbags = Counter(Key(c.topic, t, t, bytes(d)) for c, t, d in reader.messages())
+        plain = Counter(Key(m.topic, m.log_time, m.log_time, m.data) for m in found)
+        if by_rosbags != plain:
+            seen.problems.append(
+                f"convert: rosbags reads {sum(by_rosbags.values())} of {len(found)} messages"
+            )
+        seen.outcomes["rosbags"] = f"reads {sum(by_rosbags.values())}"
+    except Exception as error:  # rosbags refuses what rosbag2 would too (a serialization other than cdr)
+        seen.outcomes["rosbags"] = f"rosbags reader: {type(error).__name__}: {error}"[:160]
+    again = smm_bag(["info", str(converted)])
+    total, topics = info_counts(again.stdout)
+    if again.code != 0 or total != topic_messages(counts) or +topics != +counts:
+        seen.problems.append(f"info of the converted bag: {again.code} {total} {dict(topics)}")
+    seen.outcomes["messages"] = f"{len(found)} ({topic_messages(counts)} on topics)"
 
 
 def metadata_disagrees(folder: Path, counts: Counter[str], times: list[int], files: list[Path]) -> str:

@@ -480,10 +480,10 @@ def zstd_file(path: Path) -> Path:
     return target
 
 
-def not_installed_bag(path: Path, count: int = 200) -> Path:
+def not_installed_bag(path: Path, count: int = 200, storage: StoragePlugin = StoragePlugin.MCAP) -> Path:
     """rosbags' writer: the sample's first ``count`` joint states and a topic of a type not installed."""
     source = sample()
-    writer = RosbagsWriter(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer = RosbagsWriter(path, version=9, storage_plugin=storage)
     writer.open()
     channel_id, states = _connection(writer, source, "/smm/joint_states")
     other = writer.add_connection(*NOT_INSTALLED, msgdef="float64 x\n", rihs01="RIHS01_" + "0" * 64)
