@@ -108,7 +108,9 @@ def hardware_specs(
         emulator_parameters.append(("seed", options.seed))
     if divider > 1:
         emulator_parameters.append(("control-divider", divider))
-    emulator_parameters += _emulator_plant(files)
+    if options.bench_file is not None:
+        emulator_parameters.append(("bench-file", options.bench_file))
+    emulator_parameters += _emulator_plant(files)  # options: the scenario's settings override the bench file
     emulator = NodeSpec(
         package="smm_bench_emulator",
         executable=EMULATOR_NODE,

@@ -1,0 +1,35 @@
+"""smm-launch --bench-file: passed to the emulator, refused where there is no emulator."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from smm_bringup.graph import build_graph
+from smm_bringup.graph_nodes import EMULATOR_NODE
+from smm_bringup.graph_options import GraphOptions
+from smm_bringup.launcher import arguments_from_options, build_parser, options_from_arguments
+
+
+def test_the_bench_file_reaches_the_emulator_as_an_absolute_path(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    options = options_from_arguments(
+        build_parser().parse_args(
+            ["--plant", "hardware", "--bench-file", "bench.yaml", "--scenario", "case1"]
+        )
+    )
+    assert options.bench_file == str(tmp_path / "bench.yaml")
+    emulator = next(spec for spec in build_graph(options) if spec.name == EMULATOR_NODE)
+    assert dict(emulator.parameters)["bench-file"] == str(tmp_path / "bench.yaml")
+    assert options_from_arguments(build_parser().parse_args(arguments_from_options(options))) == options
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"plant": "sim"}, {"plant": "hardware", "board": "192.168.1.20:50101"}, {"plant": "hardware"}]
+)
+def test_a_bench_file_without_an_emulator_or_empty_is_refused(kwargs: dict[str, str]) -> None:
+    bench_file = "" if len(kwargs) == 1 and kwargs["plant"] == "hardware" else "bench.yaml"
+    with pytest.raises(ValueError, match="bench_file"):
+        GraphOptions(bench_file=bench_file, **kwargs)  # type: ignore[arg-type]
