@@ -7,10 +7,11 @@ import math
 
 import numpy as np
 import pytest
-from smm_bench_emulator.bench import PASCAL_PER_BAR, BenchSettings
+from smm_bench_emulator.bench import BenchSettings
 from smm_bench_emulator.board import BoardConfig, BoardCore
 from smm_bench_emulator.valve import HydraulicValves
 from smm_dynamics.model import gravity_vector
+from smm_hw_bridge.pressure import PASCAL_PER_BAR, PressureConfig, measured_torque
 from smm_hw_bridge.protocol import CODE_MAX, CommandFlag, CommandFrame, decode_feedback, encode
 from smm_sim.plant import PlantConfig, SimulatedPlant
 
@@ -41,26 +42,27 @@ def test_polarity_null_bias_and_gain_per_direction_set_the_torque() -> None:
 def test_the_overlap_holds_the_joint_and_outside_it_the_valve_drives() -> None:
     settings = BenchSettings(valve_deadband=(800.0, 800.0), valve_null_bias=(200.0, 200.0))
     valves = HydraulicValves(settings, None)
-    assert valves.drive((999, -599), True, 10.0, (0.0, 0.0), 1e-3) == (0.0, 0.0)
+    assert valves.drive((999, -599), True, 10.0, 1e-3) == (0.0, 0.0)
     assert valves.locked == (True, True)  # |spool| = 799 < 800 on both
-    alpha, beta = valves.drive((1100, -700), True, 10.0, (0.0, 0.0), 1e-3)
+    alpha, beta = valves.drive((1100, -700), True, 10.0, 1e-3)
     assert valves.locked == (False, False)
     assert (alpha, beta) == pytest.approx((100 / CODE_MAX * 10.0, -100 / CODE_MAX * 10.0))
-    valves.drive((1100, -700), False, 10.0, (0.0, 0.0), 1e-3)
+    valves.drive((1100, -700), False, 10.0, 1e-3)
     assert valves.locked == (True, True)  # disabled: fail-safe, the oil is trapped
 
 
-def test_the_lock_takes_over_at_the_torque_it_had_and_resists_motion_as_a_spring() -> None:
+def test_the_lock_takes_over_at_the_torque_it_had_and_resists_as_a_spring_and_damper() -> None:
     settings = BenchSettings(
         lock_stiffness=(1000.0, 1000.0), lock_damping=(5.0, 5.0), lock_leakage=(0.0, 0.0)
     )
     valves = HydraulicValves(settings, None)
-    valves.drive((3276, 0), True, 10.0, (0.0, 0.0), 1e-3)
+    valves.drive((3276, 0), True, 10.0, 1e-3)
     assert valves.applied[0] == pytest.approx(1.0, rel=1e-3)
-    assert valves.drive((0, 0), False, 10.0, (0.0, 0.0), 1e-3)[0] == valves.target((3276, 0), 10.0)[0]
-    valves.follow((0.001, -0.002), 1e-3)
-    alpha, beta = valves.drive((0, 0), False, 10.0, (0.5, 0.0), 1e-3)
-    assert alpha == pytest.approx(valves.target((3276, 0), 10.0)[0] - 1000.0 * 0.001 - 5.0 * 0.5)
+    trapped = valves.target((3276, 0), 10.0)[0]
+    assert valves.drive((0, 0), False, 10.0, 1e-3) == (trapped, 0.0)  # no jump
+    valves.follow((0.001, -0.002), (0.5, 0.0), 1e-3)
+    alpha, beta = valves.drive((0, 0), False, 10.0, 1e-3)
+    assert alpha == pytest.approx(trapped - 1000.0 * 0.001 - 5.0 * 0.5)
     assert beta == pytest.approx(1000.0 * 0.002)
 
 
@@ -161,6 +163,20 @@ def test_load_pressure_is_the_valve_torque_over_lever_arm_times_area_on_channels
     assert bar == pytest.approx((2.0, -2.5), rel=1e-4)
     assert fb.adc[1:3] == (round(2000 + bar[0] / 0.01), round(2100 + bar[1] / 0.02))
     assert fb.adc[3] == 2048
+
+
+def test_the_bridge_calibration_of_the_same_truths_reads_the_torque_within_one_code() -> None:
+    config = BoardConfig(plant=PLANT, adc_noise=0.0, lever_arm_area=(1e-5, 2e-5))
+    calibration = PressureConfig(bar_per_code=config.load_bar_per_code, lever_arm_area=(1e-5, 2e-5))
+    core = BoardCore(config)
+    host = _Host(core)
+    core.tick_lockstep()
+    for codes in ((6553, -16384), (-3000, 250), (0, 0)):
+        host.send(codes)
+        adc = decode_feedback(core.tick_lockstep()).adc
+        one_code = [config.load_bar_per_code[j] * PASCAL_PER_BAR * config.lever_arm_area[j] for j in range(2)]
+        error = np.subtract(measured_torque(adc, calibration), core.valves.applied)
+        assert np.all(np.abs(error) <= np.multiply(one_code, 0.5 + 1e-9))
 
 
 def test_load_pressure_noise_is_the_a_d_noise() -> None:

@@ -11,9 +11,7 @@ from smm_hw_bridge.protocol import ADC_MAX, CODE_MAX
 from smm_schema.ranges import above, at_least, bounds, check_bounds
 from smm_sim.plant import PlantConfig
 
-__all__ = ["PASCAL_PER_BAR", "BenchSettings", "check_lock_stability"]
-
-PASCAL_PER_BAR: Final[float] = 1e5
+__all__ = ["BenchSettings", "check_lock_stability"]
 
 # The lock is integrated explicitly once per tick: its natural frequency times the tick, and its damping
 # per inertia times the tick, must stay below these for the held joint to settle (docs/BENCH.md).

@@ -11,10 +11,11 @@ from __future__ import annotations
 import math
 
 from smm_dynamics.valve import valve_lag_step
+from smm_hw_bridge.pressure import PASCAL_PER_BAR
 from smm_hw_bridge.protocol import CODE_MAX
 from smm_sim.plant import SimulatedPlant
 
-from smm_bench_emulator.bench import PASCAL_PER_BAR, BenchSettings
+from smm_bench_emulator.bench import BenchSettings
 
 __all__ = ["HydraulicValves"]
 
@@ -35,7 +36,6 @@ class HydraulicValves:
     def reset(self) -> None:
         """Valves at null, oil unloaded."""
         self._torque = [0.0, 0.0]
-        self._spool = [0.0, 0.0]
         self._held = [0.0, 0.0]
         self.locked = (True, True)
         """Per joint, True while the trapped oil holds the joint (the last tick)."""
@@ -67,20 +67,18 @@ class HydraulicValves:
         """
         h = plant.config.period_ns / 1_000_000_000
         before = plant.state_floats
-        plant.step(self.drive(codes, enabled, supply, (before[2], before[3]), h), plant.config.control_period)
+        plant.step(self.drive(codes, enabled, supply, h), plant.config.control_period)
         after = plant.state_floats
-        self.follow((after[0] - before[0], after[1] - before[1]), h)
+        change = tuple(a - b for a, b in zip(after, before, strict=True))
+        self.follow((change[0], change[1]), (change[2], change[3]), h)
 
-    def drive(
-        self, codes: tuple[int, int], enabled: bool, supply: float, velocity: tuple[float, float], h: float
-    ) -> tuple[float, float]:
+    def drive(self, codes: tuple[int, int], enabled: bool, supply: float, h: float) -> tuple[float, float]:
         """The torque each actuator gives over the next ``h`` s (N m), held by the oil or driven by the valve.
 
         Args:
             codes: D/A codes on the valves.
             enabled: False when the board has the valves disabled (fail-safe position: the oil is trapped).
             supply: Supply pressure (bar).
-            velocity: Joint velocity at the start of the tick (rad/s).
             h: Tick (s), > 0.
         """
         settings = self._settings
@@ -88,13 +86,11 @@ class HydraulicValves:
         locked, applied = [], []
         for joint in range(2):
             spool = codes[joint] - settings.valve_null_bias[joint]
-            self._spool[joint] = self._lagged(self._spool[joint], spool, h)[0]
-            holds = not enabled or abs(self._spool[joint]) < settings.valve_deadband[joint]
+            holds = not enabled or abs(spool) < settings.valve_deadband[joint]
             if holds:
                 if not self.locked[joint]:
                     self._held[joint] = self._torque[joint]  # the oil is trapped at the pressure it had
-                self._torque[joint] = self._held[joint] - settings.lock_damping[joint] * velocity[joint]
-                mean = self._torque[joint]
+                self._torque[joint] = mean = self._held[joint]
             else:
                 self._torque[joint], mean = self._lagged(self._torque[joint], target[joint], h)
             locked.append(holds)
@@ -109,15 +105,20 @@ class HydraulicValves:
             return goal, goal
         return valve_lag_step(start, goal, h, self._lag[0], self._lag[1])
 
-    def follow(self, moved: tuple[float, float], h: float) -> None:
-        """After the tick: a held joint that moved ``moved`` rad squeezes its oil; the leakage relaxes it."""
+    def follow(self, moved: tuple[float, float], accelerated: tuple[float, float], h: float) -> None:
+        """After a tick in which a joint moved ``moved`` rad and changed speed by ``accelerated`` rad/s.
+
+        A held joint's oil resists as a spring and a damper on the change since it was trapped, so the
+        torque never jumps; the leakage relaxes the load it holds.
+        """
         settings = self._settings
         for joint in range(2):
             if self.locked[joint]:
                 stiffness = settings.lock_stiffness[joint]
                 held = self._held[joint]
                 leak = stiffness * settings.lock_leakage[joint] * h
-                self._held[joint] = held - stiffness * moved[joint] - held * leak
+                squeeze = stiffness * moved[joint] + settings.lock_damping[joint] * accelerated[joint]
+                self._held[joint] = held - squeeze - held * leak
 
     def load_pressure(self) -> tuple[float, float]:
         """Chamber-pressure difference behind the torque of the last tick (bar)."""
