@@ -77,7 +77,7 @@ def case1(board_config: BoardConfig, bridge_config: BridgeConfig) -> tuple[np.nd
 
 
 def rms(errors: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.mean(errors**2, axis=0))
+    return np.asarray(np.sqrt(np.mean(errors**2, axis=0)), dtype=np.float64)
 
 
 def test_the_reversed_bench_with_its_truths_tracks_case1_as_the_default_bench() -> None:
