@@ -23,6 +23,11 @@ def test_the_bench_file_reaches_the_emulator_as_an_absolute_path(
     assert options.bench_file == str(tmp_path / "bench.yaml")
     emulator = next(spec for spec in build_graph(options) if spec.name == EMULATOR_NODE)
     assert dict(emulator.parameters)["bench-file"] == str(tmp_path / "bench.yaml")
+    from smm_bench_emulator.cli import build_parser as emulator_parser
+    from smm_bench_emulator.cli import from_ros_arguments
+
+    parsed = emulator_parser().parse_args(from_ros_arguments(list(emulator.ros_arguments())))
+    assert parsed.bench_file == str(tmp_path / "bench.yaml") and parsed.disturbance == "none"
     assert options_from_arguments(build_parser().parse_args(arguments_from_options(options))) == options
 
 
