@@ -281,8 +281,8 @@ def test_the_emulator_runs_the_scenario_plant_the_simulator_would(tmp_path: Path
 
 
 def test_the_emulator_accepts_every_option_the_graph_passes_it() -> None:
+    from smm_bench_emulator.cli import bench, from_ros_arguments
     from smm_bench_emulator.cli import build_parser as emulator_parser
-    from smm_bench_emulator.cli import from_ros_arguments
 
     options = GraphOptions(
         plant="hardware", clock_mode="realtime", scenario="case2", seed=3, control_rate=250
@@ -291,7 +291,7 @@ def test_the_emulator_accepts_every_option_the_graph_passes_it() -> None:
     assert spec.name == graph_nodes.EMULATOR_NODE
     parsed = emulator_parser().parse_args(from_ros_arguments([spec.executable, *spec.ros_arguments()][1:]))
     assert (parsed.noise_std, parsed.inertia_scale, parsed.disturbance) == (0.001, 1.1, "eq46")
-    assert (parsed.seed, parsed.control_period, parsed.control_divider) == (3, 0.001, 4)
+    assert (parsed.seed, bench(parsed).plant.control_period, parsed.control_divider) == (3, 0.001, 4)
     assert parsed.bind == split_endpoint("board", hardware_graph.EMULATOR_BOARD)
     with pytest.raises(ValueError, match="unknown parameter 'valve'"):
         from_ros_arguments(["--ros-args", "-p", "valve:=1"])

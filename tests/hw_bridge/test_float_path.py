@@ -30,7 +30,11 @@ class NumpyValveOutput:
 
     def __init__(self, config: ValveOutputConfig) -> None:
         self.config = config
-        self.gain = np.asarray(config.gain, dtype=np.float64) * np.asarray(config.polarity, dtype=np.float64)
+        polarity = np.asarray(config.polarity, dtype=np.float64)
+        self.gain = np.asarray(config.gain, dtype=np.float64) * polarity
+        negative = np.where(np.asarray(config.gain_negative) > 0.0, config.gain_negative, config.gain)
+        self.gain_negative = negative.astype(np.float64) * polarity
+        self.bias = np.asarray(config.null_bias, dtype=np.float64)
         self.deadband = np.asarray(config.deadband, dtype=np.float64)
         self.limit = np.asarray(config.code_limit, dtype=np.float64)
         self.rate = np.asarray(config.rate_limit, dtype=np.float64)
@@ -56,7 +60,9 @@ class NumpyValveOutput:
         self, torque: FloatArray, dt: float
     ) -> tuple[tuple[int, int], FloatArray, npt.NDArray[np.bool_]]:
         with np.errstate(all="ignore"):  # a huge demand overflows to inf on both paths
-            wanted = self.compensate(torque * self.gain)
+            wanted = (
+                self.compensate(torque * np.where(torque >= 0.0, self.gain, self.gain_negative)) + self.bias
+            )
         saturated = np.clip(wanted, -self.limit, self.limit)
         step = self.rate * dt
         limited = np.clip(saturated, self.last - step, self.last + step)
@@ -67,7 +73,9 @@ class NumpyValveOutput:
         return pair, self.torque_of(pair), clamped
 
     def torque_of(self, codes: tuple[int, int]) -> FloatArray:
-        return self.uncompensate(np.asarray(codes, dtype=np.float64)) / self.gain
+        opening = self.uncompensate(np.asarray(codes, dtype=np.float64) - self.bias)
+        torque = opening / self.gain
+        return np.where(torque < 0.0, opening / self.gain_negative, torque)
 
     def effort(self, codes: tuple[int, int], dt: float) -> FloatArray:
         target = self.torque_of(codes)
@@ -106,6 +114,8 @@ positive = st.floats(1e-3, 1e5, allow_nan=False)
 valve_configs = st.builds(
     ValveOutputConfig,
     gain=st.tuples(positive, positive),
+    gain_negative=st.tuples(st.one_of(st.just(0.0), positive), st.one_of(st.just(0.0), positive)),
+    null_bias=st.tuples(st.sampled_from([0.0, 200.0, -37.5]), st.floats(-400.0, 400.0)),
     polarity=st.tuples(st.sampled_from([1, -1]), st.sampled_from([1, -1])),
     deadband=st.tuples(st.floats(0.0, 500.0), st.sampled_from([0.0, 100.0, 0.5])),
     deadband_blend=st.floats(1e-3, 1000.0),
@@ -264,6 +274,7 @@ def test_core_command_and_effort_are_bit_for_bit_the_numpy_ones(
     assert core.on_datagram(feedback(1, (0, 0), (0, 0)), now) is not None
     lag.effort((0, 0), period_ns / 1e9)
     core.arm()
+    lag.valve = [0.0, 0.0]  # arming resets the lag model (code 0 is no null with a null bias)
     for seq, (counts, torque, reported, shape) in enumerate(ticks, start=2):
         now += period_ns
         raw = (counts[0] % (1 << 32), counts[1] % (1 << 32))

@@ -58,6 +58,39 @@ def test_polarity_inverts_the_code() -> None:
     np.testing.assert_allclose(sample.torque, [1.0, 1.0])
 
 
+def test_null_bias_is_added_after_the_deadband_and_removed_by_the_inverse() -> None:
+    config = ValveOutputConfig(
+        gain=(1000.0, 1000.0), deadband=(800.0, 0.0), null_bias=(200.0, -150.0), rate_limit=INF
+    )
+    output = ValveOutput(config)
+    assert output.step([0.0, 0.0], 1e-3).codes == (200, -150)  # no demand: the spool at its null
+    sample = output.step([1.0, -1.0], 1e-3)
+    assert sample.codes == (200 + 1000 + 800, -150 - 1000)
+    np.testing.assert_allclose(sample.torque, [1.0, -1.0])
+    np.testing.assert_allclose(output.torque_of((200, -150)), [0.0, 0.0])
+
+
+def test_gain_per_direction_and_its_inverse() -> None:
+    # a valve giving 0.8x its nominal torque driving q positive and 1.2x driving it negative
+    nominal = 32767 / 10.0
+    config = ValveOutputConfig(
+        gain=(nominal / 0.8, nominal / 0.8),
+        gain_negative=(nominal / 1.2, 0.0),
+        polarity=(-1, 1),
+        rate_limit=INF,
+    )
+    output = ValveOutput(config)
+    sample = output.step([2.0, -2.0], 1e-3)
+    assert sample.codes == (-round(2.0 * nominal / 0.8), -round(2.0 * nominal / 0.8))  # beta: 0 = gain
+    sample = output.step([-2.0, 2.0], 1e-3)
+    assert sample.codes == (round(2.0 * nominal / 1.2), round(2.0 * nominal / 0.8))
+    np.testing.assert_allclose(sample.torque, [-2.0, 2.0], rtol=1e-4)
+    np.testing.assert_allclose(
+        output.torque_of((-8192, 8192)), [8192 / (nominal / 0.8), 8192 / (nominal / 0.8)]
+    )
+    np.testing.assert_allclose(output.torque_of((8192, -8192))[0], -8192 / (nominal / 1.2))
+
+
 @pytest.mark.parametrize("torque", [[math.nan, 0.0], [math.inf, 0.0], [1.0], [[1.0, 2.0]]])
 def test_bad_torque_is_rejected(torque: object) -> None:
     output = ValveOutput(ValveOutputConfig())
@@ -76,6 +109,9 @@ def test_bad_torque_is_rejected(torque: object) -> None:
         {"code_limit": (0, 1)},
         {"code_limit": (40000, 1)},
         {"deadband": (40000.0, 0.0)},
+        {"gain_negative": (-1.0, 0.0)},
+        {"null_bias": (40000.0, 0.0)},
+        {"null_bias": (-2000.0, 0.0), "deadband": (800.0, 0.0), "code_limit": (2800, 32767)},
         {"rate_limit": (0.0, 1.0)},
     ],
 )

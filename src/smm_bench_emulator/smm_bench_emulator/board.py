@@ -2,12 +2,13 @@
 
 ``receive(bytes)`` takes command frames as they arrive; the tick functions advance the board one 1 kHz
 tick and return the feedback frame to send. What the board does at each tick (docs/HW_PROTOCOL.md,
-"Board behaviour") is in :meth:`BoardCore._latch`; the bench (plant, valves, encoders, A/D) in
+"Board behaviour") is in :meth:`BoardCore._latch`; the bench (plant, :mod:`.valve`, encoders, A/D) in
 :meth:`BoardCore._advance` and :meth:`BoardCore._feedback`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import secrets
 from dataclasses import dataclass, field
@@ -29,8 +30,10 @@ from smm_hw_bridge.protocol import (
     seq_newer,
     u32_diff,
 )
-from smm_schema.ranges import above, at_least, bounds, check_bounds
 from smm_sim.plant import PlantConfig, SimulatedPlant
+
+from smm_bench_emulator.bench import BenchSettings, check_lock_stability
+from smm_bench_emulator.valve import HydraulicValves
 
 __all__ = ["BoardConfig", "BoardCore"]
 
@@ -41,26 +44,13 @@ _NOISE_BLOCK = 1000
 
 
 @dataclass(frozen=True)
-class BoardConfig:
-    """The emulated bench: plant, valves, encoders, A/D, and the board's own safety settings.
+class BoardConfig(BenchSettings):
+    """The emulated bench: the plant and the truths of :class:`~smm_bench_emulator.bench.BenchSettings`.
 
     Attributes:
         plant: The SMM plant (smm_sim); its ``control_period`` is the board tick, its
             ``encoder_counts_per_rev`` (> 0) the encoders' resolution, its ``valve_time_constants`` the
-            servo valves' first-order lag.
-        zero_offset: Raw counter value at q = 0 (alpha, beta), in [0, 2**counter_bits).
-        direction: +1 if a counter counts up as q grows, -1 if down (alpha, beta).
-        counter_bits: Width of the encoder counters, in [8, 32].
-        full_scale_torque: Joint torque at D/A code 32767 and nominal supply (N m) (alpha, beta), > 0.
-        valve_deadband: Valve overlap as a D/A code (alpha, beta), >= 0.
-        supply_pressure: Supply pressure (bar), >= 0; the valve's torque scales with sqrt(p / nominal).
-        nominal_pressure: Pressure at which ``full_scale_torque`` holds (bar), > 0.
-        supply_low: Below this pressure the board sets SUPPLY_LOW and nulls the valves (bar), >= 0.
-        bar_per_code: Supply pressure per A/D code of channel 0 (bar), > 0.
-        adc_noise: Standard deviation of the A/D noise (codes), >= 0.
-        ramp_ticks: Ticks the watchdog ramp takes from full scale to null, >= 1. The default 1 puts the
-            D/A at null on the first tick past validity; the valve's own lag then closes the spool smoothly.
-        seed: Seed of the A/D noise and of the session ids, >= 0.
+            servo valves' first-order lag (run by the valve model, not by the plant).
     """
 
     plant: PlantConfig = field(
@@ -68,27 +58,12 @@ class BoardConfig:
             encoder_counts_per_rev=1 << 20, valve_time_constants=(0.0217, 0.0109)
         )
     )
-    zero_offset: tuple[int, int] = field(default=(0, 0), metadata=bounds(0, (1 << 32) - 1))
-    direction: tuple[int, int] = field(default=(1, 1), metadata=bounds(-1, 1))
-    counter_bits: int = field(default=32, metadata=bounds(8, 32))
-    full_scale_torque: tuple[float, float] = field(default=(10.0, 10.0), metadata=above(0.0))
-    valve_deadband: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
-    supply_pressure: float = field(default=10.0, metadata=at_least(0.0))
-    nominal_pressure: float = field(default=10.0, metadata=above(0.0))
-    supply_low: float = field(default=5.0, metadata=at_least(0.0))
-    bar_per_code: float = field(default=25.0 / 4095.0, metadata=above(0.0))
-    adc_noise: float = field(default=2.0, metadata=at_least(0.0))
-    ramp_ticks: int = field(default=1, metadata=at_least(1))
-    seed: int = field(default=0, metadata=at_least(0))
 
     def __post_init__(self) -> None:
         if not isinstance(self.plant, PlantConfig) or self.plant.encoder_counts_per_rev <= 0:
             raise ValueError("plant must be a PlantConfig with encoder_counts_per_rev > 0")
-        check_bounds(self)
-        if any(offset >= 1 << self.counter_bits for offset in self.zero_offset):
-            raise ValueError(f"zero_offset must be below 2**counter_bits, got {self.zero_offset!r}")
-        if 0 in self.direction:
-            raise ValueError(f"direction must be +1 or -1, got {self.direction!r}")
+        super().__post_init__()
+        check_lock_stability(self, self.plant)
 
     @property
     def period_ns(self) -> int:
@@ -107,7 +82,9 @@ class BoardCore:
         self._config = config
         self._rng = np.random.default_rng(config.seed)
         self._noise: list[list[float]] = []
-        self.plant = SimulatedPlant(config.plant)
+        # the valve model runs the lag: the lock's torque must not pass through it
+        self.plant = SimulatedPlant(dataclasses.replace(config.plant, valve_time_constants=None))
+        self.valves = HydraulicValves(config, config.plant.valve_time_constants)
         self._quantum = 2.0 * math.pi / config.plant.encoder_counts_per_rev
         self.injected_faults = 0
         self.supply_pressure = config.supply_pressure
@@ -295,17 +272,12 @@ class BoardCore:
         return round(self.output[0]), round(self.output[1])
 
     def valve_torque(self) -> tuple[float, float]:
-        """Torque command the valves produce from the D/A codes (before their lag) (N m)."""
-        config = self._config
-        scale = math.sqrt(max(self.supply_pressure, 0.0) / config.nominal_pressure)
-        torque = []
-        for joint, code in enumerate(self.output_codes()):
-            opening = math.copysign(max(abs(code) - config.valve_deadband[joint], 0.0), code)
-            torque.append(opening / CODE_MAX * config.full_scale_torque[joint] * scale)
-        return torque[0], torque[1]
+        """Torque the open valves head for with the D/A codes now, before their lag (N m)."""
+        return self.valves.target(self.output_codes(), self.supply_pressure)
 
     def _advance(self) -> None:
-        self.plant.step(self.valve_torque(), self._config.plant.control_period)
+        enabled = self._active is not None or self._ramping
+        self.valves.move(self.plant, self.output_codes(), enabled, self.supply_pressure)
 
     def counts(self) -> tuple[int, int]:
         """Raw encoder counters now."""
@@ -320,11 +292,18 @@ class BoardCore:
         return raw[0], raw[1]
 
     def _adc(self) -> tuple[int, int, int, int]:
-        sigma = self._config.adc_noise
+        config = self._config
+        sigma = config.adc_noise
         if sigma > 0 and not self._noise:
             self._noise = self._rng.normal(0.0, sigma, (_NOISE_BLOCK, 4)).tolist()[::-1]
         noise = self._noise.pop() if sigma > 0 else (0.0, 0.0, 0.0, 0.0)
-        values = [self.supply_pressure / self._config.bar_per_code, 2048.0, 2048.0, 2048.0]
+        load = self.valves.load_pressure()
+        values = [
+            self.supply_pressure / config.bar_per_code,
+            config.load_zero_code[0] + load[0] / config.load_bar_per_code[0],
+            config.load_zero_code[1] + load[1] / config.load_bar_per_code[1],
+            2048.0,
+        ]
         return tuple(int(min(max(round(v + n), 0), ADC_MAX)) for v, n in zip(values, noise, strict=True))  # type: ignore[return-value]
 
     def _status(self) -> int:

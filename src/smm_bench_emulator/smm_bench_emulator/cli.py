@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import signal
@@ -10,11 +11,12 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 from types import FrameType
+from typing import Any
 
 import numpy as np
 from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED, VerdictConfig
-from smm_sim.plant import PAPER_VALVE_RESPONSE_TIMES, PlantConfig, valve_time_constants_from_response_times
 
+from smm_bench_emulator.bench_file import default_bench, load_bench_file
 from smm_bench_emulator.board import BoardConfig
 from smm_bench_emulator.emulator import Emulator, EmulatorConfig
 
@@ -44,14 +46,21 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--duration", type=float, default=0.0, help="stop after this many seconds of board time"
     )
-    parser.add_argument("--counts-per-rev", type=int, default=1 << 20)
-    parser.add_argument("--noise-std", type=float, default=0.0, help="position noise (rad)")
-    parser.add_argument("--inertia-scale", type=float, default=1.0)
-    parser.add_argument("--disturbance", choices=("none", "eq46"), default="none")
+    parser.add_argument(
+        "--bench-file",
+        default="",
+        help="the bench description (YAML, docs/BENCH.md); the bench options below override its fields",
+    )
+    parser.add_argument("--counts-per-rev", type=int, help="default 2**20")
+    parser.add_argument("--noise-std", type=float, help="position noise (rad), default 0")
+    parser.add_argument("--inertia-scale", type=float, help="default 1")
+    parser.add_argument("--disturbance", choices=("none", "eq46"), help="default none")
     parser.add_argument("--no-valve-lag", action="store_true", help="valves follow the D/A without lag")
-    parser.add_argument("--full-scale-torque", type=float, default=10.0, help="N m at D/A code 32767")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--control-period", type=float, default=1e-3, help="board tick (s)")
+    parser.add_argument("--full-scale-torque", type=float, help="N m at D/A code 32767, default 10")
+    parser.add_argument(
+        "--seed", type=int, help="seed of the plant's, the A/D's and the link's noise, default 0"
+    )
+    parser.add_argument("--control-period", type=float, help="board tick (s), default 0.001")
     parser.add_argument(
         "--control-divider",
         type=int,
@@ -92,20 +101,40 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def bench(args: argparse.Namespace) -> BoardConfig:
+    """The bench: the ``--bench-file`` (or the defaults) with the fields the bench options name replaced.
+
+    Raises:
+        BenchFileError: The file cannot be read or describes no valid bench.
+        ValueError: An option's value is out of its field's range.
+    """
+    base = load_bench_file(args.bench_file) if args.bench_file else default_bench()
+    plant: dict[str, Any] = {}
+    board: dict[str, Any] = {}
+    if args.counts_per_rev is not None:
+        plant["encoder_counts_per_rev"] = args.counts_per_rev
+    if args.noise_std is not None:
+        plant["noise_std"] = (args.noise_std, args.noise_std)
+    if args.inertia_scale is not None:
+        plant["inertia_scale"] = args.inertia_scale
+    if args.disturbance is not None:
+        plant["disturbance"] = args.disturbance
+    if args.no_valve_lag:
+        plant["valve_time_constants"] = None
+    if args.control_period is not None:
+        plant["control_period"] = args.control_period
+    if args.seed is not None:
+        plant["seed"] = board["seed"] = args.seed
+    if args.full_scale_torque is not None:
+        board["full_scale_torque"] = (args.full_scale_torque, args.full_scale_torque)
+    return dataclasses.replace(base, plant=dataclasses.replace(base.plant, **plant), **board)
+
+
 def run(args: argparse.Namespace) -> int:
     """Builds and runs the emulator; returns the exit code (3: the run did not control, why on stderr)."""
-    lag = None if args.no_valve_lag else valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES)
     try:
-        plant = PlantConfig(
-            encoder_counts_per_rev=args.counts_per_rev,
-            noise_std=(args.noise_std, args.noise_std),
-            inertia_scale=args.inertia_scale,
-            disturbance=args.disturbance,
-            valve_time_constants=lag,
-            seed=args.seed,
-            control_period=args.control_period,
-        )
-        board = BoardConfig(plant=plant, full_scale_torque=(args.full_scale_torque,) * 2, seed=args.seed)
+        board = bench(args)
+        plant = board.plant
         config = EmulatorConfig(
             board=board,
             bind=args.bind,
@@ -114,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
             mode=args.mode,
             lockstep_trigger=args.lockstep_trigger,
             duration_ticks=round(args.duration * 1e9 / plant.period_ns),
-            seed=args.seed,
+            seed=board.seed if args.seed is None else args.seed,
             verdict=VerdictConfig(late_limit=args.late_limit / 100, settle_s=args.settle),
             start_timeout_ns=round(args.start_timeout * 1e9),
             duration_from_live=args.duration_from == "live",

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import ipaddress
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -86,6 +87,9 @@ class GraphOptions:
             is applied after the scenario's (docs/LAUNCH.md, "Control rate").
         board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board; ``None`` starts
             ``smm_bench_emulator`` on loopback instead.
+        bench_file: ``hardware`` with the emulator only: the bench description it runs (docs/BENCH.md),
+            made absolute; the scenario's plant settings (noise, disturbance, inertia scale) override its
+            fields. ``None``: the emulator's defaults.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
         record_max_size: Start a new bag file when the current one reaches this many bytes: 0 (never) or
@@ -123,6 +127,7 @@ class GraphOptions:
     params_files: tuple[str, ...] = ()
     control_rate: float = BOARD_TICK_HZ
     board: str | None = None
+    bench_file: str | None = None
     record: str | None = None
     record_max_size: int = 0
     record_max_duration: float = 0.0
@@ -208,6 +213,12 @@ class GraphOptions:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
             split_endpoint("board", self.board)
+        if self.bench_file is not None:
+            if not isinstance(self.bench_file, str) or not self.bench_file.strip():
+                raise ValueError(f"bench_file must be a file path or None, got {self.bench_file!r}")
+            if self.plant != "hardware" or self.board is not None:
+                raise ValueError("bench_file is an option of plant 'hardware' with the emulator (no board)")
+            object.__setattr__(self, "bench_file", os.path.abspath(self.bench_file))
 
     def _choose_loop(self) -> None:
         """``loop="auto"``: direct for the hardware plant in real time unless the choices forbid it."""

@@ -35,6 +35,8 @@ def hardware_specs(
 ) -> tuple[NodeSpec, ...]:
     """``hw_bridge_node`` (autostart), after ``smm_bench_emulator`` unless a board address is given.
 
+    The bridge reads the parameter ``files`` (``bridge.*`` of its node key), as the direct loop does.
+
     The emulator gets the plant the parameter ``files`` give the simulator (noise, disturbance, inertias).
     With ``options.loop == "direct"``, ``direct_loop`` replaces the bridge: it hosts ``controller_node``
     too, with the overrides ``controller``.
@@ -72,6 +74,7 @@ def hardware_specs(
         executable=HW_NODE,
         name=HW_NODE,
         node_class="smm_hw_bridge.bridge_node:HwBridgeNode",
+        parameter_files=tuple(files),  # --params-file reaches the bridge (its valve and encoder truths)
         parameters=tuple(bridge_parameters),
     )
     if options.loop == "direct":
@@ -108,7 +111,9 @@ def hardware_specs(
         emulator_parameters.append(("seed", options.seed))
     if divider > 1:
         emulator_parameters.append(("control-divider", divider))
-    emulator_parameters += _emulator_plant(files)
+    if options.bench_file is not None:
+        emulator_parameters.append(("bench-file", options.bench_file))
+    emulator_parameters += _emulator_plant(files)  # options: the scenario's settings override the bench file
     emulator = NodeSpec(
         package="smm_bench_emulator",
         executable=EMULATOR_NODE,

@@ -74,6 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--board", default=None, help="hardware: ADDRESS:PORT of the I/O board (default: start the emulator)"
     )
     parser.add_argument(
+        "--bench-file", default=None, help="hardware, emulator: the bench description (YAML, docs/BENCH.md)"
+    )
+    parser.add_argument(
         "--clock-mode",
         choices=CLOCK_MODES,
         default="lockstep",
@@ -244,6 +247,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         params_files=tuple(arguments.params_file),
         control_rate=arguments.control_rate,
         board=arguments.board,
+        bench_file=arguments.bench_file,
         record=arguments.record,
         record_max_size=arguments.record_max_size,
         record_max_duration=arguments.record_max_duration,
@@ -271,6 +275,8 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--params-file", params_file]
     if options.board is not None:
         arguments += ["--board", options.board]
+    if options.bench_file is not None:
+        arguments += ["--bench-file", options.bench_file]
     if options.record is not None:
         arguments += ["--record", options.record]
     if options.record_max_size:

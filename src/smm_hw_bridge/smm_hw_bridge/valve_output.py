@@ -1,4 +1,4 @@
-"""Torque -> D/A code (gain, deadband, saturation, rate limit); and codes -> torque through the valve lag."""
+"""Torque -> D/A code (gain per direction, deadband, null bias, saturation, rate limit); and back, lagged."""
 
 from __future__ import annotations
 
@@ -30,10 +30,15 @@ class ValveOutputConfig:
     """Mapping of a joint torque command to the valve's D/A code.
 
     Attributes:
-        gain: D/A codes per N m of joint torque (alpha, beta), > 0.
+        gain: D/A codes per N m of joint torque (alpha, beta), > 0; of a positive torque when
+            ``gain_negative`` is set.
+        gain_negative: D/A codes per N m of a negative joint torque (alpha, beta), >= 0; 0 = ``gain`` (the
+            valve gives the same torque both ways, and a parameter file without it keeps its meaning).
         polarity: +1 if a positive code drives q positive, -1 if negative (alpha, beta).
         deadband: Valve overlap as a D/A code (alpha, beta), >= 0: a code of magnitude below it moves
             nothing, so a non-zero demand is offset by it.
+        null_bias: D/A code at which the valve's spool is at null (alpha, beta), in [-32767, 32767]: added
+            to every code after the deadband offset; |null_bias| + deadband must stay below code_limit.
         deadband_blend: Demand (codes) below which the offset is blended in linearly, > 0, so the map is
             continuous through zero.
         code_limit: Saturation of |code| (alpha, beta), in [1, 32767].
@@ -46,8 +51,10 @@ class ValveOutputConfig:
     """
 
     gain: tuple[float, float] = field(default=(CODE_MAX / 10.0, CODE_MAX / 10.0), metadata=above(0.0))
+    gain_negative: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
     polarity: tuple[int, int] = field(default=(1, 1), metadata=bounds(-1, 1))
     deadband: tuple[float, float] = field(default=(0.0, 0.0), metadata=at_least(0.0))
+    null_bias: tuple[float, float] = field(default=(0.0, 0.0), metadata=bounds(-CODE_MAX, CODE_MAX))
     deadband_blend: float = field(default=50.0, metadata=bounds(1e-3, 32767.0))
     code_limit: tuple[int, int] = field(default=(CODE_MAX, CODE_MAX), metadata=bounds(1, CODE_MAX))
     rate_limit: tuple[float, float] = field(
@@ -61,8 +68,11 @@ class ValveOutputConfig:
         check_bounds(self)
         if 0 in self.polarity:
             raise ValueError(f"polarity must be +1 or -1 per joint, got {self.polarity!r}")
-        if any(self.deadband[j] >= self.code_limit[j] for j in range(2)):
-            raise ValueError(f"deadband {self.deadband!r} must be below code_limit {self.code_limit!r}")
+        if any(self.deadband[j] + abs(self.null_bias[j]) >= self.code_limit[j] for j in range(2)):
+            raise ValueError(
+                f"deadband {self.deadband!r} plus |null_bias| {self.null_bias!r} must be below code_limit "
+                f"{self.code_limit!r}"
+            )
         if (self.time_constants[0] == 0.0) != (self.time_constants[1] == 0.0):
             raise ValueError(
                 f"time_constants must be both > 0 or both 0 (no lag), got {self.time_constants!r}"
@@ -103,6 +113,12 @@ class ValveOutput:
             float(config.gain[0]) * float(config.polarity[0]),
             float(config.gain[1]) * float(config.polarity[1]),
         )
+        negative = tuple(config.gain_negative[j] or config.gain[j] for j in range(2))
+        self._gain_negative = (
+            float(negative[0]) * float(config.polarity[0]),
+            float(negative[1]) * float(config.polarity[1]),
+        )
+        self._bias = (float(config.null_bias[0]), float(config.null_bias[1]))
         self._deadband = (float(config.deadband[0]), float(config.deadband[1]))
         self._limit = (float(config.code_limit[0]), float(config.code_limit[1]))
         self._rate = (float(config.rate_limit[0]), float(config.rate_limit[1]))
@@ -129,12 +145,13 @@ class ValveOutput:
         limit = self._limit[joint]
         deadband = self._deadband[joint]
         blend = self._blend
-        demand = torque * self._gain[joint]
+        demand = torque * (self._gain[joint] if torque >= 0.0 else self._gain_negative[joint])
         magnitude = abs(demand)
         if magnitude >= blend:  # demand != 0 here: np.sign is +-1
             wanted = magnitude + deadband if demand > 0.0 else -(magnitude + deadband)
         else:
             wanted = demand * (blend + deadband) / blend
+        wanted += self._bias[joint]
         # np.clip(x, lo, hi) is min(max(x, lo), hi) with max(a, b) = a if a > b else b (b on a tie)
         saturated = wanted if wanted > -limit else -limit
         saturated = saturated if saturated < limit else limit
@@ -182,11 +199,13 @@ class ValveOutput:
             return magnitude - deadband if code > 0.0 else -(magnitude - deadband)
         return code * self._blend / edge
 
+    def _joint_torque(self, joint: int, code: int) -> float:
+        opening = self._uncompensate(joint, float(code) - self._bias[joint])
+        torque = opening / self._gain[joint]
+        return opening / self._gain_negative[joint] if torque < 0.0 else torque
+
     def _torque_floats(self, codes: tuple[int, int]) -> tuple[float, float]:
-        return (
-            self._uncompensate(0, float(codes[0])) / self._gain[0],
-            self._uncompensate(1, float(codes[1])) / self._gain[1],
-        )
+        return self._joint_torque(0, codes[0]), self._joint_torque(1, codes[1])
 
     def torque_of(self, codes: tuple[int, int]) -> FloatArray:
         """Torque (N m) that D/A ``codes`` command, the inverse of the map (without clamping), shape (2,)."""

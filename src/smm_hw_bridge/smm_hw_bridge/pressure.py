@@ -1,0 +1,79 @@
+"""Load-pressure transducers (A/D channels 1 and 2) -> the joint torque the actuators give (pure, no ROS).
+
+The torque is the chamber-pressure difference times the actuator's lever arm x piston area; the
+calibration per joint is a scale and an offset of the A/D code (docs/BENCH.md, "Load pressure").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Final
+
+from smm_schema.ranges import above, bounds, check_bounds, no_range
+
+from smm_hw_bridge.protocol import ADC_CHANNELS, ADC_MAX
+
+__all__ = ["LOAD_CHANNELS", "PASCAL_PER_BAR", "PressureConfig", "load_pressure", "measured_torque"]
+
+LOAD_CHANNELS: Final[tuple[int, int]] = (1, 2)
+"""A/D channels of the load-pressure transducers (alpha, beta)."""
+PASCAL_PER_BAR: Final[float] = 1e5
+
+
+@dataclass(frozen=True)
+class PressureConfig:
+    """Calibration of the load-pressure transducers (``bridge.pressure.*``).
+
+    Attributes:
+        bar_per_code: Load pressure per A/D code (bar) (alpha, beta), finite and != 0; negative for a
+            transducer that reads the chambers the other way round.
+        zero_code: A/D code at a load pressure of 0 (alpha, beta), in [0, 4095].
+        lever_arm_area: Lever arm times piston area of each actuator (m^3) (alpha, beta), > 0: the joint
+            torque is the load pressure times it.
+    """
+
+    bar_per_code: tuple[float, float] = field(default=(25.0 / 2048.0, 25.0 / 2048.0), metadata=no_range())
+    zero_code: tuple[float, float] = field(default=(2048.0, 2048.0), metadata=bounds(0.0, ADC_MAX))
+    lever_arm_area: tuple[float, float] = field(default=(1.5e-5, 1.5e-5), metadata=above(0.0))
+
+    def __post_init__(self) -> None:
+        check_bounds(self)
+        if 0.0 in self.bar_per_code:
+            raise ValueError(f"bar_per_code must be != 0 for both joints, got {self.bar_per_code!r}")
+
+
+def _codes(adc: Sequence[int]) -> tuple[int, int]:
+    if isinstance(adc, (str, bytes)) or len(adc) != ADC_CHANNELS:
+        raise ValueError(f"adc must hold {ADC_CHANNELS} channels, got {adc!r}")
+    codes = tuple(adc[channel] for channel in LOAD_CHANNELS)
+    for code in codes:
+        if isinstance(code, bool) or not isinstance(code, int) or not 0 <= code <= ADC_MAX:
+            raise ValueError(f"load-pressure codes must be ints in [0, {ADC_MAX}], got {codes!r}")
+    return codes[0], codes[1]
+
+
+def load_pressure(adc: Sequence[int], config: PressureConfig) -> tuple[float, float]:
+    """Load pressure (alpha, beta) (bar) from a feedback frame's A/D channels (4 codes).
+
+    Raises:
+        ValueError: not 4 channels, or a load channel not an int in [0, 4095].
+    """
+    codes = _codes(adc)
+    return (
+        (codes[0] - config.zero_code[0]) * config.bar_per_code[0],
+        (codes[1] - config.zero_code[1]) * config.bar_per_code[1],
+    )
+
+
+def measured_torque(adc: Sequence[int], config: PressureConfig) -> tuple[float, float]:
+    """Joint torque (alpha, beta) (N m) the actuators give, from a feedback frame's A/D channels.
+
+    Raises:
+        ValueError: As :func:`load_pressure`.
+    """
+    pressure = load_pressure(adc, config)
+    return (
+        pressure[0] * PASCAL_PER_BAR * config.lever_arm_area[0],
+        pressure[1] * PASCAL_PER_BAR * config.lever_arm_area[1],
+    )
