@@ -189,7 +189,8 @@ def test_the_reader_sleeps_until_spin_us_before_the_next_frame_is_due_then_polls
     """spin_us = 0: one blocking wait per frame; else a wait ending spin_us before the frame is due, polls."""
     from smm_hw_bridge.bridge_health import BridgeCounters
     from smm_hw_bridge.core import BridgeConfig, BridgeCore
-    from smm_hw_bridge.loop import LINK_CHECK_S, BridgeLoop, LoopSettings
+    from smm_hw_bridge.loop import BridgeLoop
+    from smm_hw_bridge.reading import LINK_CHECK_S, LoopSettings
 
     loop = BridgeLoop(BridgeCounters(), settings=LoopSettings(spin_us=spin_us))
     device = _Recorded(frames_on={1, 2} if spin_us == 0 else {1, 5})
@@ -206,7 +207,7 @@ def test_the_reader_sleeps_until_spin_us_before_the_next_frame_is_due_then_polls
 
 
 def test_spin_us_is_validated() -> None:
-    from smm_hw_bridge.loop import LoopSettings
+    from smm_hw_bridge.reading import LoopSettings
 
     assert LoopSettings().spin_us > 0  # the direct loop polls by default (docs/LAUNCH.md)
     for bad in (-1, 100_001, 1.5, True):

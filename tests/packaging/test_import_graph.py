@@ -274,6 +274,7 @@ PURE_CORES = (
     "smm_hw_bridge.device",
     "smm_hw_bridge.frame_device",
     "smm_hw_bridge.loop",
+    "smm_hw_bridge.reading",
 )
 """Logic the nodes wrap (times passed in): the node modules import it, it imports no ``rclpy``."""
 

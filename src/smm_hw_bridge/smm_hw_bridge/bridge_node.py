@@ -32,10 +32,11 @@ from std_srvs.srv import Trigger
 from smm_hw_bridge.bridge_health import BridgeCounters
 from smm_hw_bridge.bridge_run import AutostartGate, closing_line, judged_exit, realtime_scheduled, run_verdict
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError
-from smm_hw_bridge.device import Device, DeviceError, open_device
-from smm_hw_bridge.loop import Answerer, BridgeLoop, ChangeBuffer, LoopSettings, Tick, first_feedback
+from smm_hw_bridge.device import Device, open_device
+from smm_hw_bridge.loop import Answerer, BridgeLoop, ChangeBuffer, Tick
 from smm_hw_bridge.loop_statistics import RunningFigures
 from smm_hw_bridge.preflight import PreflightConfig, PreflightVerdict, RehearsalRecorder, judge
+from smm_hw_bridge.reading import LoopSettings
 from smm_hw_bridge.run_verdict import RunTally, VerdictConfig
 from smm_hw_bridge.transport import LinkConfig
 from smm_msgs_py import topics
@@ -263,31 +264,19 @@ class HwBridgeNode(LifecycleNode):
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Opens the device, waits for valid feedback, locks the board with a safe frame."""
-        link = self._link.config
-        self._fault_transition = False
-        self.loop.statistics.reset()
+        link, self._fault_transition = self._link.config, False
         self.publish_us = RunningFigures()
-        try:
-            device = open_device(link)
-        except DeviceError as error:
-            self._log.error(f"configure: {error}")
-            return TransitionCallbackReturn.FAILURE
         core = BridgeCore(self._bridge.config, host_session=secrets.randbelow(0xFFFFFFFF) + 1)
+        tally = RunTally(core.config.period_ns, self._verdict.config, core.config.control_divider)
+        source = f"{link.board_address}:{link.board_port}"
         try:
-            why = first_feedback(
-                device, core, link.configure_timeout, f"{link.board_address}:{link.board_port}"
-            )
-        except Exception:  # a bug, not a bad frame (those are counted): fail without leaking the socket
-            device.close()
+            why = self.loop.connect(lambda: open_device(link), core, tally, link.configure_timeout, source)
+        except Exception:  # a bug, not a bad frame (those are counted); the device is closed
             self._log.error(f"configure: waiting for feedback failed:\n{traceback.format_exc()}")
             return TransitionCallbackReturn.FAILURE
         if why is not None:
-            device.close()
             self._log.error(f"configure: {why}")
             return TransitionCallbackReturn.FAILURE
-        self.loop.attach(
-            core, device, RunTally(core.config.period_ns, self._verdict.config, core.config.control_divider)
-        )
         self._stop.clear()
         self._reader = threading.Thread(
             target=self.loop.run,

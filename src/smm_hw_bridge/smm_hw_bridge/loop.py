@@ -13,21 +13,19 @@ import time
 import traceback
 from collections import deque
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
 from typing import Final, NamedTuple, Protocol
 
 import numpy as np
 import numpy.typing as npt
 from smm_node_runtime.health import Health
-from smm_schema.ranges import bounds
 
 from smm_hw_bridge.bridge_health import BridgeCounters, bridge_health, with_loop_figures
-from smm_hw_bridge.control_rate import is_control_tick
 from smm_hw_bridge.core import BridgeCore, BridgeError, BridgeState
 from smm_hw_bridge.device import Device, DeviceError, Reading
 from smm_hw_bridge.loop_statistics import LoopStatistics, RunningFigures
 from smm_hw_bridge.preflight import RehearsalRecorder
 from smm_hw_bridge.protocol import CommandFrame, Reason
+from smm_hw_bridge.reading import LINK_CHECK_S, LoopSettings, next_reading
 from smm_hw_bridge.run_verdict import RunTally
 
 __all__ = [
@@ -36,48 +34,17 @@ __all__ = [
     "Answerer",
     "BridgeLoop",
     "ChangeBuffer",
-    "LoopSettings",
     "Tick",
     "first_feedback",
 ]
 
-LINK_CHECK_S: Final[float] = 0.005
-"""Period of the link and host-watchdog check, done by the receiving thread (s)."""
 _LINK_CHECK_NS: Final[int] = round(LINK_CHECK_S * 1e9)
 REHEARSAL_STAMP_OFFSET_NS: Final[int] = 3_600_000_000_000
 """Topics loop: the rehearsal's ``joint_states`` are stamped this much (1 h) after the board's tick, so that
 the armed run's first measurements are a backward time jump: ``controller_node`` then starts it afresh."""
-DEFAULT_SWITCH_INTERVAL: Final[float] = 0.0005
-"""Default ``sys.setswitchinterval`` of the direct loop's process (s); docs/LAUNCH.md says why."""
-DEFAULT_SPIN_US: Final[int] = 150
-"""Default ``loop.spin_us`` (us); docs/LAUNCH.md says why."""
 FloatArray = npt.NDArray[np.float64]
 _DONE: Final[int] = -1
 """A tick whose answer faulted: its safe frame went out, nothing to publish (stamps are >= 0)."""
-
-
-@dataclass(frozen=True)
-class LoopSettings:
-    """The direct loop's own settings (``loop.*`` of a bridge with an answerer, read-only).
-
-    Attributes:
-        switch_interval: ``sys.setswitchinterval`` of the process (s): the longest a thread holding the GIL
-            keeps the reader thread waiting once a frame arrived, in [1e-5, 0.1].
-        spin_us: The reader polls for the next frame from this long before it is due (one board period
-            after the last) until as long after, instead of sleeping (us), in [0, 100000]; 0 = always
-            sleep. Saves the wake-up from idle at the cost of that CPU time per period.
-    """
-
-    switch_interval: float = field(default=DEFAULT_SWITCH_INTERVAL, metadata=bounds(1e-5, 0.1))
-    spin_us: int = field(default=DEFAULT_SPIN_US, metadata=bounds(0, 100_000))
-
-    def __post_init__(self) -> None:
-        value = self.switch_interval
-        if isinstance(value, bool) or not isinstance(value, float) or not 1e-5 <= value <= 0.1:
-            raise ValueError(f"switch_interval must be a number of seconds in [1e-5, 0.1], got {value!r}")
-        spin = self.spin_us
-        if isinstance(spin, bool) or not isinstance(spin, int) or not 0 <= spin <= 100_000:
-            raise ValueError(f"spin_us must be an int in [0, 100000] (us), got {spin!r}")
 
 
 class Answerer(Protocol):
@@ -185,6 +152,30 @@ class BridgeLoop:
 
     # ---- session ----------------------------------------------------------------------------------
 
+    def connect(
+        self, opener: Callable[[], Device], core: BridgeCore, tally: RunTally, timeout_s: float, source: str
+    ) -> str | None:
+        """Opens the device, waits for ``core`` to admit a feedback, attaches: None, or why not (closed).
+
+        Raises:
+            Exception: What a bug raised while waiting (the device is closed first).
+        """
+        try:
+            device = opener()
+        except DeviceError as error:
+            return str(error)
+        try:
+            why = first_feedback(device, core, timeout_s, source)
+        except Exception:
+            device.close()
+            raise
+        if why is not None:
+            device.close()
+            return why
+        self.statistics.reset()
+        self.attach(core, device, tally)
+        return None
+
     def attach(self, core: BridgeCore, device: Device, tally: RunTally) -> None:
         """A configured session: safe output at once; changes wait for tick boundaries from now on."""
         with self.lock:
@@ -248,25 +239,8 @@ class BridgeLoop:
         device = self.device
         if device is None:
             return None
-        reading = None
-        settings, core, last = self.settings, self.core, self._last_rx_ns
-        spin_ns = 0 if settings is None else settings.spin_us * 1000
-        feedback = None if core is None else core.last_feedback
-        if (
-            core is not None
-            and feedback is not None
-            and not is_control_tick(feedback.tick + 1, core.config.control_divider)
-        ):
-            spin_ns = 0  # the next frame is one the board holds through: nothing to answer in a hurry
-        if spin_ns and last is not None and core is not None:
-            due = last + core.config.period_ns
-            now = self._clock()
-            if now < due - spin_ns:
-                reading = device.read((due - spin_ns - now) / 1e9)
-            while reading is None and self._clock() < due + spin_ns:
-                reading = device.read(0.0)
-        if reading is None:
-            reading = device.read(LINK_CHECK_S)
+        spin_us = 0 if self.settings is None else self.settings.spin_us
+        reading = next_reading(device, self.core, self._last_rx_ns, spin_us, self._clock)
         self._last_rx_ns = None if reading is None else self._clock()
         return reading
 
