@@ -92,36 +92,44 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def config_from_args(args: argparse.Namespace) -> EmulatorConfig:
+    """The emulator's configuration from its parsed options.
+
+    Raises:
+        ValueError: An invalid value (the message names it).
+    """
+    lag = None if args.no_valve_lag else valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES)
+    plant = PlantConfig(
+        encoder_counts_per_rev=args.counts_per_rev,
+        noise_std=(args.noise_std, args.noise_std),
+        inertia_scale=args.inertia_scale,
+        disturbance=args.disturbance,
+        valve_time_constants=lag,
+        seed=args.seed,
+        control_period=args.control_period,
+    )
+    board = BoardConfig(plant=plant, full_scale_torque=(args.full_scale_torque,) * 2, seed=args.seed)
+    return EmulatorConfig(
+        board=board,
+        bind=args.bind,
+        host=args.host,
+        control=args.control,
+        mode=args.mode,
+        lockstep_trigger=args.lockstep_trigger,
+        duration_ticks=round(args.duration * 1e9 / plant.period_ns),
+        seed=args.seed,
+        verdict=VerdictConfig(late_limit=args.late_limit / 100, settle_s=args.settle),
+        start_timeout_ns=round(args.start_timeout * 1e9),
+        duration_from_live=args.duration_from == "live",
+        min_idle_ns=args.min_idle_us * 1000,
+        control_divider=args.control_divider,
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Builds and runs the emulator; returns the exit code (3: the run did not control, why on stderr)."""
-    lag = None if args.no_valve_lag else valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES)
     try:
-        plant = PlantConfig(
-            encoder_counts_per_rev=args.counts_per_rev,
-            noise_std=(args.noise_std, args.noise_std),
-            inertia_scale=args.inertia_scale,
-            disturbance=args.disturbance,
-            valve_time_constants=lag,
-            seed=args.seed,
-            control_period=args.control_period,
-        )
-        board = BoardConfig(plant=plant, full_scale_torque=(args.full_scale_torque,) * 2, seed=args.seed)
-        config = EmulatorConfig(
-            board=board,
-            bind=args.bind,
-            host=args.host,
-            control=args.control,
-            mode=args.mode,
-            lockstep_trigger=args.lockstep_trigger,
-            duration_ticks=round(args.duration * 1e9 / plant.period_ns),
-            seed=args.seed,
-            verdict=VerdictConfig(late_limit=args.late_limit / 100, settle_s=args.settle),
-            start_timeout_ns=round(args.start_timeout * 1e9),
-            duration_from_live=args.duration_from == "live",
-            min_idle_ns=args.min_idle_us * 1000,
-            control_divider=args.control_divider,
-        )
-        emulator = Emulator(config, record=bool(args.record))
+        emulator = Emulator(config_from_args(args), record=bool(args.record))
     except (ValueError, OSError) as error:
         print(f"smm_bench_emulator: {error}", file=sys.stderr)
         return 2
