@@ -160,6 +160,7 @@ class BridgeLoop:
         Raises:
             Exception: What a bug raised while waiting (the device is closed first).
         """
+        self.host_fault = ""
         try:
             device = opener()
         except DeviceError as error:

@@ -322,8 +322,8 @@ class LinkConfig:
     """How the bridge reaches the board (read at ``configure``).
 
     Attributes:
-        transport: The device, a name of :data:`~smm_hw_bridge.device.DEVICES`: "udp" or "serial" (the
-            frame protocol over UDP or a serial line).
+        transport: The device, a row of ``smm_hw_bridge.device.DEVICES``: "udp" or "serial" (the frame
+            protocol over UDP or a serial line).
         bind_address: UDP: IPv4 address the bridge binds (default loopback).
         bind_port: UDP: port the bridge binds (0 = any free one).
         board_address: UDP: the board's IPv4 address; frames from anywhere else are dropped.
