@@ -6,8 +6,10 @@ parsing, the same for both trees), found first through ``AMENT_PREFIX_PATH``. It
 enabled answer, as the emulator's lockstep does, logs every feedback frame it sends and every command frame it
 receives, in order, and plays a script by board tick: an e-stop latched on the board (its e-stop button),
 and, once the bridge saw it, a re-arm through the bridge's ``~/rearm`` service. The board waits for no
-clock, so the frames and topics depend on the inputs alone; two trees compare bit for bit (sessions, random
-per boot and per configure, are set to 1 before comparing).
+clock, so the frames and topics depend on the inputs alone; two trees compare bit for bit. Before comparing,
+sessions (random per boot and per configure) are set to 1 and command sequence numbers are counted from the
+first enabled command: before the output goes live the bridge answers a re-sent feedback again, and whether
+the driver re-sends depends on when DDS matched the controller; those safe frames are counted, not compared.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from typing import Any
 
 import rclpy
 from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
 from smm_bench_emulator.board import BoardCore
 from smm_bench_emulator.cli import build_parser, config_from_args, from_ros_arguments
 from smm_hw_bridge.protocol import (
@@ -64,7 +67,7 @@ def _estop_frame(board: Any) -> bytes:
 def _rearm(done: threading.Event, log: list[str]) -> None:
     """Calls ``/smm/hw_bridge_node/rearm`` (std_srvs/Trigger) once; notes the answer."""
     context = Context()
-    rclpy.init(context=context)
+    rclpy.init(args=[], context=context)  # not this process's --ros-args (the emulator's options)
     node = rclpy.create_node("compare_rearm", context=context)
     try:
         client = node.create_client(Trigger, "/smm/hw_bridge_node/rearm")
@@ -72,7 +75,9 @@ def _rearm(done: threading.Event, log: list[str]) -> None:
             log.append("rearm: no service")
             return
         future = client.call_async(Trigger.Request())
-        rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        executor.spin_until_future_complete(future, timeout_sec=30.0)
         result = future.result()  # type: ignore[no-untyped-call]
         log.append(f"rearm: {None if result is None else (result.success, result.message)}")
     finally:
@@ -142,9 +147,9 @@ def drive(argv: list[str]) -> int:
     frames["ticks"] = ticks
     Path(os.environ["SMM_COMPARE_FRAMES"]).write_text(json.dumps(frames))
     if args.status_file:
-        Path(args.status_file).write_text(
-            json.dumps({"figures": f"compare driver, {ticks} ticks", "verdict": None})
-        )
+        status = {"figures": f"compare driver, {ticks} ticks", "verdict": None, "late_commands": 0}
+        status |= {"enabled_ticks": board.enabled_ticks, "latency_p50_us": None, "latency_p99_us": None}
+        Path(args.status_file).write_text(json.dumps(status))
     transport.close()
     print(f"compare driver: {ticks} ticks, {frames['resends']} resends, {frames['notes']}", flush=True)
     return 0
