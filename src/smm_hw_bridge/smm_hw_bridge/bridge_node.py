@@ -230,10 +230,15 @@ class HwBridgeNode(LifecycleNode):
         verdict = judge(recorder.figures(), self._verdict.config.late_limit, margin=config.margin)
         self.preflight = verdict
         refusal = verdict.refusal(direct_loop=self.loop.answerer is not None, realtime=realtime_scheduled())
-        for level, line in verdict.report(refusal, force=config.force):
-            getattr(self._log, level)(f"preflight: {line}")
-        if not verdict.holds and not config.force:
+        for line in verdict.lines():
+            self._log.info(f"preflight: {line}")
+        if verdict.holds:  # one logging call per severity: rclpy fixes a call site's severity
+            self._log.info(f"preflight: {verdict.figures.rate_hz:g} Hz holds here; arming")
+        elif config.force:
+            self._log.warning(f"preflight: ARMING ANYWAY (preflight.force): {refusal}")
+        else:
             self.preflight_refusal = refusal
+            self._log.error(f"preflight: refused to arm: {refusal}")
             self.context.try_shutdown()
             return
         if self.lifecycle_state != "inactive":  # a fault during the rehearsal took it out of configured

@@ -152,20 +152,6 @@ class PreflightVerdict:
             f"predicted: {predicted}",
         ]
 
-    def report(self, refusal: str, *, force: bool) -> list[tuple[str, str]]:
-        """What the bridge logs of this verdict, (level, line): the figures, then arming or refusing.
-
-        Args:
-            refusal: :meth:`refusal`'s text for this host.
-            force: ``preflight.force``: a rate that does not hold arms anyway.
-        """
-        lines = [("info", line) for line in self.lines()]
-        if self.holds:
-            return [*lines, ("info", f"{self.figures.rate_hz:g} Hz holds here; arming")]
-        if force:
-            return [*lines, ("warning", f"ARMING ANYWAY (preflight.force): {refusal}")]
-        return [*lines, ("error", f"refused to arm: {refusal}")]
-
     def refusal(self, *, direct_loop: bool, realtime: bool) -> str:
         """Why the run may not arm, what rate it holds, and the other options (for a refused verdict).
 
