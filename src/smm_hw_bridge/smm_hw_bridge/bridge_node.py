@@ -15,17 +15,17 @@ import sys
 import threading
 import time
 import traceback
-from collections.abc import Callable, Sequence
-from typing import Any, Final, Unpack
+from collections.abc import Sequence
+from typing import Final, Unpack
 
 from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.context import Context
-from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
 from smm_msgs_py.conversions import JointSample, internals_to_msg, msg_to_torque, sample_to_joint_state
 from smm_msgs_py.errors import InterfaceError
 from smm_msgs_py.qos import qos_for_topic, subscription_qos_for_topic
+from smm_node_runtime.lifecycle import refuse_invalid_transitions
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
@@ -57,25 +57,6 @@ _FAULT_TRANSITION_S: Final[float] = 0.1
 """How often the executor looks for a signalled fault (s); the safe frame went out at once."""
 _AUTOSTART_POLL_S: Final[float] = 0.01
 """How often ``autostart`` looks for a ``torque_command`` publisher (s)."""
-
-
-def _refusing_invalid_transitions(callback: Callable[[Any, Any], Any], log: Any) -> Callable[[Any, Any], Any]:
-    """``~/change_state`` that answers a transition the current state lacks with ``success: false``.
-
-    rclpy raises ``RCLError`` for an unknown transition id out of the service callback, which ends the
-    executor's spin and the process: one mistyped ``ros2 lifecycle set`` would stop the control loop.
-    """
-
-    def change_state(request: Any, response: Any) -> Any:
-        try:
-            return callback(request, response)
-        except rclpy_implementation.RCLError as error:
-            transition = request.transition
-            log.warning(f"change_state: transition {transition.id} {transition.label!r} refused: {error}")
-            response.success = False
-            return response
-
-    return change_state
 
 
 class HwBridgeNode(LifecycleNode):
@@ -118,8 +99,7 @@ class HwBridgeNode(LifecycleNode):
             raise
         self.process_name = process_name
         self._log = self.get_logger()  # type: ignore[no-untyped-call]
-        change_state = self._service_change_state
-        change_state.callback = _refusing_invalid_transitions(change_state.callback, self._log)
+        refuse_invalid_transitions(self)
         self.counters = BridgeCounters()
         self.loop = BridgeLoop(self.counters, answerer, changes, settings)
         """The tick, its core and device while configured."""
@@ -388,10 +368,6 @@ class HwBridgeNode(LifecycleNode):
         response.success = refusal is None
         response.message = refusal or "re-arm sent: output needs a fresh measurement and command again"
         return response
-
-    def fail(self, reason: str) -> None:
-        """A host-side fault (the loop cannot go on): safe frame now, then the error transition."""
-        self.loop.fail(reason)
 
     def _on_fault(self) -> None:
         """Executor timer: after a signalled fault (safe output already sent), the error transition."""
