@@ -270,3 +270,19 @@ def test_the_work_done_ahead_after_each_send_changes_no_answer(direct: Bench) ->
             continue
         stamp_ns, position, effort, answer = call
         assert plain.measurement(topics.JOINT_STATES, stamp_ns, position, effort, 0) == answer
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"chain": "external", "reference_source": "internal"},
+        {"chain": "internal", "reference_source": "topic"},
+    ],
+)
+def test_the_direct_loop_refuses_a_chain_it_cannot_step_whole(
+    ros_context: Any, overrides: dict[str, str]
+) -> None:
+    from smm_direct_loop.host import compose
+
+    with pytest.raises(ValueError, match="chain and reference_source must be 'internal'"):
+        compose(ros_context, overrides, {})
