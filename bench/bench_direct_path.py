@@ -2,8 +2,9 @@
 
 Figures, not pass/fail (``make bench``). The emulator's board (``smm_bench_emulator.board.BoardCore``) sits
 behind an in-memory link that the bridge opens at configure (a new feedback frame each time the reader asks:
-no sockets, no clock to wait for). ``DirectControllerNode`` and ``DirectBridgeNode`` are configured and
-activated through their lifecycle; ``DirectBridgeNode.statistics`` (receive -> send of each answered frame,
+no sockets, no clock to wait for). ``controller_node`` and ``hw_bridge_node``, composed as the direct loop
+composes them (``smm_direct_loop.host.compose``), are configured and activated through their lifecycle; the
+bridge loop's ``statistics`` (receive -> send of each answered frame,
 the figure the direct loop reports on /diagnostics) gives p50 / p99 / max, with and without a subscriber on
 every topic, printed beside the time of a fixed pure-Python loop so that machines compare. A run the bridge
 ends (a fault) prints what it had. ``--profile``: a cProfile of the controller's part of a tick instead.
@@ -43,8 +44,10 @@ def run(observed: bool) -> dict[str, Any]:
     from rclpy.context import Context
     from sensor_msgs.msg import JointState
     from smm_bench_emulator.board import BoardConfig, BoardCore
-    from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode
-    from smm_hw_bridge.transport import LinkConfig, Transport
+    from smm_direct_loop.host import compose
+    from smm_hw_bridge.device import Device, Link
+    from smm_hw_bridge.frame_device import FrameDevice
+    from smm_hw_bridge.transport import Transport
     from std_msgs.msg import Float64MultiArray
 
     from smm_msgs_py import topics
@@ -77,22 +80,20 @@ def run(observed: bool) -> dict[str, Any]:
         def close(self) -> None:
             pass
 
-    def open_board(link: LinkConfig) -> Transport:
-        return Board()
+    def open_board(link: Link) -> Device:
+        device = FrameDevice("udp", Board)
+        device.open()
+        return device
 
-    # The one seam: the link the bridge opens at configure (a public function of its module, no member).
-    smm_hw_bridge.bridge_node.open_transport = open_board  # type: ignore[attr-defined]
+    # The one seam: the device the bridge opens at configure (a public function of its module, no member).
+    smm_hw_bridge.bridge_node.open_device = open_board  # type: ignore[attr-defined]
     context = Context()
     rclpy.init(context=context)
-    controller = DirectControllerNode(
-        context=context,
-        parameter_overrides={"chain": "internal", "reference_source": "internal", "reference.kind": "sine"},
-    )
     # A busy machine's pauses must not take the in-memory link down (the board waits for the host anyway).
-    bridge = DirectBridgeNode(
-        controller,
-        context=context,
-        parameter_overrides={"loop.spin_us": 0, "bridge.link_timeout_ns": 30_000_000_000},
+    controller, bridge = compose(
+        context,
+        {"chain": "internal", "reference_source": "internal", "reference.kind": "sine"},
+        {"loop.spin_us": 0, "bridge.link_timeout_ns": 30_000_000_000},
     )
     peer = rclpy.create_node("bench_peer", context=context)
     if observed:
@@ -112,7 +113,7 @@ def run(observed: bool) -> dict[str, Any]:
     try:
         bridge.trigger_configure()  # type: ignore[no-untyped-call]
         bridge.trigger_activate()  # type: ignore[no-untyped-call]
-        statistics = bridge.statistics
+        statistics = bridge.loop.statistics
         deadline = time.monotonic() + float(os.environ.get("SMM_BENCH_DIRECT_WAIT", "60"))
         while statistics.execution_us.count < WARM_UP and time.monotonic() < deadline:
             time.sleep(0.01)
@@ -156,7 +157,7 @@ def run(observed: bool) -> dict[str, Any]:
 
 
 def profile(frames: int) -> None:
-    """cProfile of the controller's part of a tick (``command_for``, ``publish_answer``, ``prepare``)."""
+    """cProfile of the controller's part of a tick (the answerer's ``answer``, ``published``, ``prepare``)."""
     import cProfile
     import math
     import pstats
@@ -165,16 +166,20 @@ def profile(frames: int) -> None:
     import rclpy
     from rclpy.context import Context
     from smm_controller.chain import make_chain
-    from smm_direct_loop.host import DirectControllerNode
+    from smm_controller.controller_node import ControllerNode
+    from smm_direct_loop.host import HostedController
+    from smm_hw_bridge.loop import ChangeBuffer
 
     from smm_dynamics import SMMParameters
 
     context = Context()
     rclpy.init(context=context)
-    controller = DirectControllerNode(
+    controller = ControllerNode(
+        changes=ChangeBuffer(),
         context=context,
         parameter_overrides={"chain": "internal", "reference_source": "internal", "reference.kind": "sine"},
     )
+    hosted = HostedController(controller)
     measurements = [
         (k * 1_000_000, (0.5 * math.sin(math.pi * k * 1e-3), 0.5 * math.sin(math.pi * k * 1e-3)), (0.0, 0.0))
         for k in range(1, frames + 1)
@@ -183,10 +188,10 @@ def profile(frames: int) -> None:
     command_ns: list[int] = []
     for stamp_ns, position, effort in measurements[:half]:  # unprofiled: the real cost of each part
         started = time.perf_counter_ns()
-        controller.command_for(stamp_ns, position, effort)
+        hosted.answer(stamp_ns, position, effort)
         command_ns.append(time.perf_counter_ns() - started)
-        controller.publish_answer()
-        controller.core.prepare()  # after the send, as the direct loop does
+        hosted.published()
+        hosted.prepare()  # after the send, as the direct loop does
     chain = make_chain("fpdeso", SMMParameters())
     chain_ns: list[int] = []
     rows = ((0.1, 0.1), (0.0, 0.0), (0.0, 0.0))
@@ -195,7 +200,7 @@ def profile(frames: int) -> None:
         chain.step_floats(position, effort, rows, 1e-3)
         chain_ns.append(time.perf_counter_ns() - started)
     print(
-        f"controller part before the send (command_for), p50 {np.percentile(command_ns, 50) / 1e3:.1f} us, "
+        f"controller part before the send (answer), p50 {np.percentile(command_ns, 50) / 1e3:.1f} us, "
         f"p99 {np.percentile(command_ns, 99) / 1e3:.1f} us; of which the chain's own step (ControlChain."
         f"step_floats alone) p50 {np.percentile(chain_ns, 50) / 1e3:.1f} us, "
         f"p99 {np.percentile(chain_ns, 99) / 1e3:.1f} us"
@@ -203,13 +208,13 @@ def profile(frames: int) -> None:
     profiler = cProfile.Profile()
     profiler.enable()
     for stamp_ns, position, effort in measurements[half:]:
-        controller.command_for(stamp_ns, position, effort)
-        controller.publish_answer()
-        controller.core.prepare()
+        hosted.answer(stamp_ns, position, effort)
+        hosted.published()
+        hosted.prepare()
     profiler.disable()
     controller.destroy_node()  # type: ignore[no-untyped-call]
     rclpy.shutdown(context=context)
-    print(f"cProfile of {frames - half} ticks' controller part (command_for, publish_answer, prepare):")
+    print(f"cProfile of {frames - half} ticks' controller part (answer, published, prepare):")
     pstats.Stats(profiler).sort_stats("tottime").print_stats(18)
 
 

@@ -7,7 +7,12 @@ stack's topics (everything recorded but ``/diagnostics``, whose values are wall-
 retransmission counted once, the wall-clock counter rows of ``*_internals`` left out). The offline
 closed loop (every law both trees know) is compared array by array, bit for bit. Exit 0 when all agree.
 
+``--plant hardware``: lockstep runs of the bridge and the emulator's board instead, both ``--loop`` values,
+on case 1, case 2 and case 2 with a scripted e-stop and re-arm (tools/compare_hardware.py): the topics as
+above, and every feedback and command frame on the link, in order, bit for bit.
+
     .venv/bin/python tools/compare_baseline.py [--commit 362816c] [--out out/baseline]
+    .venv/bin/python tools/compare_baseline.py --plant hardware --commit 053d24f --worktree ../i41-base
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from compare_hardware import INPUTS, LOOPS, compare_frames, hardware_run, private_netns
 from smm_bag.cdr import decode_float64_multi_array, decode_joint_state, stamp_of
 from smm_bag.reader import BagReader
 
@@ -64,12 +70,6 @@ def baseline_tree(commit: str, path: Path) -> Path:
         run(["git", "-C", str(HERE), "worktree", "add", "--detach", str(path), commit])
     run(["make", "-C", str(path), "setup"], stdout=subprocess.DEVNULL)
     return path
-
-
-def private_netns(command: list[str]) -> list[str]:
-    """``command`` in a fresh network namespace with only ``lo`` up (tests/netns_exec.py)."""
-    unshare = ["unshare", "--net"] + ([] if os.geteuid() == 0 else ["--map-root-user"])
-    return [*unshare, "--", sys.executable, str(HERE / "tests" / "netns_exec.py"), *command]
 
 
 def graph_run(tree: Path, out: Path, seed: int, domain_id: int) -> Path:
@@ -185,6 +185,39 @@ def compare_offline(before: Path, after: Path) -> list[str]:
     return problems
 
 
+def compare_hardware_runs(args: argparse.Namespace, out: Path) -> int:
+    """Runs (unless ``--compare-only``) and compares the lockstep hardware inputs; exit 0 when all agree."""
+    loops = LOOPS if args.loop == "both" else (args.loop,)
+    names = [name for name in args.inputs.split(",") if name]
+    unknown = sorted(set(names) - set(INPUTS))
+    if unknown:
+        print(f"unknown inputs {unknown}: known {sorted(INPUTS)}", file=sys.stderr)
+        return 2
+    trees = {"before": (args.worktree or out / f"tree-{args.commit}").resolve(), "after": HERE}
+    if not args.compare_only:
+        baseline_tree(args.commit, trees["before"])
+    problems: list[str] = []
+    for name in names:
+        for loop in loops:
+            runs = {}
+            for side, tree in trees.items():
+                where = out / "hardware" / side
+                if args.compare_only:
+                    runs[side] = (where / f"{loop}-{name}" / "bag", where / f"{loop}-{name}" / "frames.json")
+                else:
+                    runs[side] = hardware_run(
+                        tree, where, loop=loop, name=name, seed=args.seed, domain_id=args.domain_id
+                    )
+            print(f"hardware lockstep, --loop {loop}, {name}, seed {args.seed}: {args.commit} vs this tree")
+            found = compare_bags(runs["before"][0], runs["after"][0])
+            found += compare_frames(runs["before"][1], runs["after"][1])
+            problems += [f"{loop} {name}: {problem}" for problem in found]
+    for problem in problems:
+        print(f"DIFFERENT: {problem}")
+    print("hardware comparison:", "EQUAL" if not problems else f"{len(problems)} differences")
+    return 0 if not problems else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     """Builds, runs and compares; exit 0 when both runs agree, 1 otherwise."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -194,8 +227,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--domain-id", type=int, default=77, help="ROS_DOMAIN_ID of both runs")
     parser.add_argument("--compare-only", action="store_true", help="compare the runs already in OUT")
+    parser.add_argument("--plant", choices=("sim", "hardware"), default="sim", help="the graph compared")
+    parser.add_argument(
+        "--loop", choices=(*LOOPS, "both"), default="both", help="hardware: the bridge's loop"
+    )
+    parser.add_argument(
+        "--inputs", default=",".join(INPUTS), help=f"hardware: comma-separated of {', '.join(INPUTS)}"
+    )
     args = parser.parse_args(argv)
     out: Path = args.out.resolve()
+    if args.plant == "hardware":
+        return compare_hardware_runs(args, out)
     results = {name: (out / name / "bag", out / name / "offline.npz") for name in ("before", "after")}
     if not args.compare_only:
         tree = baseline_tree(args.commit, (args.worktree or out / f"tree-{args.commit}").resolve())

@@ -142,3 +142,29 @@ def test_topic_source_declares_no_reference_parameters(ros_context: Any) -> None
         assert not node.has_parameter("reference.kind")
     finally:
         node.destroy_node()
+
+
+def test_the_fused_chain_admits_through_the_core_as_the_direct_loop_does(
+    make_rig: Any, ros_context: Any
+) -> None:
+    """One admission path: each joint_states goes through ControllerCore.measurement, whose answer is sent."""
+    node = sampling_node(ros_context)
+    rig = make_rig(node)
+    torques = rig.record(topics.TORQUE_COMMAND)
+    seen: list[int] = []
+    measure = node.core.measurement
+
+    def recorded(topic: str, stamp_ns: int, *rest: Any) -> Any:
+        seen.append(stamp_ns)
+        return measure(topic, stamp_ns, *rest)
+
+    node.core.measurement = recorded  # type: ignore[method-assign]
+    for k in range(3):
+        rig.publish(topics.JOINT_STATES, measurement(stamp(k), POSITIONS[k], EFFORTS[k]))
+        rig.wait_for(topics.TORQUE_COMMAND, k + 1)
+    rig.publish(topics.JOINT_STATES, measurement(stamp(1), POSITIONS[1], EFFORTS[1]))  # an old stamp: refused
+    rig.publish(topics.JOINT_STATES, measurement(stamp(3), POSITIONS[3], EFFORTS[3]))
+    rig.wait_for(topics.TORQUE_COMMAND, 4)
+    assert seen == [stamp(0), stamp(1), stamp(2), stamp(1), stamp(3)]
+    assert [msg_to_torque(msg).stamp_ns for msg in torques] == [stamp(0), stamp(1), stamp(2), stamp(3)]
+    assert node.counters.dropped_stale == 1

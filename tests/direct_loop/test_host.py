@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 import pytest
 from hw_bridge.test_bridge_node import Bench, assert_safe_now
+from smm_hw_bridge.protocol import Reason
 
 pytestmark = pytest.mark.ros
 
@@ -65,18 +67,21 @@ def test_parameters_change_between_ticks_only_and_are_validated(direct: Bench) -
     from rclpy.parameter import Parameter
 
     direct.start()
+    core = direct.controller.core
+    before = core.gains["pid"].kp
     results: list[Any] = []
-    with direct.controller.tick_lock:  # as a tick holds it
+    with direct.node.loop.lock:  # as a tick holds it
         setter = threading.Thread(
             target=lambda: results.extend(
                 direct.controller.set_parameters([Parameter("pid.kp", value=[50.0, 50.0])])
             )
         )
         setter.start()
-        setter.join(0.3)
-        assert setter.is_alive() and not results  # waits for the tick to end
-    setter.join(5.0)
-    assert results and results[0].successful
+        setter.join(5.0)
+        assert results and results[0].successful  # taken and handed over ...
+        time.sleep(0.3)
+        assert core.gains["pid"].kp == before != (50.0, 50.0)  # ... but not applied within a tick
+    assert direct.spin_until(lambda: core.gains["pid"].kp == (50.0, 50.0), 5.0)  # at the next tick's start
     assert direct.controller.law_parameters["pid"].config.kp == (50.0, 50.0)
     refused = direct.controller.set_parameters([Parameter("pid.kp", value=[-1.0, 50.0])])[0]
     assert not refused.successful and "kp" in refused.reason
@@ -119,7 +124,7 @@ def test_the_topics_loop_topics_are_published_with_the_measurement_stamps(direct
 
 def test_periodicity_and_execution_time_are_on_diagnostics(direct: Bench) -> None:
     direct.start()
-    assert direct.spin_until(lambda: direct.node.statistics.execution_us.count > 100, 10.0)
+    assert direct.spin_until(lambda: direct.node.loop.statistics.execution_us.count > 100, 10.0)
     assert direct.spin_until(lambda: len(direct.bridge_statuses()) >= 2, 5.0)
     values = {kv.key: kv.value for kv in direct.bridge_statuses()[-1].values}
     for figure in ("periodicity", "execution_time"):
@@ -135,7 +140,9 @@ def test_a_chain_that_stops_answering_is_caught_by_the_host_watchdog(direct: Ben
     trips = direct.node.core.watchdog_trips
     from smm_controller.core import Refusal
 
-    direct.controller.command_for = lambda stamp_ns, *_measurement: Refusal(stamp_ns, "dropped_stale", "", "")
+    direct.controller.core.measurement = lambda _topic, stamp_ns, *_measurement: Refusal(
+        stamp_ns, "dropped_stale", "", ""
+    )
     assert_safe_now(direct)
     assert direct.node.core.watchdog_trips > trips
     assert direct.node.lifecycle_state == "active"  # no error transition: the loop runs on, with safe output
@@ -156,59 +163,51 @@ def test_each_answered_measurement_gets_one_command_and_torque_command_is_only_a
 
     def push_outside() -> bool:
         outside.publish(torque_to_msg(np.zeros(2), core.stamp_ns))
-        return direct.node.statistics.execution_us.count > 300
+        return direct.node.loop.statistics.execution_us.count > 300
 
     assert direct.spin_until(push_outside, 10.0)
-    with direct.node._lock:  # between two ticks
-        answered = direct.node.statistics.execution_us.count
+    with direct.node.loop.lock:  # between two ticks
+        answered = direct.node.loop.statistics.execution_us.count
         assert direct.node.counters.commands == answered
     assert direct.node.counters.bad_commands == 0 and not direct.node.counters.refused
 
 
 class _Recorded:
-    """A transport that notes each receive's timeout and gives a frame on the calls listed."""
+    """A device that notes each read's timeout and gives a reading on the calls listed."""
 
     def __init__(self, frames_on: set[int]) -> None:
         self.timeouts: list[float] = []
         self.frames_on = frames_on
 
-    def receive(self, timeout_s: float = 0.0) -> bytes | None:
+    def read(self, timeout_s: float = 0.0) -> Any:
         self.timeouts.append(timeout_s)
-        return b"frame" if len(self.timeouts) in self.frames_on else None
+        return Reason.CRC if len(self.timeouts) in self.frames_on else None
 
 
 @pytest.mark.parametrize("spin_us", [0, 150])
-def test_the_reader_sleeps_until_spin_us_before_the_next_frame_is_due_then_polls(
-    ros_context: Any, spin_us: int
-) -> None:
+def test_the_reader_sleeps_until_spin_us_before_the_next_frame_is_due_then_polls(spin_us: int) -> None:
     """spin_us = 0: one blocking wait per frame; else a wait ending spin_us before the frame is due, polls."""
-    from hw_bridge.test_bridge_node import DIRECT_CONTROLLER
-    from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode
-    from smm_hw_bridge.bridge_node import LINK_CHECK_S
-    from smm_hw_bridge.core import BridgeCore
+    from smm_hw_bridge.bridge_health import BridgeCounters
+    from smm_hw_bridge.core import BridgeConfig, BridgeCore
+    from smm_hw_bridge.loop import BridgeLoop
+    from smm_hw_bridge.reading import LINK_CHECK_S, LoopSettings
 
-    controller = DirectControllerNode(context=ros_context, parameter_overrides=DIRECT_CONTROLLER)
-    node = DirectBridgeNode(controller, context=ros_context, parameter_overrides={"loop.spin_us": spin_us})
-    try:
-        node._core = BridgeCore(node._bridge.config, host_session=1)  # its period: 1 ms
-        transport = _Recorded(frames_on={1, 2} if spin_us == 0 else {1, 5})
-        assert node.receive_next(transport) == b"frame"  # no frame yet: the plain wait, a link check's period
-        assert transport.timeouts == [LINK_CHECK_S]
-        assert node.receive_next(transport) == b"frame"
-        if spin_us == 0:
-            assert transport.timeouts == [LINK_CHECK_S, LINK_CHECK_S]
-        else:
-            sleep, *polls = transport.timeouts[1:]
-            assert 0.0 < sleep <= (1_000_000 - spin_us * 1000) / 1e9  # wakes spin_us before it is due
-            assert polls == [0.0, 0.0, 0.0]  # then polls, no sleep, until it comes
-    finally:
-        node._core = None
-        node.destroy_node()
-        controller.destroy_node()
+    loop = BridgeLoop(BridgeCounters(), settings=LoopSettings(spin_us=spin_us))
+    device = _Recorded(frames_on={1, 2} if spin_us == 0 else {1, 5})
+    loop.core, loop.device = BridgeCore(BridgeConfig(), host_session=1), device  # type: ignore[assignment]
+    assert loop.read() is Reason.CRC  # no frame yet: the plain wait, a link check's period
+    assert device.timeouts == [LINK_CHECK_S]
+    assert loop.read() is Reason.CRC
+    if spin_us == 0:
+        assert device.timeouts == [LINK_CHECK_S, LINK_CHECK_S]
+    else:
+        sleep, *polls = device.timeouts[1:]
+        assert 0.0 < sleep <= (1_000_000 - spin_us * 1000) / 1e9  # wakes spin_us before it is due
+        assert polls == [0.0, 0.0, 0.0]  # then polls, no sleep, until it comes
 
 
 def test_spin_us_is_validated() -> None:
-    from smm_direct_loop.host import LoopSettings
+    from smm_hw_bridge.reading import LoopSettings
 
     assert LoopSettings().spin_us > 0  # the direct loop polls by default (docs/LAUNCH.md)
     for bad in (-1, 100_001, 1.5, True):
@@ -231,20 +230,20 @@ def test_the_work_done_ahead_after_each_send_changes_no_answer(direct: Bench) ->
     controller = direct.controller
     controller.set_parameters([Parameter("algorithm", value="fpdeso")])  # the law with the FLESO
     calls: list[tuple[Any, ...]] = []
-    step, forget = controller.command_for, controller.forget_rehearsal
+    step, forget = controller.core.measurement, direct.hosted.forget
 
-    def recorded_step(stamp_ns: int, position: Any, effort: Any) -> Any:
-        calls.append((stamp_ns, position, effort, step(stamp_ns, position, effort)))
+    def recorded_step(topic: str, stamp_ns: int, position: Any, effort: Any, clock_ns: int) -> Any:
+        calls.append((stamp_ns, position, effort, step(topic, stamp_ns, position, effort, clock_ns)))
         return calls[-1][-1]
 
     def recorded_forget() -> None:
         calls.append(())
         forget()
 
-    controller.command_for, controller.forget_rehearsal = recorded_step, recorded_forget
+    controller.core.measurement, direct.hosted.forget = recorded_step, recorded_forget
     direct.start()
     assert direct.spin_until(lambda: len(calls) > 400, 10.0)
-    with direct.node._lock:  # between two ticks
+    with direct.node.loop.lock:  # between two ticks
         answers = list(calls)
     hosted = controller.core
     assert hosted.chain is not None and hosted.chain.fleso is not None and hosted.plausibility is not None
@@ -271,3 +270,19 @@ def test_the_work_done_ahead_after_each_send_changes_no_answer(direct: Bench) ->
             continue
         stamp_ns, position, effort, answer = call
         assert plain.measurement(topics.JOINT_STATES, stamp_ns, position, effort, 0) == answer
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"chain": "external", "reference_source": "internal"},
+        {"chain": "internal", "reference_source": "topic"},
+    ],
+)
+def test_the_direct_loop_refuses_a_chain_it_cannot_step_whole(
+    ros_context: Any, overrides: dict[str, str]
+) -> None:
+    from smm_direct_loop.host import compose
+
+    with pytest.raises(ValueError, match="chain and reference_source must be 'internal'"):
+        compose(ros_context, overrides, {})

@@ -97,10 +97,10 @@ class Bench:
         }
         self.controller: Any = None
         if loop == "direct":
-            from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode
+            from smm_direct_loop.host import compose
 
-            self.controller = DirectControllerNode(context=context, parameter_overrides=DIRECT_CONTROLLER)
-            self.node: Any = DirectBridgeNode(self.controller, context=context, parameter_overrides=overrides)
+            self.controller, self.node = compose(context, DIRECT_CONTROLLER, overrides)
+            self.hosted: Any = self.node.loop.answerer
         else:
             self.node = HwBridgeNode(context=context, parameter_overrides=overrides)
         self.peer = rclpy.create_node("test_controller", context=context)
@@ -154,7 +154,7 @@ class Bench:
         self.emulator.running = False
         self.thread.join(5.0)
         self.emulator.close()
-        if self.node.transport is not None:
+        if self.node.device is not None:
             self.node.trigger_shutdown()
         self.node.destroy_node()
         self.peer.destroy_node()
@@ -207,7 +207,7 @@ def test_configure_without_a_board_fails_and_stays_unconfigured(ros_context: Any
     )
     try:
         assert node.trigger_configure() == TransitionCallbackReturn.FAILURE
-        assert node.lifecycle_state == "unconfigured" and node.transport is None
+        assert node.lifecycle_state == "unconfigured" and node.device is None
     finally:
         node.destroy_node()
 
@@ -294,7 +294,7 @@ def test_no_executor_timer_wakes_faster_than_10_hz_while_the_loop_runs(ros_conte
         assert bench.node.trigger_configure() == TransitionCallbackReturn.SUCCESS
         assert bench.node.trigger_activate() == TransitionCallbackReturn.SUCCESS
         assert bench.spin_until(bench.live)
-        nodes = [bench.node, *([bench.node.controller] if loop == "direct" else [])]
+        nodes = [bench.node, *([bench.controller] if loop == "direct" else [])]
         periods = [t.timer_period_ns for node in nodes for t in node.timers if not t.is_canceled()]
         assert periods and min(periods) >= 100_000_000, periods
     finally:
@@ -316,9 +316,9 @@ def test_take_command_takes_a_tuple_of_two_floats_and_the_board_applies_its_code
         taken: list[bool] = []
 
         def take() -> bool:
-            with node._lock:
+            with node.loop.lock:
                 if core.last_feedback.host_session == core.host_session and core.stamp_ns > 0:
-                    taken.append(node.take_command(core, TORQUE, core.stamp_ns, time.monotonic_ns()))
+                    taken.append(node.loop.take_command(TORQUE, core.stamp_ns, time.monotonic_ns()))
                 return bool(taken) and taken[-1] and core.output_live
 
         assert bench.spin_until(take), f"never taken in {len(taken)} tries, refused: {node.counters.refused}"
@@ -453,17 +453,17 @@ def test_an_exception_in_frame_handling_is_a_host_fault_and_the_reader_survives(
         bench.start()
         node, core = bench.node, bench.node.core
         reader = node._reader
-        handle = core.on_datagram
+        handle = core.on_feedback
         calls: list[int] = []
 
-        def raise_once(data: bytes, rx_ns: int) -> Any:
+        def raise_once(reading: Any, rx_ns: int) -> Any:
             calls.append(rx_ns)
             if len(calls) == 1:
                 raise RuntimeError("injected bug in frame handling")
-            return handle(data, rx_ns)
+            return handle(reading, rx_ns)
 
         safe_before = node.counters.safe_frames_sent
-        monkeypatch.setattr(core, "on_datagram", raise_once)
+        monkeypatch.setattr(core, "on_feedback", raise_once)
         # nothing spins: the reader thread alone must send the safe frame and keep reading
         deadline = time.monotonic() + 5.0
         while len(calls) < 20 and time.monotonic() < deadline:
@@ -573,12 +573,12 @@ def test_an_exception_while_configure_waits_fails_it_and_frees_the_socket(
     try:
         with monkeypatch.context() as patch:
 
-            def broken(self: BridgeCore, data: bytes, rx_ns: int) -> None:
+            def broken(self: BridgeCore, reading: Any, rx_ns: int) -> None:
                 raise RuntimeError("injected bug in frame handling")
 
-            patch.setattr(BridgeCore, "on_datagram", broken)
+            patch.setattr(BridgeCore, "on_feedback", broken)
             assert bench.configure() == TransitionCallbackReturn.FAILURE
-        assert bench.node.lifecycle_state == "unconfigured" and bench.node.transport is None
+        assert bench.node.lifecycle_state == "unconfigured" and bench.node.device is None
         assert bench.configure() == TransitionCallbackReturn.SUCCESS  # its port was closed: bound again
     finally:
         bench.close()

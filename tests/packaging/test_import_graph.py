@@ -271,6 +271,10 @@ PURE_CORES = (
     "smm_node_runtime.stamp_gate",
     "smm_sim.config",
     "smm_sim.core",
+    "smm_hw_bridge.device",
+    "smm_hw_bridge.frame_device",
+    "smm_hw_bridge.loop",
+    "smm_hw_bridge.reading",
 )
 """Logic the nodes wrap (times passed in): the node modules import it, it imports no ``rclpy``."""
 
@@ -280,6 +284,21 @@ def test_pure_cores_reach_no_rclpy(name: str) -> None:
     graph = ImportGraph(read_tree(SRC))
     assert name in graph.modules
     assert not graph.reaches_ros(name), f"{name} imports rclpy, directly or through our modules"
+
+
+def test_the_direct_loop_composes_the_bridge_loop_and_derives_from_no_node() -> None:
+    """The bridge's loop is imported by the bridge node and the direct loop's host; no node is subclassed."""
+    graph = ImportGraph(read_tree(SRC))
+    for user in ("smm_hw_bridge.bridge_node", "smm_direct_loop.host"):
+        assert "smm_hw_bridge.loop" in graph.modules[user].imports, user
+    nodes = {"HwBridgeNode", "ControllerNode"}
+    derived = {
+        f"{name}.{cls}": bases
+        for name, module in graph.modules.items()
+        if module.package == "smm_direct_loop"
+        for cls, bases in module.classes.items()
+    }
+    assert derived and not any(bases & (nodes | graph.node_classes) for bases in derived.values()), derived
 
 
 # ------------------------------------------------------------------------- each rule fires on a violation

@@ -130,27 +130,35 @@ def bench(args: argparse.Namespace) -> BoardConfig:
     return dataclasses.replace(base, plant=dataclasses.replace(base.plant, **plant), **board)
 
 
+def config_from_args(args: argparse.Namespace) -> EmulatorConfig:
+    """The emulator's configuration from its parsed options (the bench: :func:`bench`).
+
+    Raises:
+        BenchFileError: The bench file cannot be read or describes no valid bench.
+        ValueError: An invalid value (the message names it).
+    """
+    board = bench(args)
+    return EmulatorConfig(
+        board=board,
+        bind=args.bind,
+        host=args.host,
+        control=args.control,
+        mode=args.mode,
+        lockstep_trigger=args.lockstep_trigger,
+        duration_ticks=round(args.duration * 1e9 / board.plant.period_ns),
+        seed=board.seed if args.seed is None else args.seed,
+        verdict=VerdictConfig(late_limit=args.late_limit / 100, settle_s=args.settle),
+        start_timeout_ns=round(args.start_timeout * 1e9),
+        duration_from_live=args.duration_from == "live",
+        min_idle_ns=args.min_idle_us * 1000,
+        control_divider=args.control_divider,
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Builds and runs the emulator; returns the exit code (3: the run did not control, why on stderr)."""
     try:
-        board = bench(args)
-        plant = board.plant
-        config = EmulatorConfig(
-            board=board,
-            bind=args.bind,
-            host=args.host,
-            control=args.control,
-            mode=args.mode,
-            lockstep_trigger=args.lockstep_trigger,
-            duration_ticks=round(args.duration * 1e9 / plant.period_ns),
-            seed=board.seed if args.seed is None else args.seed,
-            verdict=VerdictConfig(late_limit=args.late_limit / 100, settle_s=args.settle),
-            start_timeout_ns=round(args.start_timeout * 1e9),
-            duration_from_live=args.duration_from == "live",
-            min_idle_ns=args.min_idle_us * 1000,
-            control_divider=args.control_divider,
-        )
-        emulator = Emulator(config, record=bool(args.record))
+        emulator = Emulator(config_from_args(args), record=bool(args.record))
     except (ValueError, OSError) as error:
         print(f"smm_bench_emulator: {error}", file=sys.stderr)
         return 2

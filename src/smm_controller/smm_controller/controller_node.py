@@ -12,7 +12,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Final, Unpack
+from typing import Any, Final, Protocol, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -34,7 +34,7 @@ from smm_schema.ranges import at_least, check_bounds
 from std_msgs.msg import Float64MultiArray
 
 from smm_controller.chain import ControlChain, JointController
-from smm_controller.core import ControllerCore, CoreSettings
+from smm_controller.core import ControllerCore, CoreSettings, Refusal, StepResult
 from smm_controller.fleso import FLESOConfig
 from smm_controller.fleso_node import FLESO_PREFIX, MODEL_PREFIX
 from smm_controller.laws import law_names, law_table
@@ -46,6 +46,7 @@ from smm_controller.td_node import MEASUREMENT_PREFIX, TD_PREFIX, check_filter_f
 from smm_dynamics import SMMParameters
 from smm_msgs_py import topics
 from smm_node_runtime import (
+    Admission,
     MeasurementDrivenNode,
     NodeOptions,
     Output,
@@ -142,10 +143,19 @@ class ReferenceSource:
             )
 
 
+class ChangeSink(Protocol):
+    """Where a loop that steps the core itself takes the core's parameter changes (applied between ticks)."""
+
+    def put(self, change: Callable[[], None]) -> None:
+        """Hands over one validated change."""
+
+
 class ControllerNode(MeasurementDrivenNode):
     """Controller node: ROS glue around :class:`~smm_controller.core.ControllerCore`.
 
     Args:
+        changes: A loop that steps :attr:`core` itself (the direct loop): the core's parameter changes
+            are handed to it, and the node takes no ``joint_states``. None: changes apply at once.
         **options: The node options every SMM node takes (:class:`~smm_node_runtime.NodeOptions`).
 
     Raises:
@@ -153,11 +163,10 @@ class ControllerNode(MeasurementDrivenNode):
     """
 
     NODE_NAME = NODE_NAME
-    SUBSCRIBES_MEASUREMENT: ClassVar[bool] = True
-    """False for a host that hands the internal chain its measurements itself (the direct loop)."""
 
-    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+    def __init__(self, changes: ChangeSink | None = None, **options: Unpack[NodeOptions]) -> None:
         super().__init__(**options)
+        self._changes = changes
         self.last_input_s: float | None = None
         """Monotonic time of the last input (s), None before any (an ``algorithm`` switch waits for quiet)."""
         self.placement = ConfigParameters(self, "", ChainPlacement(), read_only=True)
@@ -241,7 +250,7 @@ class ControllerNode(MeasurementDrivenNode):
                 subscription_qos_for_topic(topics.REFERENCE),
             )
         if self.internal_chain:
-            if not self.SUBSCRIBES_MEASUREMENT:
+            if changes is not None:  # the loop hands the core its measurements
                 return
             self.create_subscription(
                 JointState,
@@ -309,28 +318,81 @@ class ControllerNode(MeasurementDrivenNode):
         if reason is not None:
             raise ValueError(reason)
 
+    def _apply(self, change: Callable[[], None]) -> None:
+        """A change of the core: at once, or handed to the loop that steps it (between its ticks)."""
+        if self._changes is None:
+            change()
+        else:
+            self._changes.put(change)
+
     def _on_selection(self, selection: ControllerSelection) -> None:
-        if selection.algorithm != self.core.algorithm:
-            self.core.switch(selection.algorithm)
-            self.sync.set_inputs(self._inputs())
+        def switch() -> None:
+            if selection.algorithm != self.core.algorithm:
+                self.core.switch(selection.algorithm)
+                self.sync.set_inputs(self._inputs())
+
+        self._apply(switch)
 
     def _on_gains(self, name: str) -> Callable[[Any], None]:
         # In place, so that the PID keeps its integrator (a rebuild would be a torque step under load).
         # A law that is not running takes its current gains when a switch builds it.
-        return lambda config: self.core.set_gains(name, config)
+        return lambda config: self._apply(lambda: self.core.set_gains(name, config))
 
     def _to_core(self, setter: str) -> Callable[[Any], None]:
         """Hands a parameter group's new config to the core's ``setter`` (the core is built after them)."""
 
         def forward(config: Any) -> None:
-            getattr(self.core, setter)(config)
+            self._apply(lambda: getattr(self.core, setter)(config))
 
         return forward
 
     # --------------------------------------------------------------------------------------- inputs
 
     def _on_measurement(self, msg: JointState) -> None:
-        self._on_input(topics.JOINT_STATES, msg, joint_state_to_sample)
+        """The fused chain's input: one admission path, :meth:`ControllerCore.measurement`.
+
+        As in the direct loop; with ``reference_source = topic`` matched by stamp with it (:attr:`sync`).
+        """
+        if self.reference is None:
+            self._on_input(topics.JOINT_STATES, msg, joint_state_to_sample)
+            return
+        self.last_input_s = time.monotonic()
+        try:
+            sample = joint_state_to_sample(msg)
+        except InterfaceError as error:
+            self.reject(topics.JOINT_STATES, error)
+            return
+        started = time.perf_counter()
+        position, effort = sample.position, sample.effort
+        result = self.core.measurement(
+            topics.JOINT_STATES,
+            sample.stamp_ns,
+            (float(position[0]), float(position[1])),
+            None if effort is None else (float(effort[0]), float(effort[1])),
+            self.get_clock().now().nanoseconds,
+        )
+        if time.perf_counter() - started > self.control_period:
+            self.counters.deadline_misses += 1
+        self.publish_result(result)
+
+    def publish_result(self, result: StepResult) -> None:
+        """Publishes what answers a measurement stepped by :meth:`ControllerCore.measurement`.
+
+        Warnings, ``torque_command``, then ``controller_internals`` and ``reference`` while someone
+        subscribes (a recorder, a plot); a re-sent stamp gets its torque again, nothing else.
+        """
+        if isinstance(result, Refusal):
+            if result.counter != "duplicates_answered":
+                self.warn_refused(result.topic, result.counter, result.message)
+            return
+        if result.verdict.admission is Admission.RESYNC:
+            self.report(topics.JOINT_STATES, result.verdict)
+            self.diagnostics.check()
+        self.torque_publisher.publish(torque_to_msg(np.array(result.torque), result.stamp_ns))
+        if result.duplicate or not self.diagnostics_observed():
+            return
+        for publisher, message in self.diagnostics_of(result.stamp_ns):
+            publisher.publish(message)
 
     def _on_filtered(self, msg: JointState) -> None:
         self._on_input(

@@ -321,7 +321,7 @@ class ControllerCore:
         topic: str,
         stamp_ns: int,
         position: tuple[float, float],
-        effort: tuple[float, float],
+        effort: tuple[float, float] | None,
         clock_ns: int,
     ) -> StepResult:
         """Everything for one raw measurement with the sampled reference: admission, chain, limits.
@@ -330,7 +330,7 @@ class ControllerCore:
             topic: Where it came from (for the counters' messages).
             stamp_ns: Its stamp (ns).
             position: Measured position (rad), finite.
-            effort: Torque applied during the last interval (N m), finite.
+            effort: Torque applied during the last interval (N m), finite; None: the last command.
             clock_ns: The node's clock (ns), for the stamp policy's future check.
 
         Returns:

@@ -8,9 +8,10 @@ from dataclasses import dataclass, field
 from smm_node_runtime.health import Health, Level
 
 from smm_hw_bridge.core import BridgeCore, BridgeState
+from smm_hw_bridge.loop_statistics import LoopStatistics, RunningFigures
 from smm_hw_bridge.protocol import Reason
 
-__all__ = ["BridgeCounters", "bridge_health"]
+__all__ = ["BridgeCounters", "bridge_health", "with_loop_figures"]
 
 
 @dataclass
@@ -86,3 +87,11 @@ def bridge_health(
     if state == BridgeState.ESTOP:
         return Health(Level.WARN, "e-stop latched: re-arm to continue", values)
     return Health(Level.OK, f"{state.value}, link up", values)
+
+
+def with_loop_figures(health: Health, statistics: LoopStatistics, publish_us: RunningFigures) -> Health:
+    """``health`` plus the direct loop's periodicity and execution time (ros2_control's figures, us)."""
+    values = {**health.values, **statistics.values()}
+    values["publish_time.mean_us"] = f"{publish_us.mean:.1f}"
+    values["publish_time.max_us"] = f"{publish_us.maximum:.1f}"
+    return Health(health.level, health.message, values)

@@ -1,7 +1,8 @@
 """The bridge's logic without ROS or sockets: sessions, arming, watchdog, stale refusal, soft limits, e-stop.
 
-Bytes in (:meth:`BridgeCore.on_datagram`), torque commands in (:meth:`BridgeCore.on_command`), command
-frames out (:meth:`BridgeCore.next_frame`); times are integer ns passed in. The states and their
+Device readings in (:meth:`BridgeCore.on_feedback`; bytes: :meth:`BridgeCore.on_datagram`), torque
+commands in (:meth:`BridgeCore.on_command`), command frames out (:meth:`BridgeCore.next_frame`); times are
+integer ns passed in. The states and their
 transitions are drawn in docs/HW_PROTOCOL.md ("Host state machine").
 """
 
@@ -257,13 +258,20 @@ class BridgeCore:
 
     def on_datagram(self, data: bytes, rx_ns: int) -> FeedbackFrame | None:
         """Parses, checks and uses one received frame; returns it if admitted, None if dropped (counted)."""
-        self.last_rejection = None
         try:
             frame = decode_feedback(data)
         except ProtocolError as error:
-            self._admission.count(error.reason)
-            self.last_rejection = error.reason
+            return self.on_feedback(error.reason, rx_ns)
+        return self.on_feedback(frame, rx_ns)
+
+    def on_feedback(self, reading: FeedbackFrame | Reason, rx_ns: int) -> FeedbackFrame | None:
+        """Checks and uses a device's reading (feedback, or why it was refused); the feedback if admitted."""
+        if isinstance(reading, Reason):
+            self._admission.count(reading)
+            self.last_rejection = reading
             return None
+        frame = reading
+        self.last_rejection = None
         # counts wider than the configured counters: malformed (a u32 on the wire), dropped before any use
         limit = self._count_limit
         if frame.counts[0] >= limit or frame.counts[1] >= limit:

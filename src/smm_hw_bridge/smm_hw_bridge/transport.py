@@ -1,6 +1,7 @@
 """Frame transports behind one interface: UDP datagrams and a COBS-framed serial line. No ROS.
 
-``LinkConfig`` (the bridge's ``link.*``) picks one and ``open_transport`` opens it. A transport moves whole
+``LinkConfig`` (the bridge's ``link.*``) names the device (:mod:`smm_hw_bridge.device`); the frame
+protocol's devices (:mod:`smm_hw_bridge.frame_device`) open one of these. A transport moves whole
 frames (bytes) and knows nothing of their content; :mod:`smm_hw_bridge.protocol` parses them. Both count
 what they drop before the parser sees it (foreign source, broken framing).
 """
@@ -16,9 +17,11 @@ import sys
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Final, Literal
+from typing import Any, Final
 
 from smm_schema.ranges import bounds, check_bounds
+
+from smm_hw_bridge.device import DeviceName, device_names
 
 __all__ = [
     "MAX_FRAME",
@@ -29,7 +32,6 @@ __all__ = [
     "UdpTransport",
     "cobs_decode",
     "cobs_encode",
-    "open_transport",
 ]
 
 MAX_FRAME: Final[int] = 512
@@ -320,7 +322,8 @@ class LinkConfig:
     """How the bridge reaches the board (read at ``configure``).
 
     Attributes:
-        transport: "udp" or "serial".
+        transport: The device, a row of ``smm_hw_bridge.device.DEVICES``: "udp" or "serial" (the frame
+            protocol over UDP or a serial line).
         bind_address: UDP: IPv4 address the bridge binds (default loopback).
         bind_port: UDP: port the bridge binds (0 = any free one).
         board_address: UDP: the board's IPv4 address; frames from anywhere else are dropped.
@@ -330,7 +333,7 @@ class LinkConfig:
         configure_timeout: Time ``configure`` waits for a valid feedback frame (s).
     """
 
-    transport: Literal["udp", "serial"] = "udp"
+    transport: DeviceName = "udp"
     bind_address: str = "127.0.0.1"
     bind_port: int = field(default=50100, metadata=bounds(0, 65535))
     board_address: str = "127.0.0.1"
@@ -340,8 +343,8 @@ class LinkConfig:
     configure_timeout: float = field(default=2.0, metadata=bounds(0.001, 600.0))
 
     def __post_init__(self) -> None:
-        if self.transport not in ("udp", "serial"):
-            raise ValueError(f"transport must be 'udp' or 'serial', got {self.transport!r}")
+        if self.transport not in device_names():
+            raise ValueError(f"transport must be one of {device_names()}, got {self.transport!r}")
         for name in ("bind_address", "board_address"):
             try:
                 ipaddress.IPv4Address(getattr(self, name))
@@ -350,14 +353,3 @@ class LinkConfig:
         check_bounds(self)
         if self.transport == "serial" and not self.serial_port:
             raise ValueError("serial_port must name a device when transport is 'serial'")
-
-
-def open_transport(link: LinkConfig) -> Transport:
-    """The transport ``link`` names, open.
-
-    Raises:
-        TransportError: The socket cannot bind or the serial port cannot open.
-    """
-    if link.transport == "udp":
-        return UdpTransport((link.bind_address, link.bind_port), (link.board_address, link.board_port))
-    return SerialTransport(link.serial_port, link.baudrate)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
-from smm_direct_loop.statistics import LoopStatistics, RunningFigures
+from smm_hw_bridge.loop_statistics import LoopStatistics, RunningFigures
 
 
 @given(st.lists(st.floats(-1e6, 1e6), min_size=1, max_size=200))
