@@ -39,7 +39,7 @@ from smm_bringup.launcher import (
 )
 from smm_bringup.launcher import build_parser as launcher_parser
 from smm_bringup.parameter_files import format_parameter_value, load_parameter_file
-from smm_bringup.realtime import fifo_allowed, fifo_preexec
+from smm_bringup.realtime import fifo, fifo_allowed
 from smm_bringup.supervisor import EXIT_CONFIGURATION_ERROR, EXIT_OK
 from smm_controller.laws import law_names
 
@@ -389,19 +389,19 @@ def test_children_run_under_sched_fifo_when_the_system_allows_it(
     probe = "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, end='')"
     spec = NodeSpec("p", "python", "probe", "", rt_priority=7)
     allowed = fifo_allowed(7)
-    priorities = supervisor._fifo_priorities([spec, NodeSpec("p", "python", "other", "")])
+    schedulings = supervisor._schedulings([spec, NodeSpec("p", "python", "other", "")])
     policy = subprocess.run(
         [sys.executable, "-c", probe],
-        preexec_fn=fifo_preexec(7) if priorities.get("probe") else None,  # as GraphProcesses starts it
+        preexec_fn=schedulings["probe"].preexec() if schedulings else None,  # as GraphProcesses starts it
         capture_output=True,
         text=True,
         check=True,
     ).stdout
     if allowed:
-        assert priorities == {"probe": 7}
+        assert schedulings == {"probe": fifo(7)}
         assert policy == f"{os.SCHED_FIFO} 7"
     else:  # e.g. a container without CAP_SYS_NICE: said once, then normal scheduling
-        assert priorities == {}
+        assert schedulings == {}
         assert "cannot use SCHED_FIFO" in capsys.readouterr().err
         assert policy == f"{os.SCHED_OTHER} 0"
     assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the probe left the launcher as it was
