@@ -177,8 +177,8 @@ def realtime_hil(
     from smm_bringup.realtime import (
         BOARD_PRIORITY_OFFSET,
         DEFAULT_HARDWARE_PRIORITY,
+        fifo,
         fifo_allowed,
-        fifo_preexec,
     )
     from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 
@@ -201,7 +201,7 @@ def realtime_hil(
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,
-            preexec_fn=fifo_preexec(priority) if priority and fifo_allowed(priority) else None,  # noqa: PLW1509
+            preexec_fn=fifo(priority).preexec() if priority and fifo_allowed(priority) else None,  # noqa: PLW1509
         )
         processes.append(process)
         return process

@@ -39,7 +39,7 @@ from smm_bringup.launcher import (
 )
 from smm_bringup.launcher import build_parser as launcher_parser
 from smm_bringup.parameter_files import format_parameter_value, load_parameter_file
-from smm_bringup.realtime import fifo_allowed, fifo_preexec
+from smm_bringup.realtime import fifo, fifo_allowed
 from smm_bringup.supervisor import EXIT_CONFIGURATION_ERROR, EXIT_OK
 from smm_controller.laws import law_names
 
@@ -212,9 +212,53 @@ def test_the_recorder_is_told_the_seed_the_simulator_runs_with(
     specs = build_graph(GraphOptions(record=str(tmp_path / "bag"), seed=seed, params_files=files))
     recorder = next(spec for spec in specs if spec.name == graph_nodes.RECORDER_NODE)
     assert dict(recorder.parameters)["seed"] == recorded
-    hardware = build_graph(GraphOptions(plant="hardware", record=str(tmp_path / "bag"), seed=seed))
-    recorder = next(spec for spec in hardware if spec.name == graph_nodes.RECORDER_NODE)
-    assert dict(recorder.parameters)["seed"] == (-1 if seed is None else seed)
+
+
+@pytest.mark.parametrize(
+    ("seed", "bench_text", "recorded"),
+    [
+        (None, None, 0),  # the emulator's default
+        (None, "plant: {seed: 7}\nseed: 7\n", 7),  # the bench file's
+        (3, "plant: {seed: 7}\nseed: 7\n", 3),  # --seed replaces both
+        (None, "plant: {seed: 7}\nseed: 8\n", -1),  # no single seed: unknown, not a wrong number
+        (None, "[not, a, bench]\n", -1),  # the emulator refuses it (exit 2): no run
+    ],
+)
+def test_the_recorder_is_told_the_seed_the_emulator_runs_with(
+    tmp_path: Path, seed: int | None, bench_text: str | None, recorded: int
+) -> None:
+    """Hardware with the emulator: its --seed, else its bench file's, else its default (0)."""
+    from smm_bench_emulator.cli import bench, from_ros_arguments
+    from smm_bench_emulator.cli import build_parser as emulator_parser
+
+    bench_file = None
+    if bench_text is not None:
+        bench_file = tmp_path / "bench.yaml"
+        bench_file.write_text(bench_text)
+    options = GraphOptions(
+        plant="hardware",
+        record=str(tmp_path / "bag"),
+        seed=seed,
+        bench_file=None if bench_file is None else str(bench_file),
+    )
+    specs = build_graph(options)
+    recorder = next(spec for spec in specs if spec.name == graph_nodes.RECORDER_NODE)
+    assert dict(recorder.parameters)["seed"] == recorded
+    if recorded >= 0:  # the seeds the emulator then runs with (plant and A/D), from the options it gets
+        emulator = next(spec for spec in specs if spec.name == graph_nodes.EMULATOR_NODE)
+        board = bench(emulator_parser().parse_args(from_ros_arguments(list(emulator.ros_arguments()))))
+        assert board.plant.seed == board.seed == recorded
+
+
+@pytest.mark.parametrize("seed", [None, 5])
+def test_an_external_board_records_no_seed(tmp_path: Path, seed: int | None) -> None:
+    """A board's noise is its own: unknown (-1, ``smm.seed`` empty), even with a --seed it never gets."""
+    board = "192.168.1.20:50101"
+    options = GraphOptions(
+        plant="hardware", clock_mode="realtime", board=board, record=str(tmp_path / "b"), seed=seed
+    )
+    recorder = next(spec for spec in build_graph(options) if spec.name == graph_nodes.RECORDER_NODE)
+    assert dict(recorder.parameters)["seed"] == -1
 
 
 @pytest.mark.parametrize(
@@ -345,19 +389,19 @@ def test_children_run_under_sched_fifo_when_the_system_allows_it(
     probe = "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, end='')"
     spec = NodeSpec("p", "python", "probe", "", rt_priority=7)
     allowed = fifo_allowed(7)
-    priorities = supervisor._fifo_priorities([spec, NodeSpec("p", "python", "other", "")])
+    schedulings = supervisor._schedulings([spec, NodeSpec("p", "python", "other", "")])
     policy = subprocess.run(
         [sys.executable, "-c", probe],
-        preexec_fn=fifo_preexec(7) if priorities.get("probe") else None,  # as GraphProcesses starts it
+        preexec_fn=schedulings["probe"].preexec() if schedulings else None,  # as GraphProcesses starts it
         capture_output=True,
         text=True,
         check=True,
     ).stdout
     if allowed:
-        assert priorities == {"probe": 7}
+        assert schedulings == {"probe": fifo(7)}
         assert policy == f"{os.SCHED_FIFO} 7"
     else:  # e.g. a container without CAP_SYS_NICE: said once, then normal scheduling
-        assert priorities == {}
+        assert schedulings == {}
         assert "cannot use SCHED_FIFO" in capsys.readouterr().err
         assert policy == f"{os.SCHED_OTHER} 0"
     assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the probe left the launcher as it was

@@ -109,6 +109,9 @@ def test_a_recorded_run_of_either_loop_is_analysed_and_re_run(
     bridge = "direct_loop" if loop == "direct" else "hw_bridge_node"
     host = next(line for line in logs.splitlines() if line.startswith(f"[{bridge}] host: late "))
     assert "; controlled" in host and "live ticks" in host, logs
+    from smm_bag.metadata import read_metadata
+
+    assert read_metadata(bag).custom_data["smm.seed"] == "0"  # the emulator's default seed, no --seed
     analysed = _smm_bag("analyze", "--json", "--quiet", str(bag))
     assert analysed.returncode == 0, analysed.stdout + analysed.stderr
     assert json.loads(analysed.stdout), analysed.stdout

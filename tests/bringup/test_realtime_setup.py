@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 from smm_bringup.graph_nodes import DIRECT_LOOP, EMULATOR_NODE, RECORDER_NODE, SIM_NODE, NodeSpec
-from smm_bringup.realtime import OBSERVER_NICE, fifo_preexec, observer_fifo_allowed
+from smm_bringup.realtime import OBSERVER_NICE, Scheduling, fifo, nice, observer_fifo_allowed
 from smm_bringup.supervisor import (
     EXIT_PREFLIGHT_REFUSED,
     RespawnPolicy,
@@ -74,16 +74,14 @@ def test_the_recorder_runs_at_normal_priority_without_the_cpus_for_it(
 ) -> None:
     monkeypatch.setattr(supervisor, "fifo_allowed", lambda _priority: True)
     monkeypatch.setattr(supervisor.os, "sched_getaffinity", lambda _pid: set(range(cpus)))
-    priorities = supervisor._fifo_priorities([RECORDER, *LOOP])
-    assert priorities[EMULATOR_NODE] == 70 and priorities[DIRECT_LOOP] == 55  # the loop keeps its priority
-    assert priorities[RECORDER_NODE] == (40 if recorder_fifo else OBSERVER_NICE)
+    schedulings = supervisor._schedulings([RECORDER, *LOOP])
+    assert schedulings[EMULATOR_NODE] == fifo(70) and schedulings[DIRECT_LOOP] == fifo(55)  # kept
+    assert schedulings[RECORDER_NODE] == (fifo(40) if recorder_fifo else nice(OBSERVER_NICE))
     said = f"{RECORDER_NODE} at normal policy, nice {OBSERVER_NICE}: 2 loop process(es) under SCHED_FIFO"
     assert (said in capsys.readouterr().out) is not recorder_fifo
 
 
-def test_a_negative_priority_is_a_nice_value_under_normal_scheduling_for_the_process_and_its_session() -> (
-    None
-):
+def test_a_nice_value_is_set_under_normal_scheduling_for_the_process_and_its_session() -> None:
     probe = (
         "import os, pathlib; group = pathlib.Path('/proc/self/autogroup'); "
         "print(os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0), "
@@ -91,13 +89,13 @@ def test_a_negative_priority_is_a_nice_value_under_normal_scheduling_for_the_pro
     )
     niced = subprocess.run(
         [sys.executable, "-c", probe],
-        preexec_fn=fifo_preexec(-5),
+        preexec_fn=nice(-5).preexec(),
         start_new_session=True,  # as GraphProcesses starts a node: a session, so an autogroup, of its own
         capture_output=True,
         text=True,
         check=True,
     ).stdout
-    policy, nice, group = niced.split()
+    policy, niceness, group = niced.split()
     before = os.getpriority(os.PRIO_PROCESS, 0)
     try:
         os.setpriority(os.PRIO_PROCESS, 0, -5)
@@ -106,7 +104,7 @@ def test_a_negative_priority_is_a_nice_value_under_normal_scheduling_for_the_pro
         allowed = False
     os.setpriority(os.PRIO_PROCESS, 0, before)  # raising a nice value back is always allowed
     assert int(policy) == os.SCHED_OTHER
-    assert int(nice) == (-5 if allowed else before)  # refused: the child starts as it was
+    assert int(niceness) == (-5 if allowed else before)  # refused: the child starts as it was
     assert group in ("none", "-5" if allowed else "0")  # no autogroups (kernel option off): nothing to set
 
 
@@ -136,3 +134,28 @@ def test_a_refusing_loop_is_started_once_and_stops_the_graph_with_exit_4(
     assert (
         "refused to arm at preflight (not respawned: final until a person changes" in capsys.readouterr().err
     )
+
+
+def test_the_started_line_names_the_scheduling_as_before() -> None:
+    assert (fifo(70).describe(), nice(-10).describe(), Scheduling().describe()) == (
+        ", SCHED_FIFO 70",
+        ", nice -10",
+        "",
+    )
+    assert Scheduling().preexec() is None and fifo(0).preexec() is None  # nothing to set: no preexec_fn
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"priority": -5}, "priority must be an int in"),
+        ({"priority": 100}, "priority must be an int in"),
+        ({"priority": True}, "priority must be an int in"),
+        ({"nice": -21}, "nice must be an int in"),
+        ({"nice": 20}, "nice must be an int in"),
+        ({"priority": 10, "nice": -5}, "SCHED_FIFO 10 has no nice value"),
+    ],
+)
+def test_a_scheduling_out_of_range_or_both_at_once_is_refused(kwargs: dict[str, int], message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        Scheduling(**kwargs)

@@ -88,6 +88,28 @@ def test_parameters_change_between_ticks_only_and_are_validated(direct: Bench) -
     assert direct.spin_until(direct.live)  # the loop runs on
 
 
+def test_a_stamp_policy_change_waits_for_the_next_tick(direct: Bench) -> None:
+    from rclpy.parameter import Parameter
+
+    direct.start()
+    gate = direct.controller.admission.gate
+    before = gate.policy.max_ahead_periods
+    results: list[Any] = []
+    with direct.node.loop.lock:  # as a tick holds it
+        setter = threading.Thread(
+            target=lambda: results.extend(
+                direct.controller.set_parameters([Parameter("stamp.max_ahead_periods", value=before + 7)])
+            )
+        )
+        setter.start()
+        setter.join(5.0)
+        assert results and results[0].successful  # taken and handed over ...
+        time.sleep(0.3)
+        assert gate.policy.max_ahead_periods == before  # ... but not applied within a tick
+    assert direct.spin_until(lambda: gate.policy.max_ahead_periods == before + 7, 5.0)  # at the next tick
+    assert direct.spin_until(direct.live)  # the loop runs on
+
+
 def test_the_topics_loop_topics_are_published_with_the_measurement_stamps(direct: Bench) -> None:
     from sensor_msgs.msg import JointState
     from smm_msgs_py.conversions import msg_to_labelled, msg_to_reference, msg_to_torque, stamp_to_ns

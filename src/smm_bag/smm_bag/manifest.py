@@ -24,7 +24,7 @@ class RunManifest:
     Attributes:
         version: ``git describe`` of the stack that ran.
         scenario: Scenario name (``case2``, ...).
-        seed: Noise seed of the simulated plant.
+        seed: Noise seed of the simulated or emulated plant; None: unknown (an external board).
         plant: ``sim`` or ``hardware``.
         controller: Controller name (``fpdeso``, ``fpd``, ...).
         control_period_ns: Control period (ns).

@@ -31,7 +31,7 @@ from smm_bringup.graph_nodes import (
     check_parameters,
 )
 from smm_bringup.graph_options import SCENARIO_NAMES, GraphOptions
-from smm_bringup.hardware_graph import hardware_specs, simulator_settings
+from smm_bringup.hardware_graph import emulator_seed, hardware_specs, simulator_settings
 from smm_bringup.parameter_files import ParameterValue, load_parameter_file, package_file
 from smm_bringup.realtime import (
     BOARD_PRIORITY_OFFSET,
@@ -260,7 +260,7 @@ def _simulator_seed(options: GraphOptions, files: Sequence[str]) -> int | None:
 def _recorder_spec(options: GraphOptions, files: Sequence[str]) -> NodeSpec:
     """``recorder_node`` writing ``options.record``, with the run manifest's entries as parameters."""
     assert options.record is not None
-    seed = _simulator_seed(options, files) if options.plant == "sim" else options.seed
+    seed = _simulator_seed(options, files) if options.plant == "sim" else emulator_seed(options)
     parameters: tuple[tuple[str, ParameterValue], ...] = (
         ("output", str(Path(options.record).resolve())),
         ("scenario", options.scenario or ""),

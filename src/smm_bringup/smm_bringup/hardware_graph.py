@@ -8,6 +8,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any, Final
 
+from smm_bench_emulator.bench_file import BenchFileError, default_bench, load_bench_file
+
 from smm_bringup.errors import ParameterFileError
 from smm_bringup.graph_nodes import (
     CONTROLLER_NODE,
@@ -21,7 +23,7 @@ from smm_bringup.graph_nodes import (
 from smm_bringup.graph_options import GraphOptions, split_endpoint
 from smm_bringup.parameter_files import ParameterValue, load_parameter_file
 
-__all__ = ["EMULATOR_BOARD", "EMULATOR_HOST", "hardware_specs", "simulator_settings"]
+__all__ = ["EMULATOR_BOARD", "EMULATOR_HOST", "emulator_seed", "hardware_specs", "simulator_settings"]
 
 EMULATOR_BOARD: Final[str] = "127.0.0.1:50101"
 EMULATOR_HOST: Final[str] = "127.0.0.1:50100"
@@ -122,6 +124,23 @@ def hardware_specs(
         parameters=tuple(emulator_parameters),
     )
     return (emulator, bridge)
+
+
+def emulator_seed(options: GraphOptions) -> int | None:
+    """The seed the emulator runs with: ``--seed``, else its bench file's, else its default.
+
+    None when no single seed is known: an external board (``options.board``), or a bench file whose A/D
+    ``seed`` and ``plant.seed`` differ (or that the emulator will refuse).
+    """
+    if options.board is not None:
+        return None
+    if options.seed is not None:
+        return options.seed
+    try:
+        bench = default_bench() if options.bench_file is None else load_bench_file(options.bench_file)
+    except BenchFileError:  # the emulator refuses it with its reason (exit 2): no run, no seed
+        return None
+    return bench.seed if bench.seed == bench.plant.seed else None
 
 
 def simulator_settings(files: Sequence[str]) -> dict[str, Any]:

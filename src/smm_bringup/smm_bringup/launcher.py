@@ -197,7 +197,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--respawn",
         action="store_true",
         help="restart a node process that exits while the graph runs (as launch's respawn), every node but "
-        "the recorder and a plant that completed its run",
+        "the recorder, a plant that completed its run and a process that refused to arm at preflight "
+        "(exit 4: final)",
     )
     parser.add_argument(
         "--respawn-delay",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
@@ -46,19 +47,60 @@ def fifo_allowed(priority: int) -> bool:
     return True
 
 
-def fifo_preexec(priority: int) -> Callable[[], None]:
-    """A ``Popen(preexec_fn=...)`` that puts the child under SCHED_FIFO before it starts any thread.
+@dataclass(frozen=True)
+class Scheduling:
+    """How a child process runs: SCHED_FIFO at ``priority``, or normal policy at ``nice``.
 
-    A negative ``priority`` is a nice value under normal scheduling instead (left as it is where refused).
+    Make it with :func:`fifo` or :func:`nice`; ``Scheduling()`` is normal policy as inherited.
+
+    Attributes:
+        priority: SCHED_FIFO priority in [1, :data:`MAX_PRIORITY`], 0 for normal policy.
+        nice: Nice value under normal policy, in [-20, 19]; only with ``priority`` 0.
     """
 
-    def apply() -> None:
-        if priority < 0:
-            with contextlib.suppress(OSError):
-                os.setpriority(os.PRIO_PROCESS, 0, priority)
-            with contextlib.suppress(OSError):  # a session is an autogroup: a nice counts only inside it
-                Path("/proc/self/autogroup").write_text(str(priority))
-            return
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    priority: int = 0
+    nice: int = 0
 
-    return apply
+    def __post_init__(self) -> None:
+        for name, low, high in (("priority", 0, MAX_PRIORITY), ("nice", -20, 19)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+                raise ValueError(f"{name} must be an int in [{low}, {high}], got {value!r}")
+        if self.priority and self.nice:
+            raise ValueError(f"SCHED_FIFO {self.priority} has no nice value, got nice {self.nice}")
+
+    def describe(self) -> str:
+        """``", SCHED_FIFO <p>"``, ``", nice <n>"`` or "" (the tail of the launcher's ``started`` line)."""
+        if self.priority:
+            return f", SCHED_FIFO {self.priority}"
+        return f", nice {self.nice}" if self.nice else ""
+
+    def preexec(self) -> Callable[[], None] | None:
+        """A ``Popen(preexec_fn=...)`` that sets it before the child starts any thread; None: nothing to set.
+
+        A nice value is set for the process and its session's autogroup, each left as it is where refused.
+        """
+        priority, value = self.priority, self.nice
+        if not priority and not value:
+            return None
+
+        def apply() -> None:
+            if priority:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+                return
+            with contextlib.suppress(OSError):
+                os.setpriority(os.PRIO_PROCESS, 0, value)
+            with contextlib.suppress(OSError):  # a session is an autogroup: a nice counts only inside it
+                Path("/proc/self/autogroup").write_text(str(value))
+
+        return apply
+
+
+def fifo(priority: int) -> Scheduling:
+    """SCHED_FIFO at ``priority`` (1-99; 0: normal policy)."""
+    return Scheduling(priority=priority)
+
+
+def nice(value: int) -> Scheduling:
+    """Normal policy with the nice value ``value`` (-20..19)."""
+    return Scheduling(nice=value)

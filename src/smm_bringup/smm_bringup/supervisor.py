@@ -14,7 +14,7 @@ import sys
 import threading
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
 from typing import Any, Final, TextIO
@@ -26,7 +26,14 @@ from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 
 from smm_bringup.errors import GraphError
 from smm_bringup.graph_nodes import PLANT_NODE_NAMES, RECORDER_NODE, NodeSpec, expected_publishers
-from smm_bringup.realtime import OBSERVER_NICE, fifo_allowed, fifo_preexec, observer_fifo_allowed
+from smm_bringup.realtime import (
+    OBSERVER_NICE,
+    Scheduling,
+    fifo,
+    fifo_allowed,
+    nice,
+    observer_fifo_allowed,
+)
 
 __all__ = [
     "EXIT_CONFIGURATION_ERROR",
@@ -160,7 +167,7 @@ class _Child:
     spec: NodeSpec
     popen: subprocess.Popen[bytes]
     command: tuple[str, ...] = ()
-    priority: int = 0
+    scheduling: Scheduling = field(default_factory=Scheduling)
     respawns: int = 0
     restart_at: float | None = None
 
@@ -184,13 +191,13 @@ class GraphProcesses:
         self._grace = stop_grace_s
         self.children: list[_Child] = []
 
-    def _spawn(self, command: Sequence[str], priority: int) -> subprocess.Popen[bytes]:
+    def _spawn(self, command: Sequence[str], scheduling: Scheduling) -> subprocess.Popen[bytes]:
         return subprocess.Popen(
             list(command),
             env=self._env,
             stdin=subprocess.DEVNULL,
             start_new_session=True,
-            preexec_fn=fifo_preexec(priority) if priority else None,  # noqa: PLW1509 (no threads yet)
+            preexec_fn=scheduling.preexec(),  # noqa: PLW1509 (no threads yet)
         )
 
     def start(self) -> None:
@@ -207,15 +214,12 @@ class GraphProcesses:
             # their readers, the recorder's included (start.min_subscribers, set by build_graph).
             specs.sort(key=lambda spec: (spec.name != RECORDER_NODE) + 2 * (spec.name in PLANT_NODE_NAMES))
         commands = [spec.command_line(resolve_executable(spec)) for spec in specs]
-        fifo = _fifo_priorities(specs)
+        schedulings = _schedulings(specs)
         for index, (spec, command) in enumerate(zip(specs, commands, strict=True)):
-            priority = fifo.get(spec.name, 0)
-            popen = self._spawn(command, priority)
-            self.children.append(_Child(spec, popen, tuple(command), priority))
-            scheduling = (
-                f", SCHED_FIFO {priority}" if priority > 0 else f", nice {priority}" if priority else ""
-            )
-            _say(f"started {spec.name} (pid {popen.pid}{scheduling}): {' '.join(command)}")
+            scheduling = schedulings.get(spec.name, Scheduling())
+            popen = self._spawn(command, scheduling)
+            self.children.append(_Child(spec, popen, tuple(command), scheduling))
+            _say(f"started {spec.name} (pid {popen.pid}{scheduling.describe()}): {' '.join(command)}")
             if spec is recorder:
                 _wait_for_recorder(spec, popen)
             elif (
@@ -258,7 +262,7 @@ class GraphProcesses:
         for child in self.children:
             if child.restart_at is not None and now >= child.restart_at:
                 child.restart_at = None
-                child.popen = self._spawn(child.command, child.priority)
+                child.popen = self._spawn(child.command, child.scheduling)
                 _say(f"respawned {child.name} (pid {child.popen.pid}): {' '.join(child.command)}")
 
     def stop(self) -> dict[str, int]:
@@ -300,10 +304,10 @@ class GraphProcesses:
                     child.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
 
 
-def _fifo_priorities(specs: Sequence[NodeSpec]) -> dict[str, int]:
-    """``{node: SCHED_FIFO priority}`` of the specs asking for one, if the system allows it (else says so).
+def _schedulings(specs: Sequence[NodeSpec]) -> dict[str, Scheduling]:
+    """``{node: scheduling}`` of the specs asking for SCHED_FIFO, if the system allows it (else says so).
 
-    A recorder without the CPUs for SCHED_FIFO gets a nice value instead (negative: ``fifo_preexec``).
+    A recorder without the CPUs for SCHED_FIFO gets normal policy with :data:`OBSERVER_NICE` instead.
     """
     wanted = {spec.name: spec.rt_priority for spec in specs if spec.rt_priority}
     if wanted and not fifo_allowed(max(wanted.values())):
@@ -313,25 +317,26 @@ def _fifo_priorities(specs: Sequence[NodeSpec]) -> dict[str, int]:
             sys.stderr,
         )
         return {}
+    schedulings = {name: fifo(priority) for name, priority in wanted.items()}
     cpus = len(os.sched_getaffinity(0))
     loop = len(wanted) - (RECORDER_NODE in wanted)
     if RECORDER_NODE in wanted and not observer_fifo_allowed(loop, cpus):
-        wanted[RECORDER_NODE] = OBSERVER_NICE
+        schedulings[RECORDER_NODE] = nice(OBSERVER_NICE)
         _say(
             f"{RECORDER_NODE} at normal policy, nice {OBSERVER_NICE}: {loop} loop process(es) under "
             f"SCHED_FIFO on {cpus} CPU(s); a real-time recorder would share their CPUs and the kernel's RT "
             f"budget (it needs {loop + 2} CPUs: docs/SOAK.md, 'Real time beside the loop')"
         )
-    fifo = sum(priority > 0 for priority in wanted.values())
-    if fifo >= cpus:
+    under_fifo = sum(scheduling.priority > 0 for scheduling in schedulings.values())
+    if under_fifo >= cpus:
         _say(
-            f"{fifo} processes under SCHED_FIFO on {cpus} CPU(s): when they need more CPU than there "
+            f"{under_fifo} processes under SCHED_FIFO on {cpus} CPU(s): when they need more CPU than there "
             "is, they starve every other process and the kernel's RT throttling stops them all, the emulator "
             "included, for up to 50 ms a second (docs/LAUNCH.md, 'Real time on a small machine'); "
             "--rt-priority 0 runs them at normal priority",
             sys.stderr,
         )
-    return wanted
+    return schedulings
 
 
 PUBLISHERS_FILE: Final[str] = ".publishers"

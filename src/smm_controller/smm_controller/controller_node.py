@@ -154,8 +154,9 @@ class ControllerNode(MeasurementDrivenNode):
     """Controller node: ROS glue around :class:`~smm_controller.core.ControllerCore`.
 
     Args:
-        changes: A loop that steps :attr:`core` itself (the direct loop): the core's parameter changes
-            are handed to it, and the node takes no ``joint_states``. None: changes apply at once.
+        changes: A loop that steps :attr:`core` itself (the direct loop): the parameter changes (the
+            core's, ``stamp.*``) are handed to it, and the node takes no ``joint_states``. None: changes
+            apply at once.
         **options: The node options every SMM node takes (:class:`~smm_node_runtime.NodeOptions`).
 
     Raises:
@@ -319,7 +320,7 @@ class ControllerNode(MeasurementDrivenNode):
             raise ValueError(reason)
 
     def _apply(self, change: Callable[[], None]) -> None:
-        """A change of the core: at once, or handed to the loop that steps it (between its ticks)."""
+        """A parameter change (the core's, ``stamp.*``): at once, or handed to the loop stepping the core."""
         if self._changes is None:
             change()
         else:

@@ -154,7 +154,14 @@ class MeasurementDrivenNode(SmmNode):
         return self.admission.last_error
 
     def _on_policy(self, policy: StampPolicy) -> None:
-        self.admission.gate.policy = policy
+        def set_policy() -> None:
+            self.admission.gate.policy = policy
+
+        self._apply(set_policy)
+
+    def _apply(self, change: Callable[[], None]) -> None:
+        """Applies a validated parameter change at once (a node whose steps a loop runs hands it over)."""
+        change()
 
     def warn_throttled(self, topic: str, message: str) -> None:
         """Log a warning, at most once per :data:`WARN_THROTTLE_S` per ``topic`` (throttled per topic)."""

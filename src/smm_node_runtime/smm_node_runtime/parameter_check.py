@@ -38,6 +38,7 @@ __all__ = [
     "UnknownParameterError",
     "check_node_arguments",
     "check_parameters",
+    "did_you_mean",
     "fully_qualified",
     "is_ros_parameter",
     "known_names",
@@ -249,14 +250,18 @@ def check_parameters(
         _check_name(override.name, override.where, {fqn: running[fqn] for fqn in reached}, values)
 
 
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """``"; did you mean 'closest'?"`` with the ``known`` name closest to ``name``; "" when none is close."""
+    close = difflib.get_close_matches(name, sorted(known), n=1)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
 def _no_node_hint(key: str, nodes: Mapping[str, str]) -> str:
     last = key.rstrip("/").rpartition("/")[2]
     same = sorted(fqn for fqn, node in nodes.items() if last in (node, fqn.rpartition("/")[2]))
     if same:
         return f" ({last} runs as {', '.join(same)} here: another namespace?)"
-    close = difflib.get_close_matches(last, sorted(set(nodes.values())), n=1)
-    hint = f"; did you mean '{close[0]}'?" if close else ""
-    return f" (the nodes: {', '.join(sorted(nodes))}){hint}"
+    return f" (the nodes: {', '.join(sorted(nodes))}){did_you_mean(last, set(nodes.values()))}"
 
 
 def _check_name(
@@ -273,11 +278,11 @@ def _check_name(
                 raise UnknownParameterError(
                     f"parameter '{name}' in {where}: {fqn} declares it only with {setting}: {wanted}"
                 )
-    known = sorted(set().union(*(known_names(node) for node in reached.values())))
-    close = difflib.get_close_matches(name, known, n=1)
-    hint = f"; did you mean '{close[0]}'?" if close else ""
+    known = set().union(*(known_names(node) for node in reached.values()))
     targets = ", ".join(sorted(reached))
-    raise UnknownParameterError(f"unknown parameter '{name}' in {where} (no such name on {targets}){hint}")
+    raise UnknownParameterError(
+        f"unknown parameter '{name}' in {where} (no such name on {targets}){did_you_mean(name, known)}"
+    )
 
 
 def check_node_arguments(args: Sequence[str] | None, nodes: Iterable[str]) -> RosArguments:

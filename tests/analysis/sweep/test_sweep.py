@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import re
 import socket
 from pathlib import Path
 from typing import Any
@@ -101,6 +102,21 @@ def _write(tmp_path: Path, spec: dict[str, Any]) -> Path:
 )
 def test_a_bad_spec_is_refused_naming_the_field(changes: dict[str, Any], message: str) -> None:
     with pytest.raises(SpecError, match=message):
+        parse_spec(_spec(**changes))
+
+
+@pytest.mark.parametrize(
+    ("changes", "closest"),
+    [
+        ({"gains": {"td.filter_factr": {"grid": [[0.001, 0.001]]}}}, "td.filter_factor"),
+        ({"gains": {"fpdeso.fuzzy.kd00[1]": {"range": [80.0, 130.0]}}}, "fpdeso.fuzzy.kd0"),
+        ({"fixed": {"fleso.w": [20.0, 20.0]}}, "fleso.w0"),
+        ({"plant": {"inertia_scal": 1.1}}, "inertia_scale"),
+        ({"plant_draws": {"count": 2, "parameters": {"noise_st": {"uniform": [0.0, 0.1]}}}}, "noise_std"),
+    ],
+)
+def test_an_unknown_name_is_refused_with_the_closest_known_one(changes: dict[str, Any], closest: str) -> None:
+    with pytest.raises(SpecError, match=rf"unknown parameter .*; did you mean '{re.escape(closest)}'\?$"):
         parse_spec(_spec(**changes))
 
 

@@ -22,6 +22,7 @@ import yaml
 from scipy.stats import qmc
 from smm_controller.laws import PAPER_LAWS, law_names, law_table
 from smm_controller.limits import OutputLimitConfig
+from smm_node_runtime.parameter_check import did_you_mean
 from smm_schema.fields import config_fields, config_from_parameters, config_to_parameters
 
 from smm_analysis.batch.loop import INDEX_NAMES, RunSettings
@@ -198,7 +199,7 @@ def _check_name(where: str, name: str, known: Mapping[str, Any], hint: str) -> N
     base, joint = _split(where, name)
     field = known.get(base)
     if field is None:
-        raise SpecError(f"{where}: unknown parameter {name!r}; {hint}")
+        raise SpecError(f"{where}: unknown parameter {name!r} ({hint}){did_you_mean(base, known)}")
     if joint is not None and field.length != 2:
         raise SpecError(f"{where}: {base!r} is not a per-joint parameter, so {name!r} has no joint index")
 
@@ -298,7 +299,7 @@ def _gain_values(spec: Mapping[str, Any], controller: str) -> tuple[tuple[str, .
     known: dict[str, Any] = {}
     for prefix, (config_cls, _) in _controller_sections(controller).items():
         known.update(_fields(config_cls, prefix))
-    hint = f"the sweep runs {controller}: names start with {controller}., td., fleso., model. or output."
+    hint = f"the sweep runs {controller}: names start with {controller}., td., fleso., model. or output"
     grids: dict[str, list[Any]] = {}
     ranges: dict[str, tuple[float, float, bool]] = {}
     for name, entry in gains.items():
