@@ -75,7 +75,7 @@ class HostedController:
         self.controller.core.prepare()
 
     def forget(self) -> None:
-        """After the preflight's rehearsal (stamped an hour ahead): the run starts from fresh state, stamps too."""
+        """After the preflight's rehearsal (stamped an hour ahead): the run starts afresh, its stamps too."""
         self._pending = None
         self.controller.core.reset()
         self.controller.core.admission.gate.reset()

@@ -336,8 +336,7 @@ class BridgeLoop:
         return stamp_ns
 
     def on_command(self, torque: npt.ArrayLike, stamp_ns: int, rx_ns: int) -> Mapping[str, FloatArray] | None:
-        """The topics loop's ``torque_command``: sent at once (timed only while rehearsing); the internals to
-        publish, None if refused."""
+        """The topics loop's ``torque_command``: sent (rehearsing: timed); internals to publish, or None."""
         with self.lock:
             core = self.core
             if core is None or self.device is None:
