@@ -226,3 +226,17 @@ def test_loss_accounting_counts_received_written_and_stamp_gaps(tmp_path: Path) 
         "stamp_out_of_order": 0,
     }
     assert '"stamp_missing": 3' in metadata.custom_data["smm.loss"]
+
+
+def test_the_run_after_a_rehearsal_stamped_an_hour_ahead_has_its_stamp_gaps_counted(tmp_path: Path) -> None:
+    """The preflight's rehearsal comes first, an hour ahead; the run's stamps start a new timeline."""
+    writer = BagWriter(tmp_path / "bag", WriterOptions(stamped_topics=frozenset({"/smm/joint_states"})))
+    writer.create_topic("/smm/joint_states", "sensor_msgs/msg/JointState")
+    hour = 3_600_000  # steps of 1 ms
+    stamps = [*(hour + k for k in range(10)), *range(20, 30), *range(33, 40)]  # 30, 31, 32 never arrive
+    for received, k in enumerate(stamps):
+        writer.write("/smm/joint_states", joint_state(k), T0 + received * 1_000_000)
+    writer.close()
+    counters = writer.loss.as_dict()["/smm/joint_states"]
+    assert counters["stamp_gaps"] == 1 and counters["stamp_missing"] == 3
+    assert counters["stamp_out_of_order"] == 0

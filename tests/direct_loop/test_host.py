@@ -144,6 +144,59 @@ def test_the_topics_loop_topics_are_published_with_the_measurement_stamps(direct
     assert rows[-len(COUNTER_ROWS) :] == COUNTER_ROWS
 
 
+def test_the_rehearsal_publishes_every_topic_of_the_run_an_hour_ahead_and_the_run_starts_afresh(
+    direct: Bench,
+) -> None:
+    """The preflight's rehearsal (output disabled) publishes what the run does, stamped ahead; then the run's
+    own stamps are answered from the first, without a time jump (the hosted gate forgets the rehearsal)."""
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from sensor_msgs.msg import JointState
+    from smm_hw_bridge.loop import REHEARSAL_STAMP_OFFSET_NS
+    from smm_hw_bridge.preflight import RehearsalRecorder
+    from smm_msgs_py.conversions import msg_to_labelled, msg_to_reference, msg_to_torque, stamp_to_ns
+    from std_msgs.msg import Float64MultiArray
+
+    from smm_msgs_py import topics
+
+    stamps: dict[str, list[int]] = {name: [] for name in ("joint_states", "torque_command", "reference")}
+    stamps["controller_internals"], stamps["hw_bridge_internals"] = [], []
+    peer = direct.peer
+    peer.create_subscription(
+        JointState,
+        topics.JOINT_STATES,
+        lambda m: stamps["joint_states"].append(stamp_to_ns(m.header.stamp)),
+        1000,
+    )
+    for name, parse in (
+        ("torque_command", msg_to_torque),
+        ("reference", msg_to_reference),
+        ("controller_internals", msg_to_labelled),
+        ("hw_bridge_internals", msg_to_labelled),
+    ):
+        peer.create_subscription(
+            Float64MultiArray, name, lambda m, n=name, p=parse: stamps[n].append(p(m).stamp_ns), 1000
+        )
+    node = direct.node
+    assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+    assert node.core is not None
+    with node.loop.lock:
+        node.loop.rehearsal = RehearsalRecorder(node.core.config.period_ns)
+    assert direct.spin_until(lambda: all(len(s) > 30 for s in stamps.values()), 10.0), stamps
+    with node.loop.lock:  # between two ticks
+        assert node.loop.end_rehearsal() is not None
+        rehearsed = {name: list(values) for name, values in stamps.items()}
+        for values in stamps.values():
+            values.clear()
+    assert all(not direct.live() for _ in range(3))  # nothing of it reached the valves
+    assert all(stamp >= REHEARSAL_STAMP_OFFSET_NS for values in rehearsed.values() for stamp in values)
+    assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+    assert direct.spin_until(direct.live), "the output never went live"
+    assert direct.spin_until(lambda: all(len(s) > 30 for s in stamps.values()), 10.0), stamps
+    assert all(stamp < REHEARSAL_STAMP_OFFSET_NS for values in stamps.values() for stamp in values)
+    counters = direct.controller.counters
+    assert counters.time_jumps == 0 and counters.dropped_stale == 0 and counters.dropped_ahead == 0
+
+
 def test_periodicity_and_execution_time_are_on_diagnostics(direct: Bench) -> None:
     direct.start()
     assert direct.spin_until(lambda: direct.node.loop.statistics.execution_us.count > 100, 10.0)

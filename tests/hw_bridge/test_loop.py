@@ -13,7 +13,7 @@ from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
 from smm_hw_bridge.device import DEVICES, Device, device_names, open_device
 from smm_hw_bridge.frame_device import FrameDevice
 from smm_hw_bridge.link import AdmissionConfig
-from smm_hw_bridge.loop import BridgeLoop, ChangeBuffer, Tick, first_feedback
+from smm_hw_bridge.loop import REHEARSAL_STAMP_OFFSET_NS, BridgeLoop, ChangeBuffer, Tick, first_feedback
 from smm_hw_bridge.preflight import RehearsalRecorder
 from smm_hw_bridge.protocol import CommandFrame, Reason, decode_command
 from smm_hw_bridge.run_verdict import RunTally
@@ -81,14 +81,22 @@ class Chain:
 
 
 def attached(
-    answerer: Any = None, changes: ChangeBuffer | None = None, watchdog_ns: int = 10_000_000_000
+    answerer: Any = None,
+    changes: ChangeBuffer | None = None,
+    watchdog_ns: int = 10_000_000_000,
+    divider: int = 1,
 ) -> tuple[BridgeLoop, MemoryBoard]:
     """A loop on an in-memory board, configured; times are slack (no test depends on speed)."""
     board = MemoryBoard()
     device = FrameDevice("memory", lambda: board)
     device.open()
     slack = AdmissionConfig(stale_ns=60_000_000_000)
-    config = BridgeConfig(admission=slack, host_watchdog_ns=watchdog_ns, link_timeout_ns=60_000_000_000)
+    config = BridgeConfig(
+        admission=slack,
+        host_watchdog_ns=watchdog_ns,
+        link_timeout_ns=60_000_000_000,
+        control_divider=divider,
+    )
     core = BridgeCore(config, host_session=7)
     assert first_feedback(device, core, 1.0, "memory") is None
     loop = BridgeLoop(BridgeCounters(), answerer, changes)
@@ -193,31 +201,63 @@ def test_a_refused_answer_sends_the_core_frame_and_the_host_watchdog_nulls() -> 
     assert not decode_command(board.sent[-1]).enabled and loop.core.watchdog_trips >= 1
 
 
-def test_the_rehearsal_times_the_answers_and_sends_nothing_of_them() -> None:
+def test_the_rehearsal_publishes_what_the_run_publishes_stamped_an_hour_ahead_and_sends_no_output() -> None:
+    """Each rehearsed tick steps the chain and gives the run's tick (its answer to publish), 1 h ahead."""
     chain = Chain()
     loop, board = attached(chain)
     assert loop.core is not None
     loop.rehearsal = RehearsalRecorder(loop.core.config.period_ns)
+    rehearsed = []
     for _ in range(10):
-        assert tick(loop, board) is None  # the direct loop publishes nothing of a rehearsal
+        result = tick(loop, board)
+        assert result is not None, "the rehearsal publishes every control tick, as the run does"
+        stamp = loop.core.stamp_ns + REHEARSAL_STAMP_OFFSET_NS
+        assert result.stamp_ns == stamp and result.answered == stamp  # joint_states, the answer, internals
+        assert chain.calls[-1][0] == stamp  # the chain's outputs carry the stamp ahead too
+        rehearsed.append(result)
     assert len(chain.calls) == 10
-    assert all(not decode_command(frame).enabled for frame in board.sent)
+    assert all(not decode_command(frame).enabled for frame in board.sent)  # output never enabled
     recorder = loop.end_rehearsal()
     assert recorder is not None and chain.forgotten == 1 and loop.rehearsal is None
     assert len(recorder._answers) == 10
+    loop.core.arm()
+    run = [result for _ in range(10) if (result := tick(loop, board)) is not None]
+    assert run and all(result.stamp_ns == result.answered for result in run if result.answered is not None)
+    # nothing of the rehearsal reads as a sample of the run: the run's stamps are the board's, an hour behind
+    assert all(r.stamp_ns - run[-1].stamp_ns >= REHEARSAL_STAMP_OFFSET_NS - 20_000_000 for r in rehearsed)
+    assert all(result.stamp_ns < REHEARSAL_STAMP_OFFSET_NS for result in run)
+
+
+def test_the_rehearsal_publishes_only_control_ticks_as_the_run_does() -> None:
+    chain = Chain()
+    loop, board = attached(chain, divider=2)
+    assert loop.core is not None
+    loop.rehearsal = RehearsalRecorder(loop.core.config.period_ns, divider=2)
+    published = [tick(loop, board) for _ in range(10)]
+    assert sum(result is not None for result in published) == 5 == len(chain.calls)
+
+
+def test_a_chain_that_raises_while_rehearsing_is_a_host_fault_and_publishes_no_answer() -> None:
+    chain = Chain()
+    chain.result = ZeroDivisionError("a broken law")
+    loop, board = attached(chain)
+    assert loop.core is not None
+    loop.rehearsal = RehearsalRecorder(loop.core.config.period_ns)
+    result = tick(loop, board)
+    assert result is not None and result.answered is None and "control chain failed" in loop.host_fault
+    assert not decode_command(board.sent[-1]).enabled
 
 
 def test_the_topics_loop_rehearsal_publishes_stamps_an_hour_ahead_and_times_the_answers() -> None:
-    from smm_hw_bridge.loop import REHEARSAL_STAMP_OFFSET_NS
-
     loop, board = attached()
     assert loop.core is not None
     loop.rehearsal = RehearsalRecorder(loop.core.config.period_ns)
     result = tick(loop, board)
     assert result is not None and result.stamp_ns == loop.core.stamp_ns + REHEARSAL_STAMP_OFFSET_NS
     before = len(board.sent)
-    assert loop.on_command(TORQUE, result.stamp_ns, time.monotonic_ns()) is None  # timed, never sent
-    assert len(board.sent) == before and loop.rehearsal._answers
+    internals = loop.on_command(TORQUE, result.stamp_ns, time.monotonic_ns())
+    assert internals is not None and internals["enabled"].tolist() == [0.0, 0.0]  # published, as in the run
+    assert len(board.sent) == before and loop.rehearsal._answers  # timed, never sent
 
 
 def test_first_feedback_says_why_none_came() -> None:

@@ -6,7 +6,10 @@ import json
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
-__all__ = ["LossAccounting", "TopicLoss"]
+__all__ = ["NEW_TIMELINE_NS", "LossAccounting", "TopicLoss"]
+
+NEW_TIMELINE_NS = 60_000_000_000
+"""A stamp this much (ns) before the latest starts a new timeline, gaps checked from it (docs/BAGS.md)."""
 
 
 @dataclass
@@ -80,6 +83,8 @@ class LossAccounting:
         if stamp_ns is None or topic not in self.stamped_topics:
             return
         last = entry.last_stamp_ns
+        if last is not None and last - stamp_ns > NEW_TIMELINE_NS:
+            last = None  # the run after the preflight's rehearsal (stamped an hour ahead): checked afresh
         entry.last_stamp_ns = stamp_ns if last is None else max(last, stamp_ns)
         if last is None:
             return

@@ -75,9 +75,10 @@ class HostedController:
         self.controller.core.prepare()
 
     def forget(self) -> None:
-        """After the preflight's rehearsal: nothing of it is published, the run starts from fresh state."""
+        """After the preflight's rehearsal (stamped an hour ahead): the run starts afresh, its stamps too."""
         self._pending = None
         self.controller.core.reset()
+        self.controller.core.admission.gate.reset()
 
 
 def compose(

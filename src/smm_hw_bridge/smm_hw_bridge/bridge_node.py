@@ -206,6 +206,7 @@ class HwBridgeNode(LifecycleNode):
         recorder = self.loop.end_rehearsal()
         if recorder is None:
             return
+        self.publish_us = RunningFigures()  # the run's figures, not the rehearsal's
         config = self._preflight.config
         verdict = judge(recorder.figures(), self._verdict.config.late_limit, margin=config.margin)
         self.preflight = verdict

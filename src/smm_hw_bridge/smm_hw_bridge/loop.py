@@ -40,8 +40,9 @@ __all__ = [
 
 _LINK_CHECK_NS: Final[int] = round(LINK_CHECK_S * 1e9)
 REHEARSAL_STAMP_OFFSET_NS: Final[int] = 3_600_000_000_000
-"""Topics loop: the rehearsal's ``joint_states`` are stamped this much (1 h) after the board's tick, so that
-the armed run's first measurements are a backward time jump: ``controller_node`` then starts it afresh."""
+"""What the rehearsal publishes is stamped this much (1 h) after the board's tick: the analysis leaves it out
+(``smm_analysis.runs.stream``), and in the topics loop the armed run's first measurements are a backward time
+jump, on which ``controller_node`` starts it afresh."""
 FloatArray = npt.NDArray[np.float64]
 _DONE: Final[int] = -1
 """A tick whose answer faulted: its safe frame went out, nothing to publish (stamps are >= 0)."""
@@ -262,29 +263,42 @@ class BridgeLoop:
             publish = armed and core.control_tick
             rehearsal = None if armed or frame is None else self.rehearsal
             control = rehearsal is not None and core.control_tick
-            answered = self._answer(core, rx_ns) if publish and self.answerer is not None else None
-            if answered is None and core.needs_frame(rx_ns):
-                out = core.next_frame(rx_ns)
-                if out is not None:
-                    self.transmit(out)
+            if rehearsal is not None:
+                answered = self.rehearse(core, rehearsal, rx_ns, control)
+            else:
+                answered = self._answer(core, rx_ns) if publish and self.answerer is not None else None
+                if answered is None and core.needs_frame(rx_ns):
+                    out = core.next_frame(rx_ns)
+                    if out is not None:
+                        self.transmit(out)
             if frame is not None and self.tally is not None:  # the run's figures: after the send
                 self.tally.on_feedback(frame)
-            if rehearsal is not None:
-                self.rehearse(core, rehearsal, rx_ns, control)
-            if not publish and (not control or self.answerer is not None):
+            if not publish and not control:
                 return None
             stamp = core.stamp_ns + (0 if publish else REHEARSAL_STAMP_OFFSET_NS)
             return Tick(stamp, core.position, core.applied_torque, None if answered == _DONE else answered)
 
-    def rehearse(self, core: BridgeCore, rehearsal: RehearsalRecorder, rx_ns: int, control: bool) -> None:
-        """The preflight: times the arrival; the answerer answers it, nothing of it sent (lock held).
+    def rehearse(
+        self, core: BridgeCore, rehearsal: RehearsalRecorder, rx_ns: int, control: bool
+    ) -> int | None:
+        """The preflight's tick (lock held): the run's, but a safe frame goes out; the stamp answered.
 
-        The topics loop's controller answers the published sample instead (:meth:`on_command`).
+        Times the arrival; on a control tick the answerer steps on the measurement stamped
+        :data:`REHEARSAL_STAMP_OFFSET_NS` ahead, the safe frame is sent, the answer is timed after it (as
+        the run's send), and the tick publishes what the run's does, stamped ahead (docs/LAUNCH.md,
+        "Preflight"). The topics loop's controller answers the published sample instead (:meth:`on_command`).
         """
         tick = core.stamp_ns // core.config.period_ns
         rehearsal.on_feedback(tick, rx_ns, control)
-        if control and self.answerer is not None and isinstance(self._stepped(core.stamp_ns), tuple):
-            rehearsal.on_answer(tick, self._clock())
+        stamp = core.stamp_ns + REHEARSAL_STAMP_OFFSET_NS
+        answer = self._stepped(stamp) if control and self.answerer is not None else None
+        self.send_safe()
+        if isinstance(answer, Exception):
+            return _DONE
+        if not isinstance(answer, tuple):
+            return None
+        rehearsal.on_answer(tick, self._clock())
+        return stamp
 
     def end_rehearsal(self) -> RehearsalRecorder | None:
         """Ends the rehearsal; the answerer forgets it. Its recorder, None if none ran."""
@@ -322,7 +336,7 @@ class BridgeLoop:
         return stamp_ns
 
     def on_command(self, torque: npt.ArrayLike, stamp_ns: int, rx_ns: int) -> Mapping[str, FloatArray] | None:
-        """The topics loop's ``torque_command``: sent at once; the internals to publish, None if not sent."""
+        """The topics loop's ``torque_command``: sent (rehearsing: timed); internals to publish, or None."""
         with self.lock:
             core = self.core
             if core is None or self.device is None:
@@ -330,7 +344,7 @@ class BridgeLoop:
             rehearsal = self.rehearsal
             if rehearsal is not None:  # the answer to a rehearsed measurement: timed, never sent
                 rehearsal.on_answer((stamp_ns - REHEARSAL_STAMP_OFFSET_NS) // core.config.period_ns, rx_ns)
-                return None
+                return core.internals  # what went out (a safe frame), published as in the run
             if not self.take_command(torque, stamp_ns, rx_ns):
                 return None
             return core.internals

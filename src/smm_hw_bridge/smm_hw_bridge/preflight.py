@@ -47,14 +47,15 @@ class PreflightConfig:
         added_latency_us: Added to every rehearsed feedback -> command time (us), in [0, 1e6]: rehearses a
             slower host (tests, what-if); 0 on the bench.
         margin: A rate holds when its rehearsed late share is at most this fraction of the late limit, in
-            (0, 1]: the rehearsal errs low against the run (it publishes nothing, and it is short), so the
-            default 0.5 asks for half the limit (docs/LAUNCH.md, "Measured: the preflight").
+            (0, 1]: the rehearsal still errs low against the run (it is short: 11 of 12 runs at most 0.33
+            points over it), so the default 0.65 leaves a third of the 1 % limit for that (docs/LAUNCH.md,
+            "Measured: the rehearsal's prediction").
     """
 
     duration_s: float = field(default=3.0, metadata=bounds(0.0, 30.0))
     force: bool = False
     added_latency_us: float = field(default=0.0, metadata=bounds(0.0, 1e6))
-    margin: float = field(default=0.5, metadata=bounds(0.0, 1.0, low_open=True))
+    margin: float = field(default=0.65, metadata=bounds(0.0, 1.0, low_open=True))
 
     def __post_init__(self) -> None:
         check_bounds(self)

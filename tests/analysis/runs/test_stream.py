@@ -186,8 +186,15 @@ def test_step_metrics_stream_across_blocks_as_in_memory() -> None:
         assert streamed.result() == expected
 
 
-def test_a_rehearsal_stamped_an_hour_ahead_is_left_out_and_the_run_after_it_is_joined(tmp_path: Path) -> None:
-    """The topics loop's preflight publishes its rehearsal stamped an hour ahead, then the run's stamps."""
+@pytest.mark.parametrize("wall_ns", [0, 1_796_000_000_000_000_000], ids=["host clock", "board clock"])
+def test_a_rehearsal_stamped_an_hour_ahead_is_left_out_and_the_run_after_it_is_joined(
+    tmp_path: Path, wall_ns: int
+) -> None:
+    """The preflight publishes its rehearsal stamped an hour ahead, then the run's stamps.
+
+    ``wall_ns``: the log clock's reading at stamp 0: a simulator stamps on the host's clock, the bridge with
+    the board's time since its start (log times in the recorder's wall clock).
+    """
     hour = 3_600_000  # steps of 1 ms
     steps = 2000
     path = tmp_path / "rehearsed"
@@ -199,7 +206,7 @@ def test_a_rehearsal_stamped_an_hour_ahead_is_left_out_and_the_run_after_it_is_j
         for k in range(2 * steps):
             stamp_step = k + hour if k < steps else k
             for topic in MAKERS:
-                writer.write(topic, MAKERS[topic](stamp_step), k * 1_000_000 + 200_000)
+                writer.write(topic, MAKERS[topic](stamp_step), wall_ns + k * 1_000_000 + 200_000)
     stream = StepStream(path, read_batch=256, block_steps=128)
     stamps = np.concatenate([block.t_ns for block in stream.blocks()])
     assert stamps.tolist() == [k * 1_000_000 for k in range(steps, 2 * steps)]  # the run, whole

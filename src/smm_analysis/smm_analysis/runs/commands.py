@@ -121,8 +121,8 @@ def analyze(options: AnalyzeOptions, stdout: TextIO | None = None, stderr: TextI
             for topic, count in sorted(result.run.ahead_messages.items()):
                 out.write(
                     f"note: {result.run.bag}: {count} messages on {topic} were stamped more than "
-                    f"{AHEAD_LIMIT_NS // 1_000_000_000} s after they were recorded (a preflight rehearsal of "
-                    "the topics loop, or a clock gone wrong) and were left out\n"
+                    f"{AHEAD_LIMIT_NS // 1_000_000_000} s after they were recorded (the preflight's "
+                    "rehearsal, or a clock gone wrong) and were left out\n"
                 )
     if options.out is not None:
         options.out.mkdir(parents=True, exist_ok=True)

@@ -2,7 +2,7 @@
 
 Memory is bounded: each topic's samples wait in a reorder window (:data:`REORDER_WINDOW_NS` behind the
 newest stamp read); a message already behind it is counted per topic and left out, as is one stamped more
-than :data:`AHEAD_LIMIT_NS` after its log time. Blocks of
+than :data:`AHEAD_LIMIT_NS` after its log time (beyond the bag's :func:`clock_offset`). Blocks of
 :data:`BLOCK_STEPS` steps are cut by step number, so nothing depends on the writer's chunking
 (docs/BAGS.md, "Streaming analysis").
 """
@@ -16,21 +16,33 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 from smm_bag.bulk import decode_arrays, decode_joint_states
+from smm_bag.cdr import stamp_of
 from smm_bag.errors import CorruptBagError, MissingTopicsError
 from smm_bag.manifest import RunManifest
 from smm_bag.reader import BagReader
 
 from smm_analysis.runs.window import TimeWindow
 
-__all__ = ["AHEAD_LIMIT_NS", "BLOCK_STEPS", "REORDER_WINDOW_NS", "JoinReport", "StepBlock", "StepStream"]
+__all__ = [
+    "AHEAD_LIMIT_NS",
+    "BLOCK_STEPS",
+    "REORDER_WINDOW_NS",
+    "JoinReport",
+    "StepBlock",
+    "StepStream",
+    "clock_offset",
+]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 REORDER_WINDOW_NS = 1_000_000_000
 """How far (ns of stamps) a message may arrive behind the newest stamp read and still be joined."""
 AHEAD_LIMIT_NS = 60_000_000_000
-"""A message stamped more than this after its log time (ns) is left out and counted: the topics loop's
-preflight rehearsal (stamped an hour ahead, docs/LAUNCH.md) or a clock gone wrong, never a step of the run."""
+"""A message stamped more than this after its log time (ns), beyond the bag's clock offset, is left out and
+counted: the preflight's rehearsal (stamped an hour ahead, docs/LAUNCH.md) or a clock gone wrong, never a step
+of the run."""
+OFFSET_SCAN_NS = 120_000_000_000
+"""How much of a bag's start (ns of log time) :func:`clock_offset` reads: past any rehearsal (<= 30 s)."""
 BLOCK_STEPS = 8192
 """Steps per block handed on (the unit of the ordered sums, docs/BAGS.md)."""
 READ_BATCH = 32_768
@@ -184,6 +196,23 @@ def _labelled_parts(topic: str, buffers: list[bytes], log_times: IntArray) -> di
     }
 
 
+def clock_offset(reader: BagReader, topic: str) -> int:
+    """Stamp minus log time (ns) of the run on ``topic`` (``joint_states``), at most 0.
+
+    The smallest over the first :data:`OFFSET_SCAN_NS` of log time: a hardware bag's stamps are the board's
+    time since its start, a simulator's the host's clock; a rehearsal stamped ahead is above it.
+    """
+    offset, first = 0, None
+    for _, log_time, data in reader.raw_messages([topic]):
+        first = log_time if first is None else first
+        if log_time - first > OFFSET_SCAN_NS:
+            break
+        stamp = stamp_of("sensor_msgs/msg/JointState", data)
+        if stamp is not None:
+            offset = min(offset, stamp - log_time)
+    return offset
+
+
 class _Pending:
     """One series' samples not yet joined, in arrival order."""
 
@@ -249,6 +278,8 @@ class StepStream:
             counts = {topic.name: topic.message_count for topic in reader.metadata.topics}
             name = self.manifest.topic
             reader.require((name("joint_states"), name("reference"), name("torque_command")))
+            self.offset_ns = clock_offset(reader, name("joint_states"))
+            """The run's stamp minus log time (ns, :func:`clock_offset`)."""
         self.has_ground_truth = counts.get(name("ground_truth"), 0) > 0
         self.position_source = "ground truth" if self.has_ground_truth else "measured"
 
@@ -326,7 +357,7 @@ class StepStream:
             if part is None or part.stamps.size == 0:
                 return
             topic_of[series] = topic
-            beyond = part.stamps - part.log_times > AHEAD_LIMIT_NS
+            beyond = part.stamps - part.log_times - self.offset_ns > AHEAD_LIMIT_NS
             if np.any(beyond):
                 if counted:
                     ahead[topic] = ahead.get(topic, 0) + int(np.count_nonzero(beyond))
