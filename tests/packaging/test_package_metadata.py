@@ -21,6 +21,8 @@ ROSDEP_TO_MODULE = {
     "python3-yaml": "yaml",
     "python3-scipy": "scipy",
     "python3-serial": "serial",
+    "python3-can": "can",
+    "python3-msgpack": "msgpack",
 }
 
 
