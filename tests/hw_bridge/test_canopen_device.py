@@ -1,0 +1,224 @@
+"""The CANopen master against the emulated bench on python-can's in-process ``virtual`` bus (lockstep)."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import pytest
+from smm_bench_emulator.canopen_bench import CanBench, CanBenchConfig, eds_path
+from smm_hw_bridge.canopen_device import CanopenConfig, CanopenDevice, ConfigureError
+from smm_hw_bridge.cia408 import ValveState
+from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FaultBit, FeedbackFrame, StatusBit
+
+_CHANNELS = itertools.count()
+TIMEOUT = 5.0  # generous: a missing answer fails, a slow machine does not
+
+
+@pytest.fixture
+def channel() -> str:
+    return f"smm-test-{next(_CHANNELS)}"
+
+
+@pytest.fixture
+def bench(channel: str) -> Iterator[CanBench]:
+    bench = CanBench(CanBenchConfig(), can.Bus(interface="virtual", channel=channel))
+    yield bench
+    bench.close()
+
+
+def _config(**changes: object) -> CanopenConfig:
+    values: dict[str, object] = {
+        "interface": "virtual",
+        "valve_eds": (str(eds_path("valve_cia408.eds")),),
+        "encoder_eds": (str(eds_path("encoder_cia406.eds")),),
+        "sdo_timeout": 0.3,
+    }
+    values.update(changes)
+    return CanopenConfig(**values)  # type: ignore[arg-type]
+
+
+def _open(channel: str, **changes: object) -> CanopenDevice:
+    device = CanopenDevice(_config(**changes), can.Bus(interface="virtual", channel=channel))
+    device.open()
+    return device
+
+
+def _feedback(device: CanopenDevice) -> FeedbackFrame:
+    reading = device.read(TIMEOUT)
+    assert isinstance(reading, FeedbackFrame), reading
+    return reading
+
+
+def _command(feedback: FeedbackFrame, seq: int, codes: tuple[int, int], flags: int) -> CommandFrame:
+    return CommandFrame(
+        session=7,
+        seq=seq,
+        board_session=feedback.session,
+        answers_seq=feedback.seq,
+        answers_tick=feedback.tick,
+        flags=flags,
+        validity=10,
+        codes=codes,
+    )
+
+
+def _run(
+    device: CanopenDevice,
+    cycles: int,
+    codes: tuple[int, int],
+    flags: int,
+    start: int = 1,
+    feedback: FeedbackFrame | None = None,
+) -> FeedbackFrame:
+    """``cycles`` commands, each answering the last feedback; the last feedback."""
+    feedback = feedback or _feedback(device)
+    for seq in range(start, start + cycles):
+        device.write(_command(feedback, seq, codes, flags))
+        feedback = _feedback(device)
+    return feedback
+
+
+def test_configure_reads_each_node_and_writes_the_settings(bench: CanBench, channel: str) -> None:
+    device = _open(channel, period_us=2000, receive_deadline_ms=7, heartbeat_ms=50)
+    try:
+        assert [(n.name, n.device_type & 0xFFFF) for n in device.nodes] == [
+            ("valve alpha (node 1)", 408),
+            ("valve beta (node 2)", 408),
+            ("encoder alpha (node 11)", 406),
+            ("encoder beta (node 12)", 406),
+        ]
+        assert device.nodes[2].device_type >> 16 == 2  # the encoder's high word is kept, not compared
+        assert device.nodes[0].identity[1] == 0x408
+        for valve in bench.valves:
+            sdo = valve.node.sdo
+            assert (sdo[0x6042].raw, sdo[0x6043].raw, sdo[0x1006].raw, sdo[0x1400][5].raw) == (1, 2, 2000, 7)
+            assert sdo[0x1017].raw == 50
+            assert sdo[0x1016][1].raw == (127 << 16) | 150
+        feedback = _feedback(device)
+        assert feedback.seq == 1 and feedback.faults == 0
+        assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
+    finally:
+        device.close()
+
+
+def test_arming_walks_disabled_hold_active_and_the_setpoint_moves_the_plant(
+    bench: CanBench, channel: str
+) -> None:
+    device = _open(channel)
+    try:
+        first = _feedback(device)
+        device.write(_command(first, 1, (4000, -4000), int(CommandFlag.ENABLE)))
+        held = _feedback(device)
+        assert held.status & StatusBit.ENABLED == 0
+        assert bench.valve_states() == (ValveState.HOLD, ValveState.HOLD)
+        last = _run(device, 30, (4000, -4000), int(CommandFlag.ENABLE), start=2, feedback=held)
+        assert bench.valve_states() == (ValveState.ACTIVE, ValveState.ACTIVE)
+        assert last.status & StatusBit.ENABLED and last.output_codes == (4000, -4000)
+        assert last.counts != first.counts  # the plant moved
+        assert bench.syncs == last.seq  # lockstep: one SYNC per command
+    finally:
+        device.close()
+
+
+@pytest.mark.parametrize("flags", [0, int(CommandFlag.ESTOP)], ids=["disarm", "estop"])
+def test_disarm_and_estop_leave_every_valve_disabled(bench: CanBench, channel: str, flags: int) -> None:
+    device = _open(channel)
+    try:
+        armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
+        assert bench.valve_states() == (ValveState.ACTIVE, ValveState.ACTIVE)
+        last = _run(device, 2, (3000, 3000), flags | int(CommandFlag.ENABLE) * (flags != 0), 10, armed)
+        assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
+        assert last.output_codes == (0, 0)
+        if flags:  # latched: enabled commands keep the valves DISABLED until a re-arm
+            _run(device, 3, (3000, 3000), int(CommandFlag.ENABLE), 20, last)
+            assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
+    finally:
+        device.close()
+
+
+def test_make_safe_disables_every_valve(bench: CanBench, channel: str) -> None:
+    device = _open(channel)
+    try:
+        _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
+        device.make_safe()
+        assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
+    finally:
+        device.close()
+
+
+def test_a_code_beyond_full_spool_never_reaches_a_valve(bench: CanBench, channel: str) -> None:
+    device = _open(channel)
+    try:
+        armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
+        last = _run(device, 2, (16385, 0), int(CommandFlag.ENABLE), 10, armed)
+        assert device.dropped["code_limit"] == 2
+        assert [v.setpoint for v in bench.valves] == [0, 0]
+        assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
+        assert last.output_codes == (0, 0)
+    finally:
+        device.close()
+
+
+def test_setpoints_that_stop_fault_the_valve_by_itself_with_an_emcy(bench: CanBench, channel: str) -> None:
+    device = _open(channel, receive_deadline_ms=3)
+    try:
+        armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
+        bench.valves[1].node.rpdo[1].callbacks.clear()  # beta no longer hears its setpoints
+        last = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE), 10, armed)
+        assert bench.valve_states()[1] is ValveState.FAULT_DISABLED
+        assert bench.valves[1].spool == 0
+        assert last.faults & FaultBit.VALVE_DRIVER
+        assert any(f.startswith("valve beta (node 2): EMCY 0x8250") for f in device.faults), device.faults
+        assert any("valve beta (node 2): status word 0x0001 (FAULT_DISABLED)" in f for f in device.faults)
+        _run(device, 2, (3000, 3000), int(CommandFlag.ENABLE), 20, last)
+        assert bench.valve_states()[0] is ValveState.DISABLED  # any fault: every valve to DISABLED
+    finally:
+        device.close()
+
+
+def test_a_missing_node_is_refused_naming_it_and_the_object(bench: CanBench, channel: str) -> None:
+    with pytest.raises(ConfigureError, match=r"encoder beta \(node 13\): no answer to reading 0x1000:00"):
+        _open(channel, encoder_node_ids=(11, 13))
+
+
+def test_a_wrong_device_type_is_refused(bench: CanBench, channel: str) -> None:
+    with pytest.raises(
+        ConfigureError, match=r"valve alpha \(node 11\): device type 0x1000 = 0x00020196.*not CiA 408"
+    ):
+        _open(
+            channel,
+            valve_node_ids=(11, 2),
+            encoder_node_ids=(1, 12),
+            valve_eds=(str(eds_path("encoder_cia406.eds")),),
+            encoder_eds=(str(eds_path("valve_cia408.eds")),),
+        )
+
+
+def test_a_pdo_mapping_that_differs_from_the_eds_is_refused(
+    bench: CanBench, channel: str, tmp_path: Path
+) -> None:
+    text = eds_path("valve_cia408.eds").read_text()
+    swapped = (
+        text.replace("DefaultValue=0x63010110", "DefaultValue=0x63810110X")
+        .replace("DefaultValue=0x63810110\n", "DefaultValue=0x63010110\n")
+        .replace("0x63810110X", "0x63810110")
+    )
+    assert swapped != text
+    user_eds = tmp_path / "valve.eds"
+    user_eds.write_text(swapped)
+    with pytest.raises(ConfigureError, match=r"valve alpha \(node 1\): PDO mapping 0x1A00 on the device is"):
+        _open(channel, valve_eds=(str(user_eds),))
+
+
+def test_configuration_is_refused_with_its_reason() -> None:
+    with pytest.raises(ValueError, match="node ids must differ"):
+        _config(valve_node_ids=(1, 11))
+    with pytest.raises(ValueError, match="valve_eds must name one EDS file or one per joint"):
+        _config(valve_eds=("a", "b", "c"))
+    with pytest.raises(ValueError, match="bitrate"):
+        _config(bitrate=2_000_000)
+    with pytest.raises(ConfigureError, match="must name the devices' EDS files"):
+        CanopenDevice(CanopenConfig(interface="virtual")).open()
