@@ -70,6 +70,7 @@ def _run(
     cycles: int,
     codes: tuple[int, int],
     flags: int,
+    *,
     start: int = 1,
     feedback: FeedbackFrame | None = None,
 ) -> FeedbackFrame:
@@ -129,11 +130,13 @@ def test_disarm_and_estop_leave_every_valve_disabled(bench: CanBench, channel: s
     try:
         armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
         assert bench.valve_states() == (ValveState.ACTIVE, ValveState.ACTIVE)
-        last = _run(device, 2, (3000, 3000), flags | int(CommandFlag.ENABLE) * (flags != 0), 10, armed)
+        last = _run(
+            device, 2, (3000, 3000), flags | int(CommandFlag.ENABLE) * (flags != 0), start=10, feedback=armed
+        )
         assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
         assert last.output_codes == (0, 0)
         if flags:  # latched: enabled commands keep the valves DISABLED until a re-arm
-            _run(device, 3, (3000, 3000), int(CommandFlag.ENABLE), 20, last)
+            _run(device, 3, (3000, 3000), int(CommandFlag.ENABLE), start=20, feedback=last)
             assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
     finally:
         device.close()
@@ -153,7 +156,7 @@ def test_a_code_beyond_full_spool_never_reaches_a_valve(bench: CanBench, channel
     device = _open(channel)
     try:
         armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
-        last = _run(device, 2, (16385, 0), int(CommandFlag.ENABLE), 10, armed)
+        last = _run(device, 2, (16385, 0), int(CommandFlag.ENABLE), start=10, feedback=armed)
         assert device.dropped["code_limit"] == 2
         assert [v.setpoint for v in bench.valves] == [0, 0]
         assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
@@ -167,13 +170,13 @@ def test_setpoints_that_stop_fault_the_valve_by_itself_with_an_emcy(bench: CanBe
     try:
         armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
         bench.valves[1].node.rpdo[1].callbacks.clear()  # beta no longer hears its setpoints
-        last = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE), 10, armed)
+        last = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE), start=10, feedback=armed)
         assert bench.valve_states()[1] is ValveState.FAULT_DISABLED
         assert bench.valves[1].spool == 0
         assert last.faults & FaultBit.VALVE_DRIVER
         assert any(f.startswith("valve beta (node 2): EMCY 0x8250") for f in device.faults), device.faults
         assert any("valve beta (node 2): status word 0x0001 (FAULT_DISABLED)" in f for f in device.faults)
-        _run(device, 2, (3000, 3000), int(CommandFlag.ENABLE), 20, last)
+        _run(device, 2, (3000, 3000), int(CommandFlag.ENABLE), start=20, feedback=last)
         assert bench.valve_states()[0] is ValveState.DISABLED  # any fault: every valve to DISABLED
     finally:
         device.close()

@@ -1,4 +1,4 @@
-"""The CANopen link as one :class:`Device`: the bridge is the bus master of CiA 408 valves and CiA 406 encoders.
+"""The CANopen link as one :class:`Device`: the bridge masters CiA 408 valves and CiA 406 encoders.
 
 Configure by SDO (device type, identity, PDO mapping against the user's EDS, the settings written), NMT
 start, then in lockstep: each :meth:`CanopenDevice.write` sends the valves' RPDOs and then the SYNC, and
@@ -264,7 +264,8 @@ class CanopenDevice(Device):
         profile = PROFILE_VALVE if node.kind == "valve" else PROFILE_ENCODER
         if node.device_type & 0xFFFF != profile:
             raise ConfigureError(
-                f"{node.name}: device type 0x1000 = 0x{node.device_type:08X}, profile {node.device_type & 0xFFFF}, "
+                f"{node.name}: device type 0x1000 = 0x{node.device_type:08X}, "
+                f"profile {node.device_type & 0xFFFF}, "
                 f"not CiA {profile}"
             )
         node.identity = tuple(self._upload(node, _IDENTITY, sub) for sub in (1, 2, 3, 4))  # type: ignore[assignment]
@@ -429,15 +430,13 @@ class CanopenDevice(Device):
             self._sync()
 
     def _next(self, node: _Node, enable: bool, code: int, rearm: bool) -> tuple[int, int]:
-        """Control word and setpoint: DISABLED -> HOLD -> ACTIVE one step a cycle when enabled; R on re-arm."""
+        """Control word and setpoint: DISABLED -> HOLD -> ACTIVE a step a cycle if enabled; R on re-arm."""
         state = state_of_status(node.values[STATUS_WORD]) if node.values else None
         if state is not None and state.fault:
             return control_word(ValveState.DISABLED, reset=rearm), 0
         if not enable:
             return control_word(ValveState.DISABLED), 0
-        if state is ValveState.ACTIVE:
-            return control_word(ValveState.ACTIVE), code
-        if state is ValveState.HOLD:
+        if state in (ValveState.HOLD, ValveState.ACTIVE):
             return control_word(ValveState.ACTIVE), code
         return control_word(ValveState.HOLD), 0
 
