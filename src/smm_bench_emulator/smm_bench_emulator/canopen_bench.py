@@ -7,8 +7,6 @@ one are latched, the plant moves one cycle period (0x1006), the TPDOs go out. do
 
 from __future__ import annotations
 
-import re
-import subprocess
 import threading
 from dataclasses import dataclass, field
 from importlib import resources
@@ -37,8 +35,6 @@ __all__ = [
     "EMCY_DEADLINE",
     "CanBench",
     "CanBenchConfig",
-    "MulticastRouteError",
-    "check_loopback_route",
     "eds_path",
 ]
 
@@ -52,31 +48,6 @@ _CYCLE_PERIOD: Final[int] = 0x1006
 def eds_path(name: str) -> Path:
     """The shipped EDS file ``name`` (``valve_cia408.eds``, ``encoder_cia406.eds``)."""
     return Path(str(resources.files("smm_bench_emulator") / "eds" / name))
-
-
-class MulticastRouteError(RuntimeError):
-    """The multicast group would leave this machine (its route is not over ``lo``)."""
-
-
-def check_loopback_route(group: str) -> None:
-    """Refuses unless the kernel routes IPv4 ``group`` over ``lo`` (``ip route get``).
-
-    Raises:
-        MulticastRouteError: Another device, or no route.
-    """
-    try:
-        answer = subprocess.run(
-            ["ip", "-4", "route", "get", group], capture_output=True, text=True, check=False, timeout=10
-        )
-    except (OSError, subprocess.TimeoutExpired) as error:
-        raise MulticastRouteError(f"cannot ask the kernel's route to {group}: {error}") from error
-    match = re.search(r"\bdev (\S+)", answer.stdout)
-    if answer.returncode != 0 or match is None or match.group(1) != "lo":
-        found = match.group(1) if match else (answer.stderr.strip() or "no route")
-        raise MulticastRouteError(
-            f"multicast group {group} goes over {found}, not lo: the emulated bus would leave this "
-            f"machine; route it to loopback first (ip route add 224.0.0.0/4 dev lo, in a private netns)"
-        )
 
 
 @dataclass(frozen=True)

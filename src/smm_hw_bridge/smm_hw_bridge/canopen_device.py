@@ -17,6 +17,7 @@ import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 from smm_schema.ranges import bounds, check_bounds
 
+from smm_hw_bridge.can_multicast import MulticastRouteError, loopback_multicast_bus
 from smm_hw_bridge.cia408 import (
     CONTROL_MODE,
     CONTROL_WORD,
@@ -192,10 +193,13 @@ class CanopenDevice(Device):
         if not config.valve_eds or not config.encoder_eds:
             raise ConfigureError("canopen.valve_eds and canopen.encoder_eds must name the devices' EDS files")
         try:
-            bus = self._bus or can.Bus(
-                interface=config.interface, channel=config.channel, bitrate=config.bitrate, port=config.port
-            )
-        except (can.CanError, OSError, ValueError) as error:
+            if self._bus is not None:
+                bus = self._bus
+            elif config.interface == "udp_multicast":
+                bus = loopback_multicast_bus(config.channel, config.port)
+            else:
+                bus = can.Bus(interface=config.interface, channel=config.channel, bitrate=config.bitrate)
+        except (can.CanError, OSError, ValueError, MulticastRouteError) as error:
             raise DeviceError(
                 f"cannot open CAN interface {config.interface} {config.channel}: {error}"
             ) from error
