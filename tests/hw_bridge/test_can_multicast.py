@@ -6,10 +6,11 @@ import subprocess
 import sys
 
 import pytest
-from netns_exec import interface_names
+from netns_exec import interface_names  # type: ignore[import-not-found]
 from smm_bench_emulator.canopen_bench import CanBench, CanBenchConfig, eds_path
 from smm_hw_bridge.can_multicast import check_loopback_route, loopback_multicast_bus
-from smm_hw_bridge.canopen_device import CanopenConfig, CanopenDevice
+from smm_hw_bridge.canopen_config import CanopenConfig
+from smm_hw_bridge.canopen_device import CanopenDevice
 from smm_hw_bridge.cia408 import ValveState
 from smm_hw_bridge.device import DeviceError
 from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FeedbackFrame
@@ -42,8 +43,8 @@ def test_the_master_drives_the_bench_over_udp_multicast(ros_netns: None) -> None
     config = CanopenConfig(
         channel=GROUP,
         port=43114,
-        valve_eds=(str(eds_path("valve_cia408.eds")),),
-        encoder_eds=(str(eds_path("encoder_cia406.eds")),),
+        valve_eds=str(eds_path("valve_cia408.eds")),
+        encoder_eds=str(eds_path("encoder_cia406.eds")),
     )
     device = CanopenDevice(config)
     try:
@@ -73,6 +74,6 @@ def test_the_master_drives_the_bench_over_udp_multicast(ros_netns: None) -> None
 
 
 def test_an_unopenable_interface_is_a_device_error() -> None:
-    config = CanopenConfig(interface="no-such-interface", valve_eds=("v",), encoder_eds=("e",))
+    config = CanopenConfig(interface="no-such-interface", valve_eds="v", encoder_eds="e")
     with pytest.raises(DeviceError, match="cannot open CAN interface no-such-interface"):
         CanopenDevice(config).open()

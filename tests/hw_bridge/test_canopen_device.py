@@ -9,9 +9,12 @@ from pathlib import Path
 import can
 import pytest
 from smm_bench_emulator.canopen_bench import CanBench, CanBenchConfig, eds_path
-from smm_hw_bridge.canopen_device import CanopenConfig, CanopenDevice, ConfigureError
+from smm_hw_bridge.canopen_config import CanopenConfig
+from smm_hw_bridge.canopen_device import CanopenDevice, ConfigureError
 from smm_hw_bridge.cia408 import ValveState
+from smm_hw_bridge.device import open_device
 from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FaultBit, FeedbackFrame, StatusBit
+from smm_hw_bridge.transport import LinkConfig
 
 _CHANNELS = itertools.count()
 TIMEOUT = 5.0  # generous: a missing answer fails, a slow machine does not
@@ -32,8 +35,8 @@ def bench(channel: str) -> Iterator[CanBench]:
 def _config(**changes: object) -> CanopenConfig:
     values: dict[str, object] = {
         "interface": "virtual",
-        "valve_eds": (str(eds_path("valve_cia408.eds")),),
-        "encoder_eds": (str(eds_path("encoder_cia406.eds")),),
+        "valve_eds": str(eds_path("valve_cia408.eds")),
+        "encoder_eds": str(eds_path("encoder_cia406.eds")),
         "sdo_timeout": 0.3,
     }
     values.update(changes)
@@ -195,8 +198,8 @@ def test_a_wrong_device_type_is_refused(bench: CanBench, channel: str) -> None:
             channel,
             valve_node_ids=(11, 2),
             encoder_node_ids=(1, 12),
-            valve_eds=(str(eds_path("encoder_cia406.eds")),),
-            encoder_eds=(str(eds_path("valve_cia408.eds")),),
+            valve_eds=str(eds_path("encoder_cia406.eds")),
+            encoder_eds=str(eds_path("valve_cia408.eds")),
         )
 
 
@@ -213,15 +216,28 @@ def test_a_pdo_mapping_that_differs_from_the_eds_is_refused(
     user_eds = tmp_path / "valve.eds"
     user_eds.write_text(swapped)
     with pytest.raises(ConfigureError, match=r"valve alpha \(node 1\): PDO mapping 0x1A00 on the device is"):
-        _open(channel, valve_eds=(str(user_eds),))
+        _open(channel, valve_eds=str(user_eds))
 
 
 def test_configuration_is_refused_with_its_reason() -> None:
     with pytest.raises(ValueError, match="node ids must differ"):
         _config(valve_node_ids=(1, 11))
     with pytest.raises(ValueError, match="valve_eds must name one EDS file or one per joint"):
-        _config(valve_eds=("a", "b", "c"))
+        _config(valve_eds="a, b, c")
     with pytest.raises(ValueError, match="bitrate"):
         _config(bitrate=2_000_000)
     with pytest.raises(ConfigureError, match="must name the devices' EDS files"):
         CanopenDevice(CanopenConfig(interface="virtual")).open()
+
+
+def test_link_transport_canopen_opens_the_bench_from_the_link_parameters(
+    bench: CanBench, channel: str
+) -> None:
+    link = LinkConfig(transport="canopen", canopen=_config(channel=channel))
+    device = open_device(link)
+    try:
+        assert isinstance(device, CanopenDevice)
+        assert device.description.name == "canopen"
+        assert _feedback(device).counts == bench.board.counts()
+    finally:
+        device.close()

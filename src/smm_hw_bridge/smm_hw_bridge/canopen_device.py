@@ -8,16 +8,15 @@ bus maps onto :data:`~smm_hw_bridge.device.Feedback`: docs/HW_CANOPEN.md. No ROS
 
 from __future__ import annotations
 
-import math
 import threading
 from dataclasses import dataclass, field
 
 import can
 import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
-from smm_schema.ranges import bounds, check_bounds
 
 from smm_hw_bridge.can_multicast import MulticastRouteError, loopback_multicast_bus
+from smm_hw_bridge.canopen_config import JOINTS, CanopenConfig
 from smm_hw_bridge.cia408 import (
     CONTROL_MODE,
     CONTROL_WORD,
@@ -45,11 +44,11 @@ from smm_hw_bridge.protocol import (
     FeedbackFrame,
     StatusBit,
 )
+from smm_hw_bridge.transport import LinkConfig
 
-__all__ = ["CanopenConfig", "CanopenDevice", "ConfigureError"]
+__all__ = ["CanopenDevice", "ConfigureError", "canopen_device"]
 
 _U32 = 1 << 32
-_JOINTS = ("alpha", "beta")
 _IDENTITY = 0x1018
 _CYCLE_PERIOD = 0x1006
 _HEARTBEAT_CONSUMER = 0x1016
@@ -66,67 +65,6 @@ class ConfigureError(DeviceError):
     """A node refused at configure: missing, of the wrong profile, or its objects not as its EDS says."""
 
 
-@dataclass(frozen=True)
-class CanopenConfig:
-    """The CANopen link (``canopen.*`` parameters).
-
-    Attributes:
-        interface: python-can's interface (``socketcan``, ``pcan``, ``kvaser``, ``udp_multicast``, ...).
-        channel: Its channel (``can0``; for ``udp_multicast`` an IPv4 group).
-        bitrate: Bus bit rate (bit/s), used where the interface sets it.
-        port: UDP port, where the interface takes one (``udp_multicast``).
-        valve_node_ids: CiA 408 valve node ids (alpha, beta), in [1, 127].
-        encoder_node_ids: CiA 406 encoder node ids (alpha, beta), in [1, 127].
-        valve_eds: EDS / DCF file of the valves: one, or one per joint.
-        encoder_eds: EDS / DCF file of the encoders: one, or one per joint.
-        heartbeat_ms: Every node's heartbeat period (ms); consumers allow 3 periods.
-        control_mode: The valves' control mode 0x6043 (2: spool position, closed loop).
-        period_us: SYNC period written to 0x1006 (us).
-        receive_deadline_ms: The valves' RPDO1 event timer 0x1400:05 (ms): no setpoint for that long and a
-            valve faults by itself.
-        bar_per_unit: Pressure actual 0x6381:01 per unit (bar), > 0.
-        supply_bar_per_code: The bridge's supply scale (``bridge.supply_bar_per_code``): the pressure is
-            handed over as that A/D code.
-        master_node_id: The master's node id in the consumers' 0x1016 (its heartbeat's id), in [1, 127].
-        sdo_timeout: SDO answer timeout (s).
-    """
-
-    interface: str = "udp_multicast"
-    channel: str = "239.74.163.2"
-    bitrate: int = field(default=1_000_000, metadata=bounds(10_000, 1_000_000))
-    port: int = field(default=43113, metadata=bounds(1, 65535))
-    valve_node_ids: tuple[int, int] = field(default=(1, 2), metadata=bounds(1, 127))
-    encoder_node_ids: tuple[int, int] = field(default=(11, 12), metadata=bounds(1, 127))
-    valve_eds: tuple[str, ...] = ()
-    encoder_eds: tuple[str, ...] = ()
-    heartbeat_ms: int = field(default=100, metadata=bounds(1, 65535))
-    control_mode: int = field(default=2, metadata=bounds(1, 127))
-    period_us: int = field(default=1000, metadata=bounds(100, 1_000_000))
-    receive_deadline_ms: int = field(default=10, metadata=bounds(1, 65535))
-    bar_per_unit: float = field(default=0.01, metadata=bounds(1e-9, 1e3))
-    supply_bar_per_code: float = field(default=25.0 / 4095.0, metadata=bounds(1e-9, 1e3))
-    master_node_id: int = field(default=127, metadata=bounds(1, 127))
-    sdo_timeout: float = field(default=0.5, metadata=bounds(0.001, 60.0))
-
-    def __post_init__(self) -> None:
-        check_bounds(self)
-        ids = (*self.valve_node_ids, *self.encoder_node_ids, self.master_node_id)
-        if len(set(ids)) != len(ids):
-            raise ValueError(f"node ids must differ (valves, encoders, master), got {ids}")
-        for name in ("valve_eds", "encoder_eds"):
-            if len(getattr(self, name)) not in (0, 1, len(_JOINTS)):  # none: refused at open
-                raise ValueError(
-                    f"{name} must name one EDS file or one per joint, got {getattr(self, name)!r}"
-                )
-        if not all(math.isfinite(value) for value in (self.bar_per_unit, self.supply_bar_per_code)):
-            raise ValueError("bar_per_unit and supply_bar_per_code must be finite")
-
-    def eds(self, kind: str, joint: int) -> str:
-        """The EDS file of the ``kind`` (``valve``, ``encoder``) node of ``joint``."""
-        files: tuple[str, ...] = self.valve_eds if kind == "valve" else self.encoder_eds
-        return files[joint] if len(files) > 1 else files[0]
-
-
 @dataclass
 class _Node:
     """One configured node and what its last TPDO and heartbeat said."""
@@ -141,7 +79,7 @@ class _Node:
 
     @property
     def name(self) -> str:
-        return f"{self.kind} {_JOINTS[self.joint]} (node {self.remote.id})"
+        return f"{self.kind} {JOINTS[self.joint]} (node {self.remote.id})"
 
 
 class CanopenDevice(Device):
@@ -156,8 +94,8 @@ class CanopenDevice(Device):
         super().__init__()
         self.description = DeviceDescription(
             name="canopen",
-            joints=_JOINTS,
-            valves=_JOINTS,
+            joints=JOINTS,
+            valves=JOINTS,
             analog=("supply",),
             own_watchdog=True,
             validity=False,
@@ -191,7 +129,9 @@ class CanopenDevice(Device):
             return
         config = self.config
         if not config.valve_eds or not config.encoder_eds:
-            raise ConfigureError("canopen.valve_eds and canopen.encoder_eds must name the devices' EDS files")
+            raise ConfigureError(
+                "link.canopen.valve_eds and link.canopen.encoder_eds must name the devices' EDS files"
+            )
         try:
             if self._bus is not None:
                 bus = self._bus
@@ -227,7 +167,7 @@ class CanopenDevice(Device):
             remote = canopen.RemoteNode(node_id, path)
         except (OSError, ValueError, KeyError) as error:
             raise ConfigureError(
-                f"{kind} {_JOINTS[joint]} (node {node_id}): cannot read EDS {path}: {error}"
+                f"{kind} {JOINTS[joint]} (node {node_id}): cannot read EDS {path}: {error}"
             ) from error
         remote.sdo.RESPONSE_TIMEOUT = self.config.sdo_timeout
         network.add_node(remote)
@@ -477,3 +417,8 @@ class CanopenDevice(Device):
                     self._fault(
                         node, f"control word DISABLED by SDO refused ({error})", FaultBit.VALVE_DRIVER
                     )
+
+
+def canopen_device(link: LinkConfig) -> CanopenDevice:
+    """The CANopen bench ``link.canopen`` describes."""
+    return CanopenDevice(link.canopen)

@@ -110,6 +110,7 @@ class Device(abc.ABC):
 DEVICES: Final[Mapping[str, str]] = {
     "udp": "smm_hw_bridge.frame_device:udp_device",
     "serial": "smm_hw_bridge.frame_device:serial_device",
+    "canopen": "smm_hw_bridge.canopen_device:canopen_device",
 }
 """Every device: ``link.transport`` name -> ``module:factory`` (the factory takes the ``LinkConfig``)."""
 if TYPE_CHECKING:
