@@ -59,12 +59,17 @@ class CanBenchConfig:
         valve_node_ids: Valve node ids (alpha, beta), in [1, 127].
         encoder_node_ids: Encoder node ids (alpha, beta), in [1, 127].
         bar_per_unit: Pressure actual 0x6381:01 per bar unit (bar), > 0.
+        wait_active: The plant stands still until both valves are first ACTIVE (lockstep runs line up
+            with the simulator's, whose step 0 is the controller's first answer).
+        duration_syncs: Live SYNCs (the plant moving) after which :attr:`CanBench.done` is set (0: never).
     """
 
     board: BoardConfig = field(default_factory=BoardConfig)
     valve_node_ids: tuple[int, int] = field(default=(1, 2), metadata=bounds(1, 127))
     encoder_node_ids: tuple[int, int] = field(default=(11, 12), metadata=bounds(1, 127))
     bar_per_unit: float = field(default=0.01, metadata=bounds(1e-9, 1e3))
+    wait_active: bool = False
+    duration_syncs: int = field(default=0, metadata=bounds(0, 1 << 62))
 
     def __post_init__(self) -> None:
         check_bounds(self)
@@ -138,6 +143,12 @@ class CanBench:
         self.board = BoardCore(config.board)
         self.lock = threading.Lock()
         self.syncs = 0
+        self.live_syncs = 0
+        """SYNCs since the plant went live (at once, or at the first ACTIVE with ``wait_active``)."""
+        self.active_syncs = 0
+        """SYNCs at which both valves were ACTIVE (following the bus setpoint)."""
+        self.done = threading.Event()
+        """Set at ``duration_syncs`` live SYNCs."""
         self.network = canopen.Network(bus)
         self.valves: list[_Valve] = []
         self.encoders: list[canopen.LocalNode] = []
@@ -168,9 +179,15 @@ class CanBench:
         for valve in self.valves:
             valve.latch(cycle_us)
         self.board.output = [valve.spool * CODE_MAX / SPOOL_FULL_SCALE for valve in self.valves]
-        substeps = max(1, round(cycle_us * 1000 / self.board.config.period_ns))
-        for _ in range(substeps):
-            self.board.plant.step(self.board.valve_torque(), self.board.config.plant.control_period)
+        active = all(valve.machine.follows_setpoint for valve in self.valves)
+        self.active_syncs += active
+        if self.live_syncs or active or not self.config.wait_active:
+            substeps = max(1, round(cycle_us * 1000 / self.board.config.period_ns))
+            for _ in range(substeps):
+                self.board.plant.step(self.board.valve_torque(), self.board.config.plant.control_period)
+            self.live_syncs += 1
+            if self.live_syncs == self.config.duration_syncs:
+                self.done.set()
         self.syncs += 1
         if not all(node.nmt.state == "OPERATIONAL" for node in self._nodes()):
             return
