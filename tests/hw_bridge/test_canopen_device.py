@@ -96,6 +96,11 @@ def test_configure_reads_each_node_and_writes_the_settings(bench: CanBench, chan
         ]
         assert device.nodes[2].device_type >> 16 == 2  # the encoder's high word is kept, not compared
         assert device.nodes[0].identity[1] == 0x408
+        assert device.found[0] == (
+            "valve alpha (node 1): device type 0x00000198 (CiA 408), vendor 0x00000000, product 0x00000408, "
+            "revision 0x00010000, serial 0x00000000"
+        )
+        assert device.found[3].startswith("encoder beta (node 12): device type 0x00020196 (CiA 406)")
         for valve in bench.valves:
             sdo = valve.node.sdo
             assert (sdo[0x6042].raw, sdo[0x6043].raw, sdo[0x1006].raw, sdo[0x1400][5].raw) == (1, 2, 2000, 7)

@@ -21,6 +21,8 @@ __all__ = [
     "CHAIN_LAYOUTS",
     "CLOCK_MODES",
     "CONTROL_RATES_HZ",
+    "EXTERNAL_BOARD",
+    "LINKS",
     "LOOPS",
     "PLANTS",
     "PLANT_ALIASES",
@@ -36,6 +38,11 @@ PLANTS: Final[tuple[str, ...]] = ("sim", "hardware")
 PLANT_ALIASES: Final[Mapping[str, str]] = MappingProxyType({"hw": "hardware"})
 """Other names accepted for a plant (``hw`` = ``hardware``)."""
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
+LINKS: Final[tuple[str, ...]] = ("frame", "canopen")
+"""The hardware plant's link: ``frame`` (the I/O board's frame protocol, docs/HW_PROTOCOL.md) or ``canopen``
+(CiA 408 valves and CiA 406 encoders, docs/HW_CANOPEN.md; lockstep only for now)."""
+EXTERNAL_BOARD: Final[str] = "external"
+"""``board`` on the CANopen link: no emulator; the bridge drives the devices its ``link.canopen.*`` name."""
 LOOPS: Final[tuple[str, ...]] = ("auto", "topics", "direct")
 """``topics``: the plant and ``controller_node`` are separate processes joined by topics (the product's
 shape); ``direct`` (hardware only): one process, ``direct_loop``, steps the chain of ``controller_node`` in
@@ -84,8 +91,9 @@ class GraphOptions:
             steps every N = 1000 / rate ticks with ``control_period`` = N ms, the board holds each command
             in between, and the rate's settings file (``smm_controller/config/control_rate_<rate>.yaml``)
             is applied after the scenario's (docs/LAUNCH.md, "Control rate").
-        board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board; ``None`` starts
-            ``smm_bench_emulator`` on loopback instead.
+        board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board (``external`` on the CANopen
+            link: the devices its parameters name); ``None`` starts ``smm_bench_emulator`` on loopback.
+        link: ``hardware`` only: ``frame`` or ``canopen`` (:data:`LINKS`).
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
         record_max_size: Start a new bag file when the current one reaches this many bytes: 0 (never) or
@@ -122,6 +130,7 @@ class GraphOptions:
     params_files: tuple[str, ...] = ()
     control_rate: float = BOARD_TICK_HZ
     board: str | None = None
+    link: Literal["frame", "canopen"] = "frame"
     record: str | None = None
     record_max_size: int = 0
     record_max_duration: float = 0.0
@@ -203,10 +212,23 @@ class GraphOptions:
                 "loop 'direct' runs the whole chain in the bridge's process: it needs plant 'hardware', "
                 "chain 'fused' and reference 'controller'"
             )
+        if self.link not in LINKS:
+            raise ValueError(f"link must be one of {LINKS}, got {self.link!r}")
+        if self.link == "canopen" and (self.plant != "hardware" or self.clock_mode != "lockstep"):
+            raise ValueError(
+                "link 'canopen' needs plant 'hardware' and clock mode 'lockstep' (the bridge sends each SYNC "
+                "after its setpoints; a SYNC clock for real time is not written yet)"
+            )
         if self.board is not None:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
-            split_endpoint("board", self.board)
+            if self.link == "canopen":
+                if self.board != EXTERNAL_BOARD:
+                    raise ValueError(
+                        f"board on link 'canopen' is {EXTERNAL_BOARD!r} or none, got {self.board!r}"
+                    )
+            else:
+                split_endpoint("board", self.board)
 
     def _choose_loop(self) -> None:
         """``loop="auto"``: direct for the hardware plant in real time unless the choices forbid it."""

@@ -158,6 +158,12 @@ class CanopenDevice(Device):
             can.Message(arbitration_id=0x700 + config.master_node_id, data=[5], is_extended_id=False),
             config.heartbeat_ms / 1000.0,
         )
+        self.found = tuple(
+            f"{node.name}: device type 0x{node.device_type:08X} (CiA {node.device_type & 0xFFFF}), vendor "
+            f"0x{node.identity[0]:08X}, product 0x{node.identity[1]:08X}, revision 0x{node.identity[2]:08X}, "
+            f"serial 0x{node.identity[3]:08X}"
+            for node in self.nodes
+        )
         network.nmt.send_command(_NMT_START_ALL)
         self._send_safe()
 

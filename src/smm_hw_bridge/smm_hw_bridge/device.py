@@ -73,6 +73,8 @@ class Device(abc.ABC):
     def __init__(self) -> None:
         self.dropped: dict[str, int] = {}
         """What the device dropped before the loop saw it, by reason (foreign source, broken framing)."""
+        self.found: tuple[str, ...] = ()
+        """What :meth:`open` found (a CANopen bench: each node, its device type and identity), for the log."""
 
     @abc.abstractmethod
     def open(self) -> None:
