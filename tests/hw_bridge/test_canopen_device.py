@@ -246,3 +246,23 @@ def test_link_transport_canopen_opens_the_bench_from_the_link_parameters(
         assert _feedback(device).counts == bench.board.counts()
     finally:
         device.close()
+
+
+def test_sync_on_enabled_steps_only_with_the_controller_and_still_disables_on_disarm(
+    bench: CanBench, channel: str
+) -> None:
+    device = _open(channel, sync_on_enabled=True)
+    try:
+        first = _feedback(device)
+        device.write(_command(first, 1, (0, 0), 0))
+        # a disabled command after a disabled one: no SYNC, no step; the last feedback again after a while
+        assert device.read(TIMEOUT) == first
+        assert bench.syncs == 1
+        armed = _run(device, 5, (2000, 2000), int(CommandFlag.ENABLE), start=2, feedback=first)
+        assert bench.syncs == 6 and bench.valve_states() == (ValveState.ACTIVE, ValveState.ACTIVE)
+        device.write(_command(armed, 10, (2000, 2000), 0))  # disarm: this one is SYNCed
+        assert _feedback(device).output_codes == (0, 0)
+        assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
+        assert bench.syncs == 7
+    finally:
+        device.close()

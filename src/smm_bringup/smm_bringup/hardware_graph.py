@@ -141,6 +141,8 @@ def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
             ("bridge.valve.code_limit", (SPOOL_FULL_SCALE, SPOOL_FULL_SCALE)),
             ("bridge.valve.rate_limit", (SPOOL_FULL_SCALE / 0.002,) * 2),
         ]
+    if options.clock_mode == "lockstep":
+        link.append(("link.canopen.sync_on_enabled", True))
     return link
 
 

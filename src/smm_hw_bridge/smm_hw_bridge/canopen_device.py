@@ -9,6 +9,7 @@ bus maps onto :data:`~smm_hw_bridge.device.Feedback`: docs/HW_CANOPEN.md. No ROS
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import dataclass, field
 
 import can
@@ -59,6 +60,8 @@ _TPDO1_MAP = 0x1A00
 _EVENT_TIMER = 5
 _NMT_START_ALL = 0x01
 _NMT_STOPPED = 0x04
+_RESEND_S = 0.05
+"""Lockstep without a SYNC: the last feedback again after this long (s), as the frame board's resend."""
 
 
 class ConfigureError(DeviceError):
@@ -114,6 +117,9 @@ class CanopenDevice(Device):
         self._host_session = 0
         self._last_seq = 0
         self._estop = False
+        self._enabled = False
+        self._last_feedback: FeedbackFrame | None = None
+        self._delivered_at = 0.0
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
 
     # ---- open: configure and start ----------------------------------------------------------------
@@ -313,15 +319,22 @@ class CanopenDevice(Device):
         """The feedback of the last SYNC once every node's TPDO for it arrived; None after ``timeout_s``."""
         if self.network is None:
             raise DeviceError("the device is not open")
+        held = self._last_feedback is not None and self._delivered == self._syncs
+        resend_in = self._delivered_at + _RESEND_S - time.monotonic()
         with self._changed:
             ready = self._changed.wait_for(
                 lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
-                timeout=timeout_s,
+                timeout=max(min(timeout_s, resend_in), 0.0) if held else timeout_s,
             )
-            if not ready:
+            if ready:
+                self._delivered = self._syncs
+                self._last_feedback = self._feedback()
+            elif not held or time.monotonic() < self._delivered_at + _RESEND_S:
                 return None
-            self._delivered = self._syncs
-            return self._feedback()
+            # else lockstep, no SYNC since the last feedback: it again, as the frame board re-sends its
+            # unanswered one (the loop re-publishes a duplicate: the controller may have missed it)
+            self._delivered_at = time.monotonic()
+            return self._last_feedback
 
     def _feedback(self) -> FeedbackFrame:
         valves = [n for n in self.nodes if n.kind == "valve"]
@@ -372,12 +385,15 @@ class CanopenDevice(Device):
             enable = False
         else:
             enable = command.enabled and not self._estop and not self._fault_bits
+        sync = enable or self._enabled or not self.config.sync_on_enabled
+        self._enabled = enable
         with self._changed:
             valves = [n for n in self.nodes if n.kind == "valve"]
             for node, code in zip(valves, codes, strict=True):
                 word, setpoint = self._next(node, enable, code, bool(command.flags & CommandFlag.REARM))
                 self._rpdo(node, word, setpoint)
-            self._sync()
+            if sync:
+                self._sync()
 
     def _next(self, node: _Node, enable: bool, code: int, rearm: bool) -> tuple[int, int]:
         """Control word and setpoint: DISABLED -> HOLD -> ACTIVE a step a cycle if enabled; R on re-arm."""
