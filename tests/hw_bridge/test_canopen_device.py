@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -38,6 +39,7 @@ def _config(**changes: object) -> CanopenConfig:
         "valve_eds": str(eds_path("valve_cia408.eds")),
         "encoder_eds": str(eds_path("encoder_cia406.eds")),
         "sdo_timeout": 0.3,
+        "heartbeat_ms": 1000,  # consumers 3 s: a loaded machine's late heartbeat faults no test
     }
     values.update(changes)
     return CanopenConfig(**values)  # type: ignore[arg-type]
@@ -86,7 +88,7 @@ def _run(
 
 
 def test_configure_reads_each_node_and_writes_the_settings(bench: CanBench, channel: str) -> None:
-    device = _open(channel, period_us=2000, receive_deadline_ms=7, heartbeat_ms=50)
+    device = _open(channel, period_us=2000, receive_deadline_ms=7, heartbeat_ms=500)
     try:
         assert [(n.name, n.device_type & 0xFFFF) for n in device.nodes] == [
             ("valve alpha (node 1)", 408),
@@ -104,8 +106,8 @@ def test_configure_reads_each_node_and_writes_the_settings(bench: CanBench, chan
         for valve in bench.valves:
             sdo = valve.node.sdo
             assert (sdo[0x6042].raw, sdo[0x6043].raw, sdo[0x1006].raw, sdo[0x1400][5].raw) == (1, 2, 2000, 7)
-            assert sdo[0x1017].raw == 50
-            assert sdo[0x1016][1].raw == (127 << 16) | 150
+            assert sdo[0x1017].raw == 500
+            assert sdo[0x1016][1].raw == (127 << 16) | 1500
         feedback = _feedback(device)
         assert feedback.seq == 1 and feedback.faults == 0
         assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
@@ -264,5 +266,53 @@ def test_sync_on_enabled_steps_only_with_the_controller_and_still_disables_on_di
         assert _feedback(device).output_codes == (0, 0)
         assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
         assert bench.syncs == 7
+    finally:
+        device.close()
+
+
+def _until_fault(device: CanopenDevice, feedback: FeedbackFrame, start: int) -> FeedbackFrame:
+    """Enabled cycles until a feedback carries a fault (at most 10000; each waits a little)."""
+    for seq in range(start, start + 10_000):
+        if feedback.faults:
+            return feedback
+        time.sleep(0.002)
+        device.write(_command(feedback, seq, (3000, 3000), int(CommandFlag.ENABLE)))
+        feedback = _feedback(device)
+    raise AssertionError(f"no fault: {device.faults}")
+
+
+def test_a_lost_heartbeat_is_a_fault_naming_the_node_and_every_valve_goes_disabled(
+    bench: CanBench, channel: str
+) -> None:
+    device = _open(channel, heartbeat_ms=200)  # consumers 600 ms: no live node is that late
+    try:
+        armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
+        assert bench.valve_states() == (ValveState.ACTIVE, ValveState.ACTIVE)
+        bench.encoders[1].nmt.stop_heartbeat()
+        faulted = _until_fault(device, armed, 10)
+        assert faulted.faults & FaultBit.ENCODER
+        assert device.faults == ["encoder beta (node 12): heartbeat lost (none for 600 ms)"]
+        _run(device, 1, (3000, 3000), int(CommandFlag.ENABLE), start=5000, feedback=faulted)
+        assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
+    finally:
+        device.close()
+
+
+def test_a_tpdo_past_its_validity_is_a_fault_naming_the_node(
+    bench: CanBench, channel: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    device = _open(channel, pdo_validity_ms=500)  # long: no other TPDO is ever that late
+    try:
+        armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
+        monkeypatch.setattr(bench.encoders[1].tpdo[1], "transmit", lambda: None)
+        device.write(_command(armed, 10, (3000, 3000), int(CommandFlag.ENABLE)))
+        faulted = _feedback(device)
+        assert faulted.faults & FaultBit.ENCODER and faulted.seq == armed.seq + 1
+        assert device.faults == [
+            f"encoder beta (node 12): TPDO1 of SYNC {faulted.seq} not arrived within 500 ms"
+        ]
+        device.write(_command(faulted, 11, (3000, 3000), int(CommandFlag.ENABLE)))
+        assert _feedback(device).output_codes == (0, 0)  # the valves' TPDOs: after the SYNC was latched
+        assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
     finally:
         device.close()

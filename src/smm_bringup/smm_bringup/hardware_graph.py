@@ -142,7 +142,12 @@ def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
             ("bridge.valve.rate_limit", (SPOOL_FULL_SCALE / 0.002,) * 2),
         ]
     if options.clock_mode == "lockstep":
-        link.append(("link.canopen.sync_on_enabled", True))
+        # the controller's pace, a loaded machine's: generous validity and heartbeat consumer times
+        link += [
+            ("link.canopen.sync_on_enabled", True),
+            ("link.canopen.pdo_validity_ms", 60_000),
+            ("link.canopen.heartbeat_ms", 1000),
+        ]
     return link
 
 

@@ -41,6 +41,7 @@ class CanopenConfig:
             handed over as that A/D code.
         master_node_id: The master's node id in the consumers' 0x1016 (its heartbeat's id), in [1, 127].
         sdo_timeout: SDO answer timeout (s).
+        pdo_validity_ms: A SYNC's TPDOs not all arrived this long after it is a fault naming the nodes (ms).
         sync_on_enabled: Lockstep: a SYNC follows an enabled command, the first disabled one after it, and
             the opening, not the other disabled ones (the frame board's lockstep trigger ``enabled``: a
             run's steps are the controller's, none pass while it has not armed).
@@ -62,6 +63,7 @@ class CanopenConfig:
     supply_bar_per_code: float = field(default=25.0 / 4095.0, metadata=bounds(1e-9, 1e3))
     master_node_id: int = field(default=127, metadata=bounds(1, 127))
     sdo_timeout: float = field(default=0.5, metadata=bounds(0.001, 60.0))
+    pdo_validity_ms: int = field(default=100, metadata=bounds(1, 600_000))
     sync_on_enabled: bool = False
 
     def __post_init__(self) -> None:

@@ -61,6 +61,7 @@ _EVENT_TIMER = 5
 _NMT_START_ALL = 0x01
 _NMT_STOPPED = 0x04
 _RESEND_S = 0.05
+_BIT = {"valve": FaultBit.VALVE_DRIVER, "encoder": FaultBit.ENCODER}
 """Lockstep without a SYNC: the last feedback again after this long (s), as the frame board's resend."""
 
 
@@ -79,6 +80,9 @@ class _Node:
     device_type: int = 0
     values: dict[int, int] = field(default_factory=dict)
     sync: int = -1
+    heard: float = 0.0
+    """When its last heartbeat came (monotonic s)."""
+    lost: bool = False
 
     @property
     def name(self) -> str:
@@ -120,6 +124,7 @@ class CanopenDevice(Device):
         self._enabled = False
         self._last_feedback: FeedbackFrame | None = None
         self._delivered_at = 0.0
+        self._synced_at = 0.0
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
 
     # ---- open: configure and start ----------------------------------------------------------------
@@ -170,6 +175,8 @@ class CanopenDevice(Device):
             f"serial 0x{node.identity[3]:08X}"
             for node in self.nodes
         )
+        for node in self.nodes:
+            node.heard = time.monotonic()  # consumers count from the start
         network.nmt.send_command(_NMT_START_ALL)
         self._send_safe()
 
@@ -293,6 +300,7 @@ class CanopenDevice(Device):
     def _on_heartbeat(self, node: _Node, data: bytes) -> None:
         state = data[0] & 0x7F if data else -1
         with self._changed:
+            node.heard, node.lost = time.monotonic(), False
             if state == 0:
                 self._boots += 1  # boot-up: a new session
             elif state == _NMT_STOPPED:
@@ -326,6 +334,9 @@ class CanopenDevice(Device):
                 lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
                 timeout=max(min(timeout_s, resend_in), 0.0) if held else timeout_s,
             )
+            late = self._watch()
+            if late and all(node.values for node in self.nodes):
+                ready = True  # its feedback, the late nodes' last values with the fault: the loop faults
             if ready:
                 self._delivered = self._syncs
                 self._last_feedback = self._feedback()
@@ -335,6 +346,22 @@ class CanopenDevice(Device):
             # unanswered one (the loop re-publishes a duplicate: the controller may have missed it)
             self._delivered_at = time.monotonic()
             return self._last_feedback
+
+    def _watch(self) -> bool:
+        """Faults for lost heartbeats and for TPDOs late past their validity; True if this SYNC's are."""
+        now, config = time.monotonic(), self.config
+        consumer_s = 3 * config.heartbeat_ms / 1000.0
+        for node in self.nodes:
+            if not node.lost and now - node.heard > consumer_s:
+                node.lost = True
+                self._fault(node, f"heartbeat lost (none for {3 * config.heartbeat_ms} ms)", _BIT[node.kind])
+        if self._delivered >= self._syncs or now - self._synced_at <= config.pdo_validity_ms / 1000.0:
+            return False
+        for node in self.nodes:
+            if node.sync != self._syncs:
+                what = f"TPDO1 of SYNC {self._syncs} not arrived within {config.pdo_validity_ms} ms"
+                self._fault(node, what, _BIT[node.kind])
+        return True
 
     def _feedback(self) -> FeedbackFrame:
         valves = [n for n in self.nodes if n.kind == "valve"]
@@ -415,6 +442,7 @@ class CanopenDevice(Device):
     def _sync(self) -> None:
         assert self.network is not None
         self._syncs += 1
+        self._synced_at = time.monotonic()
         self.network.send_message(0x80, b"")
 
     def _send_safe(self) -> None:
