@@ -214,10 +214,13 @@ class GraphOptions:
             )
         if self.link not in LINKS:
             raise ValueError(f"link must be one of {LINKS}, got {self.link!r}")
-        if self.link == "canopen" and (self.plant != "hardware" or self.clock_mode != "lockstep"):
+        if self.link == "canopen" and (
+            self.plant != "hardware" or self.clock_mode != "lockstep" or self.control_rate != BOARD_TICK_HZ
+        ):
             raise ValueError(
-                "link 'canopen' needs plant 'hardware' and clock mode 'lockstep' (the bridge sends each SYNC "
-                "after its setpoints; a SYNC clock for real time is not written yet)"
+                "link 'canopen' needs plant 'hardware', clock mode 'lockstep' and the 1000 Hz control rate "
+                "(the bridge sends each SYNC after its setpoints; a SYNC clock for real time and held "
+                "cycles between control ticks are not written yet)"
             )
         if self.board is not None:
             if self.plant != "hardware":
