@@ -10,7 +10,7 @@ from pathlib import Path
 import can
 import pytest
 from smm_bench_emulator.canopen_bench import CanBench, CanBenchConfig, eds_path
-from smm_hw_bridge.canopen_config import CanopenConfig
+from smm_hw_bridge.canopen_config import CanopenConfig, bus_load, frame_bits, highest_rate_that_fits
 from smm_hw_bridge.canopen_device import CanopenDevice, ConfigureError
 from smm_hw_bridge.cia408 import ValveState
 from smm_hw_bridge.device import open_device
@@ -316,3 +316,24 @@ def test_a_tpdo_past_its_validity_is_a_fault_naming_the_node(
         assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
     finally:
         device.close()
+
+
+def test_the_bus_load_of_a_cycle_is_computed_from_the_mapped_pdos() -> None:
+    payloads = [0, 4, 4, 6, 6, 4, 4]  # SYNC, valve RPDO1 x2, valve TPDO1 x2, encoder TPDO1 x2
+    assert [frame_bits(size) for size in (0, 4, 6, 8)] == [52, 92, 112, 132]
+    assert sum(frame_bits(size) for size in payloads) == 644
+    assert bus_load(payloads, 1000, 1_000_000) == pytest.approx(0.644)
+    assert highest_rate_that_fits(payloads, 500_000, 0.7) == 500
+    assert highest_rate_that_fits(payloads, 100_000, 0.7) is None
+
+
+def test_a_bus_load_above_the_limit_is_refused_naming_the_rate_that_fits(
+    bench: CanBench, channel: str
+) -> None:
+    with pytest.raises(
+        ConfigureError,
+        match=r"bus load 128.8 % at 1000 Hz and 500000 bit/s .*highest offered rate that fits is 500 Hz",
+    ):
+        _open(channel, bitrate=500_000)
+    device = _open(channel, bitrate=500_000, period_us=2000)  # 500 Hz: 64.4 %, within 70 %
+    device.close()

@@ -7,7 +7,9 @@ from dataclasses import dataclass, field
 
 from smm_schema.ranges import bounds, check_bounds
 
-__all__ = ["JOINTS", "CanopenConfig"]
+from smm_hw_bridge.control_rate import CONTROL_RATES_HZ
+
+__all__ = ["JOINTS", "CanopenConfig", "bus_load", "frame_bits", "highest_rate_that_fits"]
 
 JOINTS = ("alpha", "beta")
 
@@ -41,6 +43,7 @@ class CanopenConfig:
             handed over as that A/D code.
         master_node_id: The master's node id in the consumers' 0x1016 (its heartbeat's id), in [1, 127].
         sdo_timeout: SDO answer timeout (s).
+        max_bus_load: The bus load refused at configure (fraction of the bit rate), in (0, 1].
         pdo_validity_ms: A SYNC's TPDOs not all arrived this long after it is a fault naming the nodes (ms).
         sync_on_enabled: Lockstep: a SYNC follows an enabled command, the first disabled one after it, and
             the opening, not the other disabled ones (the frame board's lockstep trigger ``enabled``: a
@@ -63,6 +66,7 @@ class CanopenConfig:
     supply_bar_per_code: float = field(default=25.0 / 4095.0, metadata=bounds(1e-9, 1e3))
     master_node_id: int = field(default=127, metadata=bounds(1, 127))
     sdo_timeout: float = field(default=0.5, metadata=bounds(0.001, 60.0))
+    max_bus_load: float = field(default=0.7, metadata=bounds(1e-3, 1.0))
     pdo_validity_ms: int = field(default=100, metadata=bounds(1, 600_000))
     sync_on_enabled: bool = False
 
@@ -83,3 +87,18 @@ class CanopenConfig:
         """The EDS file of the ``kind`` (``valve``, ``encoder``) node of ``joint``."""
         files = _files(self.valve_eds if kind == "valve" else self.encoder_eds)
         return files[joint] if len(files) > 1 else files[0]
+
+
+def frame_bits(data_bytes: int) -> int:
+    """Bits of one standard CAN frame with ``data_bytes`` bytes, worst-case bit stuffing included."""
+    return 44 + 8 * data_bytes + (34 + 8 * data_bytes - 1) // 4
+
+
+def bus_load(payloads: list[int], rate_hz: float, bitrate: int) -> float:
+    """The bus's load (fraction) of frames of ``payloads`` bytes each cycle, ``rate_hz`` cycles a second."""
+    return sum(frame_bits(size) for size in payloads) * rate_hz / bitrate
+
+
+def highest_rate_that_fits(payloads: list[int], bitrate: int, limit: float) -> int | None:
+    """The highest offered control rate (Hz) whose load stays within ``limit``, None if none."""
+    return next((rate for rate in CONTROL_RATES_HZ if bus_load(payloads, rate, bitrate) <= limit), None)

@@ -17,7 +17,7 @@ import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from smm_hw_bridge.can_multicast import MulticastRouteError, loopback_multicast_bus
-from smm_hw_bridge.canopen_config import JOINTS, CanopenConfig
+from smm_hw_bridge.canopen_config import JOINTS, CanopenConfig, bus_load, highest_rate_that_fits
 from smm_hw_bridge.cia408 import (
     CONTROL_MODE,
     CONTROL_WORD,
@@ -162,6 +162,7 @@ class CanopenDevice(Device):
             self.nodes += [self._add(network, "encoder", j, i) for j, i in enumerate(config.encoder_node_ids)]
             for node in self.nodes:
                 self._configure(node)
+            self._check_bus_load()
         except BaseException:
             self.close()
             raise
@@ -179,6 +180,25 @@ class CanopenDevice(Device):
             node.heard = time.monotonic()  # consumers count from the start
         network.nmt.send_command(_NMT_START_ALL)
         self._send_safe()
+
+    def _check_bus_load(self) -> None:
+        """Refuses a cycle (SYNC, valve RPDO1s, every TPDO1, as the EDS files map them) above the limit."""
+        config = self.config
+        payloads = [0]  # the SYNC
+        for node in self.nodes:
+            payloads.append(len(node.remote.tpdo[1].data))
+            if node.kind == "valve":
+                payloads.append(len(node.remote.rpdo[1].data))
+        rate = 1e6 / config.period_us
+        load = bus_load(payloads, rate, config.bitrate)
+        if load > config.max_bus_load:
+            fits = highest_rate_that_fits(payloads, config.bitrate, config.max_bus_load)
+            raise ConfigureError(
+                f"bus load {100 * load:.1f} % at {rate:g} Hz and {config.bitrate} bit/s (frames of "
+                f"{payloads} bytes a cycle, worst-case stuffing) is above link.canopen.max_bus_load "
+                f"{100 * config.max_bus_load:g} %; "
+                + (f"the highest offered rate that fits is {fits} Hz" if fits else "no offered rate fits")
+            )
 
     def _add(self, network: canopen.Network, kind: str, joint: int, node_id: int) -> _Node:
         path = self.config.eds(kind, joint)
