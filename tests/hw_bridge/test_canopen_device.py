@@ -337,3 +337,17 @@ def test_a_bus_load_above_the_limit_is_refused_naming_the_rate_that_fits(
         _open(channel, bitrate=500_000)
     device = _open(channel, bitrate=500_000, period_us=2000)  # 500 Hz: 64.4 %, within 70 %
     device.close()
+
+
+def test_a_second_enabled_answer_to_one_feedback_steps_nothing(bench: CanBench, channel: str) -> None:
+    device = _open(channel)
+    try:
+        armed = _run(device, 5, (2000, 2000), int(CommandFlag.ENABLE))
+        device.write(_command(armed, 10, (2000, 2000), int(CommandFlag.ENABLE)))
+        device.write(_command(armed, 11, (4000, 4000), int(CommandFlag.ENABLE)))  # answers it again
+        after = _feedback(device)
+        assert device.dropped["second_answer"] == 1
+        assert after.seq == armed.seq + 1 and bench.syncs == after.seq
+        assert after.output_codes == (2000, 2000)
+    finally:
+        device.close()

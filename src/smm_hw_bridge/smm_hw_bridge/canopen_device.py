@@ -420,6 +420,10 @@ class CanopenDevice(Device):
         """The valves' RPDOs (control word and spool setpoint), then the SYNC: one control cycle."""
         if self.network is None:
             raise DeviceError("the device is not open")
+        if command.enabled and self._syncs > self._delivered:
+            # a second answer (to a feedback given again): its SYNC went out already, one step per feedback
+            self.dropped["second_answer"] = self.dropped.get("second_answer", 0) + 1
+            return
         self._host_session, self._last_seq = command.session, command.seq
         if command.flags & CommandFlag.ESTOP:
             self._estop = True
