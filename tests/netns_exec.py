@@ -11,6 +11,7 @@ import fcntl
 import os
 import socket
 import struct
+import subprocess
 import sys
 
 _SIOCGIFFLAGS = 0x8913
@@ -27,6 +28,19 @@ def bring_loopback_up() -> None:
         fcntl.ioctl(sock.fileno(), _SIOCSIFFLAGS, struct.pack(_IFREQ, b"lo", flags | _IFF_UP))
 
 
+def route_multicast_to_loopback() -> None:
+    """Routes IPv4 multicast over ``lo`` (the emulated CAN bus's udp_multicast); says why if it cannot."""
+    try:
+        done = subprocess.run(
+            ["ip", "route", "add", "224.0.0.0/4", "dev", "lo"], capture_output=True, check=False
+        )
+    except OSError as error:
+        print(f"netns_exec: no multicast route over lo: {error}", file=sys.stderr)
+        return
+    if done.returncode != 0:
+        print(f"netns_exec: no multicast route over lo: {done.stderr.decode().strip()}", file=sys.stderr)
+
+
 def interface_names() -> list[str]:
     """Names of the network interfaces visible in this namespace."""
     return [name for _, name in socket.if_nameindex()]
@@ -38,6 +52,7 @@ def main(argv: list[str]) -> int:
         print("usage: netns_exec.py CMD [ARGS...]", file=sys.stderr)
         return 2
     bring_loopback_up()
+    route_multicast_to_loopback()
     os.execvp(argv[0], argv)
     return 127  # not reached: execvp raises on failure
 

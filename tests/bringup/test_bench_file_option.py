@@ -38,3 +38,8 @@ def test_a_bench_file_without_an_emulator_or_empty_is_refused(kwargs: dict[str, 
     bench_file = "" if len(kwargs) == 1 and kwargs["plant"] == "hardware" else "bench.yaml"
     with pytest.raises(ValueError, match="bench_file"):
         GraphOptions(bench_file=bench_file, **kwargs)  # type: ignore[arg-type]
+
+
+def test_a_bench_file_on_the_canopen_link_is_refused() -> None:
+    with pytest.raises(ValueError, match="bench_file is an option of plant 'hardware' with the frame link"):
+        GraphOptions(plant="hardware", link="canopen", bench_file="bench.yaml")

@@ -283,8 +283,10 @@ def test_link_transport_names_a_row_of_the_device_table(monkeypatch: pytest.Monk
     from smm_schema.fields import config_fields
 
     (transport,) = (item for item in config_fields(LinkConfig) if item.name == "transport")
-    assert transport.choices == device_names() == tuple(DEVICES) == ("udp", "serial")
-    with pytest.raises(ValueError, match=r"transport must be one of \('udp', 'serial'\), got 'can'"):
+    assert transport.choices == device_names() == tuple(DEVICES) == ("udp", "serial", "canopen")
+    with pytest.raises(
+        ValueError, match=r"transport must be one of \('udp', 'serial', 'canopen'\), got 'can'"
+    ):
         LinkConfig(transport="can")
     monkeypatch.setitem(DEVICES, "memory", "hw_bridge.test_loop:memory_device")  # type: ignore[index]
     device = open_device(LinkConfig(transport="memory"))

@@ -22,6 +22,8 @@ ROSDEP_TO_MODULE = {
     "python3-scipy": "scipy",
     "python3-serial": "serial",
     "python3-rosbags-pip": "rosbags",
+    "python3-can": "can",
+    "python3-msgpack": "msgpack",
 }
 
 

@@ -18,6 +18,7 @@ from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED, VerdictConfig
 
 from smm_bench_emulator.bench_file import default_bench, load_bench_file
 from smm_bench_emulator.board import BoardConfig
+from smm_bench_emulator.canopen_run import run_canopen
 from smm_bench_emulator.emulator import Emulator, EmulatorConfig
 
 __all__ = ["build_parser", "main", "run"]
@@ -37,6 +38,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--host", type=_endpoint, default=("127.0.0.1", 50100), help="bridge UDP address")
     parser.add_argument("--control", type=_endpoint, default=("127.0.0.1", 50102), help="JSON control port")
     parser.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")
+    parser.add_argument(
+        "--link",
+        choices=("frame", "canopen"),
+        default="frame",
+        help="frame: the I/O board on UDP; canopen: CiA 408 valves and CiA 406 encoders on udp_multicast "
+        "(lockstep only, SYNC from the bridge; refused unless the group routes over lo)",
+    )
+    parser.add_argument("--can-group", default="239.74.163.2", help="canopen: the IPv4 multicast group")
+    parser.add_argument("--can-port", type=int, default=43113, help="canopen: the UDP port")
     parser.add_argument(
         "--lockstep-trigger",
         choices=("any", "enabled"),
@@ -157,6 +167,21 @@ def config_from_args(args: argparse.Namespace) -> EmulatorConfig:
 
 def run(args: argparse.Namespace) -> int:
     """Builds and runs the emulator; returns the exit code (3: the run did not control, why on stderr)."""
+    if args.link == "canopen":
+        try:
+            board = config_from_args(args).board
+        except ValueError as error:
+            print(f"smm_bench_emulator: {error}", file=sys.stderr)
+            return 2
+        return run_canopen(
+            board,
+            args.can_group,
+            args.can_port,
+            lockstep=args.mode == "lockstep",
+            duration_s=args.duration,
+            start_timeout_s=args.start_timeout,
+            status_file=args.status_file,
+        )
     try:
         emulator = Emulator(config_from_args(args), record=bool(args.record))
     except (ValueError, OSError) as error:

@@ -22,6 +22,8 @@ __all__ = [
     "CHAIN_LAYOUTS",
     "CLOCK_MODES",
     "CONTROL_RATES_HZ",
+    "EXTERNAL_BOARD",
+    "LINKS",
     "LOOPS",
     "PLANTS",
     "PLANT_ALIASES",
@@ -37,6 +39,11 @@ PLANTS: Final[tuple[str, ...]] = ("sim", "hardware")
 PLANT_ALIASES: Final[Mapping[str, str]] = MappingProxyType({"hw": "hardware"})
 """Other names accepted for a plant (``hw`` = ``hardware``)."""
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
+LINKS: Final[tuple[str, ...]] = ("frame", "canopen")
+"""The hardware plant's link: ``frame`` (the I/O board's frame protocol, docs/HW_PROTOCOL.md) or ``canopen``
+(CiA 408 valves and CiA 406 encoders, docs/HW_CANOPEN.md; lockstep only for now)."""
+EXTERNAL_BOARD: Final[str] = "external"
+"""``board`` on the CANopen link: no emulator; the bridge drives the devices its ``link.canopen.*`` name."""
 LOOPS: Final[tuple[str, ...]] = ("auto", "topics", "direct")
 """``topics``: the plant and ``controller_node`` are separate processes joined by topics (the product's
 shape); ``direct`` (hardware only): one process, ``direct_loop``, steps the chain of ``controller_node`` in
@@ -85,8 +92,9 @@ class GraphOptions:
             steps every N = 1000 / rate ticks with ``control_period`` = N ms, the board holds each command
             in between, and the rate's settings file (``smm_controller/config/control_rate_<rate>.yaml``)
             is applied after the scenario's (docs/LAUNCH.md, "Control rate").
-        board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board; ``None`` starts
-            ``smm_bench_emulator`` on loopback instead.
+        board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board (``external`` on the CANopen
+            link: the devices its parameters name); ``None`` starts ``smm_bench_emulator`` on loopback.
+        link: ``hardware`` only: ``frame`` or ``canopen`` (:data:`LINKS`).
         bench_file: ``hardware`` with the emulator only: the bench description it runs (docs/BENCH.md),
             made absolute; the scenario's plant settings (noise, disturbance, inertia scale) override its
             fields. ``None``: the emulator's defaults.
@@ -127,6 +135,7 @@ class GraphOptions:
     params_files: tuple[str, ...] = ()
     control_rate: float = BOARD_TICK_HZ
     board: str | None = None
+    link: Literal["frame", "canopen"] = "frame"
     bench_file: str | None = None
     record: str | None = None
     record_max_size: int = 0
@@ -209,15 +218,33 @@ class GraphOptions:
                 "loop 'direct' runs the whole chain in the bridge's process: it needs plant 'hardware', "
                 "chain 'fused' and reference 'controller'"
             )
+        if self.link not in LINKS:
+            raise ValueError(f"link must be one of {LINKS}, got {self.link!r}")
+        if self.link == "canopen" and (
+            self.plant != "hardware" or self.clock_mode != "lockstep" or self.control_rate != BOARD_TICK_HZ
+        ):
+            raise ValueError(
+                "link 'canopen' needs plant 'hardware', clock mode 'lockstep' and the 1000 Hz control rate "
+                "(the bridge sends each SYNC after its setpoints; a SYNC clock for real time and held "
+                "cycles between control ticks are not written yet)"
+            )
         if self.board is not None:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
-            split_endpoint("board", self.board)
+            if self.link == "canopen":
+                if self.board != EXTERNAL_BOARD:
+                    raise ValueError(
+                        f"board on link 'canopen' is {EXTERNAL_BOARD!r} or none, got {self.board!r}"
+                    )
+            else:
+                split_endpoint("board", self.board)
         if self.bench_file is not None:
             if not isinstance(self.bench_file, str) or not self.bench_file.strip():
                 raise ValueError(f"bench_file must be a file path or None, got {self.bench_file!r}")
-            if self.plant != "hardware" or self.board is not None:
-                raise ValueError("bench_file is an option of plant 'hardware' with the emulator (no board)")
+            if self.plant != "hardware" or self.board is not None or self.link != "frame":
+                raise ValueError(
+                    "bench_file is an option of plant 'hardware' with the frame link's emulator (no board)"
+                )
             object.__setattr__(self, "bench_file", os.path.abspath(self.bench_file))
 
     def _choose_loop(self) -> None:

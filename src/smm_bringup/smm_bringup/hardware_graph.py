@@ -9,6 +9,9 @@ from collections.abc import Sequence
 from typing import Any, Final
 
 from smm_bench_emulator.bench_file import BenchFileError, default_bench, load_bench_file
+from smm_bench_emulator.board import BoardConfig
+from smm_bench_emulator.canopen_bench import eds_path
+from smm_hw_bridge.cia408 import SPOOL_FULL_SCALE
 
 from smm_bringup.errors import ParameterFileError
 from smm_bringup.graph_nodes import (
@@ -43,13 +46,11 @@ def hardware_specs(
     With ``options.loop == "direct"``, ``direct_loop`` replaces the bridge: it hosts ``controller_node``
     too, with the overrides ``controller``.
     """
+    canopen = options.link == "canopen"
     board = options.board or EMULATOR_BOARD
-    address, port = split_endpoint("board", board)
-    bind_address, bind_port = split_endpoint("host", EMULATOR_HOST)
     bridge_parameters: list[tuple[str, ParameterValue]] = [
         ("autostart", True),
-        ("link.board_address", address),
-        ("link.board_port", port),
+        *(_canopen_link(options) if canopen else _frame_link(board)),
         ("verdict.late_limit", options.late_limit / 100.0),
     ]
     if options.preflight is not None:
@@ -66,7 +67,8 @@ def hardware_specs(
             ("bridge.admission.stale_ns", 60_000_000_000),
             ("link.configure_timeout", min(float(options.start_timeout), 600.0)),
         ]
-    if options.board is None:
+    if options.board is None and not canopen:
+        bind_address, bind_port = split_endpoint("host", EMULATOR_HOST)
         bridge_parameters += [("link.bind_address", bind_address), ("link.bind_port", bind_port)]
     divider = options.control_divider
     if divider > 1:  # the board keeps its 1 kHz tick; the bridge stretches validity and limits by N
@@ -91,11 +93,11 @@ def hardware_specs(
         )
     if options.board is not None:
         return (bridge,)
-    emulator_parameters: list[tuple[str, ParameterValue]] = [
-        ("bind", board),
-        ("host", EMULATOR_HOST),
-        ("late-limit", float(options.late_limit)),
-    ]
+    emulator_parameters: list[tuple[str, ParameterValue]] = (
+        [("link", "canopen")]
+        if canopen
+        else [("bind", board), ("host", EMULATOR_HOST), ("late-limit", float(options.late_limit))]
+    )
     duration = options.duration
     if duration is None and lockstep:
         duration = _scenario_duration(files)  # as the simulator: the scenario's length in lockstep
@@ -143,8 +145,36 @@ def emulator_seed(options: GraphOptions) -> int | None:
     return bench.seed if bench.seed == bench.plant.seed else None
 
 
+def _frame_link(board: str) -> list[tuple[str, ParameterValue]]:
+    address, port = split_endpoint("board", board)
+    return [("link.board_address", address), ("link.board_port", port)]
+
+
+def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
+    """``link.transport: canopen``; with the emulated bench, its EDS files (a real bench: the user's)."""
+    link: list[tuple[str, ParameterValue]] = [("link.transport", "canopen")]
+    if options.board is None:
+        # the valves' units: spool +-16384 = +-100 % = the emulated valve's full-scale torque; the rate
+        # limit as the frame link's default, full scale in 2 ms
+        gain = SPOOL_FULL_SCALE / BoardConfig().full_scale_torque[0]
+        link += [
+            ("link.canopen.valve_eds", str(eds_path("valve_cia408.eds"))),
+            ("link.canopen.encoder_eds", str(eds_path("encoder_cia406.eds"))),
+            ("bridge.valve.gain", (gain, gain)),
+            ("bridge.valve.code_limit", (SPOOL_FULL_SCALE, SPOOL_FULL_SCALE)),
+            ("bridge.valve.rate_limit", (SPOOL_FULL_SCALE / 0.002,) * 2),
+        ]
+    if options.clock_mode == "lockstep":
+        # the controller's pace, a loaded machine's: generous validity and heartbeat consumer times
+        link += [
+            ("link.canopen.sync_on_enabled", True),
+            ("link.canopen.pdo_validity_ms", 60_000),
+            ("link.canopen.heartbeat_ms", 1000),
+        ]
+    return link
+
+
 def simulator_settings(files: Sequence[str]) -> dict[str, Any]:
-    """What the parameter ``files`` set for the simulator (its section of each, later files winning)."""
     sim: dict[str, Any] = {}
     for path in files:
         sim.update(load_parameter_file(path, f"/{NAMESPACE}/{SIM_NODE}"))

@@ -28,6 +28,7 @@ from smm_bringup.graph_options import (
     CHAIN_LAYOUTS,
     CLOCK_MODES,
     CONTROL_RATES_HZ,
+    LINKS,
     LOOPS,
     PLANT_ALIASES,
     PLANTS,
@@ -72,6 +73,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--board", default=None, help="hardware: ADDRESS:PORT of the I/O board (default: start the emulator)"
+    )
+    parser.add_argument(
+        "--link",
+        choices=LINKS,
+        default=GraphOptions.link,
+        help="hardware: frame (the I/O board's protocol) or canopen (CiA 408 valves, CiA 406 encoders, "
+        "the emulated CANopen bench unless --board external; lockstep only)",
     )
     parser.add_argument(
         "--bench-file", default=None, help="hardware, emulator: the bench description (YAML, docs/BENCH.md)"
@@ -248,6 +256,7 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         params_files=tuple(arguments.params_file),
         control_rate=arguments.control_rate,
         board=arguments.board,
+        link=arguments.link,
         bench_file=arguments.bench_file,
         record=arguments.record,
         record_max_size=arguments.record_max_size,
@@ -276,6 +285,8 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--params-file", params_file]
     if options.board is not None:
         arguments += ["--board", options.board]
+    if options.link != GraphOptions.link:
+        arguments += ["--link", options.link]
     if options.bench_file is not None:
         arguments += ["--bench-file", options.bench_file]
     if options.record is not None:

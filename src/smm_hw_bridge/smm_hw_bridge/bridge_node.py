@@ -274,6 +274,8 @@ class HwBridgeNode(LifecycleNode):
         self._log.info(
             f"configured: board session {core.board_session:#010x}, host session {core.host_session:#010x}"
         )
+        for line in () if self.loop.device is None else self.loop.device.found:
+            self._log.info(f"configured: {line}")
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:

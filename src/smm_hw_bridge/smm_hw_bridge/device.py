@@ -73,6 +73,8 @@ class Device(abc.ABC):
     def __init__(self) -> None:
         self.dropped: dict[str, int] = {}
         """What the device dropped before the loop saw it, by reason (foreign source, broken framing)."""
+        self.found: tuple[str, ...] = ()
+        """What :meth:`open` found (a CANopen bench: each node, its device type and identity), for the log."""
 
     @abc.abstractmethod
     def open(self) -> None:
@@ -110,6 +112,7 @@ class Device(abc.ABC):
 DEVICES: Final[Mapping[str, str]] = {
     "udp": "smm_hw_bridge.frame_device:udp_device",
     "serial": "smm_hw_bridge.frame_device:serial_device",
+    "canopen": "smm_hw_bridge.canopen_device:canopen_device",
 }
 """Every device: ``link.transport`` name -> ``module:factory`` (the factory takes the ``LinkConfig``)."""
 if TYPE_CHECKING:

@@ -21,6 +21,7 @@ from typing import Any, Final
 
 from smm_schema.ranges import bounds, check_bounds
 
+from smm_hw_bridge.canopen_config import CanopenConfig
 from smm_hw_bridge.device import DeviceName, device_names
 
 __all__ = [
@@ -323,7 +324,7 @@ class LinkConfig:
 
     Attributes:
         transport: The device, a row of ``smm_hw_bridge.device.DEVICES``: "udp" or "serial" (the frame
-            protocol over UDP or a serial line).
+            protocol over UDP or a serial line), "canopen" (CiA 408 valves and CiA 406 encoders).
         bind_address: UDP: IPv4 address the bridge binds (default loopback).
         bind_port: UDP: port the bridge binds (0 = any free one).
         board_address: UDP: the board's IPv4 address; frames from anywhere else are dropped.
@@ -331,6 +332,7 @@ class LinkConfig:
         serial_port: Serial: device name.
         baudrate: Serial: line speed (bit/s).
         configure_timeout: Time ``configure`` waits for a valid feedback frame (s).
+        canopen: CANopen: the bus and its nodes (docs/HW_CANOPEN.md).
     """
 
     transport: DeviceName = "udp"
@@ -341,6 +343,7 @@ class LinkConfig:
     serial_port: str = ""
     baudrate: int = field(default=921_600, metadata=bounds(1, 100_000_000))
     configure_timeout: float = field(default=2.0, metadata=bounds(0.001, 600.0))
+    canopen: CanopenConfig = field(default_factory=CanopenConfig)
 
     def __post_init__(self) -> None:
         if self.transport not in device_names():

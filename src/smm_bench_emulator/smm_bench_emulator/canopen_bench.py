@@ -1,0 +1,210 @@
+"""The emulated CANopen bench: two CiA 408 valves and two CiA 406 encoders as canopen LocalNodes.
+
+The plant is the board's (:class:`~smm_bench_emulator.board.BoardCore`: its plant, valve torque and encoder
+counters), sub-stepped at its 1 kHz tick between SYNCs. Each SYNC: the setpoints received since the last
+one are latched, the plant moves one cycle period (0x1006), the TPDOs go out. docs/HW_CANOPEN.md.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Final
+
+import can
+import canopen
+from smm_hw_bridge.cia408 import (
+    CONTROL_WORD,
+    POSITION,
+    PRESSURE_ACTUAL,
+    SPOOL_ACTUAL,
+    SPOOL_FULL_SCALE,
+    SPOOL_SETPOINT,
+    STATUS_WORD,
+    ValveState,
+    ValveStateMachine,
+)
+from smm_hw_bridge.protocol import CODE_MAX
+from smm_schema.ranges import bounds, check_bounds
+
+from smm_bench_emulator.board import BoardConfig, BoardCore
+
+__all__ = [
+    "EMCY_DEADLINE",
+    "CanBench",
+    "CanBenchConfig",
+    "eds_path",
+]
+
+SYNC_ID: Final[int] = 0x80
+EMCY_DEADLINE: Final[int] = 0x8250
+"""EMCY code of a valve whose RPDO missed its deadline (CiA 301: RPDO timeout)."""
+_RPDO_EVENT_TIMER: Final[tuple[int, int]] = (0x1400, 5)
+_CYCLE_PERIOD: Final[int] = 0x1006
+
+
+def eds_path(name: str) -> Path:
+    """The shipped EDS file ``name`` (``valve_cia408.eds``, ``encoder_cia406.eds``)."""
+    return Path(str(resources.files("smm_bench_emulator") / "eds" / name))
+
+
+@dataclass(frozen=True)
+class CanBenchConfig:
+    """The emulated CANopen bench.
+
+    Attributes:
+        board: The plant, valves and encoders (the frame board's bench; its tick is the sub-step).
+        valve_node_ids: Valve node ids (alpha, beta), in [1, 127].
+        encoder_node_ids: Encoder node ids (alpha, beta), in [1, 127].
+        bar_per_unit: Pressure actual 0x6381:01 per bar unit (bar), > 0.
+        wait_active: The plant stands still until both valves are first ACTIVE (lockstep runs line up
+            with the simulator's, whose step 0 is the controller's first answer).
+        duration_syncs: Live SYNCs (the plant moving) after which :attr:`CanBench.done` is set (0: never).
+    """
+
+    board: BoardConfig = field(default_factory=BoardConfig)
+    valve_node_ids: tuple[int, int] = field(default=(1, 2), metadata=bounds(1, 127))
+    encoder_node_ids: tuple[int, int] = field(default=(11, 12), metadata=bounds(1, 127))
+    bar_per_unit: float = field(default=0.01, metadata=bounds(1e-9, 1e3))
+    wait_active: bool = False
+    duration_syncs: int = field(default=0, metadata=bounds(0, 1 << 62))
+
+    def __post_init__(self) -> None:
+        check_bounds(self)
+        ids = (*self.valve_node_ids, *self.encoder_node_ids)
+        if len(set(ids)) != len(ids):
+            raise ValueError(
+                f"node ids must differ, got valves {self.valve_node_ids}, encoders {self.encoder_node_ids}"
+            )
+
+
+class _Valve:
+    """One valve node: its state machine, the setpoint latched at SYNC, its receive deadline."""
+
+    def __init__(self, node: canopen.LocalNode) -> None:
+        self.node = node
+        self.machine = ValveStateMachine()
+        self.setpoint = 0
+        self.received: tuple[int, int] | None = None
+        self.cycles_since_rpdo = 0
+        node.rpdo.read(from_od=True)
+        node.tpdo.read(from_od=True)
+        node.rpdo[1].add_callback(self._on_rpdo)
+        node.add_write_callback(self._on_sdo_write)
+
+    def _on_sdo_write(self, index: int, subindex: int, od: object, data: bytes) -> None:
+        if index == CONTROL_WORD:
+            self.machine.command(int.from_bytes(data[:2], "little"))
+
+    def _on_rpdo(self, pdo: canopen.pdo.PdoMap) -> None:
+        self.received = (int(pdo[CONTROL_WORD].raw), int(pdo[SPOOL_SETPOINT[0]].raw))
+
+    def latch(self, cycle_us: int) -> None:
+        """At SYNC: takes the last RPDO, or checks the deadline (0x1400:05 ms, 0 = none) in cycles."""
+        received, self.received = self.received, None
+        if received is None:
+            self.cycles_since_rpdo += 1
+            deadline_ms = int(self.node.sdo[_RPDO_EVENT_TIMER[0]][_RPDO_EVENT_TIMER[1]].raw)
+            late = deadline_ms > 0 and self.cycles_since_rpdo * cycle_us > deadline_ms * 1000
+            if late and not self.machine.state.fault and self.machine.state is not ValveState.INIT:
+                self.machine.fault()
+                self.node.emcy.send(EMCY_DEADLINE, register=0x11)
+            return
+        self.cycles_since_rpdo = 0
+        word, setpoint = received
+        self.machine.command(word)
+        self.setpoint = max(-SPOOL_FULL_SCALE, min(SPOOL_FULL_SCALE, setpoint))
+
+    @property
+    def spool(self) -> int:
+        """Spool position now (the setpoint when ACTIVE, else the failsafe null)."""
+        return self.setpoint if self.machine.follows_setpoint else 0
+
+    def transmit(self, pressure: int) -> None:
+        tpdo = self.node.tpdo[1]
+        tpdo[STATUS_WORD].raw = self.machine.status
+        tpdo[SPOOL_ACTUAL[0]].raw = self.spool
+        tpdo[PRESSURE_ACTUAL[0]].raw = pressure
+        tpdo.transmit()
+
+
+class CanBench:
+    """The four nodes on ``bus`` (python-can: ``udp_multicast`` between processes, ``virtual`` in one).
+
+    Args:
+        config: The bench.
+        bus: The CAN bus (closed by :meth:`close`).
+    """
+
+    def __init__(self, config: CanBenchConfig, bus: can.BusABC) -> None:
+        self.config = config
+        self.board = BoardCore(config.board)
+        self.lock = threading.Lock()
+        self.syncs = 0
+        self.live_syncs = 0
+        """SYNCs since the plant went live (at once, or at the first ACTIVE with ``wait_active``)."""
+        self.active_syncs = 0
+        """SYNCs at which both valves were ACTIVE (following the bus setpoint)."""
+        self.done = threading.Event()
+        """Set at ``duration_syncs`` live SYNCs."""
+        self.network = canopen.Network(bus)
+        self.valves: list[_Valve] = []
+        self.encoders: list[canopen.LocalNode] = []
+        for node_id in config.valve_node_ids:
+            node = canopen.LocalNode(node_id, str(eds_path("valve_cia408.eds")))
+            self.network.add_node(node)
+            self.valves.append(_Valve(node))
+        for node_id in config.encoder_node_ids:
+            node = canopen.LocalNode(node_id, str(eds_path("encoder_cia406.eds")))
+            self.network.add_node(node)
+            node.tpdo.read(from_od=True)
+            self.encoders.append(node)
+        self.network.subscribe(SYNC_ID, self._on_sync)
+        self.network.connect()
+        for node in self._nodes():
+            node.nmt.send_command(0x81)  # reset node: boot-up, then PRE-OPERATIONAL
+
+    def _nodes(self) -> list[canopen.LocalNode]:
+        return [valve.node for valve in self.valves] + self.encoders
+
+    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        with self.lock:
+            self.step()
+
+    def step(self) -> None:
+        """One SYNC: latch the setpoints, move the plant one cycle period at its tick, send the TPDOs."""
+        cycle_us = int(self.valves[0].node.sdo[_CYCLE_PERIOD].raw) or self.board.config.period_ns // 1000
+        for valve in self.valves:
+            valve.latch(cycle_us)
+        self.board.output = [valve.spool * CODE_MAX / SPOOL_FULL_SCALE for valve in self.valves]
+        active = all(valve.machine.follows_setpoint for valve in self.valves)
+        self.active_syncs += active
+        if self.live_syncs or active or not self.config.wait_active:
+            substeps = max(1, round(cycle_us * 1000 / self.board.config.period_ns))
+            for _ in range(substeps):
+                self.board.plant.step(self.board.valve_torque(), self.board.config.plant.control_period)
+            self.live_syncs += 1
+            if self.live_syncs == self.config.duration_syncs:
+                self.done.set()
+        self.syncs += 1
+        if not all(node.nmt.state == "OPERATIONAL" for node in self._nodes()):
+            return
+        pressure = round(self.board.supply_pressure / self.config.bar_per_unit)
+        for valve in self.valves:
+            valve.transmit(pressure)
+        for encoder, count in zip(self.encoders, self.board.counts(), strict=True):
+            encoder.tpdo[1][POSITION].raw = count
+            encoder.tpdo[1].transmit()
+
+    def valve_states(self) -> tuple[ValveState, ...]:
+        """Each valve's device state (alpha, beta)."""
+        with self.lock:
+            return tuple(valve.machine.state for valve in self.valves)
+
+    def close(self) -> None:
+        """Stops heartbeats and leaves the bus."""
+        for node in self._nodes():
+            node.nmt.stop_heartbeat()
+        self.network.disconnect()

@@ -1,0 +1,498 @@
+"""The CANopen link as one :class:`Device`: the bridge masters CiA 408 valves and CiA 406 encoders.
+
+Configure by SDO (device type, identity, PDO mapping against the user's EDS, the settings written), NMT
+start, then in lockstep: each :meth:`CanopenDevice.write` sends the valves' RPDOs and then the SYNC, and
+:meth:`CanopenDevice.read` gives the feedback once every node's TPDO for that SYNC has arrived. How the
+bus maps onto :data:`~smm_hw_bridge.device.Feedback`: docs/HW_CANOPEN.md. No ROS.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import can
+import canopen
+from canopen.sdo import SdoAbortedError, SdoCommunicationError
+
+from smm_hw_bridge.can_multicast import MulticastRouteError, loopback_multicast_bus
+from smm_hw_bridge.canopen_config import JOINTS, CanopenConfig, bus_load, highest_rate_that_fits
+from smm_hw_bridge.cia408 import (
+    CONTROL_MODE,
+    CONTROL_WORD,
+    DEVICE_MODE,
+    DEVICE_MODE_BUS,
+    DEVICE_TYPE,
+    POSITION,
+    PRESSURE_ACTUAL,
+    PROFILE_ENCODER,
+    PROFILE_VALVE,
+    SPOOL_ACTUAL,
+    SPOOL_FULL_SCALE,
+    SPOOL_SETPOINT,
+    STATUS_WORD,
+    ValveState,
+    control_word,
+    state_of_status,
+)
+from smm_hw_bridge.device import Device, DeviceDescription, DeviceError, Reading, ValveCommand
+from smm_hw_bridge.protocol import (
+    ADC_MAX,
+    NO_COMMAND_AGE,
+    CommandFlag,
+    FaultBit,
+    FeedbackFrame,
+    StatusBit,
+)
+from smm_hw_bridge.transport import LinkConfig
+
+__all__ = ["CanopenDevice", "ConfigureError", "canopen_device"]
+
+_U32 = 1 << 32
+_IDENTITY = 0x1018
+_CYCLE_PERIOD = 0x1006
+_HEARTBEAT_CONSUMER = 0x1016
+_HEARTBEAT_PRODUCER = 0x1017
+_RPDO1_COMM = 0x1400
+_RPDO1_MAP = 0x1600
+_TPDO1_MAP = 0x1A00
+_EVENT_TIMER = 5
+_NMT_START_ALL = 0x01
+_NMT_STOPPED = 0x04
+_RESEND_S = 0.05
+_BIT = {"valve": FaultBit.VALVE_DRIVER, "encoder": FaultBit.ENCODER}
+"""Lockstep without a SYNC: the last feedback again after this long (s), as the frame board's resend."""
+
+
+class ConfigureError(DeviceError):
+    """A node refused at configure: missing, of the wrong profile, or its objects not as its EDS says."""
+
+
+@dataclass
+class _Node:
+    """One configured node and what its last TPDO and heartbeat said."""
+
+    kind: str
+    joint: int
+    remote: canopen.RemoteNode
+    identity: tuple[int, int, int, int] = (0, 0, 0, 0)
+    device_type: int = 0
+    values: dict[int, int] = field(default_factory=dict)
+    sync: int = -1
+    heard: float = 0.0
+    """When its last heartbeat came (monotonic s)."""
+    lost: bool = False
+
+    @property
+    def name(self) -> str:
+        return f"{self.kind} {JOINTS[self.joint]} (node {self.remote.id})"
+
+
+class CanopenDevice(Device):
+    """Two CiA 408 valves and two CiA 406 encoders on one bus, the bridge as master (lockstep SYNC).
+
+    Args:
+        config: The link.
+        bus: An open python-can bus to use instead of opening ``config``'s (tests: ``virtual``).
+    """
+
+    def __init__(self, config: CanopenConfig, bus: can.BusABC | None = None) -> None:
+        super().__init__()
+        self.description = DeviceDescription(
+            name="canopen",
+            joints=JOINTS,
+            valves=JOINTS,
+            analog=("supply",),
+            own_watchdog=True,
+            validity=False,
+        )
+        self.config = config
+        self._bus = bus
+        self.network: canopen.Network | None = None
+        self.nodes: list[_Node] = []
+        self.faults: list[str] = []
+        """Every fault seen, in words naming the node and the code (EMCY, valve state, NMT state)."""
+        self._fault_bits = 0
+        self._changed = threading.Condition()
+        self._syncs = 0
+        self._delivered = 0
+        self._boots = 1
+        self._host_session = 0
+        self._last_seq = 0
+        self._estop = False
+        self._enabled = False
+        self._last_feedback: FeedbackFrame | None = None
+        self._delivered_at = 0.0
+        self._synced_at = 0.0
+        self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
+
+    # ---- open: configure and start ----------------------------------------------------------------
+
+    def open(self) -> None:
+        """Configures every node by SDO, starts them (NMT) and sends the first SYNC.
+
+        Raises:
+            ConfigureError: A node is missing, of the wrong profile, or differs from its EDS.
+            DeviceError: The bus cannot be opened.
+        """
+        if self.network is not None:
+            return
+        config = self.config
+        if not config.valve_eds or not config.encoder_eds:
+            raise ConfigureError(
+                "link.canopen.valve_eds and link.canopen.encoder_eds must name the devices' EDS files"
+            )
+        try:
+            if self._bus is not None:
+                bus = self._bus
+            elif config.interface == "udp_multicast":
+                bus = loopback_multicast_bus(config.channel, config.port)
+            else:
+                bus = can.Bus(interface=config.interface, channel=config.channel, bitrate=config.bitrate)
+        except (can.CanError, OSError, ValueError, MulticastRouteError) as error:
+            raise DeviceError(
+                f"cannot open CAN interface {config.interface} {config.channel}: {error}"
+            ) from error
+        network = canopen.Network(bus)
+        network.connect()
+        self.network = network
+        try:
+            self.nodes = [self._add(network, "valve", j, i) for j, i in enumerate(config.valve_node_ids)]
+            self.nodes += [self._add(network, "encoder", j, i) for j, i in enumerate(config.encoder_node_ids)]
+            for node in self.nodes:
+                self._configure(node)
+            self._check_bus_load()
+        except BaseException:
+            self.close()
+            raise
+        self._heartbeat = bus.send_periodic(
+            can.Message(arbitration_id=0x700 + config.master_node_id, data=[5], is_extended_id=False),
+            config.heartbeat_ms / 1000.0,
+        )
+        self.found = tuple(
+            f"{node.name}: device type 0x{node.device_type:08X} (CiA {node.device_type & 0xFFFF}), vendor "
+            f"0x{node.identity[0]:08X}, product 0x{node.identity[1]:08X}, revision 0x{node.identity[2]:08X}, "
+            f"serial 0x{node.identity[3]:08X}"
+            for node in self.nodes
+        )
+        for node in self.nodes:
+            node.heard = time.monotonic()  # consumers count from the start
+        network.nmt.send_command(_NMT_START_ALL)
+        self._send_safe()
+
+    def _check_bus_load(self) -> None:
+        """Refuses a cycle (SYNC, valve RPDO1s, every TPDO1, as the EDS files map them) above the limit."""
+        config = self.config
+        payloads = [0]  # the SYNC
+        for node in self.nodes:
+            payloads.append(len(node.remote.tpdo[1].data))
+            if node.kind == "valve":
+                payloads.append(len(node.remote.rpdo[1].data))
+        rate = 1e6 / config.period_us
+        load = bus_load(payloads, rate, config.bitrate)
+        if load > config.max_bus_load:
+            fits = highest_rate_that_fits(payloads, config.bitrate, config.max_bus_load)
+            raise ConfigureError(
+                f"bus load {100 * load:.1f} % at {rate:g} Hz and {config.bitrate} bit/s (frames of "
+                f"{payloads} bytes a cycle, worst-case stuffing) is above link.canopen.max_bus_load "
+                f"{100 * config.max_bus_load:g} %; "
+                + (f"the highest offered rate that fits is {fits} Hz" if fits else "no offered rate fits")
+            )
+
+    def _add(self, network: canopen.Network, kind: str, joint: int, node_id: int) -> _Node:
+        path = self.config.eds(kind, joint)
+        try:
+            remote = canopen.RemoteNode(node_id, path)
+        except (OSError, ValueError, KeyError) as error:
+            raise ConfigureError(
+                f"{kind} {JOINTS[joint]} (node {node_id}): cannot read EDS {path}: {error}"
+            ) from error
+        remote.sdo.RESPONSE_TIMEOUT = self.config.sdo_timeout
+        network.add_node(remote)
+        node = _Node(kind, joint, remote)
+        remote.tpdo.read(from_od=True)
+        remote.rpdo.read(from_od=True)
+        remote.tpdo[1].add_callback(lambda pdo, node=node: self._on_tpdo(node, pdo))
+        network.subscribe(0x80 + node_id, lambda _id, data, _t, node=node: self._on_emcy(node, bytes(data)))
+        network.subscribe(
+            0x700 + node_id, lambda _id, data, _t, node=node: self._on_heartbeat(node, bytes(data))
+        )
+        return node
+
+    def _upload(self, node: _Node, index: int, subindex: int = 0) -> int:
+        try:
+            data = node.remote.sdo.upload(index, subindex)
+        except SdoCommunicationError as error:
+            raise ConfigureError(
+                f"{node.name}: no answer to reading 0x{index:04X}:{subindex:02X} ({error})"
+            ) from error
+        except SdoAbortedError as error:
+            raise ConfigureError(
+                f"{node.name}: reading 0x{index:04X}:{subindex:02X} refused ({error})"
+            ) from error
+        return int.from_bytes(data[:4], "little")
+
+    def _download(self, node: _Node, index: int, subindex: int, value: int, size: int) -> None:
+        try:
+            node.remote.sdo.download(index, subindex, value.to_bytes(size, "little", signed=value < 0))
+        except (SdoCommunicationError, SdoAbortedError) as error:
+            raise ConfigureError(
+                f"{node.name}: writing 0x{index:04X}:{subindex:02X} = {value} refused ({error})"
+            ) from error
+
+    def _configure(self, node: _Node) -> None:
+        config = self.config
+        node.device_type = self._upload(node, DEVICE_TYPE)
+        profile = PROFILE_VALVE if node.kind == "valve" else PROFILE_ENCODER
+        if node.device_type & 0xFFFF != profile:
+            raise ConfigureError(
+                f"{node.name}: device type 0x1000 = 0x{node.device_type:08X}, "
+                f"profile {node.device_type & 0xFFFF}, "
+                f"not CiA {profile}"
+            )
+        node.identity = tuple(self._upload(node, _IDENTITY, sub) for sub in (1, 2, 3, 4))  # type: ignore[assignment]
+        if node.kind == "valve":
+            self._check_mapping(
+                node, _TPDO1_MAP, node.remote.tpdo[1], (STATUS_WORD, SPOOL_ACTUAL[0], PRESSURE_ACTUAL[0])
+            )
+            self._check_mapping(node, _RPDO1_MAP, node.remote.rpdo[1], (CONTROL_WORD, SPOOL_SETPOINT[0]))
+        else:
+            self._check_mapping(node, _TPDO1_MAP, node.remote.tpdo[1], (POSITION,))
+        if node.kind == "valve":
+            self._download(node, DEVICE_MODE, 0, DEVICE_MODE_BUS, 1)
+            self._download(node, CONTROL_MODE, 0, config.control_mode, 1)
+            self._download(node, _RPDO1_COMM, _EVENT_TIMER, config.receive_deadline_ms, 2)
+            self._download(node, CONTROL_WORD, 0, control_word(ValveState.DISABLED), 2)
+        self._download(node, _CYCLE_PERIOD, 0, config.period_us, 4)
+        self._download(node, _HEARTBEAT_PRODUCER, 0, config.heartbeat_ms, 2)
+        consumer = (config.master_node_id << 16) | min(3 * config.heartbeat_ms, 0xFFFF)
+        self._download(node, _HEARTBEAT_CONSUMER, 1, consumer, 4)
+
+    def _check_mapping(
+        self, node: _Node, index: int, pdo: canopen.pdo.PdoMap, needed: tuple[int, ...]
+    ) -> None:
+        od = node.remote.object_dictionary
+        if index not in od:
+            raise ConfigureError(f"{node.name}: its EDS has no 0x{index:04X} (PDO mapping)")
+        mapped = {variable.index for variable in pdo}
+        missing = [f"0x{object_index:04X}" for object_index in needed if object_index not in mapped]
+        if missing:
+            raise ConfigureError(
+                f"{node.name}: its EDS's PDO mapping 0x{index:04X} lacks {', '.join(missing)}"
+            )
+        record = od[index]
+        expected = [int(record[sub].default) for sub in range(1, int(record[0].default) + 1)]
+        found_count = self._upload(node, index, 0) & 0xFF
+        found = [self._upload(node, index, sub) for sub in range(1, found_count + 1)]
+        if found != expected:
+            raise ConfigureError(
+                f"{node.name}: PDO mapping 0x{index:04X} on the device is "
+                f"{[f'0x{v:08X}' for v in found]}, its EDS says {[f'0x{v:08X}' for v in expected]}"
+            )
+
+    # ---- bus callbacks (the notifier's thread) ----------------------------------------------------
+
+    def _on_tpdo(self, node: _Node, pdo: canopen.pdo.PdoMap) -> None:
+        with self._changed:
+            node.values = {variable.index: int(variable.raw) for variable in pdo}
+            node.sync = self._syncs
+            if node.kind == "valve":
+                status = node.values[STATUS_WORD]
+                state = state_of_status(status)
+                if state is None or state.fault:
+                    self._fault(
+                        node,
+                        f"status word 0x{status:04X} ({state.name if state else 'unknown'})",
+                        FaultBit.VALVE_DRIVER,
+                    )
+            self._changed.notify_all()
+
+    def _on_emcy(self, node: _Node, data: bytes) -> None:
+        code = int.from_bytes(data[:2].ljust(2, b"\0"), "little")
+        if code == 0:
+            return  # error reset / no error
+        with self._changed:
+            register = data[2] if len(data) > 2 else 0
+            bit = FaultBit.VALVE_DRIVER if node.kind == "valve" else FaultBit.ENCODER
+            self._fault(node, f"EMCY 0x{code:04X} (error register 0x{register:02X})", bit)
+
+    def _on_heartbeat(self, node: _Node, data: bytes) -> None:
+        state = data[0] & 0x7F if data else -1
+        with self._changed:
+            node.heard, node.lost = time.monotonic(), False
+            if state == 0:
+                self._boots += 1  # boot-up: a new session
+            elif state == _NMT_STOPPED:
+                self._fault(node, "NMT state STOPPED in its heartbeat", FaultBit.INTERNAL)
+
+    def _fault(self, node: _Node, what: str, bit: FaultBit) -> None:
+        message = f"{node.name}: {what}"
+        if not self.faults or self.faults[-1] != message:
+            self.faults.append(message)
+        self._fault_bits |= int(bit)
+
+    # ---- the device interface ---------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Stops the master's heartbeat and leaves the bus."""
+        network, self.network = self.network, None
+        if self._heartbeat is not None:
+            self._heartbeat.stop()
+            self._heartbeat = None
+        if network is not None:
+            network.disconnect()
+
+    def read(self, timeout_s: float) -> Reading | None:
+        """The feedback of the last SYNC once every node's TPDO for it arrived; None after ``timeout_s``."""
+        if self.network is None:
+            raise DeviceError("the device is not open")
+        held = self._last_feedback is not None and self._delivered == self._syncs
+        resend_in = self._delivered_at + _RESEND_S - time.monotonic()
+        with self._changed:
+            ready = self._changed.wait_for(
+                lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
+                timeout=max(min(timeout_s, resend_in), 0.0) if held else timeout_s,
+            )
+            late = self._watch()
+            if late and all(node.values for node in self.nodes):
+                ready = True  # its feedback, the late nodes' last values with the fault: the loop faults
+            if ready:
+                self._delivered = self._syncs
+                self._last_feedback = self._feedback()
+            elif not held or time.monotonic() < self._delivered_at + _RESEND_S:
+                return None
+            # else lockstep, no SYNC since the last feedback: it again, as the frame board re-sends its
+            # unanswered one (the loop re-publishes a duplicate: the controller may have missed it)
+            self._delivered_at = time.monotonic()
+            return self._last_feedback
+
+    def _watch(self) -> bool:
+        """Faults for lost heartbeats and for TPDOs late past their validity; True if this SYNC's are."""
+        now, config = time.monotonic(), self.config
+        consumer_s = 3 * config.heartbeat_ms / 1000.0
+        for node in self.nodes:
+            if not node.lost and now - node.heard > consumer_s:
+                node.lost = True
+                self._fault(node, f"heartbeat lost (none for {3 * config.heartbeat_ms} ms)", _BIT[node.kind])
+        if self._delivered >= self._syncs or now - self._synced_at <= config.pdo_validity_ms / 1000.0:
+            return False
+        for node in self.nodes:
+            if node.sync != self._syncs:
+                what = f"TPDO1 of SYNC {self._syncs} not arrived within {config.pdo_validity_ms} ms"
+                self._fault(node, what, _BIT[node.kind])
+        return True
+
+    def _feedback(self) -> FeedbackFrame:
+        valves = [n for n in self.nodes if n.kind == "valve"]
+        encoders = [n for n in self.nodes if n.kind == "encoder"]
+        states = [state_of_status(v.values[STATUS_WORD]) for v in valves]
+        status = int(StatusBit.HOST_LOCKED) if self._host_session else 0
+        if all(state is ValveState.ACTIVE for state in states):
+            status |= int(StatusBit.ENABLED)
+        if self._estop:
+            status |= int(StatusBit.ESTOP_LATCHED)
+        supply = round(
+            valves[0].values[PRESSURE_ACTUAL[0]] * self.config.bar_per_unit / self.config.supply_bar_per_code
+        )
+        spool = tuple(
+            max(-SPOOL_FULL_SCALE, min(SPOOL_FULL_SCALE, v.values[SPOOL_ACTUAL[0]])) for v in valves
+        )
+        ticks = self.config.period_us // 1000 or 1
+        return FeedbackFrame(
+            session=self._boots % _U32 or 1,
+            seq=self._syncs % _U32,
+            tick=(self._syncs * ticks) % _U32,
+            host_session=self._host_session,
+            counts=(encoders[0].values[POSITION] % _U32, encoders[1].values[POSITION] % _U32),
+            adc=(min(max(supply, 0), ADC_MAX), 0, 0, 0),
+            status=status,
+            faults=self._fault_bits & 0xFFFF,
+            applied_seq=self._last_seq,
+            applied_age=0 if self._host_session else NO_COMMAND_AGE,
+            output_codes=(spool[0], spool[1]),
+            late_commands=0,
+            crc_errors=0,
+            dropped_frames=sum(self.dropped.values()) % _U32,
+        )
+
+    def write(self, command: ValveCommand) -> None:
+        """The valves' RPDOs (control word and spool setpoint), then the SYNC: one control cycle."""
+        if self.network is None:
+            raise DeviceError("the device is not open")
+        if command.enabled and self._syncs > self._delivered:
+            # a second answer (to a feedback given again): its SYNC went out already, one step per feedback
+            self.dropped["second_answer"] = self.dropped.get("second_answer", 0) + 1
+            return
+        self._host_session, self._last_seq = command.session, command.seq
+        if command.flags & CommandFlag.ESTOP:
+            self._estop = True
+        elif command.flags & CommandFlag.REARM:
+            self._estop = False
+        codes = command.codes
+        if any(abs(code) > SPOOL_FULL_SCALE for code in codes):
+            self.dropped["code_limit"] = self.dropped.get("code_limit", 0) + 1
+            codes = (0, 0)  # never beyond 100 % spool: refused, the valves to DISABLED
+            enable = False
+        else:
+            enable = command.enabled and not self._estop and not self._fault_bits
+        sync = enable or self._enabled or not self.config.sync_on_enabled
+        self._enabled = enable
+        with self._changed:
+            valves = [n for n in self.nodes if n.kind == "valve"]
+            for node, code in zip(valves, codes, strict=True):
+                word, setpoint = self._next(node, enable, code, bool(command.flags & CommandFlag.REARM))
+                self._rpdo(node, word, setpoint)
+            if sync:
+                self._sync()
+
+    def _next(self, node: _Node, enable: bool, code: int, rearm: bool) -> tuple[int, int]:
+        """Control word and setpoint: DISABLED -> HOLD -> ACTIVE a step a cycle if enabled; R on re-arm."""
+        state = state_of_status(node.values[STATUS_WORD]) if node.values else None
+        if state is not None and state.fault:
+            return control_word(ValveState.DISABLED, reset=rearm), 0
+        if not enable:
+            return control_word(ValveState.DISABLED), 0
+        if state in (ValveState.HOLD, ValveState.ACTIVE):
+            return control_word(ValveState.ACTIVE), code
+        return control_word(ValveState.HOLD), 0
+
+    def _rpdo(self, node: _Node, word: int, setpoint: int) -> None:
+        rpdo = node.remote.rpdo[1]
+        rpdo[CONTROL_WORD].raw = word
+        rpdo[SPOOL_SETPOINT[0]].raw = setpoint
+        rpdo.transmit()
+
+    def _sync(self) -> None:
+        assert self.network is not None
+        self._syncs += 1
+        self._synced_at = time.monotonic()
+        self.network.send_message(0x80, b"")
+
+    def _send_safe(self) -> None:
+        with self._changed:
+            for node in self.nodes:
+                if node.kind == "valve":
+                    self._rpdo(node, control_word(ValveState.DISABLED), 0)
+            self._sync()
+
+    def make_safe(self) -> None:
+        """Setpoint 0 and DISABLED to every valve (RPDO and SYNC, and the control word by SDO)."""
+        if self.network is None:
+            return
+        self._send_safe()
+        for node in self.nodes:
+            if node.kind == "valve":
+                try:
+                    node.remote.sdo.download(
+                        CONTROL_WORD, 0, control_word(ValveState.DISABLED).to_bytes(2, "little")
+                    )
+                except (SdoCommunicationError, SdoAbortedError) as error:
+                    self._fault(
+                        node, f"control word DISABLED by SDO refused ({error})", FaultBit.VALVE_DRIVER
+                    )
+
+
+def canopen_device(link: LinkConfig) -> CanopenDevice:
+    """The CANopen bench ``link.canopen`` describes."""
+    return CanopenDevice(link.canopen)
