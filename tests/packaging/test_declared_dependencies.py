@@ -40,7 +40,7 @@ ROSDEP_KEYS: dict[str, str | None] = {
     "rosbags": "python3-rosbags-pip",
     "mcap-ros2-support": "mcap-ros2-support",
     "python-can": "python3-can",
-    "canopen": "canopen-pip",
+    "canopen": None,
     "mcap": None,
     "zstandard": None,
     "lz4": None,

@@ -175,6 +175,7 @@ def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
 
 
 def simulator_settings(files: Sequence[str]) -> dict[str, Any]:
+    """What the parameter ``files`` set for the simulator (its section of each, later files winning)."""
     sim: dict[str, Any] = {}
     for path in files:
         sim.update(load_parameter_file(path, f"/{NAMESPACE}/{SIM_NODE}"))
