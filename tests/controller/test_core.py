@@ -144,6 +144,15 @@ def test_missed_periods_count_the_stamps_between_steps_up_to_the_gate_window() -
     assert core.missed_periods((2 + window) * PERIOD_NS) == 0  # a time jump: one period, as documented
     core.reset()
     assert core.missed_periods(3 * PERIOD_NS) == 0  # a new run
+    run(core, 1, first=10)
+    core.switch("pid")
+    assert core.missed_periods(13 * PERIOD_NS) == 0  # a fresh chain
+
+
+def test_a_chain_that_has_not_stepped_has_nothing_to_catch_up() -> None:
+    chain = make_chain("fpdeso", SMMParameters())
+    chain.advance_estimators((0.2, 0.1), (0.0, 0.0), 1e-3, 5)
+    assert chain.td.next_position(1e-3) is None  # still uninitialised: the first step starts at its y
 
 
 def test_a_backward_time_jump_starts_a_fresh_run() -> None:

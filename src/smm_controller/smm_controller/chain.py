@@ -153,6 +153,8 @@ class ControlChain:
         held; the step on y follows (docs/DESIGN.md, "Missed control periods").
         """
         td, fleso = self.td, self.fleso
+        if td.next_position(dt) is None:
+            return  # no step yet: nothing to catch up from
         start0, start1 = (float(v) for v in td.internals["input"])
         rise0, rise1 = y[0] - start0, y[1] - start1
         for i in range(1, steps + 1):

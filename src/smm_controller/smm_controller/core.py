@@ -164,6 +164,7 @@ class ControllerCore:
                 name, self.model, law=law, td=self.td, fleso=self.fleso, limiter=self.limiter
             )
             self._last_command = (0.0, 0.0)
+            self._stepped_ns = None  # a fresh chain has no missed periods to catch up
         return law
 
     @property
