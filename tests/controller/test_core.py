@@ -135,6 +135,29 @@ def test_any_sequence_of_missed_periods_gives_the_ramp_velocity_and_finite_torqu
     assert estimates["td.x2"] == pytest.approx(velocity, abs=1e-6)
 
 
+@settings(max_examples=15, deadline=None)
+@given(
+    gaps=st.lists(st.one_of(st.integers(1, 8), st.integers(101, 2_000)), min_size=60, max_size=60),
+    amplitude=st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0)),
+)
+def test_stamps_with_gaps_and_forward_time_jumps_never_give_a_non_finite_torque(
+    gaps: list[int], amplitude: tuple[float, float]
+) -> None:
+    core = make_core()
+    k = 0
+    for gap in gaps:
+        k += gap
+        for _ in range(core.admission.gate.policy.resync_samples):  # enough samples to resync after a jump
+            position = (amplitude[0] * math.sin(2.0 * k * 1e-3), amplitude[1] * math.cos(3.0 * k * 1e-3))
+            result = core.measurement(TOPIC, k * PERIOD_NS, position, (0.0, 0.0), 0)
+            if isinstance(result, Command):
+                assert all(math.isfinite(tau) for tau in result.torque)
+            else:
+                assert result.counter == "dropped_ahead", result
+            k += 1
+    assert core.admission.counters.time_jumps == sum(gap > 100 for gap in gaps[1:])
+
+
 def test_missed_periods_count_the_stamps_between_steps_up_to_the_gate_window() -> None:
     core = make_core()
     assert core.missed_periods(5 * PERIOD_NS) == 0  # no step yet
