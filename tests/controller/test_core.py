@@ -100,6 +100,84 @@ def test_a_non_finite_torque_is_a_chain_failure_counted_as_an_invalid_output() -
     assert core.admission.counters.invalid_outputs == 1 and "finite" in result.message
 
 
+def ramp_estimates(stamps: list[int], velocity: tuple[float, float]) -> dict[str, tuple[float, float]]:
+    """The TD's and FLESO's velocity (rad/s) after a ramp (rad/s) measured at ``stamps`` (periods)."""
+    core = make_core()
+    for k in stamps:
+        t = k * 1e-3
+        result = core.measurement(TOPIC, k * PERIOD_NS, (velocity[0] * t, velocity[1] * t), (0.0, 0.0), 0)
+        assert isinstance(result, Command) and all(math.isfinite(v) for v in result.torque)
+    internals = core.internals()
+    return {key: (float(internals[key][0]), float(internals[key][1])) for key in ("td.x2", "fleso.x2_hat")}
+
+
+def test_missed_control_periods_are_caught_up_so_a_ramp_measured_every_third_period_has_its_velocity() -> (
+    None
+):
+    # a loop that falls behind answers every third stamp: the chain must advance 3 ms, not 1 ms, per step
+    estimates = ramp_estimates(list(range(1, 3001, 3)), (0.2, -0.1))
+    assert estimates["td.x2"] == pytest.approx((0.2, -0.1), abs=1e-9)
+    assert estimates["fleso.x2_hat"] == pytest.approx((0.2, -0.1), rel=0.02)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    gaps=st.lists(st.integers(1, 8), min_size=150, max_size=150),
+    velocity=st.tuples(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3)),  # stays within the joints' range
+)
+def test_any_sequence_of_missed_periods_gives_the_ramp_velocity_and_finite_torques(
+    gaps: list[int], velocity: tuple[float, float]
+) -> None:
+    stamps = [1]
+    for gap in gaps:
+        stamps.append(stamps[-1] + gap)
+    estimates = ramp_estimates(stamps, velocity)
+    assert estimates["td.x2"] == pytest.approx(velocity, abs=1e-6)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    gaps=st.lists(st.one_of(st.integers(1, 8), st.integers(101, 2_000)), min_size=60, max_size=60),
+    amplitude=st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0)),
+)
+def test_stamps_with_gaps_and_forward_time_jumps_never_give_a_non_finite_torque(
+    gaps: list[int], amplitude: tuple[float, float]
+) -> None:
+    core = make_core()
+    k = 0
+    for gap in gaps:
+        k += gap
+        for _ in range(core.admission.gate.policy.resync_samples):  # enough samples to resync after a jump
+            position = (amplitude[0] * math.sin(2.0 * k * 1e-3), amplitude[1] * math.cos(3.0 * k * 1e-3))
+            result = core.measurement(TOPIC, k * PERIOD_NS, position, (0.0, 0.0), 0)
+            if isinstance(result, Command):
+                assert all(math.isfinite(tau) for tau in result.torque)
+            else:
+                assert result.counter == "dropped_ahead", result
+            k += 1
+    assert core.admission.counters.time_jumps == sum(gap > 100 for gap in gaps[1:])
+
+
+def test_missed_periods_count_the_stamps_between_steps_up_to_the_gate_window() -> None:
+    core = make_core()
+    assert core.missed_periods(5 * PERIOD_NS) == 0  # no step yet
+    run(core, 1)
+    window = core.admission.gate.max_ahead_ns // PERIOD_NS
+    assert [core.missed_periods((1 + gap) * PERIOD_NS) for gap in (1, 2, 4, window)] == [0, 1, 3, window - 1]
+    assert core.missed_periods((2 + window) * PERIOD_NS) == 0  # a time jump: one period, as documented
+    core.reset()
+    assert core.missed_periods(3 * PERIOD_NS) == 0  # a new run
+    run(core, 1, first=10)
+    core.switch("pid")
+    assert core.missed_periods(13 * PERIOD_NS) == 0  # a fresh chain
+
+
+def test_a_chain_that_has_not_stepped_has_nothing_to_catch_up() -> None:
+    chain = make_chain("fpdeso", SMMParameters())
+    chain.advance_estimators((0.2, 0.1), (0.0, 0.0), 1e-3, 5)
+    assert chain.td.next_position(1e-3) is None  # still uninitialised: the first step starts at its y
+
+
 def test_a_backward_time_jump_starts_a_fresh_run() -> None:
     core = make_core()
     run(core, 40, first=1000)

@@ -144,6 +144,25 @@ class ControlChain:
             )
         )
 
+    def advance_estimators(
+        self, y: tuple[float, float], tau_applied: tuple[float, float], dt: float, steps: int
+    ) -> None:
+        """TD and FLESO ``steps`` steps of ``dt`` (s) towards y (rad), no law: missed control periods.
+
+        Their inputs are y interpolated linearly from the TD's last input (rad) and tau_applied (N m)
+        held; the step on y follows (docs/DESIGN.md, "Missed control periods").
+        """
+        td, fleso = self.td, self.fleso
+        if td.next_position(dt) is None:
+            return  # no step yet: nothing to catch up from
+        start0, start1 = (float(v) for v in td.internals["input"])
+        rise0, rise1 = y[0] - start0, y[1] - start1
+        for i in range(1, steps + 1):
+            share = i / (steps + 1)
+            q0, q1, _qd0, _qd1 = td.step_floats(start0 + share * rise0, start1 + share * rise1, dt)
+            if fleso is not None:
+                fleso.step_floats(q0, q1, tau_applied[0], tau_applied[1], dt)
+
     def step_floats(
         self,
         y: tuple[float, float],

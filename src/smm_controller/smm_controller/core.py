@@ -31,7 +31,10 @@ from smm_controller.reference import ReferenceClock, ReferenceGenerator
 from smm_controller.td import TrackingDifferentiatorConfig
 from smm_dynamics import SMMParameters
 
-__all__ = ["Command", "ControllerCore", "CoreSettings", "Refusal", "StepResult"]
+__all__ = ["MAX_CATCH_UP_PERIODS", "Command", "ControllerCore", "CoreSettings", "Refusal", "StepResult"]
+
+MAX_CATCH_UP_PERIODS: Final[int] = 100
+"""Most control periods the estimators catch up before a step (docs/DESIGN.md, "Missed periods")."""
 
 _ZERO_REFERENCE: Final[tuple[tuple[float, float], ...]] = ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0))
 
@@ -145,6 +148,8 @@ class ControllerCore:
         self.chain: ControlChain | None = None
         """TD -> FLESO -> law (fused chain), else None."""
         self._last_command = (0.0, 0.0)
+        self._stepped_ns: int | None = None
+        """Stamp of the chain's last step (ns), None before the first and after a reset."""
         self._last_answer: Command | None = None
         self.algorithm = settings.algorithm
         self.law = self._build(self.algorithm)
@@ -159,6 +164,7 @@ class ControllerCore:
                 name, self.model, law=law, td=self.td, fleso=self.fleso, limiter=self.limiter
             )
             self._last_command = (0.0, 0.0)
+            self._stepped_ns = None  # a fresh chain has no missed periods to catch up
         return law
 
     @property
@@ -234,6 +240,7 @@ class ControllerCore:
         self.reference_clock = ReferenceClock(self._announce)
         self._ahead_rows = None
         self._last_command = (0.0, 0.0)
+        self._stepped_ns = None
 
     # --------------------------------------------------------------------------------------- per step
 
@@ -277,10 +284,26 @@ class ControllerCore:
         assert self.chain is not None, "step() runs the fused chain; step_law() the law alone"
         self.last_reference = reference
         applied = effort if effort is not None else self._last_command
+        missed = self.missed_periods(stamp_ns)
+        if missed:
+            self.chain.advance_estimators(position, applied, self.control_period, missed)
+        self._stepped_ns = stamp_ns
         torque = self.chain.step_floats(position, applied, reference, self.control_period)
         if math.isfinite(torque[0]) and math.isfinite(torque[1]):
             self._last_command = torque  # the applied torque of the next step when the plant gives none
         return torque
+
+    def missed_periods(self, stamp_ns: int) -> int:
+        """Control periods between the last step and ``stamp_ns`` that had no step (0 for the next period).
+
+        0 before the first step, after a reset, and for a gap beyond the stamp gate's window or
+        :data:`MAX_CATCH_UP_PERIODS` (a time jump: the step is one period, docs/NODES.md).
+        """
+        last = self._stepped_ns
+        if last is None or stamp_ns <= last or stamp_ns - last > self.admission.gate.max_ahead_ns:
+            return 0
+        missed = round((stamp_ns - last) / self.period_ns) - 1
+        return missed if 0 < missed <= MAX_CATCH_UP_PERIODS else 0
 
     def prepare(self) -> None:
         """The work of the next step that needs no measurement, done ahead (optional; the same steps).
