@@ -114,17 +114,13 @@ def _declared(context: Any, node_path: str, overrides: dict[str, Any]) -> set[st
 
 def _direct_bridge_names(context: Any) -> set[str]:
     """The names ``direct_loop``'s bridge declares (its ``loop.*`` besides the bridge's own)."""
-    from smm_direct_loop.host import DirectBridgeNode, DirectControllerNode  # noqa: PLC0415
+    from smm_direct_loop.host import compose  # noqa: PLC0415
 
-    internal = {"chain": "internal", "reference_source": "internal"}
-    controller = DirectControllerNode(context=context, parameter_overrides=internal)
+    controller, bridge = compose(context, {"chain": "internal", "reference_source": "internal"}, {})
     try:
-        bridge = DirectBridgeNode(controller, context=context)
-        try:
-            return {name for name in bridge.list_parameters([], 0).names if not is_ros_parameter(name)}
-        finally:
-            bridge.destroy_node()
+        return {name for name in bridge.list_parameters([], 0).names if not is_ros_parameter(name)}
     finally:
+        bridge.destroy_node()
         controller.destroy_node()  # type: ignore[no-untyped-call]
 
 

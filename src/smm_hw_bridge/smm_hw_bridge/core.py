@@ -21,6 +21,7 @@ from smm_schema.ranges import above, bounds, check_bounds
 from smm_hw_bridge.control_rate import MAX_DIVIDER, held_ticks, in_flight_ticks, is_control_tick
 from smm_hw_bridge.encoder import EncoderConfig, EncoderDecoder
 from smm_hw_bridge.link import AdmissionConfig, FeedbackAdmission, LinkStats
+from smm_hw_bridge.pressure import LOAD_CHANNELS, PressureConfig
 from smm_hw_bridge.protocol import (
     CommandFlag,
     CommandFrame,
@@ -76,6 +77,7 @@ class BridgeConfig:
         encoder: Counts -> rad.
         valve: Torque -> D/A code.
         admission: Feedback admission (tick period, staleness).
+        pressure: Load-pressure transducers (A/D channels 1, 2) -> the measured joint torque.
         host_watchdog_ns: No fresh command for this long -> safe output (ns), > 0; at a divider N the
             bridge waits 2 (N - 1) ticks longer (:attr:`watchdog_ns`).
         stale_periods: A command answering a measurement more than this many ticks older than the newest
@@ -98,6 +100,7 @@ class BridgeConfig:
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
     valve: ValveOutputConfig = field(default_factory=ValveOutputConfig)
     admission: AdmissionConfig = field(default_factory=AdmissionConfig)
+    pressure: PressureConfig = field(default_factory=PressureConfig)
     host_watchdog_ns: int = field(default=10_000_000, metadata=bounds(1, 10_000_000_000))
     stale_periods: int = field(default=5, metadata=bounds(1, 65535))
     validity_ticks: int = field(default=10, metadata=bounds(1, 65535))
@@ -113,6 +116,7 @@ class BridgeConfig:
             ("encoder", EncoderConfig),
             ("valve", ValveOutputConfig),
             ("admission", AdmissionConfig),
+            ("pressure", PressureConfig),
         ):
             if not isinstance(getattr(self, name), kind):
                 raise ValueError(f"{name} must be a {kind.__name__}, got {getattr(self, name)!r}")
@@ -199,6 +203,8 @@ class BridgeCore:
         self._count_limit = config.encoder.modulus
         self._valve = ValveOutput(config.valve)
         self._admission = FeedbackAdmission(config.admission)
+        self._pressure_zero = config.pressure.zero_code
+        self._torque_per_code = config.pressure.torque_per_code
         self.stats = LinkStats()
         self.refused: dict[Refusal, int] = {}
         self.watchdog_trips = 0
@@ -218,6 +224,7 @@ class BridgeCore:
         self._last: FeedbackFrame | None = None
         self._last_rx_ns: int | None = None
         self._effort = (0.0, 0.0)
+        self._measured = (0.0, 0.0)
         self._pending: _Pending | None = None
         self._active = False
         self._arm_tick = -1
@@ -327,6 +334,11 @@ class BridgeCore:
         self.stats.on_feedback(frame.seq, frame.applied_seq, rx_ns)
         self._last, self._last_rx_ns = frame, rx_ns
         self._effort = self._valve.effort_floats(frame.output_codes, self._period_s)
+        adc, zero, per_code = frame.adc, self._pressure_zero, self._torque_per_code
+        self._measured = (
+            (adc[LOAD_CHANNELS[0]] - zero[0]) * per_code[0],
+            (adc[LOAD_CHANNELS[1]] - zero[1]) * per_code[1],
+        )
         if frame.faults:
             self.state = BridgeState.FAULT
             self._pending = None
@@ -376,6 +388,14 @@ class BridgeCore:
     def applied_torque_floats(self) -> tuple[float, float]:
         """:attr:`applied_torque` as Python floats (alpha, beta) (N m), without building an array."""
         return self._effort
+
+    @property
+    def measured_torque(self) -> FloatArray:
+        """Torque the actuators gave over the last tick, from the load pressure (N m), shape (2,).
+
+        A/D channels 1 and 2 through ``pressure``; 0 before any feedback.
+        """
+        return np.array(self._measured, dtype=np.float64)
 
     @property
     def supply_pressure_bar(self) -> float:
@@ -544,9 +564,11 @@ class BridgeCore:
         """What was last sent, shape (2,) each.
 
         Keys: ``codes``, ``torque`` (N m), ``clamped`` (saturation or rate limit, 0/1), ``limit_cut``
-        (soft limit, 0/1), ``enabled`` (0/1).
+        (soft limit, 0/1), ``enabled`` (0/1); and ``measured_torque`` (N m), the load pressure's torque
+        over the tick before the last admitted feedback (:attr:`measured_torque`).
         """
         values = dict(self._valve.internals)
         values["limit_cut"] = np.array(self._cut, dtype=np.float64)
         values["enabled"] = np.full(2, 1.0 if self._live else 0.0)
+        values["measured_torque"] = self.measured_torque
         return values
