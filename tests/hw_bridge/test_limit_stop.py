@@ -105,14 +105,24 @@ def test_the_reversed_bench_with_the_bridge_defaults_stops_at_once_reading_the_e
     assert peak < 0.01  # held by the trapped oil where it started
 
 
-@pytest.mark.parametrize("margin", [0.05, 1.0])
-def test_a_reversed_valve_runs_away_and_the_safety_stop_holds_it_short_of_the_stop(margin: float) -> None:
-    """The soft limit's cut passes the torque that drives back, which this valve turns outwards."""
+@pytest.mark.parametrize(("margin", "lead"), [(1.0, 0.0), (0.05, 0.0), (0.05, 0.01)])
+def test_a_reversed_valve_runs_away_and_a_stop_with_a_lead_holds_it_short_of_the_stop(
+    margin: float, lead: float
+) -> None:
+    """The soft limit's cut passes the torque that drives back, which this valve turns outwards.
+
+    Margin 1 rad: no safety stop, the joint reaches its stop. 0.05 rad without a lead stops it at 1.25 rad,
+    too late at full speed (it still reaches the stop); 10 ms of lead holds it short of the stop.
+    """
     bench = dataclasses.replace(default_bench(), valve_polarity=(-1, -1))
-    loop, board, peak = run(bench, dataclasses.replace(SLACK, limit_stop_margin=margin))
-    if margin == 1.0:  # past the stops: no safety stop, the cut alone lets the joint reach a stop
+    config = dataclasses.replace(SLACK, limit_stop_margin=margin, limit_stop_lead=lead)
+    loop, board, peak = run(bench, config)
+    if margin == 1.0:
         assert loop.host_fault == "" and peak >= STOP - 1e-6
         return
     assert "safety stop: joint" in loop.host_fault and "past its soft limit 1.2 rad" in loop.host_fault
     assert not decode_command(board.sent[-1]).enabled
-    assert 1.2 < peak < STOP - 0.005, peak  # past the soft limit, held short of the stop
+    if lead == 0.0:
+        assert peak >= STOP - 1e-6, peak
+    else:
+        assert 1.2 < peak < STOP - 0.005, peak  # past the soft limit, held short of the stop
