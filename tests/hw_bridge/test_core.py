@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError, BridgeState, Refusal
 from smm_hw_bridge.encoder import EncoderConfig
+from smm_hw_bridge.pressure import PressureConfig, measured_torque
 from smm_hw_bridge.protocol import CommandFlag, FaultBit, FeedbackFrame, Reason, StatusBit, encode
 from smm_hw_bridge.valve_output import ValveOutputConfig
 from udp_bench import feedback_frame
@@ -349,8 +350,25 @@ def test_applied_torque_goes_through_the_valve_lag_model() -> None:
         ValveOutputConfig(time_constants=(0.02, 0.0))
 
 
+def test_measured_torque_is_the_load_pressure_of_channels_1_and_2_times_lever_arm_area() -> None:
+    pressure = PressureConfig(
+        bar_per_code=(0.01, -0.02), zero_code=(2000.0, 2100.0), lever_arm_area=(2e-5, 1e-5)
+    )
+    core, board = armed_core(dataclasses.replace(CONFIG, pressure=pressure))
+    board.step(adc=(1638, 2500, 1900, 2048))
+    # (code - zero) * bar/code * 1e5 Pa/bar * m^3: 500 * 0.01 * 1e5 * 2e-5 = 10; -200 * -0.02 * 1e5 * 1e-5 = 4
+    np.testing.assert_allclose(core.measured_torque, [10.0, 4.0], rtol=1e-12)
+    np.testing.assert_allclose(core.measured_torque, measured_torque((1638, 2500, 1900, 2048), pressure))
+    np.testing.assert_allclose(core.internals["measured_torque"], [10.0, 4.0], rtol=1e-12)
+    board.step(adc=(1638, 2000, 2100, 0))  # channel 3 is not a load channel
+    assert core.measured_torque.tolist() == [0.0, 0.0]
+
+
 def test_invalid_bridge_configs_are_rejected() -> None:
     for kwargs in (
+        {"pressure": 3},
+        {"limit_stop_margin": 0.0},
+        {"limit_stop_lead": -0.01},
         {"stale_periods": 0},
         {"validity_ticks": 70000},
         {"soft_limits": (0.0, 1.0)},

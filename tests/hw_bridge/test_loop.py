@@ -7,7 +7,7 @@ import time
 from typing import Any
 
 import pytest
-from smm_bench_emulator.board import BoardConfig, BoardCore
+from memory_board import MemoryBoard
 from smm_hw_bridge.bridge_health import BridgeCounters
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
 from smm_hw_bridge.device import DEVICES, Device, device_names, open_device
@@ -17,35 +17,9 @@ from smm_hw_bridge.loop import REHEARSAL_STAMP_OFFSET_NS, BridgeLoop, ChangeBuff
 from smm_hw_bridge.preflight import RehearsalRecorder
 from smm_hw_bridge.protocol import CommandFrame, Reason, decode_command
 from smm_hw_bridge.run_verdict import RunTally
-from smm_hw_bridge.transport import LinkConfig, Transport
+from smm_hw_bridge.transport import LinkConfig
 
 TORQUE = (0.3, -0.2)
-
-
-class MemoryBoard(Transport):
-    """The emulator's board behind an in-memory link: feedback waits in a queue until read."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.board = BoardCore(BoardConfig())
-        self.queue: list[bytes] = [self.board.start()]
-        self.sent: list[bytes] = []
-
-    def tick(self) -> None:
-        self.queue.append(self.board.tick_realtime())
-
-    def send(self, frame: bytes) -> None:
-        self.sent.append(frame)
-        self.board.receive(frame)
-
-    def receive(self, timeout_s: float = 0.0) -> bytes | None:
-        return self.queue.pop(0) if self.queue else None
-
-    def fileno(self) -> int:
-        return -1
-
-    def close(self) -> None:
-        pass
 
 
 def memory_device(link: LinkConfig) -> Device:

@@ -21,7 +21,7 @@ from smm_bag.exit_codes import EXIT_MISSING_TOPICS, EXIT_OK, EXIT_USAGE, fail
 from smm_bag.progress import Progress
 from smm_controller.excitation import ExcitationReference
 
-from smm_analysis.errors import IdentificationError, MissingSignalsError
+from smm_analysis.errors import IdentificationError, MissingSignalsError, NotExcitingError
 from smm_analysis.identification import (
     PARAMETER_NAMES,
     PARAMETER_UNITS,
@@ -35,6 +35,7 @@ from smm_analysis.identification.estimate import estimate
 from smm_analysis.identification.excitation import excitation_quality
 from smm_analysis.identification.plots import RunFigures, write_identification_plots
 from smm_analysis.identification.streaming import StreamedRun, draw_fit, read_run
+from smm_analysis.identification.valve_gain import DIRECTIONS, ValveGain, estimate_gain
 from smm_analysis.parameters_file import write_parameters_file
 from smm_analysis.runs.commands import streams_of
 from smm_analysis.runs.window import TimeWindow, add_reading_options, window_from_options
@@ -62,6 +63,27 @@ _VALVE_NOTE = (
     "torque (the emulator's valve matches it when both use the same `valve.*` parameters), so the "
     "identified friction and offset include whatever the valve model does not describe."
 )
+_MEASURED_NOTE = (
+    "Torque: the bridge's measured torque (`hw_bridge_internals` `measured_torque`, from the load "
+    "pressure), the torque that acted; the valve's gain is measured over modelled torque (`joint_states` "
+    "effort, the bridge's valve model's) per direction, so the inertias are not scaled by a wrong valve gain."
+)
+
+
+def _gain_lines(gain: ValveGain) -> list[str]:
+    """The valve's gain table (Markdown)."""
+    lines = [
+        "| joint | direction | gain (measured / modelled) | 95 % interval | rows |",
+        "|---|---|---|---|---|",
+    ]
+    for j, joint in enumerate(("alpha", "beta")):
+        for d, direction in enumerate(DIRECTIONS):
+            low, high = gain.interval[j, d]
+            lines.append(
+                f"| {joint} | {direction} | {gain.ratio[j, d]:.5g} | [{low:.5g}, {high:.5g}] | "
+                f"{int(gain.rows[j, d])} |"
+            )
+    return lines
 
 
 def add_identify_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -178,6 +200,8 @@ def render_identification(
     validation: Sequence[RunFit],
     figures: Sequence[Path] = (),
     excitation: ExcitationReference | None = None,
+    *,
+    gain: ValveGain | None = None,
 ) -> str:
     """The Markdown report of an identification (``excitation``: the recorded reference, if known)."""
     lines = [
@@ -195,7 +219,7 @@ def render_identification(
         f"{result.settings.bootstrap} replicates, 95 % percentile intervals; standard error = bootstrap "
         "standard deviation.",
         "",
-        _VALVE_NOTE,
+        _VALVE_NOTE if gain is None else _MEASURED_NOTE,
         "",
         *_estimate_lines(result),
         "",
@@ -206,6 +230,20 @@ def render_identification(
         f"Physical: smallest eigenvalue of M(q) on |alpha|, |beta| <= {result.settings.workspace} rad: "
         f"{result.min_mass_eigenvalue:.4g} kg m^2 (positive definite).",
         "",
+        *(
+            []
+            if gain is None
+            else [
+                "## Valve gain per direction of the modelled torque",
+                "",
+                "Divide `bridge.valve.gain` (codes per N m, positive torque) and "
+                "`bridge.valve.gain_negative` by these to match the valve (a negative ratio: the valve's "
+                "polarity is reversed).",
+                "",
+                *_gain_lines(gain),
+                "",
+            ]
+        ),
         "## Fit (torque NRMSE = RMS(measured - model) / RMS(measured), used rows)",
         "",
         "| role | run | alpha | beta |",
@@ -270,6 +308,18 @@ def _read_runs(
     return runs["identification"], runs["validation"], base, excitation
 
 
+def _valve_gain(runs: Sequence[StreamedRun], estimation: EstimationSettings, err: TextIO) -> ValveGain | None:
+    """The valve's gain when every run has the measured torque; None (and why, on ``err``) otherwise."""
+    measured = [run.gain for run in runs if run.gain is not None]
+    if not measured or len(measured) < len(runs):
+        return None
+    try:
+        return estimate_gain(measured, estimation.bootstrap, estimation.seed)
+    except NotExcitingError as error:
+        err.write(f"warning: no valve gain: {error}\n")
+        return None
+
+
 def identify_command(
     args: argparse.Namespace, stdout: TextIO | None = None, stderr: TextIO | None = None
 ) -> int:
@@ -298,6 +348,7 @@ def identify_command(
             if not args.quiet:
                 err.write(f"estimating ({estimation.bootstrap} bootstrap replicates)\n")
             result = estimate([run.sums for run in runs], base, estimation)
+            gain = _valve_gain(runs, estimation, err)
         except BagError as error:
             return fail(error, err)
         except MissingSignalsError as error:
@@ -343,13 +394,16 @@ def identify_command(
             )
             report = args.out / "REPORT.md"
             report.write_text(
-                render_identification(result, runs, validation, figures, excitation), encoding="utf-8"
+                render_identification(result, runs, validation, figures, excitation, gain=gain),
+                encoding="utf-8",
             )
             err.write(f"wrote {model}, {report} and {len(figures)} figures\n")
     out.write("\n".join(_estimate_lines(result)) + "\n")
     out.write(
         f"rank {result.rank} of {len(PARAMETER_NAMES)}, condition number {result.condition_number:.3g}\n"
     )
+    if gain is not None:
+        out.write("valve gain (measured / modelled torque):\n" + "\n".join(_gain_lines(gain)) + "\n")
     for fit in [*result.fits, *validation]:
         out.write(f"NRMSE {fit.name}: alpha {fit.nrmse[0]:.4f}, beta {fit.nrmse[1]:.4f}\n")
     return EXIT_OK if np.all(np.isfinite(result.theta)) else EXIT_USAGE

@@ -43,7 +43,10 @@ class HydraulicValves:
         """Torque the actuators gave over the last tick (N m)."""
 
     def target(self, codes: tuple[int, int], supply: float) -> tuple[float, float]:
-        """Torque the valves head for with ``codes`` on the D/A and ``supply`` bar, before the lag (N m)."""
+        """Torque the valves head for with ``codes`` on the D/A and ``supply`` bar, before the lag (N m).
+
+        The gain per direction included; :meth:`drive` lags the spool, then applies the gain.
+        """
         settings = self._settings
         scale = math.sqrt(max(supply, 0.0) / settings.nominal_pressure)
         torque = []
@@ -52,9 +55,13 @@ class HydraulicValves:
             opening = math.copysign(max(abs(spool) - settings.valve_deadband[joint], 0.0), spool)
             value = opening / CODE_MAX * settings.full_scale_torque[joint] * scale
             value *= settings.valve_polarity[joint]
-            gain = settings.valve_gain_positive if value > 0.0 else settings.valve_gain_negative
-            torque.append(value * gain[joint])
+            torque.append(value * self._gain(joint, value))
         return torque[0], torque[1]
+
+    def _gain(self, joint: int, torque: float) -> float:
+        """The actuator's gain for a torque of this sign (the direction it drives q)."""
+        settings = self._settings
+        return (settings.valve_gain_positive if torque > 0.0 else settings.valve_gain_negative)[joint]
 
     def move(self, plant: SimulatedPlant, codes: tuple[int, int], enabled: bool, supply: float) -> None:
         """Moves ``plant`` (built without a valve lag) over one of its control periods with these valves.
@@ -91,8 +98,13 @@ class HydraulicValves:
                 if not self.locked[joint]:
                     self._held[joint] = self._torque[joint]  # the oil is trapped at the pressure it had
                 self._torque[joint] = mean = self._held[joint]
-            else:
-                self._torque[joint], mean = self._lagged(self._torque[joint], target[joint], h)
+            else:  # the spool lags, the actuator's gain for the direction it drives applies after it
+                goal, start = target[joint], self._torque[joint]
+                goal /= self._gain(joint, goal)
+                start /= self._gain(joint, start)
+                end, mean = self._lagged(start, goal, h)
+                self._torque[joint] = end * self._gain(joint, end)
+                mean *= self._gain(joint, mean)
             locked.append(holds)
             applied.append(mean)
         self.locked = (locked[0], locked[1])

@@ -244,7 +244,8 @@ class HwBridgeNode(LifecycleNode):
 
     def run_verdict(self) -> str | None:
         """Why this run did not control (never configured, never armed, ...), or None if it did."""
-        return run_verdict(self.loop.tally, self.core, waited=self.autostart and not self._started)
+        verdict = run_verdict(self.loop.tally, self.core, waited=self.autostart and not self._started)
+        return self.loop.safety_stop or verdict
 
     # ---- lifecycle --------------------------------------------------------------------------------
 

@@ -147,6 +147,8 @@ class BridgeLoop:
         self.statistics = LoopStatistics()
         """Periodicity and receive -> send of the ticks the answerer answered."""
         self.host_fault = ""
+        self.safety_stop = ""
+        """The first safety stop's reason (:meth:`BridgeCore.limit_stop`), kept for the run's verdict."""
         self.fault_signalled = False
         """Set by :meth:`fail` or :meth:`check`: the node drives the error transition."""
         self._last_rx_ns: int | None = None
@@ -256,6 +258,11 @@ class BridgeLoop:
             frame = core.on_feedback(reading, rx_ns)
             # lockstep: the board re-sends its unanswered feedback; so do we (a DDS sample may be lost)
             resent = core.config.lockstep and core.last_rejection is Reason.DUPLICATE
+            stop = core.limit_stop() if frame is not None or resent else None
+            if stop is not None:  # the safe frame goes out at once; the node drives the error transition
+                self.safety_stop = self.safety_stop or stop
+                self.fail(stop)
+                return None
             if frame is None and not resent:
                 return None
             # the controller answers every Nth board tick (bridge.control_divider); the board holds between

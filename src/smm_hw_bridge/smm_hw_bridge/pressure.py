@@ -42,6 +42,14 @@ class PressureConfig:
         if 0.0 in self.bar_per_code:
             raise ValueError(f"bar_per_code must be != 0 for both joints, got {self.bar_per_code!r}")
 
+    @property
+    def torque_per_code(self) -> tuple[float, float]:
+        """Joint torque per A/D code (N m) (alpha, beta): ``bar_per_code`` * 1e5 * ``lever_arm_area``."""
+        return (
+            self.bar_per_code[0] * PASCAL_PER_BAR * self.lever_arm_area[0],
+            self.bar_per_code[1] * PASCAL_PER_BAR * self.lever_arm_area[1],
+        )
+
 
 def _codes(adc: Sequence[int]) -> tuple[int, int]:
     if isinstance(adc, (str, bytes)) or len(adc) != ADC_CHANNELS:
@@ -72,8 +80,9 @@ def measured_torque(adc: Sequence[int], config: PressureConfig) -> tuple[float, 
     Raises:
         ValueError: As :func:`load_pressure`.
     """
-    pressure = load_pressure(adc, config)
+    codes = _codes(adc)
+    per_code = config.torque_per_code
     return (
-        pressure[0] * PASCAL_PER_BAR * config.lever_arm_area[0],
-        pressure[1] * PASCAL_PER_BAR * config.lever_arm_area[1],
+        (codes[0] - config.zero_code[0]) * per_code[0],
+        (codes[1] - config.zero_code[1]) * per_code[1],
     )

@@ -41,7 +41,8 @@ CONTROLLER_INTERNALS: Final[str] = "controller_internals"
 
 HW_BRIDGE_INTERNALS: Final[str] = "hw_bridge_internals"
 """What ``hw_bridge_node`` sent to the valves, labelled ``std_msgs/Float64MultiArray`` (rows ``codes``,
-``torque`` N m, ``clamped``, ``limit_cut``, ``enabled``), stamped with the answered measurement."""
+``torque`` N m, ``clamped``, ``limit_cut``, ``enabled``, ``measured_torque`` N m from the load pressure),
+stamped with the answered measurement."""
 
 CLOCK: Final[str] = "/clock"
 """Simulation clock, ``rosgraph_msgs/Clock``; absolute, published by the simulator in lockstep."""

@@ -10,6 +10,7 @@ normal equations as they come (:class:`RunSums`); figures read it once more (doc
 from __future__ import annotations
 
 import itertools
+import math
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -31,14 +32,25 @@ from smm_analysis.identification.filtering import (
     stretch_rows,
 )
 from smm_analysis.identification.sums import RunSums
+from smm_analysis.identification.valve_gain import GainSums
 from smm_analysis.runs.envelope import Envelope
 from smm_analysis.runs.stream import JOINTS, StepStream
 
 __all__ = ["PIECE_ROWS", "RECORD", "StreamedRun", "draw_fit", "read_run"]
 
 FloatArray = NDArray[np.float64]
-RECORD = np.dtype([("t", "<i8"), ("q", "<f8", (2,)), ("tau", "<f8", (2,)), ("command", "<f8", (2,))])
-"""One spooled step: stamp (ns), measured q (rad), applied and commanded torque (N m)."""
+RECORD = np.dtype(
+    [
+        ("t", "<i8"),
+        ("q", "<f8", (2,)),
+        ("tau", "<f8", (2,)),
+        ("command", "<f8", (2,)),
+        ("measured", "<f8", (2,)),
+    ]
+)
+"""One spooled step: stamp (ns), measured q (rad), applied, commanded and measured torque (N m; NaN: none)."""
+MEASURED_TORQUE = "hw_bridge.measured_torque"
+"""The bridge's torque from the load pressure (``hw_bridge_internals`` row ``measured_torque``)."""
 PIECE_ROWS = 16_384
 """Rows filtered at once (besides :attr:`Filters.overlap` samples on each side)."""
 _NS_PER_S = 1e9
@@ -92,6 +104,7 @@ class StreamedRun:
         manifest: The bag's run manifest.
         excitation: Envelope of the measured q and applied torque (``q alpha``, ``tau beta``, ...).
         layout: Its spool and how its rows are made (for :func:`draw_fit`).
+        gain: Sums for the valve's gain when the bag has the measured torque at every step, else None.
     """
 
     name: str
@@ -103,6 +116,7 @@ class StreamedRun:
     manifest: RunManifest
     excitation: Envelope
     layout: _Layout
+    gain: GainSums | None = None
 
 
 @dataclass
@@ -114,6 +128,7 @@ class _Scan:
     intervals: Counter[int] | None = None
     low: FloatArray | None = None
     high: FloatArray | None = None
+    measured_steps: int = 0
 
     def add(self, t_ns: NDArray[np.int64], tau: FloatArray) -> None:
         if self.first_ns is None:
@@ -160,6 +175,9 @@ def _spool_bag(stream: StepStream, spool: Spool, excitation: Envelope) -> _Scan:
             records = np.empty(block.t_ns.size, dtype=RECORD)
             records["t"], records["q"] = block.t_ns, block.measured_position
             records["tau"], records["command"] = block.applied_torque, block.command_torque
+            measured = block.internals.get(MEASURED_TORQUE)
+            records["measured"] = math.nan if measured is None else measured
+            scan.measured_steps += int(np.all(np.isfinite(records["measured"]), axis=1).sum())
             spool.append(records)
             scan.add(block.t_ns, block.applied_torque)
             assert scan.first_ns is not None
@@ -207,6 +225,7 @@ def read_run(
     scan = _spool_bag(stream, spool, excitation)
     assert scan.first_ns is not None and scan.low is not None and scan.high is not None
     steps = spool.steps
+    measured = scan.measured_steps == steps
     filters = filters_for(
         name,
         settings,
@@ -225,12 +244,16 @@ def read_run(
     # Pass 1: the smoothed positions' extremes, saturation, the stretches.
     peak = np.fmax(np.abs(scan.low), np.abs(scan.high))
     saturation = Saturation(peak, scan.high - scan.low, filters.min_plateau)
+    gain = GainSums(block, peak) if measured else None
     low, high = np.full(2, np.inf), np.full(2, -np.inf)
     breaks: list[int] = []
     for start, kept, records in spool.pieces(piece, half):
         smooth = smoothed(filters, records["q"])[0][kept]
         low, high = np.fmin(low, smooth.min(axis=0)), np.fmax(high, smooth.max(axis=0))
         saturation.feed(records["tau"][kept], records["command"][kept])
+        if gain is not None:
+            time = (records["t"][kept] - scan.first_ns).astype(np.float64) / _NS_PER_S
+            gain.add(time, records["measured"][kept], records["tau"][kept])
         before = 1 if kept.start > 0 else 0  # the step before the piece, for the interval into it
         gaps = np.flatnonzero(
             np.diff(records["t"][kept.start - before : kept.stop]) > 1.5 * filters.period_ns
@@ -245,7 +268,10 @@ def read_run(
         report(steps + start + kept.stop - kept.start)
     exclusions = Exclusions(steps, saturation.finish(), stops.finish())
     bounds = [0, *breaks, steps]
-    layout = _Layout(spool, filters, scan.first_ns, tuple(itertools.pairwise(bounds)), exclusions, piece)
+    torque = "measured" if measured else "tau"
+    layout = _Layout(
+        spool, filters, scan.first_ns, tuple(itertools.pairwise(bounds)), exclusions, piece, torque
+    )
     # Pass 3: the rows, into the sums.
     sums = RunSums(name, block)
     rest = usable = done = 0
@@ -260,6 +286,11 @@ def read_run(
         done += int(rows.time.size)
         report(2 * steps + done)
     warnings = exclusions.warnings(name, rest, usable, filters)
+    if 0 < scan.measured_steps < steps:
+        warnings.append(
+            f"{name}: the measured torque ({MEASURED_TORQUE}) is missing at {steps - scan.measured_steps} of "
+            f"{steps} steps: the valve model's torque (joint_states effort) used instead, no valve gain"
+        )
     report(3 * steps)
     return StreamedRun(
         name=name,
@@ -271,6 +302,7 @@ def read_run(
         manifest=stream.manifest,
         excitation=excitation,
         layout=layout,
+        gain=gain,
     )
 
 
@@ -284,6 +316,8 @@ class _Layout:
     stretches: tuple[tuple[int, int], ...]
     exclusions: Exclusions
     piece: int
+    torque: str = "tau"
+    """The spooled torque the rows regress on: ``tau`` (the valve model's) or ``measured``."""
 
     def rows(self) -> Iterator[tuple[bool, bool, Segment, int]]:
         """(first piece of a stretch, last piece, the rows, joint rows at rest) of every long stretch."""
@@ -300,7 +334,7 @@ class _Layout:
                     self.filters,
                     (records["t"] - self.first_ns).astype(np.float64) / _NS_PER_S,
                     records["q"],
-                    records["tau"],
+                    records[self.torque],
                     offset=low,
                     length=n,
                     rows=(first, stop),

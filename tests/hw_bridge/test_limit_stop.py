@@ -1,0 +1,128 @@
+"""The bridge's safety stop: a joint past its soft limit by the margin while armed is a host fault.
+
+The loop on the emulator's board (in memory) with the FPDESO chain answering: a bench whose truths the
+bridge's defaults get wrong (issue 44's reversed bench, docs/BENCH.md) ends with safe output, a reason an
+engineer acts on, and no joint at its 1.3 rad stop.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from memory_board import MemoryBoard
+from smm_bench_emulator.bench_file import default_bench, load_bench_file
+from smm_bench_emulator.board import BoardConfig
+from smm_controller.chain import make_chain
+from smm_controller.reference import SineReference
+from smm_hw_bridge.bridge_health import BridgeCounters
+from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
+from smm_hw_bridge.frame_device import FrameDevice
+from smm_hw_bridge.link import AdmissionConfig
+from smm_hw_bridge.loop import BridgeLoop, first_feedback
+from smm_hw_bridge.protocol import decode_command
+from smm_hw_bridge.run_verdict import RunTally
+
+from smm_dynamics import SMMParameters
+
+ROOT = Path(__file__).resolve().parents[2]
+BENCH = ROOT / "src" / "smm_bench_emulator" / "config" / "bench_reversed.yaml"
+STOP = 1.3
+"""The emulated plant's mechanical stops (rad)."""
+
+
+class Fpdeso:
+    """The FPDESO chain (nominal model) tracking case 1's sine as the loop's answerer."""
+
+    def __init__(self) -> None:
+        self.chain, self.reference = make_chain("fpdeso", SMMParameters()), SineReference()
+        self.steps = 0
+
+    def answer(
+        self, stamp_ns: int, position: tuple[float, float], effort: tuple[float, float]
+    ) -> tuple[float, float]:
+        rows = self.reference.rows(self.steps * 1e-3)
+        torque = self.chain.step(np.array(position), np.array(effort), rows, 1e-3)
+        self.steps += 1
+        return float(torque[0]), float(torque[1])
+
+    def published(self) -> None:
+        pass
+
+    def prepare(self) -> None:
+        pass
+
+    def forget(self) -> None:
+        pass
+
+
+def run(
+    bench: BoardConfig, config: BridgeConfig, seconds: float = 4.0
+) -> tuple[BridgeLoop, MemoryBoard, float]:
+    """Arms the bridge's loop on ``bench`` and ticks it ``seconds``: the loop, the board, the largest |q|."""
+    board = MemoryBoard(bench)
+    device = FrameDevice("memory", lambda: board)
+    device.open()
+    core = BridgeCore(config, host_session=7)
+    assert first_feedback(device, core, 1.0, "memory") is None
+    loop = BridgeLoop(BridgeCounters(), Fpdeso())
+    loop.attach(core, device, RunTally(config.period_ns))
+    core.arm()
+    peak = 0.0
+    for _ in range(round(seconds * 1000)):
+        board.tick()
+        reading = loop.read()
+        assert reading is not None
+        loop.on_feedback(reading, time.monotonic_ns())
+        peak = max(peak, *(abs(q) for q in board.board.plant.state_floats[:2]))
+    return loop, board, peak
+
+
+SLACK = BridgeConfig(
+    admission=AdmissionConfig(stale_ns=60_000_000_000),
+    host_watchdog_ns=10_000_000_000,
+    link_timeout_ns=60_000_000_000,
+)
+"""Times are slack: no test depends on speed."""
+
+
+def test_the_default_bench_tracks_without_a_stop() -> None:
+    loop, _, peak = run(default_bench(), SLACK)
+    assert loop.host_fault == "" and loop.core is not None and loop.core.state == BridgeState.ARMED
+    assert 0.9 < peak < 1.1
+
+
+def test_the_reversed_bench_with_the_bridge_defaults_stops_at_once_reading_the_encoder_zero() -> None:
+    loop, board, peak = run(load_bench_file(BENCH), SLACK)
+    assert "safety stop: joint alpha reads 5.992 rad (" in loop.host_fault, loop.host_fault
+    assert "bridge.encoder.direction / zero_offset" in loop.host_fault
+    assert loop.fault_signalled and loop.fault() == f"host fault ({loop.host_fault})"
+    assert loop.safety_stop == loop.host_fault  # kept for the run's verdict
+    assert not any(decode_command(frame).enabled for frame in board.sent)  # the valves never opened
+    assert peak < 0.01  # held by the trapped oil where it started
+
+
+@pytest.mark.parametrize(("margin", "lead"), [(1.0, 0.0), (0.05, 0.0), (0.05, 0.01)])
+def test_a_reversed_valve_runs_away_and_a_stop_with_a_lead_holds_it_short_of_the_stop(
+    margin: float, lead: float
+) -> None:
+    """The soft limit's cut passes the torque that drives back, which this valve turns outwards.
+
+    Margin 1 rad: no safety stop, the joint reaches its stop. 0.05 rad without a lead stops it at 1.25 rad,
+    too late at full speed (it still reaches the stop); 10 ms of lead holds it short of the stop.
+    """
+    bench = dataclasses.replace(default_bench(), valve_polarity=(-1, -1))
+    config = dataclasses.replace(SLACK, limit_stop_margin=margin, limit_stop_lead=lead)
+    loop, board, peak = run(bench, config)
+    if margin == 1.0:
+        assert loop.host_fault == "" and peak >= STOP - 1e-6
+        return
+    assert "safety stop: joint" in loop.host_fault and "past its soft limit 1.2 rad" in loop.host_fault
+    assert not decode_command(board.sent[-1]).enabled
+    if lead == 0.0:
+        assert peak >= STOP - 1e-6, peak
+    else:
+        assert 1.2 < peak < STOP - 0.005, peak  # past the soft limit, held short of the stop

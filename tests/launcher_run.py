@@ -1,0 +1,20 @@
+"""``smm-launch`` as a process of the ``ros_processes`` fixture, to its end: exit code and logs."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from typing import Any
+
+import pytest
+
+
+def smm_launch(ros_processes: Any, name: str, *options: str, timeout: float = 600.0) -> tuple[int, str]:
+    """Runs ``smm-launch options`` to its end (fails the test past ``timeout`` s): its exit code and logs."""
+    launcher = ros_processes.start(name, [sys.executable, "-m", "smm_bringup.launcher", *options])
+    try:
+        code = launcher.popen.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"smm-launch did not finish\n{launcher.logs()}")
+    logs: str = launcher.logs()
+    return code, logs
