@@ -20,6 +20,16 @@ from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FeedbackFrame
 GROUP = "239.74.163.2"
 
 
+def emulated_bench_config(port: int) -> CanopenConfig:
+    """The master's settings for the emulated bench on ``GROUP``:``port`` with its shipped EDS files."""
+    return CanopenConfig(
+        channel=GROUP,
+        port=port,
+        valve_eds=str(eds_path("valve_cia408.eds")),
+        encoder_eds=str(eds_path("encoder_cia406.eds")),
+    )
+
+
 def test_the_group_routes_over_loopback_only(ros_netns: None) -> None:
     assert interface_names() == ["lo"]
     check_loopback_route(GROUP)
@@ -42,13 +52,7 @@ def test_a_namespace_without_the_route_is_refused(ros_netns: None) -> None:
 
 def test_the_master_drives_the_bench_over_udp_multicast(ros_netns: None) -> None:
     bench = CanBench(CanBenchConfig(), loopback_multicast_bus(GROUP, 43114))
-    config = CanopenConfig(
-        channel=GROUP,
-        port=43114,
-        valve_eds=str(eds_path("valve_cia408.eds")),
-        encoder_eds=str(eds_path("encoder_cia406.eds")),
-    )
-    device = CanopenDevice(config)
+    device = CanopenDevice(emulated_bench_config(43114))
     try:
         device.open()
         feedback = device.read(5.0)
@@ -129,13 +133,7 @@ def test_the_emulator_process_runs_its_duration_of_live_syncs_in_lockstep(
     )
     assert emulator.stdout is not None
     assert "CANopen bench on 239.74.163.2:43115" in emulator.stdout.readline()  # nodes up before configure
-    config = CanopenConfig(
-        channel=GROUP,
-        port=43115,
-        valve_eds=str(eds_path("valve_cia408.eds")),
-        encoder_eds=str(eds_path("encoder_cia406.eds")),
-    )
-    device = CanopenDevice(config)
+    device = CanopenDevice(emulated_bench_config(43115))
     try:
         device.open()
         feedback = device.read(5.0)
