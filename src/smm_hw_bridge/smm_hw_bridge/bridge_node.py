@@ -379,7 +379,8 @@ class HwBridgeNode(LifecycleNode):
             return
         self.loop.fault_signalled = False
         why = self.loop.fault()
-        if why is not None and not self._fault_transition:
+        live = self.lifecycle_state in ("active", "inactive")  # not again once the error transition ran
+        if why is not None and live and not self._fault_transition:
             self._fault_transition = True
             self._log.error(f"{why}: safe output, error transition")
             self.diagnostics.publish()
@@ -387,6 +388,9 @@ class HwBridgeNode(LifecycleNode):
                 self.trigger_deactivate()  # type: ignore[no-untyped-call]
             elif self.lifecycle_state == "inactive":
                 self.trigger_cleanup()  # type: ignore[no-untyped-call]
+            if self.autostart and self.loop.safety_stop:  # final, as a preflight refusal: a person looks first
+                self._log.error("autostart: the run ends at its safety stop (not configured again)")
+                self.context.try_shutdown()
 
     def health(self) -> Health:
         """Link, loss, round trip, board counters, faults, supply pressure; the direct loop's figures."""
