@@ -240,8 +240,7 @@ def test_configuration_is_refused_with_its_reason() -> None:
 def test_link_transport_canopen_opens_the_bench_from_the_link_parameters(
     bench: CanBench, channel: str
 ) -> None:
-    link = LinkConfig(transport="canopen", canopen=_config(channel=channel))
-    device = open_device(link)
+    device = open_device(LinkConfig(transport="canopen"), _config(channel=channel))
     try:
         assert isinstance(device, CanopenDevice)
         assert device.description.name == "canopen"

@@ -1,17 +1,33 @@
-"""The CANopen link's settings (``link.canopen.*``), without the bus libraries. No ROS."""
+"""The CANopen link's settings (the bridge's ``canopen.*`` parameters), without the bus libraries. No ROS."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Final
 
 from smm_schema.ranges import bounds, check_bounds
 
 from smm_hw_bridge.control_rate import CONTROL_RATES_HZ
 
-__all__ = ["JOINTS", "CanopenConfig", "bus_load", "frame_bits", "highest_rate_that_fits"]
+__all__ = [
+    "JOINTS",
+    "PARAMETERS",
+    "CanopenConfig",
+    "bus_load",
+    "frame_bits",
+    "highest_rate_that_fits",
+    "parameter",
+]
 
 JOINTS = ("alpha", "beta")
+PARAMETERS: Final[str] = "canopen"
+"""The prefix of the bridge's parameters of :class:`CanopenConfig` (``canopen.interface``, ...)."""
+
+
+def parameter(name: str) -> str:
+    """The bridge's parameter of :class:`CanopenConfig`'s field ``name`` (``canopen.<name>``)."""
+    return f"{PARAMETERS}.{name}"
 
 
 def _files(names: str) -> list[str]:

@@ -17,7 +17,13 @@ import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from smm_hw_bridge.can_multicast import MulticastRouteError, loopback_multicast_bus
-from smm_hw_bridge.canopen_config import JOINTS, CanopenConfig, bus_load, highest_rate_that_fits
+from smm_hw_bridge.canopen_config import (
+    JOINTS,
+    CanopenConfig,
+    bus_load,
+    highest_rate_that_fits,
+    parameter,
+)
 from smm_hw_bridge.cia408 import (
     CONTROL_MODE,
     CONTROL_WORD,
@@ -141,7 +147,7 @@ class CanopenDevice(Device):
         config = self.config
         if not config.valve_eds or not config.encoder_eds:
             raise ConfigureError(
-                "link.canopen.valve_eds and link.canopen.encoder_eds must name the devices' EDS files"
+                f"{parameter('valve_eds')} and {parameter('encoder_eds')} must name the devices' EDS files"
             )
         try:
             if self._bus is not None:
@@ -195,7 +201,7 @@ class CanopenDevice(Device):
             fits = highest_rate_that_fits(payloads, config.bitrate, config.max_bus_load)
             raise ConfigureError(
                 f"bus load {100 * load:.1f} % at {rate:g} Hz and {config.bitrate} bit/s (frames of "
-                f"{payloads} bytes a cycle, worst-case stuffing) is above link.canopen.max_bus_load "
+                f"{payloads} bytes a cycle, worst-case stuffing) is above {parameter('max_bus_load')} "
                 f"{100 * config.max_bus_load:g} %; "
                 + (f"the highest offered rate that fits is {fits} Hz" if fits else "no offered rate fits")
             )
@@ -493,6 +499,6 @@ class CanopenDevice(Device):
                     )
 
 
-def canopen_device(link: LinkConfig) -> CanopenDevice:
-    """The CANopen bench ``link.canopen`` describes."""
-    return CanopenDevice(link.canopen)
+def canopen_device(link: LinkConfig, canopen: CanopenConfig) -> CanopenDevice:
+    """The CANopen bench the bridge's ``canopen.*`` describe."""
+    return CanopenDevice(canopen)

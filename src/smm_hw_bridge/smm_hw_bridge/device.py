@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final, Literal, Protocol, TypeAlias
 
+from smm_hw_bridge.canopen_config import CanopenConfig
 from smm_hw_bridge.protocol import CommandFrame, FeedbackFrame, Reason
 
 __all__ = [
@@ -114,7 +115,8 @@ DEVICES: Final[Mapping[str, str]] = {
     "serial": "smm_hw_bridge.frame_device:serial_device",
     "canopen": "smm_hw_bridge.canopen_device:canopen_device",
 }
-"""Every device: ``link.transport`` name -> ``module:factory`` (the factory takes the ``LinkConfig``)."""
+"""Every device: ``link.transport`` name -> ``module:factory`` (the factory takes the ``LinkConfig`` and the
+``CanopenConfig``: the bridge's ``link.*`` and ``canopen.*``)."""
 if TYPE_CHECKING:
     DeviceName: TypeAlias = str
 else:
@@ -135,13 +137,13 @@ class Link(Protocol):
         """The device's name in :data:`DEVICES`."""
 
 
-def open_device(link: Link) -> Device:
-    """The device ``link.transport`` names, opened; its factory is given ``link``.
+def open_device(link: Link, canopen: CanopenConfig) -> Device:
+    """The device ``link.transport`` names, opened; its factory is given ``link`` and ``canopen``.
 
     Raises:
         DeviceError: It cannot be opened.
     """
     module, _, factory = DEVICES[link.transport].partition(":")
-    device: Device = getattr(importlib.import_module(module), factory)(link)
+    device: Device = getattr(importlib.import_module(module), factory)(link, canopen)
     device.open()
     return device
