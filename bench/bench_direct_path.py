@@ -46,6 +46,7 @@ def run(observed: bool) -> dict[str, Any]:
     from smm_bench_emulator.board import BoardConfig, BoardCore
     from smm_direct_loop.host import compose
     from smm_hw_bridge.canopen_config import CanopenConfig
+    from smm_hw_bridge.core import BridgeConfig
     from smm_hw_bridge.device import Device, Link
     from smm_hw_bridge.frame_device import FrameDevice
     from smm_hw_bridge.transport import Transport
@@ -81,7 +82,7 @@ def run(observed: bool) -> dict[str, Any]:
         def close(self) -> None:
             pass
 
-    def open_board(link: Link, canopen: CanopenConfig) -> Device:
+    def open_board(link: Link, canopen: CanopenConfig, bridge: BridgeConfig) -> Device:
         device = FrameDevice("udp", Board)
         device.open()
         return device

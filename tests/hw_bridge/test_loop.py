@@ -23,7 +23,7 @@ from smm_hw_bridge.transport import LinkConfig
 TORQUE = (0.3, -0.2)
 
 
-def memory_device(link: LinkConfig, canopen: CanopenConfig) -> Device:
+def memory_device(link: LinkConfig, canopen: CanopenConfig, bridge: BridgeConfig) -> Device:
     """The factory of the ``memory`` row a test adds to the device table."""
     board = MemoryBoard()
     return FrameDevice("memory", lambda: board)
@@ -264,7 +264,7 @@ def test_link_transport_names_a_row_of_the_device_table(monkeypatch: pytest.Monk
     ):
         LinkConfig(transport="can")
     monkeypatch.setitem(DEVICES, "memory", "hw_bridge.test_loop:memory_device")  # type: ignore[index]
-    device = open_device(LinkConfig(transport="memory"), CanopenConfig())
+    device = open_device(LinkConfig(transport="memory"), CanopenConfig(), BridgeConfig())
     try:
         reading = device.read(0.0)
         assert reading is not None and not isinstance(reading, Reason) and reading.tick == 0

@@ -260,7 +260,7 @@ class HwBridgeNode(LifecycleNode):
         tally = RunTally(core.config.period_ns, self._verdict.config, core.config.control_divider)
         source = f"{link.board_address}:{link.board_port}"
         try:
-            opener = functools.partial(open_device, link, canopen)
+            opener = functools.partial(open_device, link, canopen, core.config)
             why = self.loop.connect(opener, core, tally, link.configure_timeout, source)
         except Exception:  # a bug, not a bad frame (those are counted); the device is closed
             self._log.error(f"configure: waiting for feedback failed:\n{traceback.format_exc()}")

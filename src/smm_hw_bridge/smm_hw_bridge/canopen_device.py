@@ -42,6 +42,7 @@ from smm_hw_bridge.cia408 import (
     control_word,
     state_of_status,
 )
+from smm_hw_bridge.core import BridgeConfig
 from smm_hw_bridge.device import Device, DeviceDescription, DeviceError, Reading, ValveCommand
 from smm_hw_bridge.protocol import (
     ADC_MAX,
@@ -52,6 +53,7 @@ from smm_hw_bridge.protocol import (
     StatusBit,
 )
 from smm_hw_bridge.transport import LinkConfig
+from smm_hw_bridge.valve_output import ValveOutputConfig
 
 __all__ = ["CanopenDevice", "ConfigureError", "canopen_device"]
 
@@ -101,19 +103,25 @@ class CanopenDevice(Device):
     Args:
         config: The link.
         bus: An open python-can bus to use instead of opening ``config``'s (tests: ``virtual``).
+        bridge: The bridge's settings: its valve code limit (checked at :meth:`open`) and its A/D scales
+            (the pressures are handed over as the A/D codes ``bridge.pressure.*`` and
+            ``bridge.supply_bar_per_code`` read back); None: the defaults, the code limit at full spool.
     """
 
-    def __init__(self, config: CanopenConfig, bus: can.BusABC | None = None) -> None:
+    def __init__(
+        self, config: CanopenConfig, bus: can.BusABC | None = None, bridge: BridgeConfig | None = None
+    ) -> None:
         super().__init__()
         self.description = DeviceDescription(
             name="canopen",
             joints=JOINTS,
             valves=JOINTS,
-            analog=("supply",),
+            analog=("supply", "load pressure alpha", "load pressure beta", "none"),
             own_watchdog=True,
             validity=False,
         )
         self.config = config
+        self.bridge = bridge or BridgeConfig(valve=ValveOutputConfig(code_limit=(SPOOL_FULL_SCALE,) * 2))
         self._bus = bus
         self.network: canopen.Network | None = None
         self.nodes: list[_Node] = []
@@ -145,6 +153,12 @@ class CanopenDevice(Device):
         if self.network is not None:
             return
         config = self.config
+        limit = self.bridge.valve.code_limit
+        if any(code > SPOOL_FULL_SCALE for code in limit):
+            raise ConfigureError(
+                f"bridge.valve.code_limit {list(limit)} is above the valves' full scale {SPOOL_FULL_SCALE} "
+                f"(100 % spool, 0x6300:01) on the CANopen link: set it to at most {SPOOL_FULL_SCALE}"
+            )
         if not config.valve_eds or not config.encoder_eds:
             raise ConfigureError(
                 f"{parameter('valve_eds')} and {parameter('encoder_eds')} must name the devices' EDS files"
@@ -398,9 +412,12 @@ class CanopenDevice(Device):
             status |= int(StatusBit.ENABLED)
         if self._estop:
             status |= int(StatusBit.ESTOP_LATCHED)
-        supply = round(
-            valves[0].values[PRESSURE_ACTUAL[0]] * self.config.bar_per_unit / self.config.supply_bar_per_code
-        )
+        scale, bar_per_unit = self.bridge.pressure, self.config.bar_per_unit
+        load = [
+            scale.zero_code[j] + v.values[PRESSURE_ACTUAL[0]] * bar_per_unit / scale.bar_per_code[j]
+            for j, v in enumerate(valves)
+        ]
+        adc = [self.config.supply_bar / self.bridge.supply_bar_per_code, *load, 0.0]
         spool = tuple(
             max(-SPOOL_FULL_SCALE, min(SPOOL_FULL_SCALE, v.values[SPOOL_ACTUAL[0]])) for v in valves
         )
@@ -411,7 +428,7 @@ class CanopenDevice(Device):
             tick=(self._syncs * ticks) % _U32,
             host_session=self._host_session,
             counts=(encoders[0].values[POSITION] % _U32, encoders[1].values[POSITION] % _U32),
-            adc=(min(max(supply, 0), ADC_MAX), 0, 0, 0),
+            adc=tuple(min(max(round(value), 0), ADC_MAX) for value in adc),  # type: ignore[arg-type]
             status=status,
             faults=self._fault_bits & 0xFFFF,
             applied_seq=self._last_seq,
@@ -499,6 +516,6 @@ class CanopenDevice(Device):
                     )
 
 
-def canopen_device(link: LinkConfig, canopen: CanopenConfig) -> CanopenDevice:
+def canopen_device(link: LinkConfig, canopen: CanopenConfig, bridge: BridgeConfig) -> CanopenDevice:
     """The CANopen bench the bridge's ``canopen.*`` describe."""
-    return CanopenDevice(canopen)
+    return CanopenDevice(canopen, bridge=bridge)
