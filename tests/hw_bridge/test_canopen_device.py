@@ -13,9 +13,9 @@ from smm_bench_emulator.canopen_bench import CanBench, CanBenchConfig, eds_path
 from smm_hw_bridge.canopen_config import CanopenConfig, bus_load, frame_bits, highest_rate_that_fits
 from smm_hw_bridge.canopen_device import CanopenDevice, ConfigureError
 from smm_hw_bridge.cia408 import ValveState
-from smm_hw_bridge.core import BridgeConfig
+from smm_hw_bridge.core import BridgeConfig, BridgeCore
 from smm_hw_bridge.device import open_device
-from smm_hw_bridge.pressure import PressureConfig, measured_torque
+from smm_hw_bridge.pressure import PressureConfig
 from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FaultBit, FeedbackFrame, StatusBit
 from smm_hw_bridge.transport import LinkConfig
 from smm_hw_bridge.valve_output import ValveOutputConfig
@@ -239,12 +239,15 @@ def test_each_valve_sends_its_joints_load_pressure_and_the_bridge_reads_its_torq
         assert applied[0] > 0.5 and applied[1] < -0.5  # the valves drive the joints
         sent = [int(valve.node.tpdo[1][0x6381].raw) for valve in bench.valves]
         assert sent == [round(bar / 0.01) for bar in load]  # 0x6381:01 in 0.01 bar units
-        torque = measured_torque(last.adc, pressure)
+        core = BridgeCore(bridge, host_session=7)  # the bridge's own path: bridge.pressure.* on the A/D
+        assert core.on_feedback(last, time.monotonic_ns()) is last
+        torque = core.measured_torque
         # quantised twice: 0.01 bar on the bus, bar_per_code on the A/D scale (x 1e5 Pa x 1.5e-5 m^3)
         for joint in range(2):
             step = (0.01 + abs(pressure.bar_per_code[joint])) * 1e5 * 1.5e-5
             assert torque[joint] == pytest.approx(applied[joint], abs=step)
         assert last.adc[0] == 1800  # canopen.supply_bar 9 bar / bridge.supply_bar_per_code 0.005
+        assert core.supply_pressure_bar == pytest.approx(9.0)
     finally:
         device.close()
 
