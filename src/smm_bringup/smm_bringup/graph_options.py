@@ -43,7 +43,7 @@ LINKS: Final[tuple[str, ...]] = ("frame", "canopen")
 """The hardware plant's link: ``frame`` (the I/O board's frame protocol, docs/HW_PROTOCOL.md) or ``canopen``
 (CiA 408 valves and CiA 406 encoders, docs/HW_CANOPEN.md; lockstep only for now)."""
 EXTERNAL_BOARD: Final[str] = "external"
-"""``board`` on the CANopen link: no emulator; the bridge drives the devices its ``link.canopen.*`` name."""
+"""``board`` on the CANopen link: no emulator; the bridge drives the devices its ``canopen.*`` name."""
 LOOPS: Final[tuple[str, ...]] = ("auto", "topics", "direct")
 """``topics``: the plant and ``controller_node`` are separate processes joined by topics (the product's
 shape); ``direct`` (hardware only): one process, ``direct_loop``, steps the chain of ``controller_node`` in

@@ -9,6 +9,7 @@ Lifecycle, faults and parameters: docs/NODES.md, "hw_bridge_node"; the loop: doc
 
 from __future__ import annotations
 
+import functools
 import gc
 import secrets
 import sys
@@ -31,6 +32,7 @@ from std_srvs.srv import Trigger
 
 from smm_hw_bridge.bridge_health import BridgeCounters
 from smm_hw_bridge.bridge_run import AutostartGate, closing_line, judged_exit, realtime_scheduled, run_verdict
+from smm_hw_bridge.canopen_config import PARAMETERS, CanopenConfig
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError
 from smm_hw_bridge.device import Device, open_device
 from smm_hw_bridge.loop import Answerer, BridgeLoop, ChangeBuffer, Tick
@@ -86,6 +88,7 @@ class HwBridgeNode(LifecycleNode):
         super().__init__(name, **arguments)
         try:
             self._link = ConfigParameters(self, "link", LinkConfig())
+            self._canopen = ConfigParameters(self, PARAMETERS, CanopenConfig())
             self._bridge = ConfigParameters(self, "bridge", BridgeConfig())
             self._verdict = ConfigParameters(self, "verdict", VerdictConfig(), read_only=True)
             self._gate = ConfigParameters(self, "", AutostartGate(), read_only=True)
@@ -251,13 +254,14 @@ class HwBridgeNode(LifecycleNode):
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Opens the device, waits for valid feedback, locks the board with a safe frame."""
-        link, self._fault_transition = self._link.config, False
+        link, canopen, self._fault_transition = self._link.config, self._canopen.config, False
         self.publish_us = RunningFigures()
         core = BridgeCore(self._bridge.config, host_session=secrets.randbelow(0xFFFFFFFF) + 1)
         tally = RunTally(core.config.period_ns, self._verdict.config, core.config.control_divider)
         source = f"{link.board_address}:{link.board_port}"
         try:
-            why = self.loop.connect(lambda: open_device(link), core, tally, link.configure_timeout, source)
+            opener = functools.partial(open_device, link, canopen, core.config)
+            why = self.loop.connect(opener, core, tally, link.configure_timeout, source)
         except Exception:  # a bug, not a bad frame (those are counted); the device is closed
             self._log.error(f"configure: waiting for feedback failed:\n{traceback.format_exc()}")
             return TransitionCallbackReturn.FAILURE
