@@ -6,6 +6,7 @@ import dataclasses
 
 import pytest
 from smm_hw_bridge.safety_stop import SafetyStop, SafetyStopConfig
+from smm_node_runtime.parameter_check import did_you_mean, known_names
 
 MS = 1_000_000
 LIMITS = (1.2, 1.2)
@@ -127,3 +128,10 @@ def test_past_the_soft_limit_by_the_margin_judged_ahead_at_the_speed() -> None:
 def test_invalid_settings_are_rejected_with_their_name(kwargs: dict[str, float], name: str) -> None:
     with pytest.raises(ValueError, match=name):
         SafetyStopConfig(**kwargs)
+
+
+def test_the_old_parameter_names_are_refused_naming_the_new_ones() -> None:
+    known = known_names("hw_bridge_node")
+    assert "bridge.limit_stop_margin" not in known and "bridge.limit_stop_lead" not in known
+    assert did_you_mean("bridge.limit_stop_margin", known) == "; did you mean 'bridge.limit_stop.margin'?"
+    assert did_you_mean("bridge.limit_stop_lead", known) == "; did you mean 'bridge.limit_stop.lead'?"
