@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from memory_board import MemoryBoard
 from smm_bench_emulator.bench_file import default_bench, load_bench_file
-from smm_bench_emulator.board import BoardConfig
+from smm_bench_emulator.board import BoardConfig, BoardCore
 from smm_controller.chain import build_chain
 from smm_controller.reference import SineReference
 from smm_controller.td import TrackingDifferentiatorConfig
@@ -181,3 +181,13 @@ def test_a_reversed_valve_runs_away_and_a_stop_with_a_lead_holds_it_short_of_the
         assert peak >= STOP - 1e-6, peak
     else:
         assert 1.2 < peak < STOP - 0.005, peak  # past the soft limit, held short of the stop
+
+
+def test_in_lockstep_an_activation_judges_the_reading_the_board_holds() -> None:
+    """The lockstep board re-sends its feedback (a duplicate, not admitted) until a command answers it."""
+    board = BoardCore(load_bench_file(BENCH))
+    core = BridgeCore(dataclasses.replace(SLACK, lockstep=True), host_session=9)
+    core.on_datagram(board.start(), 1)
+    assert core.limit_stop() is None  # not armed
+    core.arm()
+    assert str(core.limit_stop()).startswith("safety stop: joint alpha reads 5.992 rad (")

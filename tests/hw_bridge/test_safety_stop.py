@@ -135,3 +135,14 @@ def test_the_old_parameter_names_are_refused_naming_the_new_ones() -> None:
     assert "bridge.limit_stop_margin" not in known and "bridge.limit_stop_lead" not in known
     assert did_you_mean("bridge.limit_stop_margin", known) == "; did you mean 'bridge.limit_stop.margin'?"
     assert did_you_mean("bridge.limit_stop_lead", known) == "; did you mean 'bridge.limit_stop.lead'?"
+
+
+def test_an_activation_forgets_a_runaway_but_not_the_last_reading() -> None:
+    """Lockstep: the board re-sends the feedback it has until the output is live; arming must judge it."""
+    stop = SafetyStop(SafetyStopConfig(), LIMITS, MS)
+    assert feed(stop, range(200), (0.0, -100.0), (0.0, 5.0)) is not None
+    stop.arm()
+    assert stop.reason() is None
+    stop.on_feedback(500, (5.992, 0.0), (0.0, 0.0), False)
+    stop.arm()
+    assert str(stop.reason()).startswith("safety stop: joint alpha reads 5.992 rad")

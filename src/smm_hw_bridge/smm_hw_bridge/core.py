@@ -225,6 +225,7 @@ class BridgeCore:
         self.board_session = session
         self._candidate = None
         self._admission.reset()
+        self._safety.reset()
         self.stats.reset_sequence()
         self._recent.clear()
         self._pending = None
@@ -452,7 +453,7 @@ class BridgeCore:
         self._active = True
         self._pending = None
         self._valve.reset()
-        self._safety.reset()
+        self._safety.arm()
         self._arm_tick = self._admission.tick - (1 if self._config.lockstep else 0)
         self.state = BridgeState.ARMING
 

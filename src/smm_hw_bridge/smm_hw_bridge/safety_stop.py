@@ -69,7 +69,16 @@ class SafetyStop:
         self.reset()
 
     def reset(self) -> None:
-        """Forgets the history (a new session)."""
+        """Forgets everything (a new session)."""
+        self._position = (0.0, 0.0)
+        self._previous: tuple[int, tuple[float, float]] | None = None
+        """Tick and angles of the feedback before the last."""
+        self._last_tick_any: int | None = None
+        self._tick = 0
+        self.arm()
+
+    def arm(self) -> None:
+        """Forgets the runaway check's history and verdict (an activation); the last angles stay judged."""
         self._positions: list[tuple[float, float]] = [(0.0, 0.0)] * (2 * self._k + 1)
         self._filled = 0
         """Consecutive live ticks in ``_positions``, up to its length."""
@@ -80,11 +89,6 @@ class SafetyStop:
         self._since: list[int | None] = [None, None]
         """Per joint, the tick since which it has accelerated against that torque."""
         self._runaway: str | None = None
-        self._position = (0.0, 0.0)
-        self._previous: tuple[int, tuple[float, float]] | None = None
-        """Tick and angles of the feedback before the last."""
-        self._last_tick_any: int | None = None
-        self._tick = 0
 
     def on_feedback(
         self,
