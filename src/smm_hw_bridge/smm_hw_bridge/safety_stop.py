@@ -1,7 +1,7 @@
 """The bridge's safety stop (pure): a joint past its soft limit by a margin, or running away from its torque.
 
 Both catch a bench whose valve or encoder runs the other way than the bridge assumes, which the soft limit's
-cut cannot hold (docs/HW_PROTOCOL.md, "Safety stop").
+cut cannot hold (docs/HW_PROTOCOL.md, section 10, "safety stop").
 """
 
 from __future__ import annotations
