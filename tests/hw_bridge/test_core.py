@@ -384,8 +384,7 @@ def test_measured_torque_is_the_load_pressure_of_channels_1_and_2_times_lever_ar
 def test_invalid_bridge_configs_are_rejected() -> None:
     for kwargs in (
         {"pressure": 3},
-        {"limit_stop_margin": 0.0},
-        {"limit_stop_lead": -0.01},
+        {"limit_stop": 3},
         {"stale_periods": 0},
         {"validity_ticks": 70000},
         {"soft_limits": (0.0, 1.0)},

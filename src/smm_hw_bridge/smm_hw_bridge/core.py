@@ -12,16 +12,16 @@ import enum
 import math
 from collections import OrderedDict
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from smm_schema.ranges import above, bounds, check_bounds
 
-from smm_hw_bridge.control_rate import MAX_DIVIDER, held_ticks, in_flight_ticks, is_control_tick
-from smm_hw_bridge.encoder import EncoderConfig, EncoderDecoder
-from smm_hw_bridge.link import AdmissionConfig, FeedbackAdmission, LinkStats
-from smm_hw_bridge.pressure import LOAD_CHANNELS, PressureConfig
+from smm_hw_bridge.bridge_config import BridgeConfig
+from smm_hw_bridge.control_rate import is_control_tick
+from smm_hw_bridge.encoder import EncoderDecoder
+from smm_hw_bridge.link import FeedbackAdmission, LinkStats
+from smm_hw_bridge.pressure import LoadTorque
 from smm_hw_bridge.protocol import (
     CommandFlag,
     CommandFrame,
@@ -31,7 +31,8 @@ from smm_hw_bridge.protocol import (
     StatusBit,
     decode_feedback,
 )
-from smm_hw_bridge.valve_output import ValveOutput, ValveOutputConfig
+from smm_hw_bridge.safety_stop import SafetyStop
+from smm_hw_bridge.valve_output import ValveOutput
 
 __all__ = ["BridgeConfig", "BridgeCore", "BridgeError", "BridgeState", "Refusal"]
 
@@ -67,95 +68,6 @@ class Refusal(enum.Enum):
 
 class BridgeError(RuntimeError):
     """An operation the bridge's state does not allow (e.g. arming with a board fault)."""
-
-
-@dataclass(frozen=True)
-class BridgeConfig:
-    """Everything the bridge logic needs.
-
-    Attributes:
-        encoder: Counts -> rad.
-        valve: Torque -> D/A code.
-        admission: Feedback admission (tick period, staleness).
-        pressure: Load-pressure transducers (A/D channels 1, 2) -> the measured joint torque.
-        host_watchdog_ns: No fresh command for this long -> safe output (ns), > 0; at a divider N the
-            bridge waits 2 (N - 1) ticks longer (:attr:`watchdog_ns`).
-        stale_periods: A command answering a measurement more than this many ticks older than the newest
-            is refused (K), >= 1; at a divider N, N - 1 ticks more (:attr:`stale_ticks`).
-        validity_ticks: Ticks after the answered measurement during which the board may apply a command,
-            in [1, 65535], as at 1 kHz control; at a divider N the frames carry 2 (N - 1) ticks more
-            (:attr:`validity`; docs/LAUNCH.md, "Control rate").
-        control_divider: N, board ticks per control period, in [1, 10]: the host answers the feedback of
-            board ticks that are multiples of N and the board holds each command in between.
-        soft_limits: Joint soft limits +-limit (alpha, beta) (rad), > 0: beyond one, a torque that drives
-            further out is cut to 0; one that drives back is passed.
-        limit_stop_margin: A joint past its soft limit by more than this while arming or armed is a safety
-            stop (:meth:`BridgeCore.limit_stop`: host fault, safe output) (rad), in (0, 1]; the cut above
-            cannot hold a joint whose valve or encoder runs the other way than the bridge assumes.
-        limit_stop_lead: The safety stop judges the position this far ahead at the measured speed (s), in
-            [0, 1]: q + q' * lead, q' over the last two admitted feedbacks; the valves' fail-safe hold needs
-            that long to stop a joint at speed.
-        link_timeout_ns: No admitted feedback for this long -> link down (ns), > 0.
-        reboot_frames: Consecutive frames of one new board session that mean the board restarted, >= 1.
-        supply_bar_per_code: Supply pressure per A/D code of channel 0 (bar), > 0.
-        lockstep: The board ticks only when an enabled command answers its last feedback (the emulator's
-            lockstep): activation then accepts a command answering the current measurement, which stays
-            current until the output is live.
-    """
-
-    encoder: EncoderConfig = field(default_factory=EncoderConfig)
-    valve: ValveOutputConfig = field(default_factory=ValveOutputConfig)
-    admission: AdmissionConfig = field(default_factory=AdmissionConfig)
-    pressure: PressureConfig = field(default_factory=PressureConfig)
-    host_watchdog_ns: int = field(default=10_000_000, metadata=bounds(1, 10_000_000_000))
-    stale_periods: int = field(default=5, metadata=bounds(1, 65535))
-    validity_ticks: int = field(default=10, metadata=bounds(1, 65535))
-    control_divider: int = field(default=1, metadata=bounds(1, MAX_DIVIDER))
-    soft_limits: tuple[float, float] = field(default=(1.2, 1.2), metadata=above(0.0))
-    limit_stop_margin: float = field(default=0.15, metadata=bounds(1e-6, 1.0))
-    limit_stop_lead: float = field(default=0.0, metadata=bounds(0.0, 1.0))
-    link_timeout_ns: int = field(default=100_000_000, metadata=bounds(1, 60_000_000_000))
-    reboot_frames: int = field(default=3, metadata=bounds(1, 1000))
-    supply_bar_per_code: float = field(default=25.0 / 4095.0, metadata=bounds(1e-9, 1e3))
-    lockstep: bool = False
-
-    def __post_init__(self) -> None:
-        for name, kind in (
-            ("encoder", EncoderConfig),
-            ("valve", ValveOutputConfig),
-            ("admission", AdmissionConfig),
-            ("pressure", PressureConfig),
-        ):
-            if not isinstance(getattr(self, name), kind):
-                raise ValueError(f"{name} must be a {kind.__name__}, got {getattr(self, name)!r}")
-        check_bounds(self)
-        if self.validity > 0xFFFF:
-            raise ValueError(
-                f"validity_ticks must be <= {0xFFFF - held_ticks(self.control_divider)} at control_divider "
-                f"{self.control_divider} (a u16 on the wire), got {self.validity_ticks!r}"
-            )
-        if not isinstance(self.lockstep, bool):
-            raise ValueError(f"lockstep must be a bool, got {self.lockstep!r}")
-
-    @property
-    def period_ns(self) -> int:
-        """Board tick period (ns)."""
-        return self.admission.period_ns
-
-    @property
-    def validity(self) -> int:
-        """The validity every command frame carries (ticks): ``validity_ticks`` + 2 (N - 1)."""
-        return self.validity_ticks + held_ticks(self.control_divider)
-
-    @property
-    def stale_ticks(self) -> int:
-        """A command answering a measurement more than this many ticks older than the newest is refused."""
-        return self.stale_periods + in_flight_ticks(self.control_divider)
-
-    @property
-    def watchdog_ns(self) -> int:
-        """No fresh command for this long -> safe output (ns): ``host_watchdog_ns`` + 2 (N - 1) ticks."""
-        return self.host_watchdog_ns + held_ticks(self.control_divider) * self.period_ns
 
 
 @dataclass(slots=True)
@@ -203,9 +115,7 @@ class BridgeCore:
         self._command_dt = config.period_ns * 1e-9
         """dt of the valve's rate limit per command (s), as ``period_ns * 1e-9``."""
         self._limits = (float(config.soft_limits[0]), float(config.soft_limits[1]))
-        margin = config.limit_stop_margin
-        self._stop_limits = (self._limits[0] + margin, self._limits[1] + margin)
-        self._lead_ticks = config.limit_stop_lead * 1e9 / config.period_ns
+        self._safety = SafetyStop(config.limit_stop, self._limits, config.period_ns)
         self._validity = config.validity
         self._stale_ticks = config.stale_ticks
         self._watchdog_ns = config.watchdog_ns
@@ -214,8 +124,7 @@ class BridgeCore:
         self._count_limit = config.encoder.modulus
         self._valve = ValveOutput(config.valve)
         self._admission = FeedbackAdmission(config.admission)
-        self._pressure_zero = config.pressure.zero_code
-        self._torque_per_code = config.pressure.torque_per_code
+        self._load = LoadTorque(config.pressure)
         self.stats = LinkStats()
         self.refused: dict[Refusal, int] = {}
         self.watchdog_trips = 0
@@ -230,6 +139,7 @@ class BridgeCore:
         self._encoder.reset()
         self._valve.reset()
         self._admission.reset()
+        self._safety.reset()
         self.stats.reset_sequence()
         self._recent: OrderedDict[int, tuple[int, int]] = OrderedDict()
         self._last: FeedbackFrame | None = None
@@ -237,7 +147,6 @@ class BridgeCore:
         self._effort = (0.0, 0.0)
         self._measured = (0.0, 0.0)
         self._tick = 0
-        self._previous: tuple[int, tuple[float, float]] | None = None
         self._pending: _Pending | None = None
         self._active = False
         self._arm_tick = -1
@@ -317,6 +226,7 @@ class BridgeCore:
         self.board_session = session
         self._candidate = None
         self._admission.reset()
+        self._safety.reset()
         self.stats.reset_sequence()
         self._recent.clear()
         self._pending = None
@@ -340,7 +250,6 @@ class BridgeCore:
         self._valve.reset()
 
     def _use(self, frame: FeedbackFrame, rx_ns: int) -> None:
-        self._previous = None if self._last is None else (self._tick, self._encoder.position_floats)
         self._encoder.update_floats(frame.counts)
         tick = self._tick = self._admission.tick
         self._recent[tick] = (frame.seq, frame.tick)
@@ -349,11 +258,8 @@ class BridgeCore:
         self.stats.on_feedback(frame.seq, frame.applied_seq, rx_ns)
         self._last, self._last_rx_ns = frame, rx_ns
         self._effort = self._valve.effort_floats(frame.output_codes, self._period_s)
-        adc, zero, per_code = frame.adc, self._pressure_zero, self._torque_per_code
-        self._measured = (
-            (adc[LOAD_CHANNELS[0]] - zero[0]) * per_code[0],
-            (adc[LOAD_CHANNELS[1]] - zero[1]) * per_code[1],
-        )
+        self._measured = self._load.torque(frame.adc)
+        self._safety.on_feedback(tick, self._encoder.position_floats, self._effort, self._live)
         if frame.faults:
             self.state = BridgeState.FAULT
             self._pending = None
@@ -371,26 +277,10 @@ class BridgeCore:
             pass  # stays until reset: the lifecycle error path reconfigures
 
     def limit_stop(self) -> str | None:
-        """Why the run must stop: a joint past soft limit + ``limit_stop_margin`` while arming or armed."""
+        """Why the run must stop while arming or armed (:class:`~smm_hw_bridge.safety_stop.SafetyStop`)."""
         if self.state not in (BridgeState.ARMING, BridgeState.ARMED):
             return None
-        previous = self._previous
-        lead = 0.0 if previous is None else self._lead_ticks / max(self._tick - previous[0], 1)
-        for joint, (position, stop) in enumerate(
-            zip(self._encoder.position_floats, self._stop_limits, strict=True)
-        ):
-            ahead = position if previous is None else position + (position - previous[1][joint]) * lead
-            if abs(ahead) > stop:
-                name = ("alpha", "beta")[joint]
-                return (
-                    f"safety stop: joint {name} reads {position:.3f} rad ({ahead:.3f} rad "
-                    f"bridge.limit_stop_lead {self._config.limit_stop_lead:g} s ahead), past its soft limit "
-                    f"{self._limits[joint]:g} rad by more than bridge.limit_stop_margin "
-                    f"{self._config.limit_stop_margin:g} rad: check bridge.valve.polarity and "
-                    "bridge.encoder.direction / zero_offset against the bench (a valve or an encoder running "
-                    "the other way, or an encoder zero elsewhere)"
-                )
-        return None
+        return self._safety.reason()
 
     @property
     def control_tick(self) -> bool:
@@ -567,6 +457,7 @@ class BridgeCore:
         self._active = True
         self._pending = None
         self._valve.reset()
+        self._safety.arm()
         self._arm_tick = self._admission.tick - (1 if self._config.lockstep else 0)
         self.state = BridgeState.ARMING
 

@@ -14,7 +14,14 @@ from smm_schema.ranges import above, bounds, check_bounds, no_range
 
 from smm_hw_bridge.protocol import ADC_CHANNELS, ADC_MAX
 
-__all__ = ["LOAD_CHANNELS", "PASCAL_PER_BAR", "PressureConfig", "load_pressure", "measured_torque"]
+__all__ = [
+    "LOAD_CHANNELS",
+    "PASCAL_PER_BAR",
+    "LoadTorque",
+    "PressureConfig",
+    "load_pressure",
+    "measured_torque",
+]
 
 LOAD_CHANNELS: Final[tuple[int, int]] = (1, 2)
 """A/D channels of the load-pressure transducers (alpha, beta)."""
@@ -51,6 +58,26 @@ class PressureConfig:
         )
 
 
+class LoadTorque:
+    """A/D codes of a decoded feedback frame -> the joint torque the actuators give, per frame (no checks).
+
+    Args:
+        config: The transducers' calibration.
+    """
+
+    def __init__(self, config: PressureConfig) -> None:
+        self._zero = (float(config.zero_code[0]), float(config.zero_code[1]))
+        self._per_code = config.torque_per_code
+
+    def torque(self, adc: Sequence[int]) -> tuple[float, float]:
+        """Joint torque (alpha, beta) (N m) from the 4 A/D codes, which the frame's decoder checked."""
+        zero, per_code = self._zero, self._per_code
+        return (
+            (adc[LOAD_CHANNELS[0]] - zero[0]) * per_code[0],
+            (adc[LOAD_CHANNELS[1]] - zero[1]) * per_code[1],
+        )
+
+
 def _codes(adc: Sequence[int]) -> tuple[int, int]:
     if isinstance(adc, (str, bytes)) or len(adc) != ADC_CHANNELS:
         raise ValueError(f"adc must hold {ADC_CHANNELS} channels, got {adc!r}")
@@ -80,9 +107,5 @@ def measured_torque(adc: Sequence[int], config: PressureConfig) -> tuple[float, 
     Raises:
         ValueError: As :func:`load_pressure`.
     """
-    codes = _codes(adc)
-    per_code = config.torque_per_code
-    return (
-        (codes[0] - config.zero_code[0]) * per_code[0],
-        (codes[1] - config.zero_code[1]) * per_code[1],
-    )
+    _codes(adc)
+    return LoadTorque(config).torque(adc)
