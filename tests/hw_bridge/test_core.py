@@ -118,7 +118,8 @@ def test_arming_needs_feedback_after_activation_and_a_command_answering_it() -> 
 def test_a_measurement_answered_twice_moves_the_rate_limited_output_once() -> None:
     # lockstep: the board re-sends a feedback not yet answered and the host may answer it twice
     config = dataclasses.replace(
-        CONFIG, valve=dataclasses.replace(CONFIG.valve, rate_limit=(1e6, 1e6))  # 1000 codes per ms
+        CONFIG,
+        valve=dataclasses.replace(CONFIG.valve, rate_limit=(1e6, 1e6)),  # 1000 codes per ms
     )
     core, board = armed_core(config)
     board.step()

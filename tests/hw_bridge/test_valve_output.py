@@ -56,7 +56,10 @@ def test_a_step_again_replaces_the_last_one_from_where_it_started() -> None:
     assert output.step_floats((10.0, -10.0), 1e-3) == (1000, -1000)
     assert output.step_floats((10.0, -10.0), 1e-3, again=True) == (1000, -1000)
     assert output.step_floats((0.5, -10.0), 1e-3, again=True) == (500, -1000)
-    assert output.step_floats((10.0, -10.0), 1e-3) == (1500, -2000)  # the next step starts from the replacement
+    assert output.step_floats((10.0, -10.0), 1e-3) == (
+        1500,
+        -2000,
+    )  # the next step starts from the replacement
 
 
 def test_polarity_inverts_the_code() -> None:

@@ -232,7 +232,9 @@ class GraphOptions:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
             if self.seed is not None:
-                raise ValueError("seed seeds the simulator's or the emulator's noise: with board, there is none")
+                raise ValueError(
+                    "seed seeds the simulator's or the emulator's noise: with board, there is none"
+                )
             if self.link == "canopen":
                 if self.board != EXTERNAL_BOARD:
                     raise ValueError(

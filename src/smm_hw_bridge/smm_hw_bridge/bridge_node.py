@@ -392,7 +392,7 @@ class HwBridgeNode(LifecycleNode):
                 self.trigger_deactivate()  # type: ignore[no-untyped-call]
             elif self.lifecycle_state == "inactive":
                 self.trigger_cleanup()  # type: ignore[no-untyped-call]
-            if self.autostart and self.loop.safety_stop:  # final, as a preflight refusal: a person looks first
+            if self.autostart and self.loop.safety_stop:  # final, as a refusal at preflight: a person looks
                 self._log.error("autostart: the run ends at its safety stop (not configured again)")
                 self.context.try_shutdown()
 

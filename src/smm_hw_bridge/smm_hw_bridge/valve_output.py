@@ -167,9 +167,7 @@ class ValveOutput:
         self._last[joint] = code
         return code, saturated != wanted or limited != saturated
 
-    def step_floats(
-        self, torque: tuple[float, float], dt: float, again: bool = False
-    ) -> tuple[int, int]:
+    def step_floats(self, torque: tuple[float, float], dt: float, again: bool = False) -> tuple[int, int]:
         """:meth:`step` for a demand the caller checked: finite floats (alpha, beta) (N m), ``dt`` > 0 (s).
 
         ``again``: a new answer to the measurement the last step answered replaces it (the rate limit
