@@ -324,7 +324,19 @@ def test_the_bus_load_of_a_cycle_is_computed_from_the_mapped_pdos() -> None:
     assert sum(frame_bits(size) for size in payloads) == 644
     assert bus_load(payloads, 1000, 1_000_000) == pytest.approx(0.644)
     assert highest_rate_that_fits(payloads, 500_000, 0.7) == 500
-    assert highest_rate_that_fits(payloads, 100_000, 0.7) is None
+
+
+@pytest.mark.parametrize(
+    ("bitrate", "limit", "fits"),
+    [(1_000_000, 0.7, 1000), (250_000, 0.7, 250), (125_000, 0.7, 100), (200_000, 0.7, 200), (50_000, 0.7, None)],
+)
+def test_the_highest_offered_rate_that_fits_includes_200_and_100_hz(
+    bitrate: int, limit: float, fits: int | None
+) -> None:
+    payloads = [0, 4, 4, 6, 6, 4, 4]  # 644 bits a cycle
+    assert highest_rate_that_fits(payloads, bitrate, limit) == fits
+    if fits is not None:
+        assert bus_load(payloads, fits, bitrate) <= limit
 
 
 def test_a_bus_load_above_the_limit_is_refused_naming_the_rate_that_fits(
@@ -337,6 +349,13 @@ def test_a_bus_load_above_the_limit_is_refused_naming_the_rate_that_fits(
         _open(channel, bitrate=500_000)
     device = _open(channel, bitrate=500_000, period_us=2000)  # 500 Hz: 64.4 %, within 70 %
     device.close()
+    with pytest.raises(  # 200 Hz on 125 kbit/s: 103 %; 100 Hz: 51.5 %
+        ConfigureError,
+        match=r"bus load 103.0 % at 200 Hz and 125000 bit/s .*highest offered rate that fits is 100 Hz",
+    ):
+        _open(channel, bitrate=125_000, period_us=5000, receive_deadline_ms=50)
+    with pytest.raises(ConfigureError, match=r"64.4 % at 1000 Hz .* 50 %; .*fits is 500 Hz"):
+        _open(channel, max_bus_load=0.5)  # a configured limit
 
 
 def test_a_second_enabled_answer_to_one_feedback_steps_nothing(bench: CanBench, channel: str) -> None:

@@ -8,6 +8,7 @@ one are latched, the plant moves one cycle period (0x1006), the TPDOs go out. do
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -43,6 +44,7 @@ EMCY_DEADLINE: Final[int] = 0x8250
 """EMCY code of a valve whose RPDO missed its deadline (CiA 301: RPDO timeout)."""
 _RPDO_EVENT_TIMER: Final[tuple[int, int]] = (0x1400, 5)
 _CYCLE_PERIOD: Final[int] = 0x1006
+_KEPT_ANSWERS: Final[int] = 1_000_000
 
 
 def eds_path(name: str) -> Path:
@@ -88,6 +90,8 @@ class _Valve:
         self.machine = ValveStateMachine()
         self.setpoint = 0
         self.received: tuple[int, int] | None = None
+        self.received_ns: int | None = None
+        """When the last RPDO came (monotonic ns), None before the first."""
         self.cycles_since_rpdo = 0
         node.rpdo.read(from_od=True)
         node.tpdo.read(from_od=True)
@@ -100,17 +104,27 @@ class _Valve:
 
     def _on_rpdo(self, pdo: canopen.pdo.PdoMap) -> None:
         self.received = (int(pdo[CONTROL_WORD].raw), int(pdo[SPOOL_SETPOINT[0]].raw))
+        self.received_ns = time.monotonic_ns()
+
+    @property
+    def deadline_ms(self) -> int:
+        """The receive deadline 0x1400:05 (ms, 0: none)."""
+        return int(self.node.sdo[_RPDO_EVENT_TIMER[0]][_RPDO_EVENT_TIMER[1]].raw)
+
+    def miss_deadline(self) -> None:
+        """No setpoint within the deadline: the fault and its EMCY (once; not before the first start)."""
+        if not self.machine.state.fault and self.machine.state is not ValveState.INIT:
+            self.machine.fault()
+            self.node.emcy.send(EMCY_DEADLINE, register=0x11)
 
     def latch(self, cycle_us: int) -> None:
         """At SYNC: takes the last RPDO, or checks the deadline (0x1400:05 ms, 0 = none) in cycles."""
         received, self.received = self.received, None
         if received is None:
             self.cycles_since_rpdo += 1
-            deadline_ms = int(self.node.sdo[_RPDO_EVENT_TIMER[0]][_RPDO_EVENT_TIMER[1]].raw)
-            late = deadline_ms > 0 and self.cycles_since_rpdo * cycle_us > deadline_ms * 1000
-            if late and not self.machine.state.fault and self.machine.state is not ValveState.INIT:
-                self.machine.fault()
-                self.node.emcy.send(EMCY_DEADLINE, register=0x11)
+            deadline_ms = self.deadline_ms
+            if deadline_ms > 0 and self.cycles_since_rpdo * cycle_us > deadline_ms * 1000:
+                self.miss_deadline()
             return
         self.cycles_since_rpdo = 0
         word, setpoint = received
@@ -147,6 +161,11 @@ class CanBench:
         """SYNCs since the plant went live (at once, or at the first ACTIVE with ``wait_active``)."""
         self.active_syncs = 0
         """SYNCs at which both valves were ACTIVE (following the bus setpoint)."""
+        self.held_syncs = 0
+        """Of the live SYNCs with both valves ACTIVE, those without a new setpoint for a valve (held)."""
+        self.answer_us: list[float] = []
+        """Per live ACTIVE SYNC answered: the later valve's RPDO after the SYNC before it (us)."""
+        self._sync_ns = 0
         self.done = threading.Event()
         """Set at ``duration_syncs`` live SYNCs."""
         self.network = canopen.Network(bus)
@@ -176,6 +195,14 @@ class CanBench:
     def step(self) -> None:
         """One SYNC: latch the setpoints, move the plant one cycle period at its tick, send the TPDOs."""
         cycle_us = int(self.valves[0].node.sdo[_CYCLE_PERIOD].raw) or self.board.config.period_ns // 1000
+        now, before = time.monotonic_ns(), self._sync_ns
+        self._sync_ns = now
+        if self.live_syncs and all(valve.machine.follows_setpoint for valve in self.valves):
+            arrivals = [valve.received_ns for valve in self.valves if valve.received is not None]
+            if len(arrivals) < len(self.valves):
+                self.held_syncs += 1
+            elif len(self.answer_us) < _KEPT_ANSWERS:
+                self.answer_us.append((max(arrivals) - before) / 1e3)  # type: ignore[type-var]
         for valve in self.valves:
             valve.latch(cycle_us)
         self.board.output = [valve.spool * CODE_MAX / SPOOL_FULL_SCALE for valve in self.valves]
@@ -197,6 +224,16 @@ class CanBench:
         for encoder, count in zip(self.encoders, self.board.counts(), strict=True):
             encoder.tpdo[1][POSITION].raw = count
             encoder.tpdo[1].transmit()
+
+    def watch(self, now_ns: int) -> None:
+        """Real time: a valve whose setpoints stopped for its deadline (wall clock) faults, SYNC or not."""
+        with self.lock:
+            for valve in self.valves:
+                deadline_ms, received = valve.deadline_ms, valve.received_ns
+                operational = valve.node.nmt.state == "OPERATIONAL"
+                if operational and received is not None and deadline_ms > 0:
+                    if now_ns - received > deadline_ms * 1_000_000:
+                        valve.miss_deadline()
 
     def valve_states(self) -> tuple[ValveState, ...]:
         """Each valve's device state (alpha, beta)."""

@@ -254,7 +254,9 @@ class HwBridgeNode(LifecycleNode):
         link, self._fault_transition = self._link.config, False
         self.publish_us = RunningFigures()
         core = BridgeCore(self._bridge.config, host_session=secrets.randbelow(0xFFFFFFFF) + 1)
-        tally = RunTally(core.config.period_ns, self._verdict.config, core.config.control_divider)
+        divider = core.config.control_divider
+        every = divider if link.transport == "canopen" else 1  # a SYNC, a feedback, a control period
+        tally = RunTally(core.config.period_ns, self._verdict.config, divider, every)
         source = f"{link.board_address}:{link.board_port}"
         try:
             why = self.loop.connect(lambda: open_device(link), core, tally, link.configure_timeout, source)

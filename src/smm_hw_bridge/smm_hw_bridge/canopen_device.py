@@ -45,6 +45,7 @@ from smm_hw_bridge.protocol import (
     FeedbackFrame,
     StatusBit,
 )
+from smm_hw_bridge.sync_clock import SyncClock
 from smm_hw_bridge.transport import LinkConfig
 
 __all__ = ["CanopenDevice", "ConfigureError", "canopen_device"]
@@ -90,7 +91,7 @@ class _Node:
 
 
 class CanopenDevice(Device):
-    """Two CiA 408 valves and two CiA 406 encoders on one bus, the bridge as master (lockstep SYNC).
+    """Two CiA 408 valves and two CiA 406 encoders on one bus, the bridge as master and SYNC producer.
 
     Args:
         config: The link.
@@ -124,8 +125,11 @@ class CanopenDevice(Device):
         self._enabled = False
         self._last_feedback: FeedbackFrame | None = None
         self._delivered_at = 0.0
+        self._answered = -1
         self._synced_at = 0.0
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
+        self.clock = SyncClock(config.period_us * 1000) if config.sync_clock else None
+        """Real time (``sync_clock``): the SYNC schedule, its late cycles and how late each SYNC went out."""
 
     # ---- open: configure and start ----------------------------------------------------------------
 
@@ -180,6 +184,8 @@ class CanopenDevice(Device):
             node.heard = time.monotonic()  # consumers count from the start
         network.nmt.send_command(_NMT_START_ALL)
         self._send_safe()
+        if self.clock is not None:
+            self.clock.due_ns = time.monotonic_ns() + self.clock.period_ns
 
     def _check_bus_load(self) -> None:
         """Refuses a cycle (SYNC, valve RPDO1s, every TPDO1, as the EDS files map them) above the limit."""
@@ -347,6 +353,8 @@ class CanopenDevice(Device):
         """The feedback of the last SYNC once every node's TPDO for it arrived; None after ``timeout_s``."""
         if self.network is None:
             raise DeviceError("the device is not open")
+        if self.clock is not None:
+            return self._read_clocked(timeout_s)
         held = self._last_feedback is not None and self._delivered == self._syncs
         resend_in = self._delivered_at + _RESEND_S - time.monotonic()
         with self._changed:
@@ -366,6 +374,31 @@ class CanopenDevice(Device):
             # unanswered one (the loop re-publishes a duplicate: the controller may have missed it)
             self._delivered_at = time.monotonic()
             return self._last_feedback
+
+    def _read_clocked(self, timeout_s: float) -> Reading | None:
+        """Real time: sends each SYNC when due; the feedback of the last one once its TPDOs arrived."""
+        assert self.clock is not None
+        deadline = time.monotonic_ns() + round(timeout_s * 1e9)
+        while True:
+            now = time.monotonic_ns()
+            if now >= self.clock.due_ns:
+                with self._changed:
+                    self.clock.on_sync(now, answered=self._answered == self._syncs)
+                    self._sync()
+            with self._changed:
+                wait_ns = max(min(deadline, self.clock.due_ns) - time.monotonic_ns(), 0)
+                ready = self._changed.wait_for(
+                    lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
+                    timeout=wait_ns / 1e9,
+                )
+                if self._watch() and all(node.values for node in self.nodes):
+                    ready = True  # its feedback, the late nodes' last values with the fault: the loop faults
+                if ready:
+                    self._delivered = self._syncs
+                    self._last_feedback = self._feedback()
+                    return self._last_feedback
+            if time.monotonic_ns() >= deadline:
+                return None
 
     def _watch(self) -> bool:
         """Faults for lost heartbeats and for TPDOs late past their validity; True if this SYNC's are."""
@@ -399,6 +432,10 @@ class CanopenDevice(Device):
             max(-SPOOL_FULL_SCALE, min(SPOOL_FULL_SCALE, v.values[SPOOL_ACTUAL[0]])) for v in valves
         )
         ticks = self.config.period_us // 1000 or 1
+        if self.clock is not None and self._host_session:  # the command latched answers the last SYNC
+            age = ticks * (2 if self.clock.late else 1)  # or, late, one before (as a held period)
+        else:
+            age = 0 if self._host_session else NO_COMMAND_AGE
         return FeedbackFrame(
             session=self._boots % _U32 or 1,
             seq=self._syncs % _U32,
@@ -409,7 +446,7 @@ class CanopenDevice(Device):
             status=status,
             faults=self._fault_bits & 0xFFFF,
             applied_seq=self._last_seq,
-            applied_age=0 if self._host_session else NO_COMMAND_AGE,
+            applied_age=age,
             output_codes=(spool[0], spool[1]),
             late_commands=0,
             crc_errors=0,
@@ -436,9 +473,12 @@ class CanopenDevice(Device):
             enable = False
         else:
             enable = command.enabled and not self._estop and not self._fault_bits
-        sync = enable or self._enabled or not self.config.sync_on_enabled
+        sync = self.clock is None and (enable or self._enabled or not self.config.sync_on_enabled)
         self._enabled = enable
         with self._changed:
+            self._answered = self._delivered  # the SYNC whose feedback this command answers
+            if self.clock is not None and self._answered == self._syncs:
+                self.clock.on_answer(time.monotonic_ns())
             valves = [n for n in self.nodes if n.kind == "valve"]
             for node, code in zip(valves, codes, strict=True):
                 word, setpoint = self._next(node, enable, code, bool(command.flags & CommandFlag.REARM))

@@ -31,7 +31,7 @@ __all__ = [
 EXIT_PREFLIGHT_REFUSED: Final[int] = 4
 """Exit code of a hardware run whose preflight refused to arm (the host cannot hold the control rate)."""
 CANDIDATE_DIVIDERS: Final[tuple[int, ...]] = tuple(BOARD_TICK_HZ // rate for rate in CONTROL_RATES_HZ)
-"""Board ticks per control period of the rates the preflight names (1000, 500, 250 Hz: 1, 2, 4)."""
+"""Board ticks per control period of the rates the preflight names (1000 ... 100 Hz: 1, 2, 4, 5, 10)."""
 WARM_UP_S: Final[float] = 0.25
 """The rehearsal's first seconds are not judged (first steps of the chain, caches, the DDS discovery)."""
 
