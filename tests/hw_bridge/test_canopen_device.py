@@ -328,7 +328,13 @@ def test_the_bus_load_of_a_cycle_is_computed_from_the_mapped_pdos() -> None:
 
 @pytest.mark.parametrize(
     ("bitrate", "limit", "fits"),
-    [(1_000_000, 0.7, 1000), (250_000, 0.7, 250), (125_000, 0.7, 100), (200_000, 0.7, 200), (50_000, 0.7, None)],
+    [
+        (1_000_000, 0.7, 1000),
+        (250_000, 0.7, 250),
+        (125_000, 0.7, 100),
+        (200_000, 0.7, 200),
+        (50_000, 0.7, None),
+    ],
 )
 def test_the_highest_offered_rate_that_fits_includes_200_and_100_hz(
     bitrate: int, limit: float, fits: int | None
@@ -368,5 +374,37 @@ def test_a_second_enabled_answer_to_one_feedback_steps_nothing(bench: CanBench, 
         assert device.dropped["second_answer"] == 1
         assert after.seq == armed.seq + 1 and bench.syncs == after.seq
         assert after.output_codes == (2000, 2000)
+    finally:
+        device.close()
+
+
+@pytest.mark.parametrize(
+    ("changes", "why"),
+    [
+        ({"period_us": 5000, "receive_deadline_ms": 5}, "must be longer than the SYNC period"),
+        ({"period_us": 10_000, "receive_deadline_ms": 9}, "must be longer than the SYNC period"),
+        ({"sync_clock": True, "sync_on_enabled": True}, "exclude each other"),
+    ],
+)
+def test_settings_a_real_time_bus_cannot_run_are_refused(changes: dict[str, object], why: str) -> None:
+    with pytest.raises(ValueError, match=why):
+        _config(**changes)
+
+
+def test_in_real_time_the_reads_send_the_sync_and_a_command_sends_none(bench: CanBench, channel: str) -> None:
+    device = _open(channel, sync_clock=True, period_us=5000, receive_deadline_ms=1000)
+    try:
+        assert device.clock is not None
+        first = _feedback(device)
+        syncs = bench.syncs
+        for seq in range(1, 4):  # commands alone step nothing: no SYNC without the loop's read
+            device.write(_command(first, seq, (0, 0), 0))
+        assert bench.syncs == syncs
+        seen = [_feedback(device) for _ in range(3)]  # the clock sends each SYNC when due
+        assert [frame.seq for frame in seen] == [first.seq + 1, first.seq + 2, first.seq + 3]
+        slots = [frame.tick // 5 for frame in seen]  # 5 ticks a period; a slot the loop missed is skipped
+        assert all(frame.tick % 5 == 0 for frame in seen) and slots == sorted(set(slots))
+        assert bench.syncs == syncs + 3 and device.clock.slot == slots[-1]
+        assert bench.live_syncs == slots[-1] + 1  # the plant moved every slot, skipped ones too
     finally:
         device.close()

@@ -43,7 +43,8 @@ def test_control_ticks_are_the_multiples_of_n_so_each_period_has_exactly_one(tic
 
 
 @pytest.mark.parametrize(
-    ("divider", "validity", "stale", "watchdog_ms"), [(1, 10, 5, 10), (2, 12, 6, 12), (4, 16, 8, 16), (5, 18, 9, 18), (10, 28, 14, 28)]
+    ("divider", "validity", "stale", "watchdog_ms"),
+    [(1, 10, 5, 10), (2, 12, 6, 12), (4, 16, 8, 16), (5, 18, 9, 18), (10, 28, 14, 28)],
 )
 def test_validity_stale_limit_and_host_watchdog_grow_with_the_divider(
     divider: int, validity: int, stale: int, watchdog_ms: int

@@ -28,6 +28,7 @@ from smm_hw_bridge.cia408 import (
     ValveStateMachine,
 )
 from smm_hw_bridge.protocol import CODE_MAX
+from smm_hw_bridge.sync_clock import periods_between
 from smm_schema.ranges import bounds, check_bounds
 
 from smm_bench_emulator.board import BoardConfig, BoardCore
@@ -117,11 +118,12 @@ class _Valve:
             self.machine.fault()
             self.node.emcy.send(EMCY_DEADLINE, register=0x11)
 
-    def latch(self, cycle_us: int) -> None:
-        """At SYNC: takes the last RPDO, or checks the deadline (0x1400:05 ms, 0 = none) in cycles."""
+    def latch(self, cycle_us: int, periods: int = 1) -> None:
+        """At SYNC (``periods`` cycles since the last): takes the last RPDO, or checks the deadline
+        (0x1400:05 ms, 0 = none) in cycles."""
         received, self.received = self.received, None
         if received is None:
-            self.cycles_since_rpdo += 1
+            self.cycles_since_rpdo += periods
             deadline_ms = self.deadline_ms
             if deadline_ms > 0 and self.cycles_since_rpdo * cycle_us > deadline_ms * 1000:
                 self.miss_deadline()
@@ -158,7 +160,8 @@ class CanBench:
         self.lock = threading.Lock()
         self.syncs = 0
         self.live_syncs = 0
-        """SYNCs since the plant went live (at once, or at the first ACTIVE with ``wait_active``)."""
+        """Cycle periods since the plant went live (at once, or at the first ACTIVE with ``wait_active``):
+        one a SYNC, or as many as its counter says passed (real time)."""
         self.active_syncs = 0
         """SYNCs at which both valves were ACTIVE (following the bus setpoint)."""
         self.held_syncs = 0
@@ -166,6 +169,7 @@ class CanBench:
         self.answer_us: list[float] = []
         """Per live ACTIVE SYNC answered: the later valve's RPDO after the SYNC before it (us)."""
         self._sync_ns = 0
+        self._counter: int | None = None
         self.done = threading.Event()
         """Set at ``duration_syncs`` live SYNCs."""
         self.network = canopen.Network(bus)
@@ -190,30 +194,38 @@ class CanBench:
 
     def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.lock:
-            self.step()
+            periods = 1
+            if data:  # the SYNC counter (real time): the periods since the last SYNC, skipped ones too
+                if self._counter is not None:
+                    periods = periods_between(data[0], self._counter)
+                self._counter = data[0]
+            self.step(periods)
 
-    def step(self) -> None:
-        """One SYNC: latch the setpoints, move the plant one cycle period at its tick, send the TPDOs."""
+    def step(self, periods: int = 1) -> None:
+        """One SYNC ``periods`` cycles after the last: latch the setpoints, move the plant that long at its
+        tick (the setpoint held), send the TPDOs."""
         cycle_us = int(self.valves[0].node.sdo[_CYCLE_PERIOD].raw) or self.board.config.period_ns // 1000
         now, before = time.monotonic_ns(), self._sync_ns
         self._sync_ns = now
         if self.live_syncs and all(valve.machine.follows_setpoint for valve in self.valves):
-            arrivals = [valve.received_ns for valve in self.valves if valve.received is not None]
+            arrivals = [valve.received_ns or 0 for valve in self.valves if valve.received is not None]
+            self.held_syncs += periods - 1  # skipped slots: the valves held the setpoint
             if len(arrivals) < len(self.valves):
                 self.held_syncs += 1
             elif len(self.answer_us) < _KEPT_ANSWERS:
-                self.answer_us.append((max(arrivals) - before) / 1e3)  # type: ignore[type-var]
+                self.answer_us.append((max(arrivals) - before) / 1e3)
         for valve in self.valves:
-            valve.latch(cycle_us)
+            valve.latch(cycle_us, periods)
         self.board.output = [valve.spool * CODE_MAX / SPOOL_FULL_SCALE for valve in self.valves]
         active = all(valve.machine.follows_setpoint for valve in self.valves)
         self.active_syncs += active
         if self.live_syncs or active or not self.config.wait_active:
-            substeps = max(1, round(cycle_us * 1000 / self.board.config.period_ns))
+            substeps = max(1, round(cycle_us * 1000 / self.board.config.period_ns)) * periods
             for _ in range(substeps):
                 self.board.plant.step(self.board.valve_torque(), self.board.config.plant.control_period)
-            self.live_syncs += 1
-            if self.live_syncs == self.config.duration_syncs:
+            before_live = self.live_syncs
+            self.live_syncs += periods
+            if before_live < self.config.duration_syncs <= self.live_syncs:
                 self.done.set()
         self.syncs += 1
         if not all(node.nmt.state == "OPERATIONAL" for node in self._nodes()):
@@ -231,9 +243,8 @@ class CanBench:
             for valve in self.valves:
                 deadline_ms, received = valve.deadline_ms, valve.received_ns
                 operational = valve.node.nmt.state == "OPERATIONAL"
-                if operational and received is not None and deadline_ms > 0:
-                    if now_ns - received > deadline_ms * 1_000_000:
-                        valve.miss_deadline()
+                if operational and received is not None and 0 < deadline_ms * 1_000_000 < now_ns - received:
+                    valve.miss_deadline()
 
     def valve_states(self) -> tuple[ValveState, ...]:
         """Each valve's device state (alpha, beta)."""

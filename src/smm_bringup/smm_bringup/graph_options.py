@@ -19,8 +19,8 @@ from smm_hw_bridge.control_rate import BOARD_TICK_HZ, CONTROL_RATES_HZ, control_
 from smm_bringup.realtime import MAX_PRIORITY
 
 __all__ = [
-    "CHAIN_LAYOUTS",
     "CANOPEN_REALTIME_RATE_HZ",
+    "CHAIN_LAYOUTS",
     "CLOCK_MODES",
     "CONTROL_RATES_HZ",
     "EXTERNAL_BOARD",
@@ -93,10 +93,11 @@ class GraphOptions:
         seed: Seed of the simulator's noise generator, >= 0; ``None`` keeps the configured one.
         params_files: Extra ROS 2 parameter files, applied after the scenario file, in order.
         control_rate: Control rate (Hz), one of ``smm_hw_bridge.control_rate.CONTROL_RATES_HZ`` (1000, 500,
-            250, 200, 100). The board (and the simulator's integration step) keeps its 1 kHz tick; the controller
-            steps every N = 1000 / rate ticks with ``control_period`` = N ms, the board holds each command
-            in between, and the rate's settings file (``smm_controller/config/control_rate_<rate>.yaml``)
-            is applied after the scenario's (docs/LAUNCH.md, "Control rate").
+            250, 200, 100). The board (and the simulator's integration step) keeps its 1 kHz tick; the
+            controller steps every N = 1000 / rate ticks with ``control_period`` = N ms, the board holds each
+            command in between, and the rate's settings file
+            (``smm_controller/config/control_rate_<rate>.yaml``) is applied after the scenario's
+            (docs/LAUNCH.md, "Control rate").
         board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board (``external`` on the CANopen
             link: the devices its parameters name); ``None`` starts ``smm_bench_emulator`` on loopback.
         link: ``hardware`` only: ``frame`` or ``canopen`` (:data:`LINKS`).

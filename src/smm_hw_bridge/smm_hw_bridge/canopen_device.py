@@ -184,13 +184,11 @@ class CanopenDevice(Device):
             node.heard = time.monotonic()  # consumers count from the start
         network.nmt.send_command(_NMT_START_ALL)
         self._send_safe()
-        if self.clock is not None:
-            self.clock.due_ns = time.monotonic_ns() + self.clock.period_ns
 
     def _check_bus_load(self) -> None:
         """Refuses a cycle (SYNC, valve RPDO1s, every TPDO1, as the EDS files map them) above the limit."""
         config = self.config
-        payloads = [0]  # the SYNC
+        payloads = [1 if config.sync_clock else 0]  # the SYNC (its counter in real time)
         for node in self.nodes:
             payloads.append(len(node.remote.tpdo[1].data))
             if node.kind == "valve":
@@ -383,7 +381,6 @@ class CanopenDevice(Device):
             now = time.monotonic_ns()
             if now >= self.clock.due_ns:
                 with self._changed:
-                    self.clock.on_sync(now, answered=self._answered == self._syncs)
                     self._sync()
             with self._changed:
                 wait_ns = max(min(deadline, self.clock.due_ns) - time.monotonic_ns(), 0)
@@ -432,14 +429,16 @@ class CanopenDevice(Device):
             max(-SPOOL_FULL_SCALE, min(SPOOL_FULL_SCALE, v.values[SPOOL_ACTUAL[0]])) for v in valves
         )
         ticks = self.config.period_us // 1000 or 1
-        if self.clock is not None and self._host_session:  # the command latched answers the last SYNC
-            age = ticks * (2 if self.clock.late else 1)  # or, late, one before (as a held period)
+        tick = self._syncs * ticks
+        if self.clock is not None:  # the schedule's slot; the age counts skipped slots and a late answer
+            tick = self.clock.slot * ticks
+            age = self.clock.age * ticks if self._host_session else NO_COMMAND_AGE
         else:
             age = 0 if self._host_session else NO_COMMAND_AGE
         return FeedbackFrame(
             session=self._boots % _U32 or 1,
             seq=self._syncs % _U32,
-            tick=(self._syncs * ticks) % _U32,
+            tick=tick % _U32,
             host_session=self._host_session,
             counts=(encoders[0].values[POSITION] % _U32, encoders[1].values[POSITION] % _U32),
             adc=(min(max(supply, 0), ADC_MAX), 0, 0, 0),
@@ -505,9 +504,13 @@ class CanopenDevice(Device):
 
     def _sync(self) -> None:
         assert self.network is not None
+        data = b""
+        if self.clock is not None:  # real time: the slot's SYNC counter tells the devices what passed
+            self.clock.on_sync(time.monotonic_ns(), answered=self._answered == self._syncs)
+            data = bytes([self.clock.counter])
         self._syncs += 1
         self._synced_at = time.monotonic()
-        self.network.send_message(0x80, b"")
+        self.network.send_message(0x80, data)
 
     def _send_safe(self) -> None:
         with self._changed:

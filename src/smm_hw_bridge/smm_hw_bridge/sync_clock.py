@@ -1,18 +1,31 @@
-"""The CANopen master's SYNC clock in real time: when each SYNC is due and which cycles were late. Pure.
+"""The CANopen master's SYNC clock in real time: the schedule, the SYNC counter, the late periods. Pure.
 
 The host loop is the clock (docs/HW_CANOPEN.md, "Real time"): its receiving thread sends each SYNC when it
-is due, so a SYNC never overtakes the answer being computed; a cycle is late instead when that answer was
-written after the SYNC was due, or the SYNC went out a whole period or more after it (the valves held the
-last setpoint a period longer), as a frame board's period is late when the answer missed its next tick.
+is due, so a SYNC never overtakes the answer being computed. The schedule is the wall clock's: slot k is due
+k periods after the first SYNC; a SYNC that goes out a period or more late takes the latest slot due (the
+ones skipped are periods the valves held their setpoint) and carries the CiA 301 SYNC counter, so the
+devices (the emulated plant) know how many periods passed. A period is late when the answer to the last
+SYNC was written after the next was due, or its slot was skipped, as a frame board's period is late when
+the answer missed its next tick.
 """
 
 from __future__ import annotations
 
-__all__ = ["SyncClock"]
+from typing import Final
+
+__all__ = ["COUNTER_OVERFLOW", "SyncClock", "periods_between"]
+
+COUNTER_OVERFLOW: Final[int] = 240
+"""The SYNC counter counts 1 .. this and starts again at 1 (CiA 301 0x1019, at most 240)."""
+
+
+def periods_between(counter: int, last: int) -> int:
+    """Periods from the SYNC whose counter was ``last`` to the one with ``counter`` (1 .. overflow)."""
+    return (counter - last - 1) % COUNTER_OVERFLOW + 1
 
 
 class SyncClock:
-    """The schedule of SYNCs every ``period_ns`` (monotonic ns) and the late cycles.
+    """The schedule of SYNCs every ``period_ns`` (monotonic ns) from the first, and what each one ended.
 
     Args:
         period_ns: The SYNC period (ns), > 0.
@@ -22,16 +35,20 @@ class SyncClock:
         if isinstance(period_ns, bool) or not isinstance(period_ns, int) or period_ns <= 0:
             raise ValueError(f"period_ns must be an int > 0, got {period_ns!r}")
         self.period_ns = period_ns
+        self.start_ns: int | None = None
+        self.slot = -1
+        """The schedule slot of the last SYNC (0 for the first)."""
         self.due_ns = 0
-        """When the next SYNC is due (0: at once)."""
-        self.late = False
-        """The last SYNC ended a late cycle."""
-        self.cycles = 0
-        """SYNCs sent on the schedule."""
-        self.late_cycles = 0
-        self.resynced = 0
-        """Times the schedule restarted from now after a SYNC a whole period late (periods skipped)."""
+        """When the next slot is due (0: at once)."""
+        self.age = 1
+        """Periods between the last SYNC and the one its latched setpoint answers (1 on time)."""
+        self.late_periods = 0
         self._answer_ns: int | None = None
+
+    @property
+    def counter(self) -> int:
+        """The last SYNC's counter (1 .. :data:`COUNTER_OVERFLOW`)."""
+        return self.slot % COUNTER_OVERFLOW + 1
 
     def on_answer(self, now_ns: int) -> None:
         """The first command answering the last SYNC's feedback was written at ``now_ns``."""
@@ -39,15 +56,17 @@ class SyncClock:
             self._answer_ns = now_ns
 
     def on_sync(self, now_ns: int, *, answered: bool) -> None:
-        """A SYNC goes out at ``now_ns`` (>= :attr:`due_ns`); ``answered``: the last SYNC's feedback was."""
-        due = self.due_ns
-        answer = self._answer_ns
-        behind = due > 0 and now_ns - due >= self.period_ns
-        self.late = due > 0 and (not answered or answer is None or answer > due or behind)
-        self.cycles += 1
-        self.late_cycles += self.late
-        self._answer_ns = None
-        self.due_ns = (due or now_ns) + self.period_ns
-        if self.due_ns <= now_ns:  # a stall: no burst of SYNCs to catch up, the schedule restarts
-            self.due_ns = now_ns + self.period_ns
-            self.resynced += 1
+        """A SYNC goes out at ``now_ns``; ``answered``: a command answering the last one's feedback was sent."""
+        start = self.start_ns
+        if start is None:
+            self.start_ns = start = now_ns
+            slot, age = 0, 1  # nothing to answer yet: not judged
+        else:
+            slot = max(self.slot + 1, (now_ns - start) // self.period_ns)
+            due = start + (self.slot + 1) * self.period_ns
+            answer = self._answer_ns
+            late_answer = not answered or answer is None or answer > due
+            age = slot - self.slot + late_answer
+            self.late_periods += age - 1
+        self.slot, self.age, self._answer_ns = slot, age, None
+        self.due_ns = start + (slot + 1) * self.period_ns
