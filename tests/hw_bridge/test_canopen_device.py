@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -408,3 +409,25 @@ def test_in_real_time_the_reads_send_the_sync_and_a_command_sends_none(bench: Ca
         assert bench.live_syncs == slots[-1] + 1  # the plant moved every slot, skipped ones too
     finally:
         device.close()
+
+
+def test_configure_waits_for_nodes_that_come_up_after_the_bridge(channel: str) -> None:
+    benches: list[CanBench] = []
+    device = CanopenDevice(_config(), can.Bus(interface="virtual", channel=channel), boot_wait_s=60.0)
+    late = threading.Timer(  # the emulator started after the bridge (smm-launch --record's order)
+        0.5, lambda: benches.append(CanBench(CanBenchConfig(), can.Bus(interface="virtual", channel=channel)))
+    )
+    late.start()
+    try:
+        device.open()
+        assert [line.split(":")[0] for line in device.found] == [
+            "valve alpha (node 1)",
+            "valve beta (node 2)",
+            "encoder alpha (node 11)",
+            "encoder beta (node 12)",
+        ]
+    finally:
+        late.join()
+        device.close()
+        for bench in benches:
+            bench.close()

@@ -96,9 +96,13 @@ class CanopenDevice(Device):
     Args:
         config: The link.
         bus: An open python-can bus to use instead of opening ``config``'s (tests: ``virtual``).
+        boot_wait_s: How long :meth:`open` waits for each node's first SDO answer (s): a bench powering up,
+            an emulator starting after the bridge (``link.configure_timeout``).
     """
 
-    def __init__(self, config: CanopenConfig, bus: can.BusABC | None = None) -> None:
+    def __init__(
+        self, config: CanopenConfig, bus: can.BusABC | None = None, boot_wait_s: float = 0.0
+    ) -> None:
         super().__init__()
         self.description = DeviceDescription(
             name="canopen",
@@ -110,6 +114,7 @@ class CanopenDevice(Device):
         )
         self.config = config
         self._bus = bus
+        self._boot_wait_s = boot_wait_s
         self.network: canopen.Network | None = None
         self.nodes: list[_Node] = []
         self.faults: list[str] = []
@@ -164,7 +169,9 @@ class CanopenDevice(Device):
         try:
             self.nodes = [self._add(network, "valve", j, i) for j, i in enumerate(config.valve_node_ids)]
             self.nodes += [self._add(network, "encoder", j, i) for j, i in enumerate(config.encoder_node_ids)]
+            deadline = time.monotonic() + self._boot_wait_s
             for node in self.nodes:
+                self._await(node, deadline)
                 self._configure(node)
             self._check_bus_load()
         except BaseException:
@@ -223,6 +230,17 @@ class CanopenDevice(Device):
             0x700 + node_id, lambda _id, data, _t, node=node: self._on_heartbeat(node, bytes(data))
         )
         return node
+
+    def _await(self, node: _Node, deadline: float) -> None:
+        """Until ``deadline`` (monotonic s): asks ``node`` its device type until it answers at all."""
+        while time.monotonic() < deadline:
+            try:
+                node.remote.sdo.upload(DEVICE_TYPE, 0)
+            except SdoCommunicationError:
+                continue  # not up yet; past the deadline, _configure names it
+            except SdoAbortedError:
+                return
+            return
 
     def _upload(self, node: _Node, index: int, subindex: int = 0) -> int:
         try:
@@ -538,4 +556,4 @@ class CanopenDevice(Device):
 
 def canopen_device(link: LinkConfig) -> CanopenDevice:
     """The CANopen bench ``link.canopen`` describes."""
-    return CanopenDevice(link.canopen)
+    return CanopenDevice(link.canopen, boot_wait_s=link.configure_timeout)
