@@ -119,3 +119,24 @@ def test_an_answer_in_flight_for_its_whole_period_is_not_stale_at_n_4() -> None:
     board.step()
     assert core.on_command([0.1, 0.1], control, board.now) is Refusal.STALE
     assert stamp < control
+
+
+@pytest.mark.parametrize("divider", [1, 2, 4, 5, 10])
+def test_the_valve_rate_limit_allows_its_slew_per_control_period_not_per_board_tick(divider: int) -> None:
+    """1000 codes a ms: a command a period of N ms may move the codes 1000 N (N = 5: 1000 slewed full
+    scale in 10 ms instead of 2, and the loop on the emulated bench went unstable)."""
+    valve = dataclasses.replace(CONFIG.valve, rate_limit=(1e6, 1e6))
+    core = BridgeCore(dataclasses.replace(CONFIG, control_divider=divider, valve=valve), HOST)
+    board = Board(core)
+    board.step()
+    core.arm()
+    while board.tick <= divider:
+        board.step()
+    assert core.on_command([0.5, -0.25], board.stamp, board.now) is None  # 500 / -250 codes: within
+    for _ in range(divider):
+        board.step()
+    assert core.control_tick
+    assert core.on_command([20.0, -20.0], board.stamp, board.now) is None  # 20000 / -20000 codes asked
+    frame = core.next_frame(board.now)
+    assert frame is not None and frame.enabled
+    assert frame.codes == (500 + 1000 * divider, -250 - 1000 * divider)

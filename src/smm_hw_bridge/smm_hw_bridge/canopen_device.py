@@ -134,7 +134,7 @@ class CanopenDevice(Device):
         self._synced_at = 0.0
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
         self.clock = SyncClock(config.period_us * 1000) if config.sync_clock else None
-        """Real time (``sync_clock``): the SYNC schedule, its late cycles and how late each SYNC went out."""
+        """Real time (``sync_clock``): the SYNC schedule, its slots and late periods."""
 
     # ---- open: configure and start ----------------------------------------------------------------
 
@@ -374,13 +374,7 @@ class CanopenDevice(Device):
         held = self._last_feedback is not None and self._delivered == self._syncs
         resend_in = self._delivered_at + _RESEND_S - time.monotonic()
         with self._changed:
-            ready = self._changed.wait_for(
-                lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
-                timeout=max(min(timeout_s, resend_in), 0.0) if held else timeout_s,
-            )
-            late = self._watch()
-            if late and all(node.values for node in self.nodes):
-                ready = True  # its feedback, the late nodes' last values with the fault: the loop faults
+            ready = self._arrived(max(min(timeout_s, resend_in), 0.0) if held else timeout_s)
             if ready:
                 self._delivered = self._syncs
                 self._last_feedback = self._feedback()
@@ -401,19 +395,22 @@ class CanopenDevice(Device):
                 with self._changed:
                     self._sync()
             with self._changed:
-                wait_ns = max(min(deadline, self.clock.due_ns) - time.monotonic_ns(), 0)
-                ready = self._changed.wait_for(
-                    lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
-                    timeout=wait_ns / 1e9,
-                )
-                if self._watch() and all(node.values for node in self.nodes):
-                    ready = True  # its feedback, the late nodes' last values with the fault: the loop faults
-                if ready:
+                if self._arrived(max(min(deadline, self.clock.due_ns) - time.monotonic_ns(), 0) / 1e9):
                     self._delivered = self._syncs
                     self._last_feedback = self._feedback()
                     return self._last_feedback
             if time.monotonic_ns() >= deadline:
                 return None
+
+    def _arrived(self, timeout_s: float) -> bool:
+        """Waits (lock held) for the last SYNC's TPDOs; True when they are in, or late past their validity
+        (its feedback: the late nodes' last values with the fault, so the loop faults)."""
+        ready = self._changed.wait_for(
+            lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
+            timeout=timeout_s,
+        )
+        late = self._watch()  # every read: a lost heartbeat is a fault whether the TPDOs came or not
+        return ready or (late and all(node.values for node in self.nodes))
 
     def _watch(self) -> bool:
         """Faults for lost heartbeats and for TPDOs late past their validity; True if this SYNC's are."""
@@ -526,8 +523,9 @@ class CanopenDevice(Device):
         if self.clock is not None:  # real time: the slot's SYNC counter tells the devices what passed
             self.clock.on_sync(time.monotonic_ns(), answered=self._answered == self._syncs)
             data = bytes([self.clock.counter])
+        if self._delivered == self._syncs:  # validity counts from the first SYNC still unanswered
+            self._synced_at = time.monotonic()
         self._syncs += 1
-        self._synced_at = time.monotonic()
         self.network.send_message(0x80, data)
 
     def _send_safe(self) -> None:

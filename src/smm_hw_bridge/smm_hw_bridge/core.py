@@ -200,8 +200,9 @@ class BridgeCore:
         self._host_session = host_session
         self._period_ns = config.period_ns
         self._period_s = config.period_ns / 1e9
-        self._command_dt = config.period_ns * 1e-9
-        """dt of the valve's rate limit per command (s), as ``period_ns * 1e-9``."""
+        self._command_dt = config.period_ns * config.control_divider * 1e-9
+        """dt of the valve's rate limit per command (s): one command a control period of N ticks (at 200 Hz
+        a 1 ms dt slewed full scale in 10 ms, not 2, and the loop on the emulated bench went unstable)."""
         self._limits = (float(config.soft_limits[0]), float(config.soft_limits[1]))
         margin = config.limit_stop_margin
         self._stop_limits = (self._limits[0] + margin, self._limits[1] + margin)
@@ -347,7 +348,9 @@ class BridgeCore:
             self._recent.popitem(last=False)
         self.stats.on_feedback(frame.seq, frame.applied_seq, rx_ns)
         self._last, self._last_rx_ns = frame, rx_ns
-        self._effort = self._valve.effort_floats(frame.output_codes, self._period_s)
+        # the valves' lag over the ticks since the last feedback: 1 from a board, N from a CANopen SYNC
+        ticks = 1 if self._previous is None else min(max(tick - self._previous[0], 1), self._divider)
+        self._effort = self._valve.effort_floats(frame.output_codes, self._period_s * ticks)
         adc, zero, per_code = frame.adc, self._pressure_zero, self._torque_per_code
         self._measured = (
             (adc[LOAD_CHANNELS[0]] - zero[0]) * per_code[0],
