@@ -1,4 +1,4 @@
-"""The CANopen master's SYNC clock in real time: the schedule, the counter and the late periods (times passed in)."""
+"""The CANopen master's SYNC clock in real time: the schedule, the counter, the late periods (times given)."""
 
 from __future__ import annotations
 

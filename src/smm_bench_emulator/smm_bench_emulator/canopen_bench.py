@@ -119,8 +119,7 @@ class _Valve:
             self.node.emcy.send(EMCY_DEADLINE, register=0x11)
 
     def latch(self, cycle_us: int, periods: int = 1) -> None:
-        """At SYNC (``periods`` cycles since the last): takes the last RPDO, or checks the deadline
-        (0x1400:05 ms, 0 = none) in cycles."""
+        """At SYNC, ``periods`` cycles after the last: the last RPDO, or the deadline (0x1400:05) checked."""
         received, self.received = self.received, None
         if received is None:
             self.cycles_since_rpdo += periods
@@ -202,8 +201,7 @@ class CanBench:
             self.step(periods)
 
     def step(self, periods: int = 1) -> None:
-        """One SYNC ``periods`` cycles after the last: latch the setpoints, move the plant that long at its
-        tick (the setpoint held), send the TPDOs."""
+        """A SYNC ``periods`` cycles after the last: latch, move the plant that long, send the TPDOs."""
         cycle_us = int(self.valves[0].node.sdo[_CYCLE_PERIOD].raw) or self.board.config.period_ns // 1000
         now, before = time.monotonic_ns(), self._sync_ns
         self._sync_ns = now

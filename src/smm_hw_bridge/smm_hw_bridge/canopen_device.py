@@ -403,8 +403,7 @@ class CanopenDevice(Device):
                 return None
 
     def _arrived(self, timeout_s: float) -> bool:
-        """Waits (lock held) for the last SYNC's TPDOs; True when they are in, or late past their validity
-        (its feedback: the late nodes' last values with the fault, so the loop faults)."""
+        """Waits (lock held) for the last SYNC's TPDOs; True when in, or late past their validity (faults)."""
         ready = self._changed.wait_for(
             lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
             timeout=timeout_s,

@@ -56,7 +56,7 @@ class SyncClock:
             self._answer_ns = now_ns
 
     def on_sync(self, now_ns: int, *, answered: bool) -> None:
-        """A SYNC goes out at ``now_ns``; ``answered``: a command answering the last one's feedback was sent."""
+        """A SYNC goes out at ``now_ns``; ``answered``: a command answered the last one's feedback."""
         start = self.start_ns
         if start is None:
             self.start_ns = start = now_ns
