@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from launcher_run import smm_launch
 from smm_bringup.graph_options import GraphOptions
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -61,14 +62,7 @@ def test_realtime_canopen_run_arms_on_the_sync_clock_controls_and_says_so(
     arguments = ["--plant", "hardware", "--link", "canopen", "--clock-mode", "realtime"]
     arguments += ["--scenario", "case1", "--duration", "2", "--control-rate", "1000", "--preflight", "0"]
     arguments += ["--late-limit", "100", "--rt-priority", "0", "--params-file", str(generous)]
-    launcher = ros_processes.start(
-        "smm-launch-canopen-rt", [sys.executable, "-m", "smm_bringup.launcher", *arguments]
-    )
-    try:
-        code = launcher.popen.wait(timeout=180)
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"smm-launch did not finish\n{launcher.logs()}")
-    logs: str = launcher.logs()
+    code, logs = smm_launch(ros_processes, "smm-launch-canopen-rt", *arguments, timeout=180)
     assert code == 0, logs
     assert "CANopen bench on " in logs and ", realtime" in logs, logs
     assert "[smm-launch] run: controlled (" in logs, logs

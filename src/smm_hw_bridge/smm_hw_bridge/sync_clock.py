@@ -1,12 +1,8 @@
 """The CANopen master's SYNC clock in real time: the schedule, the SYNC counter, the late periods. Pure.
 
-The host loop is the clock (docs/HW_CANOPEN.md, "Real time"): its receiving thread sends each SYNC when it
-is due, so a SYNC never overtakes the answer being computed. The schedule is the wall clock's: slot k is due
-k periods after the first SYNC; a SYNC that goes out a period or more late takes the latest slot due (the
-ones skipped are periods the valves held their setpoint) and carries the CiA 301 SYNC counter, so the
-devices (the emulated plant) know how many periods passed. A period is late when the answer to the last
-SYNC was written after the next was due, or its slot was skipped, as a frame board's period is late when
-the answer missed its next tick.
+The host loop is the clock: slot k is due k periods after the first SYNC; a SYNC a period or more late takes
+the latest slot due and carries the CiA 301 counter. Why and what counts as late: docs/HW_CANOPEN.md,
+"Real time".
 """
 
 from __future__ import annotations
