@@ -45,6 +45,8 @@ def run(observed: bool) -> dict[str, Any]:
     from sensor_msgs.msg import JointState
     from smm_bench_emulator.board import BoardConfig, BoardCore
     from smm_direct_loop.host import compose
+    from smm_hw_bridge.canopen_config import CanopenConfig
+    from smm_hw_bridge.core import BridgeConfig
     from smm_hw_bridge.device import Device, Link
     from smm_hw_bridge.frame_device import FrameDevice
     from smm_hw_bridge.transport import Transport
@@ -80,7 +82,7 @@ def run(observed: bool) -> dict[str, Any]:
         def close(self) -> None:
             pass
 
-    def open_board(link: Link) -> Device:
+    def open_board(link: Link, canopen: CanopenConfig, bridge: BridgeConfig) -> Device:
         device = FrameDevice("udp", Board)
         device.open()
         return device

@@ -1,7 +1,8 @@
 """Issue 44: the reversed bench (docs/BENCH.md) with the bridge's defaults ends non-zero, nothing moved.
 
 Lockstep ``smm-launch --plant hardware --bench-file bench_reversed.yaml``: the bridge reads joint alpha at
-5.99 rad (the bench's encoder zero) and stops at once with a reason naming the parameters to check.
+5.99 rad (the bench's encoder zero) and stops at once with a reason naming the parameters to check; the run
+ends there (exit 3), not at the emulator's start timeout.
 """
 
 from __future__ import annotations
@@ -26,5 +27,9 @@ def test_the_reversed_bench_with_the_bridge_defaults_is_a_safety_stop(ros_proces
         *("--bench-file", str(BENCH)),
         timeout=180,
     )
-    assert code != 0, logs
+    assert code == 3, logs
     assert "hw_bridge_node: the run did not control: safety stop: joint alpha reads 5.992 rad" in logs, logs
+    assert logs.count("host fault (safety stop:") == 1, logs  # one fault, one error transition
+    # the bridge ends the run at its stop: the graph does not wait for the emulator's start timeout
+    assert "autostart: the run ends at its safety stop" in logs, logs
+    assert "within its start timeout" not in logs, logs

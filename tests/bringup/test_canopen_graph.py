@@ -52,17 +52,17 @@ def test_real_time_canopen_sends_one_sync_a_control_period_from_the_bridges_loop
     options = GraphOptions(plant="hardware", link="canopen", clock_mode="realtime", control_rate=rate)
     divider = 1000 // rate
     bridge = _bridge(options)
-    assert bridge["link.canopen.sync_clock"] is True
-    assert "link.canopen.sync_on_enabled" not in bridge
+    assert bridge["canopen.sync_clock"] is True
+    assert "canopen.sync_on_enabled" not in bridge
     if divider > 1:
         assert bridge["bridge.control_divider"] == divider
-        assert bridge["link.canopen.period_us"] == 1000 * divider
-        assert bridge["link.canopen.receive_deadline_ms"] == 10 * divider
+        assert bridge["canopen.period_us"] == 1000 * divider
+        assert bridge["canopen.receive_deadline_ms"] == 10 * divider
     emulator = _emulator(options)
     assert emulator.get("control-divider", 1) == divider and "mode" not in emulator
 
 
 def test_lockstep_canopen_keeps_the_sync_after_the_setpoints() -> None:
     bridge = _bridge(GraphOptions(plant="hardware", link="canopen", clock_mode="lockstep", control_rate=200))
-    assert bridge["link.canopen.sync_on_enabled"] is True and "link.canopen.sync_clock" not in bridge
-    assert bridge["link.canopen.period_us"] == 5000
+    assert bridge["canopen.sync_on_enabled"] is True and "canopen.sync_clock" not in bridge
+    assert bridge["canopen.period_us"] == 5000

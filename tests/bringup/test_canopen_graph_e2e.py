@@ -56,8 +56,8 @@ def test_realtime_canopen_run_arms_on_the_sync_clock_controls_and_says_so(
     """The real-time path, not its timing: late periods are allowed (--late-limit 100), no preflight."""
     generous = tmp_path / "generous.yaml"  # a loaded machine's stall faults no device in this test
     generous.write_text(
-        "/**/hw_bridge_node:\n  ros__parameters:\n    link:\n      canopen:\n"
-        "        pdo_validity_ms: 60000\n        heartbeat_ms: 1000\n        receive_deadline_ms: 60000\n"
+        "/**/hw_bridge_node:\n  ros__parameters:\n    canopen:\n"
+        "      pdo_validity_ms: 60000\n      heartbeat_ms: 1000\n      receive_deadline_ms: 60000\n"
     )
     arguments = ["--plant", "hardware", "--link", "canopen", "--clock-mode", "realtime"]
     arguments += ["--scenario", "case1", "--duration", "2", "--control-rate", "1000", "--preflight", "0"]

@@ -250,15 +250,14 @@ def test_the_recorder_is_told_the_seed_the_emulator_runs_with(
         assert board.plant.seed == board.seed == recorded
 
 
-@pytest.mark.parametrize("seed", [None, 5])
-def test_an_external_board_records_no_seed(tmp_path: Path, seed: int | None) -> None:
-    """A board's noise is its own: unknown (-1, ``smm.seed`` empty), even with a --seed it never gets."""
+def test_an_external_board_records_no_seed_and_refuses_one(tmp_path: Path) -> None:
+    """A board's noise is its own: unknown (-1, ``smm.seed`` empty); a --seed it would never get is refused."""
     board = "192.168.1.20:50101"
-    options = GraphOptions(
-        plant="hardware", clock_mode="realtime", board=board, record=str(tmp_path / "b"), seed=seed
-    )
+    options = GraphOptions(plant="hardware", clock_mode="realtime", board=board, record=str(tmp_path / "b"))
     recorder = next(spec for spec in build_graph(options) if spec.name == graph_nodes.RECORDER_NODE)
     assert dict(recorder.parameters)["seed"] == -1
+    with pytest.raises(ValueError, match="seed .* with board, there is none"):
+        GraphOptions(plant="hardware", clock_mode="realtime", board=board, seed=5)
 
 
 @pytest.mark.parametrize(

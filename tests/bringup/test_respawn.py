@@ -12,6 +12,7 @@ from smm_bringup.launcher import run
 from smm_bringup.supervisor import (
     EXIT_CONFIGURATION_ERROR,
     EXIT_NODE_FAILED,
+    EXIT_NOT_CONTROLLED,
     EXIT_OK,
     RespawnPolicy,
     launch_processes,
@@ -80,6 +81,17 @@ def test_without_respawn_a_killed_node_stops_the_graph(nodes: Path, monkeypatch:
     assert len(nodes.read_text().split()) == 1
 
 
+@pytest.mark.parametrize("respawn", [None, RespawnPolicy(delay_s=0.0, limit=5)])
+def test_a_loop_that_ends_its_run_uncontrolled_stops_the_graph_with_exit_3(
+    nodes: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, respawn: RespawnPolicy | None
+) -> None:
+    _script(tmp_path, "stopper", f"echo $$ >> {nodes}\nexit 3")  # as hw_bridge_node at a safety stop
+    monkeypatch.setenv("STARTS", "1000")  # the plant never completes
+    graph = [_graph()[0], NodeSpec("no_such_package", "stopper", "hw_bridge_node", "m:C")]
+    assert launch_processes(graph, stop_grace_s=2.0, respawn=respawn) == EXIT_NOT_CONTROLLED
+    assert len(nodes.read_text().split()) == 1  # never started again
+
+
 @pytest.mark.parametrize(
     ("name", "code", "respawned"),
     [
@@ -88,6 +100,9 @@ def test_without_respawn_a_killed_node_stops_the_graph(nodes: Path, monkeypatch:
         ("direct_loop", 1, True),
         (RECORDER_NODE, -9, False),  # its bag folder exists: a new recorder could not write it
         (SIM_NODE, 0, False),  # the plant completed the run
+        (SIM_NODE, 3, False),  # the plant completed a run that did not control
+        ("direct_loop", 3, False),  # the loop ended a run that did not control (a safety stop): final
+        ("hw_bridge_node", 3, False),
         (SIM_NODE, -9, True),
     ],
 )

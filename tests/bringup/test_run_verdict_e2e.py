@@ -47,6 +47,7 @@ def test_hardware_lockstep_case2_recorded_twice_gives_a_bag_with_the_same_indice
         code, logs = _launch(ros_processes, f"smm-launch-{run}", *arguments)
         assert code == 0, logs
         assert "[smm-launch] run: controlled (late 0 of 3999 periods of 1 ms after the first 1 s live" in logs
+        assert " 0 lost, 0 samples missing in stamps" in logs  # else the indices differ for want of samples
         analysed = subprocess.run(
             [sys.executable, "-m", "smm_bag.cli", "analyze", "--json", "--quiet", str(bag)],
             capture_output=True,

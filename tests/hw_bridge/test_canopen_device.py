@@ -14,11 +14,15 @@ from smm_bench_emulator.canopen_bench import CanBench, CanBenchConfig, eds_path
 from smm_hw_bridge.canopen_config import CanopenConfig, bus_load, frame_bits, highest_rate_that_fits
 from smm_hw_bridge.canopen_device import CanopenDevice, ConfigureError
 from smm_hw_bridge.cia408 import ValveState
+from smm_hw_bridge.core import BridgeConfig, BridgeCore
 from smm_hw_bridge.device import open_device
+from smm_hw_bridge.pressure import PressureConfig
 from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FaultBit, FeedbackFrame, StatusBit
 from smm_hw_bridge.transport import LinkConfig
+from smm_hw_bridge.valve_output import ValveOutputConfig
 
 _CHANNELS = itertools.count()
+_FULL_SPOOL = BridgeConfig(valve=ValveOutputConfig(code_limit=(16384, 16384)))
 TIMEOUT = 5.0  # generous: a missing answer fails, a slow machine does not
 
 
@@ -187,8 +191,64 @@ def test_setpoints_that_stop_fault_the_valve_by_itself_with_an_emcy(bench: CanBe
         assert last.faults & FaultBit.VALVE_DRIVER
         assert any(f.startswith("valve beta (node 2): EMCY 0x8250") for f in device.faults), device.faults
         assert any("valve beta (node 2): status word 0x0001 (FAULT_DISABLED)" in f for f in device.faults)
-        _run(device, 2, (3000, 3000), int(CommandFlag.ENABLE), start=20, feedback=last)
+        last = _run(device, 2, (3000, 3000), int(CommandFlag.ENABLE), start=20, feedback=last)
         assert bench.valve_states()[0] is ValveState.DISABLED  # any fault: every valve to DISABLED
+        assert [valve.spool for valve in bench.valves] == [0, 0] and last.output_codes == (0, 0)
+        assert not any("heartbeat" in f or "0x8130" in f for f in device.faults)  # the master's lived
+        assert all(consumer.heard is not None and not consumer.lost for consumer in bench.consumers)
+    finally:
+        device.close()
+
+
+def test_a_lost_master_heartbeat_faults_every_valve_by_itself_with_an_emcy(
+    bench: CanBench, channel: str
+) -> None:
+    device = _open(channel, heartbeat_ms=200)  # the nodes' consumers: 600 ms
+    try:
+        armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
+        assert bench.valve_states() == (ValveState.ACTIVE, ValveState.ACTIVE)
+        deadline = time.monotonic() + TIMEOUT  # watching starts at the master's first heartbeat
+        while not all(c.heard for c in bench.consumers) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert all(consumer.heard is not None for consumer in bench.consumers)
+        bench.network.subscribers[0x700 + 127].clear()  # the master's heartbeat no longer reaches them
+        faulted = _until_fault(device, armed, 10)
+        assert faulted.faults & FaultBit.VALVE_DRIVER
+        last = _run(device, 2, (3000, 3000), int(CommandFlag.ENABLE), start=20_000, feedback=faulted)
+        assert bench.valve_states() == (ValveState.FAULT_DISABLED, ValveState.FAULT_DISABLED)
+        assert [valve.spool for valve in bench.valves] == [0, 0] and last.output_codes == (0, 0)
+        for name in ("valve alpha (node 1)", "valve beta (node 2)", "encoder beta (node 12)"):
+            assert f"{name}: EMCY 0x8130 (error register 0x11)" in device.faults, device.faults
+        assert last.faults & FaultBit.ENCODER
+    finally:
+        device.close()
+
+
+def test_each_valve_sends_its_joints_load_pressure_and_the_bridge_reads_its_torque(
+    bench: CanBench, channel: str
+) -> None:
+    pressure = PressureConfig(bar_per_code=(0.02, -0.015), zero_code=(1000.0, 3000.0))
+    bridge = BridgeConfig(valve=_FULL_SPOOL.valve, pressure=pressure, supply_bar_per_code=0.005)
+    device = CanopenDevice(
+        _config(supply_bar=9.0), can.Bus(interface="virtual", channel=channel), bridge=bridge
+    )
+    device.open()
+    try:
+        last = _run(device, 30, (3000, -5000), int(CommandFlag.ENABLE))
+        applied = bench.board.valves.applied
+        load = bench.board.valves.load_pressure()
+        assert applied[0] > 0.5 and applied[1] < -0.5  # the valves drive the joints
+        sent = [int(valve.node.tpdo[1][0x6381].raw) for valve in bench.valves]
+        assert sent == [round(bar / 0.01) for bar in load]  # 0x6381:01 in 0.01 bar units
+        core = BridgeCore(bridge, host_session=7)  # the bridge's own path: bridge.pressure.* on the A/D
+        assert core.on_feedback(last, time.monotonic_ns()) is last
+        torque = core.measured_torque
+        # quantised twice: 0.01 bar on the bus, bar_per_code on the A/D scale (x 1e5 Pa x 1.5e-5 m^3)
+        for joint in range(2):
+            step = (0.01 + abs(pressure.bar_per_code[joint])) * 1e5 * 1.5e-5
+            assert torque[joint] == pytest.approx(applied[joint], abs=step)
+        assert last.adc[0] == 1800  # canopen.supply_bar 9 bar / bridge.supply_bar_per_code 0.005
+        assert core.supply_pressure_bar == pytest.approx(9.0)
     finally:
         device.close()
 
@@ -238,11 +298,24 @@ def test_configuration_is_refused_with_its_reason() -> None:
         CanopenDevice(CanopenConfig(interface="virtual")).open()
 
 
+@pytest.mark.parametrize("limit", [(16385, 16384), (16384, 32767)])
+def test_a_code_limit_beyond_full_spool_is_refused_at_configure(
+    bench: CanBench, channel: str, limit: tuple[int, int]
+) -> None:
+    bridge = BridgeConfig(valve=ValveOutputConfig(code_limit=limit))
+    with pytest.raises(
+        ConfigureError,
+        match=rf"bridge.valve.code_limit \[{limit[0]}, {limit[1]}\] is above the valves' full scale 16384 "
+        r"\(100 % spool, 0x6300:01\) on the CANopen link: set it to at most 16384",
+    ):
+        open_device(LinkConfig(transport="canopen"), _config(channel=channel), bridge)
+    assert [valve.node.sdo[0x1017].raw for valve in bench.valves] == [0, 0]  # refused before any SDO
+
+
 def test_link_transport_canopen_opens_the_bench_from_the_link_parameters(
     bench: CanBench, channel: str
 ) -> None:
-    link = LinkConfig(transport="canopen", canopen=_config(channel=channel))
-    device = open_device(link)
+    device = open_device(LinkConfig(transport="canopen"), _config(channel=channel), _FULL_SPOOL)
     try:
         assert isinstance(device, CanopenDevice)
         assert device.description.name == "canopen"

@@ -115,6 +115,23 @@ def test_arming_needs_feedback_after_activation_and_a_command_answering_it() -> 
     assert frame.answers_seq == board.seq and frame.validity == 10
 
 
+def test_a_measurement_answered_twice_moves_the_rate_limited_output_once() -> None:
+    # lockstep: the board re-sends a feedback not yet answered and the host may answer it twice
+    config = dataclasses.replace(
+        CONFIG, valve=dataclasses.replace(CONFIG.valve, rate_limit=(1e6, 1e6))  # 1000 codes per ms
+    )
+    core, board = armed_core(config)
+    board.step()
+    first = core.on_command([10.0, -10.0], board.stamp, board.now), core.next_frame(board.now)
+    again = core.on_command([10.0, -10.0], board.stamp, board.now), core.next_frame(board.now)
+    assert first[0] is None and again[0] is None
+    assert first[1] is not None and again[1] is not None
+    assert again[1].codes == first[1].codes == (1500, -1250)  # from (500, -250): one step of 1000
+    board.step()
+    assert core.on_command([10.0, -10.0], board.stamp, board.now) is None
+    assert core.next_frame(board.now).codes == (2500, -2250)  # type: ignore[union-attr]
+
+
 def test_commands_are_refused_when_invalid_unknown_or_stale() -> None:
     core, board = armed_core()
     assert core.on_command([math.nan, 0.0], board.stamp, board.now) is Refusal.INVALID

@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 from memory_board import MemoryBoard
 from smm_hw_bridge.bridge_health import BridgeCounters
+from smm_hw_bridge.canopen_config import CanopenConfig
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
 from smm_hw_bridge.device import DEVICES, Device, device_names, open_device
 from smm_hw_bridge.frame_device import FrameDevice
@@ -22,7 +23,7 @@ from smm_hw_bridge.transport import LinkConfig
 TORQUE = (0.3, -0.2)
 
 
-def memory_device(link: LinkConfig) -> Device:
+def memory_device(link: LinkConfig, canopen: CanopenConfig, bridge: BridgeConfig) -> Device:
     """The factory of the ``memory`` row a test adds to the device table."""
     board = MemoryBoard()
     return FrameDevice("memory", lambda: board)
@@ -263,7 +264,7 @@ def test_link_transport_names_a_row_of_the_device_table(monkeypatch: pytest.Monk
     ):
         LinkConfig(transport="can")
     monkeypatch.setitem(DEVICES, "memory", "hw_bridge.test_loop:memory_device")  # type: ignore[index]
-    device = open_device(LinkConfig(transport="memory"))
+    device = open_device(LinkConfig(transport="memory"), CanopenConfig(), BridgeConfig())
     try:
         reading = device.read(0.0)
         assert reading is not None and not isinstance(reading, Reason) and reading.tick == 0

@@ -51,6 +51,14 @@ def test_rate_limit_per_second_of_held_command() -> None:
     assert sample.codes == (1000, 0) and sample.clamped.tolist() == [True, False]
 
 
+def test_a_step_again_replaces_the_last_one_from_where_it_started() -> None:
+    output = ValveOutput(ValveOutputConfig(gain=(1000.0, 1000.0), rate_limit=(1e6, 1e6)))  # 1000 codes per ms
+    assert output.step_floats((10.0, -10.0), 1e-3) == (1000, -1000)
+    assert output.step_floats((10.0, -10.0), 1e-3, again=True) == (1000, -1000)
+    assert output.step_floats((0.5, -10.0), 1e-3, again=True) == (500, -1000)
+    assert output.step_floats((10.0, -10.0), 1e-3) == (1500, -2000)  # the next step starts from the replacement
+
+
 def test_polarity_inverts_the_code() -> None:
     output = ValveOutput(ValveOutputConfig(gain=(1000.0, 1000.0), polarity=(-1, 1), rate_limit=INF))
     sample = output.step([1.0, 1.0], 1e-3)

@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 import yaml
+from smm_hw_bridge.canopen_config import CanopenConfig
 from smm_node_runtime.parameter_check import (
     Override,
     UnknownParameterError,
@@ -18,6 +19,7 @@ from smm_node_runtime.parameter_check import (
     parse_ros_arguments,
 )
 from smm_node_runtime.parameter_files import ParameterFileError
+from smm_schema.fields import config_fields
 
 CONTROLLER = {"/smm/controller_node": "controller_node"}
 """One running controller_node in /smm (a process started by smm-launch)."""
@@ -54,6 +56,17 @@ def test_a_mistyped_gain_is_refused_with_its_section_file_and_closest_name(tmp_p
     assert "'fpdeso.fuzzy.kd00'" in message and "'/**/controller_node'" in message
     assert str(path) in message and "did you mean 'fpdeso.fuzzy.kd0'?" in message
     assert "\n" not in message
+
+
+@pytest.mark.parametrize("field", [item.name for item in config_fields(CanopenConfig)])
+def test_an_old_link_canopen_name_is_refused_with_its_new_name(tmp_path: Path, field: str) -> None:
+    assert f"canopen.{field}" in known_names("hw_bridge_node")
+    path = _file(tmp_path, {"/**/hw_bridge_node": {"link": {"canopen": {field: 1}}}})
+    with pytest.raises(UnknownParameterError) as raised:
+        check_parameters([path], (), {"/smm/hw_bridge_node": "hw_bridge_node"}, "/smm")
+    message = str(raised.value)
+    assert f"unknown parameter 'link.canopen.{field}'" in message
+    assert f"did you mean 'canopen.{field}'? (link.canopen.* is now canopen.*)" in message
 
 
 def test_a_correct_file_passes(tmp_path: Path) -> None:

@@ -1,8 +1,10 @@
 """The emulated CANopen bench: two CiA 408 valves and two CiA 406 encoders as canopen LocalNodes.
 
-The plant is the board's (:class:`~smm_bench_emulator.board.BoardCore`: its plant, valve torque and encoder
-counters), sub-stepped at its 1 kHz tick between SYNCs. Each SYNC: the setpoints received since the last
-one are latched, the plant moves one cycle period (0x1006), the TPDOs go out. docs/HW_CANOPEN.md.
+The plant is the board's (:class:`~smm_bench_emulator.board.BoardCore`: its plant, valves and actuators with
+their lag, lock and load pressure, and encoder counters), sub-stepped at its 1 kHz tick between SYNCs. Each
+SYNC: the setpoints received since the last one are latched, the plant moves one cycle period (0x1006), the
+TPDOs go out (each valve's pressure actual: its joint's load pressure). Every node consumes the master's
+heartbeat (0x1016:01). docs/HW_CANOPEN.md.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from smm_bench_emulator.board import BoardConfig, BoardCore
 
 __all__ = [
     "EMCY_DEADLINE",
+    "EMCY_HEARTBEAT",
     "CanBench",
     "CanBenchConfig",
     "eds_path",
@@ -43,9 +46,15 @@ __all__ = [
 SYNC_ID: Final[int] = 0x80
 EMCY_DEADLINE: Final[int] = 0x8250
 """EMCY code of a valve whose RPDO missed its deadline (CiA 301: RPDO timeout)."""
+EMCY_HEARTBEAT: Final[int] = 0x8130
+"""EMCY code of a node whose consumer missed the master's heartbeat (CiA 301: heartbeat error)."""
 _RPDO_EVENT_TIMER: Final[tuple[int, int]] = (0x1400, 5)
 _CYCLE_PERIOD: Final[int] = 0x1006
 _KEPT_ANSWERS: Final[int] = 1_000_000
+_HEARTBEAT_CONSUMER: Final[tuple[int, int]] = (0x1016, 1)
+_WATCH_S: Final[float] = 0.01
+"""How often the consumers are checked (s)."""
+_INT16: Final[int] = 32767
 
 
 def eds_path(name: str) -> Path:
@@ -61,7 +70,7 @@ class CanBenchConfig:
         board: The plant, valves and encoders (the frame board's bench; its tick is the sub-step).
         valve_node_ids: Valve node ids (alpha, beta), in [1, 127].
         encoder_node_ids: Encoder node ids (alpha, beta), in [1, 127].
-        bar_per_unit: Pressure actual 0x6381:01 per bar unit (bar), > 0.
+        bar_per_unit: Pressure actual 0x6381:01 (the joint's load pressure) per unit (bar), > 0.
         wait_active: The plant stands still until both valves are first ACTIVE (lockstep runs line up
             with the simulator's, whose step 0 is the controller's first answer).
         duration_syncs: Live SYNCs (the plant moving) after which :attr:`CanBench.done` is set (0: never).
@@ -137,12 +146,47 @@ class _Valve:
         """Spool position now (the setpoint when ACTIVE, else the failsafe null)."""
         return self.setpoint if self.machine.follows_setpoint else 0
 
-    def transmit(self, pressure: int) -> None:
+    def transmit(self, pressure: float) -> None:
+        """TPDO1: status word, spool actual, ``pressure`` (its joint's load pressure, units of 0x6381:01)."""
         tpdo = self.node.tpdo[1]
         tpdo[STATUS_WORD].raw = self.machine.status
         tpdo[SPOOL_ACTUAL[0]].raw = self.spool
-        tpdo[PRESSURE_ACTUAL[0]].raw = pressure
+        tpdo[PRESSURE_ACTUAL[0]].raw = max(-_INT16, min(_INT16, round(pressure)))
         tpdo.transmit()
+
+
+class _Consumer:
+    """A node's heartbeat consumer 0x1016:01 (producer id in bits 16-23, time in ms in bits 0-15).
+
+    Watching starts at the producer's first heartbeat after the entry is written (CiA 301); none for that
+    long and ``lost`` is set once until one comes again.
+    """
+
+    def __init__(self, node: canopen.LocalNode, network: canopen.Network) -> None:
+        self.node = node
+        self.network = network
+        self.heard: float | None = None
+        self.lost = False
+        self.time_s = 0.0
+        node.add_write_callback(self._on_write)
+
+    def _on_write(self, index: int, subindex: int, od: object, data: bytes) -> None:
+        if (index, subindex) != _HEARTBEAT_CONSUMER:
+            return
+        value = int.from_bytes(data[:4], "little")
+        self.time_s, self.heard, self.lost = (value & 0xFFFF) / 1000.0, None, False
+        if self.time_s > 0:
+            self.network.subscribe(0x700 + ((value >> 16) & 0x7F), self._on_heartbeat)
+
+    def _on_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        self.heard, self.lost = time.monotonic(), False
+
+    def expired(self, now: float) -> bool:
+        """True once when the producer's heartbeat has been missing for longer than the consumer time."""
+        if self.lost or self.heard is None or self.time_s <= 0 or now - self.heard <= self.time_s:
+            return False
+        self.lost = True
+        return True
 
 
 class CanBench:
@@ -183,10 +227,27 @@ class CanBench:
             self.network.add_node(node)
             node.tpdo.read(from_od=True)
             self.encoders.append(node)
+        self.consumers = [_Consumer(node, self.network) for node in self._nodes()]
         self.network.subscribe(SYNC_ID, self._on_sync)
         self.network.connect()
         for node in self._nodes():
             node.nmt.send_command(0x81)  # reset node: boot-up, then PRE-OPERATIONAL
+        self._closing = threading.Event()
+        self._watcher = threading.Thread(target=self._watch, name="can_bench_heartbeats", daemon=True)
+        self._watcher.start()
+
+    def _watch(self) -> None:
+        """The master's heartbeat missing: each valve to FAULT_DISABLED (spool null), every node's EMCY."""
+        while not self._closing.wait(_WATCH_S):
+            with self.lock:
+                now = time.monotonic()
+                for consumer in self.consumers:
+                    if not consumer.expired(now):
+                        continue
+                    for valve in self.valves:
+                        if valve.node is consumer.node and not valve.machine.state.fault:
+                            valve.machine.fault()
+                    consumer.node.emcy.send(EMCY_HEARTBEAT, register=0x11)
 
     def _nodes(self) -> list[canopen.LocalNode]:
         return [valve.node for valve in self.valves] + self.encoders
@@ -214,13 +275,14 @@ class CanBench:
                 self.answer_us.append((max(arrivals) - before) / 1e3)
         for valve in self.valves:
             valve.latch(cycle_us, periods)
-        self.board.output = [valve.spool * CODE_MAX / SPOOL_FULL_SCALE for valve in self.valves]
+        board = self.board
+        board.output = [valve.spool * CODE_MAX / SPOOL_FULL_SCALE for valve in self.valves]
         active = all(valve.machine.follows_setpoint for valve in self.valves)
         self.active_syncs += active
         if self.live_syncs or active or not self.config.wait_active:
-            substeps = max(1, round(cycle_us * 1000 / self.board.config.period_ns)) * periods
-            for _ in range(substeps):
-                self.board.plant.step(self.board.valve_torque(), self.board.config.plant.control_period)
+            substeps = max(1, round(cycle_us * 1000 / board.config.period_ns)) * periods
+            for _ in range(substeps):  # not both ACTIVE: the failsafe spool, the oil trapped
+                board.valves.move(board.plant, board.output_codes(), active, board.supply_pressure)
             before_live = self.live_syncs
             self.live_syncs += periods
             if before_live < self.config.duration_syncs <= self.live_syncs:
@@ -228,9 +290,9 @@ class CanBench:
         self.syncs += 1
         if not all(node.nmt.state == "OPERATIONAL" for node in self._nodes()):
             return
-        pressure = round(self.board.supply_pressure / self.config.bar_per_unit)
-        for valve in self.valves:
-            valve.transmit(pressure)
+        load = board.valves.load_pressure()
+        for valve, bar in zip(self.valves, load, strict=True):
+            valve.transmit(bar / self.config.bar_per_unit)
         for encoder, count in zip(self.encoders, self.board.counts(), strict=True):
             encoder.tpdo[1][POSITION].raw = count
             encoder.tpdo[1].transmit()
@@ -250,7 +312,9 @@ class CanBench:
             return tuple(valve.machine.state for valve in self.valves)
 
     def close(self) -> None:
-        """Stops heartbeats and leaves the bus."""
+        """Stops heartbeats and the consumers' watch, and leaves the bus."""
+        self._closing.set()
+        self._watcher.join()
         for node in self._nodes():
             node.nmt.stop_heartbeat()
         self.network.disconnect()

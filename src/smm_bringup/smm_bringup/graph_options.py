@@ -48,7 +48,7 @@ CANOPEN_REALTIME_RATE_HZ: Final[int] = 200
 """The CANopen link's default control rate in real time (the host's loop sends each SYNC; measured to hold
 on a loaded 2-core machine, docs/HW_CANOPEN.md, "Real time"); lockstep keeps 1000 Hz."""
 EXTERNAL_BOARD: Final[str] = "external"
-"""``board`` on the CANopen link: no emulator; the bridge drives the devices its ``link.canopen.*`` name."""
+"""``board`` on the CANopen link: no emulator; the bridge drives the devices its ``canopen.*`` name."""
 LOOPS: Final[tuple[str, ...]] = ("auto", "topics", "direct")
 """``topics``: the plant and ``controller_node`` are separate processes joined by topics (the product's
 shape); ``direct`` (hardware only): one process, ``direct_loop``, steps the chain of ``controller_node`` in
@@ -231,6 +231,8 @@ class GraphOptions:
         if self.board is not None:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
+            if self.seed is not None:
+                raise ValueError("seed seeds the simulator's or the emulator's noise: with board, there is none")
             if self.link == "canopen":
                 if self.board != EXTERNAL_BOARD:
                     raise ValueError(

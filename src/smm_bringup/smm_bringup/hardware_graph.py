@@ -11,6 +11,7 @@ from typing import Any, Final
 from smm_bench_emulator.bench_file import BenchFileError, default_bench, load_bench_file
 from smm_bench_emulator.board import BoardConfig
 from smm_bench_emulator.canopen_bench import eds_path
+from smm_hw_bridge.canopen_config import parameter as canopen_parameter
 from smm_hw_bridge.cia408 import SPOOL_FULL_SCALE
 
 from smm_bringup.errors import ParameterFileError
@@ -158,8 +159,8 @@ def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
         # limit as the frame link's default, full scale in 2 ms
         gain = SPOOL_FULL_SCALE / BoardConfig().full_scale_torque[0]
         link += [
-            ("link.canopen.valve_eds", str(eds_path("valve_cia408.eds"))),
-            ("link.canopen.encoder_eds", str(eds_path("encoder_cia406.eds"))),
+            (canopen_parameter("valve_eds"), str(eds_path("valve_cia408.eds"))),
+            (canopen_parameter("encoder_eds"), str(eds_path("encoder_cia406.eds"))),
             ("bridge.valve.gain", (gain, gain)),
             ("bridge.valve.code_limit", (SPOOL_FULL_SCALE, SPOOL_FULL_SCALE)),
             ("bridge.valve.rate_limit", (SPOOL_FULL_SCALE / 0.002,) * 2),
@@ -167,18 +168,18 @@ def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
     divider = options.control_divider
     if divider > 1:  # one SYNC a control period; a valve's receive deadline of 10 periods, as at 1 kHz
         link += [
-            ("link.canopen.period_us", 1000 * divider),
-            ("link.canopen.receive_deadline_ms", 10 * divider),
+            (canopen_parameter("period_us"), 1000 * divider),
+            (canopen_parameter("receive_deadline_ms"), 10 * divider),
         ]
     if options.clock_mode == "lockstep":
         # the controller's pace, a loaded machine's: generous validity and heartbeat consumer times
         link += [
-            ("link.canopen.sync_on_enabled", True),
-            ("link.canopen.pdo_validity_ms", 60_000),
-            ("link.canopen.heartbeat_ms", 1000),
+            (canopen_parameter("sync_on_enabled"), True),
+            (canopen_parameter("pdo_validity_ms"), 60_000),
+            (canopen_parameter("heartbeat_ms"), 1000),
         ]
     else:  # the bridge's loop sends each SYNC when due (docs/HW_CANOPEN.md, "Real time")
-        link.append(("link.canopen.sync_clock", True))
+        link.append((canopen_parameter("sync_clock"), True))
     return link
 
 

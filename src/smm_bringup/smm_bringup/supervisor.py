@@ -137,8 +137,9 @@ class RespawnPolicy:
     """``--respawn``: restart a node process that exited, as launch's ``respawn``/``respawn_delay``.
 
     Every node but the recorder (its bag folder exists) is restarted with its command line when it exits
-    while the graph runs, unless it is a plant process that completed the run (exit 0 or 3) or refused to
-    arm at preflight (exit 4: final until a person changes something; a respawn would refuse again).
+    while the graph runs, unless it is a plant process that completed the run (exit 0), a process that ended
+    a run that did not control (exit 3: a safety stop is final) or refused to arm at preflight (exit 4:
+    final until a person changes something; a respawn would refuse again).
 
     Attributes:
         delay_s: Seconds between the exit and the restart, in [0, 60].
@@ -158,8 +159,9 @@ class RespawnPolicy:
 
     def applies(self, spec: NodeSpec, code: int) -> bool:
         """True when a node ``spec`` that exited with ``code`` is to be restarted."""
-        completed = spec.name in PLANT_NODE_NAMES and code in (EXIT_OK, EXIT_NOT_CONTROLLED)
-        return spec.name != RECORDER_NODE and not completed and code != EXIT_PREFLIGHT_REFUSED
+        completed = spec.name in PLANT_NODE_NAMES and code == EXIT_OK
+        final = code in (EXIT_NOT_CONTROLLED, EXIT_PREFLIGHT_REFUSED)
+        return spec.name != RECORDER_NODE and not completed and not final
 
 
 @dataclass
@@ -437,6 +439,10 @@ def launch_processes(
                     codes = processes.stop()
                     _report_stop(codes, expected_done=spec.name)
                     return EXIT_NOT_CONTROLLED if EXIT_NOT_CONTROLLED in codes.values() else EXIT_OK
+                if code == EXIT_NOT_CONTROLLED:  # the loop ended its run (a safety stop): final
+                    _say(f"{spec.name} ended the run: it did not control (why: above); stopping the graph")
+                    _report_stop(processes.stop(), expected_done=spec.name)
+                    return EXIT_NOT_CONTROLLED
                 if code == EXIT_PREFLIGHT_REFUSED:
                     final = (
                         " (not respawned: final until a person changes a setting or the load)"

@@ -9,6 +9,7 @@ Lifecycle, faults and parameters: docs/NODES.md, "hw_bridge_node"; the loop: doc
 
 from __future__ import annotations
 
+import functools
 import gc
 import secrets
 import sys
@@ -31,6 +32,7 @@ from std_srvs.srv import Trigger
 
 from smm_hw_bridge.bridge_health import BridgeCounters
 from smm_hw_bridge.bridge_run import AutostartGate, closing_line, judged_exit, realtime_scheduled, run_verdict
+from smm_hw_bridge.canopen_config import PARAMETERS, CanopenConfig
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeError
 from smm_hw_bridge.device import Device, open_device
 from smm_hw_bridge.loop import Answerer, BridgeLoop, ChangeBuffer, Tick
@@ -86,6 +88,7 @@ class HwBridgeNode(LifecycleNode):
         super().__init__(name, **arguments)
         try:
             self._link = ConfigParameters(self, "link", LinkConfig())
+            self._canopen = ConfigParameters(self, PARAMETERS, CanopenConfig())
             self._bridge = ConfigParameters(self, "bridge", BridgeConfig())
             self._verdict = ConfigParameters(self, "verdict", VerdictConfig(), read_only=True)
             self._gate = ConfigParameters(self, "", AutostartGate(), read_only=True)
@@ -256,14 +259,15 @@ class HwBridgeNode(LifecycleNode):
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Opens the device, waits for valid feedback, locks the board with a safe frame."""
-        link, self._fault_transition = self._link.config, False
+        link, canopen, self._fault_transition = self._link.config, self._canopen.config, False
         self.publish_us = RunningFigures()
         core = BridgeCore(self._bridge.config, host_session=secrets.randbelow(0xFFFFFFFF) + 1)
         divider = core.config.control_divider
         tally = RunTally(core.config.period_ns, self._verdict.config, divider, self._feedback_every(divider))
         source = f"{link.board_address}:{link.board_port}"
         try:
-            why = self.loop.connect(lambda: open_device(link), core, tally, link.configure_timeout, source)
+            opener = functools.partial(open_device, link, canopen, core.config)
+            why = self.loop.connect(opener, core, tally, link.configure_timeout, source)
         except Exception:  # a bug, not a bad frame (those are counted); the device is closed
             self._log.error(f"configure: waiting for feedback failed:\n{traceback.format_exc()}")
             return TransitionCallbackReturn.FAILURE
@@ -385,7 +389,8 @@ class HwBridgeNode(LifecycleNode):
             return
         self.loop.fault_signalled = False
         why = self.loop.fault()
-        if why is not None and not self._fault_transition:
+        live = self.lifecycle_state in ("active", "inactive")  # not again once the error transition ran
+        if why is not None and live and not self._fault_transition:
             self._fault_transition = True
             self._log.error(f"{why}: safe output, error transition")
             self.diagnostics.publish()
@@ -393,6 +398,9 @@ class HwBridgeNode(LifecycleNode):
                 self.trigger_deactivate()  # type: ignore[no-untyped-call]
             elif self.lifecycle_state == "inactive":
                 self.trigger_cleanup()  # type: ignore[no-untyped-call]
+            if self.autostart and self.loop.safety_stop:  # final, as a preflight refusal: a person looks first
+                self._log.error("autostart: the run ends at its safety stop (not configured again)")
+                self.context.try_shutdown()
 
     def health(self) -> Health:
         """Link, loss, round trip, board counters, faults, supply pressure; the direct loop's figures."""

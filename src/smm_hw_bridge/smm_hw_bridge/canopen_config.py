@@ -1,17 +1,33 @@
-"""The CANopen link's settings (``link.canopen.*``), without the bus libraries. No ROS."""
+"""The CANopen link's settings (the bridge's ``canopen.*`` parameters), without the bus libraries. No ROS."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Final
 
 from smm_schema.ranges import bounds, check_bounds
 
 from smm_hw_bridge.control_rate import CONTROL_RATES_HZ
 
-__all__ = ["JOINTS", "CanopenConfig", "bus_load", "frame_bits", "highest_rate_that_fits"]
+__all__ = [
+    "JOINTS",
+    "PARAMETERS",
+    "CanopenConfig",
+    "bus_load",
+    "frame_bits",
+    "highest_rate_that_fits",
+    "parameter",
+]
 
 JOINTS = ("alpha", "beta")
+PARAMETERS: Final[str] = "canopen"
+"""The prefix of the bridge's parameters of :class:`CanopenConfig` (``canopen.interface``, ...)."""
+
+
+def parameter(name: str) -> str:
+    """The bridge's parameter of :class:`CanopenConfig`'s field ``name`` (``canopen.<name>``)."""
+    return f"{PARAMETERS}.{name}"
 
 
 def _files(names: str) -> list[str]:
@@ -38,9 +54,10 @@ class CanopenConfig:
         period_us: SYNC period written to 0x1006 (us).
         receive_deadline_ms: The valves' RPDO1 event timer 0x1400:05 (ms): no setpoint for that long and a
             valve faults by itself.
-        bar_per_unit: Pressure actual 0x6381:01 per unit (bar), > 0.
-        supply_bar_per_code: The bridge's supply scale (``bridge.supply_bar_per_code``): the pressure is
-            handed over as that A/D code.
+        bar_per_unit: The pressure scale: each valve's pressure actual 0x6381:01 (its joint's load
+            pressure, bar) per unit, > 0; to the bridge's ``bridge.pressure.*`` as an A/D code.
+        supply_bar: The supply pressure the bridge reports on this link (bar): no node sends it; a stated
+            value, the bench's supply.
         master_node_id: The master's node id in the consumers' 0x1016 (its heartbeat's id), in [1, 127].
         sdo_timeout: SDO answer timeout (s).
         max_bus_load: The bus load refused at configure (fraction of the bit rate), in (0, 1].
@@ -65,7 +82,7 @@ class CanopenConfig:
     period_us: int = field(default=1000, metadata=bounds(100, 1_000_000))
     receive_deadline_ms: int = field(default=10, metadata=bounds(1, 65535))
     bar_per_unit: float = field(default=0.01, metadata=bounds(1e-9, 1e3))
-    supply_bar_per_code: float = field(default=25.0 / 4095.0, metadata=bounds(1e-9, 1e3))
+    supply_bar: float = field(default=10.0, metadata=bounds(0.0, 1e3))
     master_node_id: int = field(default=127, metadata=bounds(1, 127))
     sdo_timeout: float = field(default=0.5, metadata=bounds(0.001, 60.0))
     max_bus_load: float = field(default=0.7, metadata=bounds(1e-3, 1.0))
@@ -90,8 +107,8 @@ class CanopenConfig:
             )
         if self.sync_clock and self.sync_on_enabled:
             raise ValueError("sync_clock (real time) and sync_on_enabled (lockstep) exclude each other")
-        if not all(math.isfinite(value) for value in (self.bar_per_unit, self.supply_bar_per_code)):
-            raise ValueError("bar_per_unit and supply_bar_per_code must be finite")
+        if not all(math.isfinite(value) for value in (self.bar_per_unit, self.supply_bar)):
+            raise ValueError("bar_per_unit and supply_bar must be finite")
 
     def eds(self, kind: str, joint: int) -> str:
         """The EDS file of the ``kind`` (``valve``, ``encoder``) node of ``joint``."""

@@ -17,7 +17,13 @@ import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from smm_hw_bridge.can_multicast import MulticastRouteError, loopback_multicast_bus
-from smm_hw_bridge.canopen_config import JOINTS, CanopenConfig, bus_load, highest_rate_that_fits
+from smm_hw_bridge.canopen_config import (
+    JOINTS,
+    CanopenConfig,
+    bus_load,
+    highest_rate_that_fits,
+    parameter,
+)
 from smm_hw_bridge.cia408 import (
     CONTROL_MODE,
     CONTROL_WORD,
@@ -36,6 +42,7 @@ from smm_hw_bridge.cia408 import (
     control_word,
     state_of_status,
 )
+from smm_hw_bridge.core import BridgeConfig
 from smm_hw_bridge.device import Device, DeviceDescription, DeviceError, Reading, ValveCommand
 from smm_hw_bridge.protocol import (
     ADC_MAX,
@@ -47,6 +54,7 @@ from smm_hw_bridge.protocol import (
 )
 from smm_hw_bridge.sync_clock import SyncClock
 from smm_hw_bridge.transport import LinkConfig
+from smm_hw_bridge.valve_output import ValveOutputConfig
 
 __all__ = ["CanopenDevice", "ConfigureError", "canopen_device"]
 
@@ -96,23 +104,31 @@ class CanopenDevice(Device):
     Args:
         config: The link.
         bus: An open python-can bus to use instead of opening ``config``'s (tests: ``virtual``).
+        bridge: The bridge's settings: its valve code limit (checked at :meth:`open`) and its A/D scales
+            (the pressures are handed over as the A/D codes ``bridge.pressure.*`` and
+            ``bridge.supply_bar_per_code`` read back); None: the defaults, the code limit at full spool.
         boot_wait_s: How long :meth:`open` waits for each node's first SDO answer (s): a bench powering up,
             an emulator starting after the bridge (``link.configure_timeout``).
     """
 
     def __init__(
-        self, config: CanopenConfig, bus: can.BusABC | None = None, boot_wait_s: float = 0.0
+        self,
+        config: CanopenConfig,
+        bus: can.BusABC | None = None,
+        bridge: BridgeConfig | None = None,
+        boot_wait_s: float = 0.0,
     ) -> None:
         super().__init__()
         self.description = DeviceDescription(
             name="canopen",
             joints=JOINTS,
             valves=JOINTS,
-            analog=("supply",),
+            analog=("supply", "load pressure alpha", "load pressure beta", "none"),
             own_watchdog=True,
             validity=False,
         )
         self.config = config
+        self.bridge = bridge or BridgeConfig(valve=ValveOutputConfig(code_limit=(SPOOL_FULL_SCALE,) * 2))
         self._bus = bus
         self._boot_wait_s = boot_wait_s
         self.network: canopen.Network | None = None
@@ -148,9 +164,15 @@ class CanopenDevice(Device):
         if self.network is not None:
             return
         config = self.config
+        limit = self.bridge.valve.code_limit
+        if any(code > SPOOL_FULL_SCALE for code in limit):
+            raise ConfigureError(
+                f"bridge.valve.code_limit {list(limit)} is above the valves' full scale {SPOOL_FULL_SCALE} "
+                f"(100 % spool, 0x6300:01) on the CANopen link: set it to at most {SPOOL_FULL_SCALE}"
+            )
         if not config.valve_eds or not config.encoder_eds:
             raise ConfigureError(
-                "link.canopen.valve_eds and link.canopen.encoder_eds must name the devices' EDS files"
+                f"{parameter('valve_eds')} and {parameter('encoder_eds')} must name the devices' EDS files"
             )
         try:
             if self._bus is not None:
@@ -206,7 +228,7 @@ class CanopenDevice(Device):
             fits = highest_rate_that_fits(payloads, config.bitrate, config.max_bus_load)
             raise ConfigureError(
                 f"bus load {100 * load:.1f} % at {rate:g} Hz and {config.bitrate} bit/s (frames of "
-                f"{payloads} bytes a cycle, worst-case stuffing) is above link.canopen.max_bus_load "
+                f"{payloads} bytes a cycle, worst-case stuffing) is above {parameter('max_bus_load')} "
                 f"{100 * config.max_bus_load:g} %; "
                 + (f"the highest offered rate that fits is {fits} Hz" if fits else "no offered rate fits")
             )
@@ -436,9 +458,12 @@ class CanopenDevice(Device):
             status |= int(StatusBit.ENABLED)
         if self._estop:
             status |= int(StatusBit.ESTOP_LATCHED)
-        supply = round(
-            valves[0].values[PRESSURE_ACTUAL[0]] * self.config.bar_per_unit / self.config.supply_bar_per_code
-        )
+        scale, bar_per_unit = self.bridge.pressure, self.config.bar_per_unit
+        load = [
+            scale.zero_code[j] + v.values[PRESSURE_ACTUAL[0]] * bar_per_unit / scale.bar_per_code[j]
+            for j, v in enumerate(valves)
+        ]
+        adc = [self.config.supply_bar / self.bridge.supply_bar_per_code, *load, 0.0]
         spool = tuple(
             max(-SPOOL_FULL_SCALE, min(SPOOL_FULL_SCALE, v.values[SPOOL_ACTUAL[0]])) for v in valves
         )
@@ -455,7 +480,7 @@ class CanopenDevice(Device):
             tick=tick % _U32,
             host_session=self._host_session,
             counts=(encoders[0].values[POSITION] % _U32, encoders[1].values[POSITION] % _U32),
-            adc=(min(max(supply, 0), ADC_MAX), 0, 0, 0),
+            adc=tuple(min(max(round(value), 0), ADC_MAX) for value in adc),  # type: ignore[arg-type]
             status=status,
             faults=self._fault_bits & 0xFFFF,
             applied_seq=self._last_seq,
@@ -551,6 +576,6 @@ class CanopenDevice(Device):
                     )
 
 
-def canopen_device(link: LinkConfig) -> CanopenDevice:
-    """The CANopen bench ``link.canopen`` describes."""
-    return CanopenDevice(link.canopen, boot_wait_s=link.configure_timeout)
+def canopen_device(link: LinkConfig, canopen: CanopenConfig, bridge: BridgeConfig) -> CanopenDevice:
+    """The CANopen bench the bridge's ``canopen.*`` describe."""
+    return CanopenDevice(canopen, bridge=bridge, boot_wait_s=link.configure_timeout)

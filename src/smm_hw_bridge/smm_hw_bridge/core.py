@@ -242,6 +242,7 @@ class BridgeCore:
         self._pending: _Pending | None = None
         self._active = False
         self._arm_tick = -1
+        self._stepped_tick = -1  # the measurement tick the valve output last stepped for
         self._estop_requested = False
         self._rearm_pending = False
         self._seq = 0
@@ -472,7 +473,10 @@ class BridgeCore:
         cut_a = (position_a >= limit_a and alpha > 0.0) or (position_a <= -limit_a and alpha < 0.0)
         cut_b = (position_b >= limit_b and beta > 0.0) or (position_b <= -limit_b and beta < 0.0)
         self._cut = (cut_a, cut_b)
-        codes = self._valve.step_floats((0.0 if cut_a else alpha, 0.0 if cut_b else beta), self._command_dt)
+        again = tick == self._stepped_tick  # a re-sent feedback answered again (lockstep): one step a tick
+        self._stepped_tick = tick
+        demand = (0.0 if cut_a else alpha, 0.0 if cut_b else beta)
+        codes = self._valve.step_floats(demand, self._command_dt, again)
         self._pending = _Pending(codes, entry[0], entry[1], tick, rx_ns)
         last = self._last
         # lockstep: the board re-sends the feedback it built before it locked to us (the board itself drops

@@ -13,6 +13,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final, Literal, Protocol, TypeAlias
 
+from smm_hw_bridge.canopen_config import CanopenConfig
+from smm_hw_bridge.core import BridgeConfig
 from smm_hw_bridge.protocol import CommandFrame, FeedbackFrame, Reason
 
 __all__ = [
@@ -114,7 +116,8 @@ DEVICES: Final[Mapping[str, str]] = {
     "serial": "smm_hw_bridge.frame_device:serial_device",
     "canopen": "smm_hw_bridge.canopen_device:canopen_device",
 }
-"""Every device: ``link.transport`` name -> ``module:factory`` (the factory takes the ``LinkConfig``)."""
+"""Every device: ``link.transport`` name -> ``module:factory`` (the factory takes the ``LinkConfig``, the
+``CanopenConfig`` and the ``BridgeConfig``: the bridge's ``link.*``, ``canopen.*`` and ``bridge.*``)."""
 if TYPE_CHECKING:
     DeviceName: TypeAlias = str
 else:
@@ -135,13 +138,13 @@ class Link(Protocol):
         """The device's name in :data:`DEVICES`."""
 
 
-def open_device(link: Link) -> Device:
-    """The device ``link.transport`` names, opened; its factory is given ``link``.
+def open_device(link: Link, canopen: CanopenConfig, bridge: BridgeConfig) -> Device:
+    """The device ``link.transport`` names, opened; its factory is given ``link``, ``canopen``, ``bridge``.
 
     Raises:
         DeviceError: It cannot be opened.
     """
     module, _, factory = DEVICES[link.transport].partition(":")
-    device: Device = getattr(importlib.import_module(module), factory)(link)
+    device: Device = getattr(importlib.import_module(module), factory)(link, canopen, bridge)
     device.open()
     return device

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from smm_hw_bridge.canopen_config import CanopenConfig
+from smm_hw_bridge.core import BridgeConfig
 from smm_hw_bridge.device import Device, DeviceDescription, DeviceError, Reading, ValveCommand
 from smm_hw_bridge.protocol import ADC_CHANNELS, ProtocolError, decode_feedback, encode
 from smm_hw_bridge.transport import LinkConfig, SerialTransport, Transport, TransportError, UdpTransport
@@ -86,7 +88,7 @@ class FrameDevice(Device):
         """Nothing beyond the loop's safe frame: the board nulls by itself ``validity`` ticks later."""
 
 
-def udp_device(link: LinkConfig) -> FrameDevice:
+def udp_device(link: LinkConfig, canopen: CanopenConfig, bridge: BridgeConfig) -> FrameDevice:
     """The board over UDP (``link.bind_*``, ``link.board_*``)."""
     return FrameDevice(
         "udp",
@@ -94,6 +96,6 @@ def udp_device(link: LinkConfig) -> FrameDevice:
     )
 
 
-def serial_device(link: LinkConfig) -> FrameDevice:
+def serial_device(link: LinkConfig, canopen: CanopenConfig, bridge: BridgeConfig) -> FrameDevice:
     """The board over a COBS-framed serial line (``link.serial_port``, ``link.baudrate``)."""
     return FrameDevice("serial", lambda: SerialTransport(link.serial_port, link.baudrate))

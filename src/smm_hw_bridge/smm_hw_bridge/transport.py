@@ -21,7 +21,6 @@ from typing import Any, Final
 
 from smm_schema.ranges import bounds, check_bounds
 
-from smm_hw_bridge.canopen_config import CanopenConfig
 from smm_hw_bridge.device import DeviceName, device_names
 
 __all__ = [
@@ -332,7 +331,6 @@ class LinkConfig:
         serial_port: Serial: device name.
         baudrate: Serial: line speed (bit/s).
         configure_timeout: Time ``configure`` waits for a valid feedback frame (s).
-        canopen: CANopen: the bus and its nodes (docs/HW_CANOPEN.md).
     """
 
     transport: DeviceName = "udp"
@@ -343,7 +341,6 @@ class LinkConfig:
     serial_port: str = ""
     baudrate: int = field(default=921_600, metadata=bounds(1, 100_000_000))
     configure_timeout: float = field(default=2.0, metadata=bounds(0.001, 600.0))
-    canopen: CanopenConfig = field(default_factory=CanopenConfig)
 
     def __post_init__(self) -> None:
         if self.transport not in device_names():

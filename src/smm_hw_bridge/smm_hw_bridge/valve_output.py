@@ -134,6 +134,7 @@ class ValveOutput:
     def reset(self) -> None:
         """Valves at null: the rate limit starts again from code 0, the lag model from 0 N m."""
         self._last = [0.0, 0.0]
+        self._before = (0.0, 0.0)
         self._codes = (0, 0)
         self._torque = (0.0, 0.0)
         self._clamped = (False, False)
@@ -166,8 +167,18 @@ class ValveOutput:
         self._last[joint] = code
         return code, saturated != wanted or limited != saturated
 
-    def step_floats(self, torque: tuple[float, float], dt: float) -> tuple[int, int]:
-        """:meth:`step` for a demand the caller checked: finite floats (alpha, beta) (N m), ``dt`` > 0 (s)."""
+    def step_floats(
+        self, torque: tuple[float, float], dt: float, again: bool = False
+    ) -> tuple[int, int]:
+        """:meth:`step` for a demand the caller checked: finite floats (alpha, beta) (N m), ``dt`` > 0 (s).
+
+        ``again``: a new answer to the measurement the last step answered replaces it (the rate limit
+        starts from where that step started), so a re-sent answer moves the output once, not twice.
+        """
+        if again:
+            self._last = [self._before[0], self._before[1]]
+        else:
+            self._before = (self._last[0], self._last[1])
         code_a, clamped_a = self._code(0, torque[0], dt)
         code_b, clamped_b = self._code(1, torque[1], dt)
         codes = (int(code_a), int(code_b))

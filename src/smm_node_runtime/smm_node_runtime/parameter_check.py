@@ -32,6 +32,7 @@ from smm_node_runtime.parameter_files import (
 
 __all__ = [
     "KNOWN_PARAMETERS_FILE",
+    "RENAMED",
     "ROS_PARAMETERS",
     "Override",
     "RosArguments",
@@ -52,6 +53,8 @@ KNOWN_PARAMETERS_FILE: Final[Path] = Path(__file__).with_name("known_parameters.
 ROS_PARAMETERS: Final[frozenset[str]] = frozenset({"use_sim_time", "start_type_description_service"})
 """Parameters rclpy itself declares on every node, allowed everywhere (besides ``qos_overrides.*``)."""
 _ROS_PREFIXES: Final[tuple[str, ...]] = ("qos_overrides.",)
+RENAMED: Final[Mapping[str, str]] = {"link.canopen.": "canopen."}
+"""Old name prefix -> the new one: an old name is refused with its new name as the hint (issue 42)."""
 
 _OVERRIDE = re.compile(
     r"(?:(?P<node>[A-Za-z_][A-Za-z0-9_]*):)?(?P<name>[A-Za-z0-9_]+(?:\.[A-Za-z0-9_]+)*):=(?P<value>.*)", re.S
@@ -251,7 +254,11 @@ def check_parameters(
 
 
 def did_you_mean(name: str, known: Iterable[str]) -> str:
-    """``"; did you mean 'closest'?"`` with the ``known`` name closest to ``name``; "" when none is close."""
+    """``"; did you mean 'closest'?"``: the ``known`` name closest to ``name`` (a renamed one's new name)."""
+    known = set(known)
+    for old, new in RENAMED.items():
+        if name.startswith(old) and new + name[len(old) :] in known:
+            return f"; did you mean '{new}{name[len(old) :]}'? ({old}* is now {new}*)"
     close = difflib.get_close_matches(name, sorted(known), n=1)
     return f"; did you mean '{close[0]}'?" if close else ""
 
