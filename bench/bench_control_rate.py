@@ -1,4 +1,4 @@
-"""What a control rate below the board's tick costs: case-1 and case-2 tracking RMS at 1000, 500, 250 Hz.
+"""What a control rate below the board's tick costs: case-1 and case-2 tracking RMS at each offered rate.
 
 Deterministic (no wall clock): the offline closed loop (``smm_analysis.closed_loop``, the chain and plant a
 lockstep ``smm-launch`` run reproduces), FPDESO, the plant integrated at the board's 1 ms step (``substeps``

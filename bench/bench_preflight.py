@@ -30,7 +30,7 @@ HERE = Path(__file__).resolve().parent
 SECONDS = float(os.environ.get("SMM_BENCH_PREFLIGHT_SECONDS", "15"))
 REPEAT = int(os.environ.get("SMM_BENCH_PREFLIGHT_REPEAT", "1"))
 COMPARE = int(os.environ.get("SMM_BENCH_PREFLIGHT_COMPARE", "3"))
-RATES_HZ = (1000, 500, 250)
+RATES_HZ = (1000, 500, 250, 200, 100)
 """The candidate control rates, fastest first (a 1 kHz board)."""
 EXIT_NAMES = {0: "controlled", 3: "did not control", 4: "refused at preflight"}
 

@@ -432,7 +432,7 @@ def test_hardware_plant_with_a_board_address_starts_no_emulator() -> None:
         ({"scenario": "case9"}, "scenario"),
         ({"duration": -1.0}, "duration"),
         ({"seed": -2}, "seed"),
-        ({"control_rate": 300}, "control rate must be one of 1000, 500, 250 Hz"),
+        ({"control_rate": 300}, "control rate must be one of 1000, 500, 250, 200, 100 Hz"),
         ({"control_rate": 0}, "control rate"),
         ({"control_rate": math.nan}, "control rate"),
         ({"control_rate": True}, "control rate"),

@@ -47,7 +47,7 @@ def test_a_refused_preflight_exits_4_with_its_figures_and_reason(ros_processes: 
     assert "[smm-launch] idle states: holding " in logs or "[smm-launch] idle states: cannot hold " in logs
     refused = "direct_loop: refused to arm at preflight: this host does not hold 1000 Hz control: 100.00 %"
     assert refused in logs
-    assert "none of the candidate rates holds (1000, 500, 250 Hz)" in logs
+    assert "none of the candidate rates holds (1000, 500, 250, 200, 100 Hz)" in logs
     assert "the direct loop (--loop direct)" not in logs  # it is the direct loop
     assert "[smm-launch] run: refused to arm at preflight" in logs
     assert "arming" not in logs

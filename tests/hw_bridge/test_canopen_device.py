@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -397,7 +398,25 @@ def test_the_bus_load_of_a_cycle_is_computed_from_the_mapped_pdos() -> None:
     assert sum(frame_bits(size) for size in payloads) == 644
     assert bus_load(payloads, 1000, 1_000_000) == pytest.approx(0.644)
     assert highest_rate_that_fits(payloads, 500_000, 0.7) == 500
-    assert highest_rate_that_fits(payloads, 100_000, 0.7) is None
+
+
+@pytest.mark.parametrize(
+    ("bitrate", "limit", "fits"),
+    [
+        (1_000_000, 0.7, 1000),
+        (250_000, 0.7, 250),
+        (125_000, 0.7, 100),
+        (200_000, 0.7, 200),
+        (50_000, 0.7, None),
+    ],
+)
+def test_the_highest_offered_rate_that_fits_includes_200_and_100_hz(
+    bitrate: int, limit: float, fits: int | None
+) -> None:
+    payloads = [0, 4, 4, 6, 6, 4, 4]  # 644 bits a cycle
+    assert highest_rate_that_fits(payloads, bitrate, limit) == fits
+    if fits is not None:
+        assert bus_load(payloads, fits, bitrate) <= limit
 
 
 def test_a_bus_load_above_the_limit_is_refused_naming_the_rate_that_fits(
@@ -410,6 +429,13 @@ def test_a_bus_load_above_the_limit_is_refused_naming_the_rate_that_fits(
         _open(channel, bitrate=500_000)
     device = _open(channel, bitrate=500_000, period_us=2000)  # 500 Hz: 64.4 %, within 70 %
     device.close()
+    with pytest.raises(  # 200 Hz on 125 kbit/s: 103 %; 100 Hz: 51.5 %
+        ConfigureError,
+        match=r"bus load 103.0 % at 200 Hz and 125000 bit/s .*highest offered rate that fits is 100 Hz",
+    ):
+        _open(channel, bitrate=125_000, period_us=5000, receive_deadline_ms=50)
+    with pytest.raises(ConfigureError, match=r"64.4 % at 1000 Hz .* 50 %; .*fits is 500 Hz"):
+        _open(channel, max_bus_load=0.5)  # a configured limit
 
 
 def test_a_second_enabled_answer_to_one_feedback_steps_nothing(bench: CanBench, channel: str) -> None:
@@ -424,3 +450,57 @@ def test_a_second_enabled_answer_to_one_feedback_steps_nothing(bench: CanBench, 
         assert after.output_codes == (2000, 2000)
     finally:
         device.close()
+
+
+@pytest.mark.parametrize(
+    ("changes", "why"),
+    [
+        ({"period_us": 5000, "receive_deadline_ms": 5}, "must be longer than the SYNC period"),
+        ({"period_us": 10_000, "receive_deadline_ms": 9}, "must be longer than the SYNC period"),
+        ({"sync_clock": True, "sync_on_enabled": True}, "exclude each other"),
+    ],
+)
+def test_settings_a_real_time_bus_cannot_run_are_refused(changes: dict[str, object], why: str) -> None:
+    with pytest.raises(ValueError, match=why):
+        _config(**changes)
+
+
+def test_in_real_time_the_reads_send_the_sync_and_a_command_sends_none(bench: CanBench, channel: str) -> None:
+    device = _open(channel, sync_clock=True, period_us=5000, receive_deadline_ms=1000)
+    try:
+        assert device.clock is not None
+        first = _feedback(device)
+        syncs = bench.syncs
+        for seq in range(1, 4):  # commands alone step nothing: no SYNC without the loop's read
+            device.write(_command(first, seq, (0, 0), 0))
+        assert bench.syncs == syncs
+        seen = [_feedback(device) for _ in range(3)]  # the clock sends each SYNC when due
+        assert [frame.seq for frame in seen] == [first.seq + 1, first.seq + 2, first.seq + 3]
+        slots = [frame.tick // 5 for frame in seen]  # 5 ticks a period; a slot the loop missed is skipped
+        assert all(frame.tick % 5 == 0 for frame in seen) and slots == sorted(set(slots))
+        assert bench.syncs == syncs + 3 and device.clock.slot == slots[-1]
+        assert bench.live_syncs == slots[-1] + 1  # the plant moved every slot, skipped ones too
+    finally:
+        device.close()
+
+
+def test_configure_waits_for_nodes_that_come_up_after_the_bridge(channel: str) -> None:
+    benches: list[CanBench] = []
+    device = CanopenDevice(_config(), can.Bus(interface="virtual", channel=channel), boot_wait_s=60.0)
+    late = threading.Timer(  # the emulator started after the bridge (smm-launch --record's order)
+        0.5, lambda: benches.append(CanBench(CanBenchConfig(), can.Bus(interface="virtual", channel=channel)))
+    )
+    late.start()
+    try:
+        device.open()
+        assert [line.split(":")[0] for line in device.found] == [
+            "valve alpha (node 1)",
+            "valve beta (node 2)",
+            "encoder alpha (node 11)",
+            "encoder beta (node 12)",
+        ]
+    finally:
+        late.join()
+        device.close()
+        for bench in benches:
+            bench.close()

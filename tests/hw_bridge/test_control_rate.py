@@ -19,16 +19,16 @@ from smm_hw_bridge.core import BridgeConfig, BridgeCore, Refusal
 
 from tests.hw_bridge.test_core import CONFIG, HOST, MS, Board
 
-RULE = "control rate must be one of 1000, 500, 250 Hz"
+RULE = "control rate must be one of 1000, 500, 250, 200, 100 Hz"
 
 
 def test_the_offered_rates_divide_the_board_tick() -> None:
-    assert [control_divider(rate) for rate in CONTROL_RATES_HZ] == [1, 2, 4]
+    assert [control_divider(rate) for rate in CONTROL_RATES_HZ] == [1, 2, 4, 5, 10]
     assert control_divider(500.0) == 2  # argparse gives floats
 
 
 @pytest.mark.parametrize(
-    "rate", [300, 0, -250, 333, 100, 2000, math.nan, math.inf, -math.inf, True, "500", None, 250.5]
+    "rate", [300, 0, -250, 333, 50, 125, 2000, math.nan, math.inf, -math.inf, True, "500", None, 250.5]
 )
 def test_a_rate_that_is_not_offered_is_refused_with_the_valid_ones(rate: object) -> None:
     with pytest.raises(ValueError, match=RULE) as raised:
@@ -43,7 +43,8 @@ def test_control_ticks_are_the_multiples_of_n_so_each_period_has_exactly_one(tic
 
 
 @pytest.mark.parametrize(
-    ("divider", "validity", "stale", "watchdog_ms"), [(1, 10, 5, 10), (2, 12, 6, 12), (4, 16, 8, 16)]
+    ("divider", "validity", "stale", "watchdog_ms"),
+    [(1, 10, 5, 10), (2, 12, 6, 12), (4, 16, 8, 16), (5, 18, 9, 18), (10, 28, 14, 28)],
 )
 def test_validity_stale_limit_and_host_watchdog_grow_with_the_divider(
     divider: int, validity: int, stale: int, watchdog_ms: int
@@ -118,3 +119,24 @@ def test_an_answer_in_flight_for_its_whole_period_is_not_stale_at_n_4() -> None:
     board.step()
     assert core.on_command([0.1, 0.1], control, board.now) is Refusal.STALE
     assert stamp < control
+
+
+@pytest.mark.parametrize("divider", [1, 2, 4, 5, 10])
+def test_the_valve_rate_limit_allows_its_slew_per_control_period_not_per_board_tick(divider: int) -> None:
+    """1000 codes a ms: a command a period of N ms may move the codes 1000 N (N = 5: 1000 slewed full
+    scale in 10 ms instead of 2, and the loop on the emulated bench went unstable)."""
+    valve = dataclasses.replace(CONFIG.valve, rate_limit=(1e6, 1e6))
+    core = BridgeCore(dataclasses.replace(CONFIG, control_divider=divider, valve=valve), HOST)
+    board = Board(core)
+    board.step()
+    core.arm()
+    while board.tick <= divider:
+        board.step()
+    assert core.on_command([0.5, -0.25], board.stamp, board.now) is None  # 500 / -250 codes: within
+    for _ in range(divider):
+        board.step()
+    assert core.control_tick
+    assert core.on_command([20.0, -20.0], board.stamp, board.now) is None  # 20000 / -20000 codes asked
+    frame = core.next_frame(board.now)
+    assert frame is not None and frame.enabled
+    assert frame.codes == (500 + 1000 * divider, -250 - 1000 * divider)

@@ -28,7 +28,7 @@ def test_fast_host_holds_every_rate() -> None:
     assert verdict.holds
     assert verdict.late_share == 0.0
     assert verdict.fastest_held_hz == 1000.0
-    assert [rate for rate, _ in verdict.predicted] == [1000.0, 500.0, 250.0]
+    assert [rate for rate, _ in verdict.predicted] == [1000.0, 500.0, 250.0, 200.0, 100.0]
 
 
 def test_host_late_at_1khz_refuses_and_names_500_hz() -> None:
@@ -51,7 +51,7 @@ def test_only_250_hz_holds() -> None:
 
 
 def test_nothing_holds_says_so() -> None:
-    verdict = judge(figures([5000.0] * 100), 0.01)
+    verdict = judge(figures([20000.0] * 100), 0.01)  # beyond 100 Hz's 10 ms
     assert verdict.fastest_held_hz is None
     assert "none of the candidate rates holds" in verdict.refusal(direct_loop=True, realtime=True)
 
@@ -197,3 +197,12 @@ def test_a_refusal_names_the_idle_states_only_when_they_are_not_held() -> None:
     assert "/dev/cpu_dma_latency" in refusal(IdleStates(None, (), "permission denied"))
     assert "/dev/cpu_dma_latency" not in refusal(IdleStates(0, (("POLL", 0), ("C6", 133))))
     assert "/dev/cpu_dma_latency" not in refusal(None)
+
+
+def test_recorder_of_a_link_with_one_feedback_a_period_counts_only_its_missing_feedbacks() -> None:
+    recorder = RehearsalRecorder(PERIOD, divider=5, every=5)  # CANopen at 200 Hz: a SYNC every 5 ticks
+    record(recorder, range(0, 1000, 5), way_ns=0, answer_ns=50_000)
+    record(recorder, range(1005, 2000, 5), way_ns=0, answer_ns=50_000)  # slot 1000 skipped: one period
+    result = recorder.figures()
+    assert result.unanswered == 1
+    assert len(result.feedback_to_command_us) == (2000 - 250) // 5 - 1

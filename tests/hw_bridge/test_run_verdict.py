@@ -169,3 +169,13 @@ def test_a_period_is_late_exactly_when_its_command_reached_the_valves_after_the_
 def test_a_bad_divider_is_rejected(divider: object) -> None:
     with pytest.raises(ValueError, match="divider"):
         RunTally(PERIOD_NS, divider=divider)  # type: ignore[arg-type]
+
+
+def test_a_link_with_one_feedback_a_period_misses_no_tick_between_and_a_skipped_slot_is_late() -> None:
+    tally = RunTally(PERIOD_NS, VerdictConfig(late_limit=0.01, settle_s=0.1), divider=5, every=5)
+    tally.armed = True
+    for tick in range(0, 2000, 5):  # CANopen at 200 Hz: each SYNC's feedback answers the last one
+        tally.on_feedback(frame(tick, age=5))
+    assert tally.missed_ticks == 0 and tally.late_periods == 0
+    tally.on_feedback(frame(2005, age=10))  # slot 2000 skipped: the valves held its setpoint a period
+    assert tally.missed_ticks == 5 and tally.late_periods == 1

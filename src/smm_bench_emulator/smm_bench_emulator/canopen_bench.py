@@ -30,6 +30,7 @@ from smm_hw_bridge.cia408 import (
     ValveStateMachine,
 )
 from smm_hw_bridge.protocol import CODE_MAX
+from smm_hw_bridge.sync_clock import periods_between
 from smm_schema.ranges import bounds, check_bounds
 
 from smm_bench_emulator.board import BoardConfig, BoardCore
@@ -49,6 +50,7 @@ EMCY_HEARTBEAT: Final[int] = 0x8130
 """EMCY code of a node whose consumer missed the master's heartbeat (CiA 301: heartbeat error)."""
 _RPDO_EVENT_TIMER: Final[tuple[int, int]] = (0x1400, 5)
 _CYCLE_PERIOD: Final[int] = 0x1006
+_KEPT_ANSWERS: Final[int] = 1_000_000
 _HEARTBEAT_CONSUMER: Final[tuple[int, int]] = (0x1016, 1)
 _WATCH_S: Final[float] = 0.01
 """How often the consumers are checked (s)."""
@@ -98,6 +100,8 @@ class _Valve:
         self.machine = ValveStateMachine()
         self.setpoint = 0
         self.received: tuple[int, int] | None = None
+        self.received_ns: int | None = None
+        """When the last RPDO came (monotonic ns), None before the first."""
         self.cycles_since_rpdo = 0
         node.rpdo.read(from_od=True)
         node.tpdo.read(from_od=True)
@@ -110,17 +114,27 @@ class _Valve:
 
     def _on_rpdo(self, pdo: canopen.pdo.PdoMap) -> None:
         self.received = (int(pdo[CONTROL_WORD].raw), int(pdo[SPOOL_SETPOINT[0]].raw))
+        self.received_ns = time.monotonic_ns()
 
-    def latch(self, cycle_us: int) -> None:
-        """At SYNC: takes the last RPDO, or checks the deadline (0x1400:05 ms, 0 = none) in cycles."""
+    @property
+    def deadline_ms(self) -> int:
+        """The receive deadline 0x1400:05 (ms, 0: none)."""
+        return int(self.node.sdo[_RPDO_EVENT_TIMER[0]][_RPDO_EVENT_TIMER[1]].raw)
+
+    def miss_deadline(self) -> None:
+        """No setpoint within the deadline: the fault and its EMCY (once; not before the first start)."""
+        if not self.machine.state.fault and self.machine.state is not ValveState.INIT:
+            self.machine.fault()
+            self.node.emcy.send(EMCY_DEADLINE, register=0x11)
+
+    def latch(self, cycle_us: int, periods: int = 1) -> None:
+        """At SYNC, ``periods`` cycles after the last: the last RPDO, or the deadline (0x1400:05) checked."""
         received, self.received = self.received, None
         if received is None:
-            self.cycles_since_rpdo += 1
-            deadline_ms = int(self.node.sdo[_RPDO_EVENT_TIMER[0]][_RPDO_EVENT_TIMER[1]].raw)
-            late = deadline_ms > 0 and self.cycles_since_rpdo * cycle_us > deadline_ms * 1000
-            if late and not self.machine.state.fault and self.machine.state is not ValveState.INIT:
-                self.machine.fault()
-                self.node.emcy.send(EMCY_DEADLINE, register=0x11)
+            self.cycles_since_rpdo += periods
+            deadline_ms = self.deadline_ms
+            if deadline_ms > 0 and self.cycles_since_rpdo * cycle_us > deadline_ms * 1000:
+                self.miss_deadline()
             return
         self.cycles_since_rpdo = 0
         word, setpoint = received
@@ -189,9 +203,16 @@ class CanBench:
         self.lock = threading.Lock()
         self.syncs = 0
         self.live_syncs = 0
-        """SYNCs since the plant went live (at once, or at the first ACTIVE with ``wait_active``)."""
+        """Cycle periods since the plant went live (at once, or at the first ACTIVE with ``wait_active``):
+        one a SYNC, or as many as its counter says passed (real time)."""
         self.active_syncs = 0
         """SYNCs at which both valves were ACTIVE (following the bus setpoint)."""
+        self.held_syncs = 0
+        """Of the live SYNCs with both valves ACTIVE, those without a new setpoint for a valve (held)."""
+        self.answer_us: list[float] = []
+        """Per live ACTIVE SYNC answered: the later valve's RPDO after the SYNC before it (us)."""
+        self._sync_ns = 0
+        self._counter: int | None = None
         self.done = threading.Event()
         """Set at ``duration_syncs`` live SYNCs."""
         self.network = canopen.Network(bus)
@@ -233,23 +254,38 @@ class CanBench:
 
     def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.lock:
-            self.step()
+            periods = 1
+            if data:  # the SYNC counter (real time): the periods since the last SYNC, skipped ones too
+                if self._counter is not None:
+                    periods = periods_between(data[0], self._counter)
+                self._counter = data[0]
+            self.step(periods)
 
-    def step(self) -> None:
-        """One SYNC: latch the setpoints, move the plant one cycle period at its tick, send the TPDOs."""
+    def step(self, periods: int = 1) -> None:
+        """A SYNC ``periods`` cycles after the last: latch, move the plant that long, send the TPDOs."""
         cycle_us = int(self.valves[0].node.sdo[_CYCLE_PERIOD].raw) or self.board.config.period_ns // 1000
+        now, before = time.monotonic_ns(), self._sync_ns
+        self._sync_ns = now
+        if self.live_syncs and all(valve.machine.follows_setpoint for valve in self.valves):
+            arrivals = [valve.received_ns or 0 for valve in self.valves if valve.received is not None]
+            self.held_syncs += periods - 1  # skipped slots: the valves held the setpoint
+            if len(arrivals) < len(self.valves):
+                self.held_syncs += 1
+            elif len(self.answer_us) < _KEPT_ANSWERS:
+                self.answer_us.append((max(arrivals) - before) / 1e3)
         for valve in self.valves:
-            valve.latch(cycle_us)
+            valve.latch(cycle_us, periods)
         board = self.board
         board.output = [valve.spool * CODE_MAX / SPOOL_FULL_SCALE for valve in self.valves]
         active = all(valve.machine.follows_setpoint for valve in self.valves)
         self.active_syncs += active
         if self.live_syncs or active or not self.config.wait_active:
-            substeps = max(1, round(cycle_us * 1000 / board.config.period_ns))
+            substeps = max(1, round(cycle_us * 1000 / board.config.period_ns)) * periods
             for _ in range(substeps):  # not both ACTIVE: the failsafe spool, the oil trapped
                 board.valves.move(board.plant, board.output_codes(), active, board.supply_pressure)
-            self.live_syncs += 1
-            if self.live_syncs == self.config.duration_syncs:
+            before_live = self.live_syncs
+            self.live_syncs += periods
+            if before_live < self.config.duration_syncs <= self.live_syncs:
                 self.done.set()
         self.syncs += 1
         if not all(node.nmt.state == "OPERATIONAL" for node in self._nodes()):
@@ -260,6 +296,15 @@ class CanBench:
         for encoder, count in zip(self.encoders, self.board.counts(), strict=True):
             encoder.tpdo[1][POSITION].raw = count
             encoder.tpdo[1].transmit()
+
+    def watch(self, now_ns: int) -> None:
+        """Real time: a valve whose setpoints stopped for its deadline (wall clock) faults, SYNC or not."""
+        with self.lock:
+            for valve in self.valves:
+                deadline_ms, received = valve.deadline_ms, valve.received_ns
+                operational = valve.node.nmt.state == "OPERATIONAL"
+                if operational and received is not None and 0 < deadline_ms * 1_000_000 < now_ns - received:
+                    valve.miss_deadline()
 
     def valve_states(self) -> tuple[ValveState, ...]:
         """Each valve's device state (alpha, beta)."""

@@ -6,10 +6,12 @@ import json
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
 from types import FrameType
 from typing import Any
 
+import numpy as np
 from smm_hw_bridge.can_multicast import MulticastRouteError, loopback_multicast_bus
 
 from smm_bench_emulator.board import BoardConfig
@@ -17,19 +19,28 @@ from smm_bench_emulator.canopen_bench import CanBench, CanBenchConfig
 
 __all__ = ["run_canopen", "status"]
 
+_WATCH_S = 0.002
+"""Real time: how often the valves' receive deadline is checked on the wall clock (s)."""
+
 
 def status(bench: CanBench, never_started: bool) -> dict[str, Any]:
-    """The end-of-run status, with the frame emulator's keys smm-launch reads (lockstep: none late)."""
+    """The end-of-run status, with the frame emulator's keys smm-launch reads.
+
+    Per SYNC: late = both valves ACTIVE and one had no new setpoint since the last SYNC (held); latency =
+    the later valve's setpoint after the SYNC before it (the board's feedback -> command).
+    """
     verdict = "the controller never armed the valves (no SYNC with both ACTIVE)" if never_started else None
     states = [state.name for state in bench.valve_states()]
+    answers = np.asarray(bench.answer_us)
+    p50, p99 = (None, None) if not answers.size else np.percentile(answers, (50, 99)).tolist()
     return {
         "link": "canopen",
         "syncs": bench.syncs,
         "live_ticks": bench.live_syncs,
         "enabled_ticks": bench.active_syncs,
-        "late_commands": 0,
-        "latency_p50_us": None,
-        "latency_p99_us": None,
+        "late_commands": bench.held_syncs,
+        "latency_p50_us": p50,
+        "latency_p99_us": p99,
         "read_latency_p50_us": None,
         "read_latency_p99_us": None,
         "valve_states": states,
@@ -44,15 +55,22 @@ def run_canopen(
     port: int,
     *,
     lockstep: bool,
+    divider: int,
     duration_s: float,
     start_timeout_s: float,
     status_file: str,
 ) -> int:
-    """Runs the bench on the loopback multicast group until SIGTERM or ``duration_s`` live; the exit code."""
+    """Runs the bench on the loopback multicast group until SIGTERM or ``duration_s`` live; the exit code.
+
+    ``divider``: board ticks per SYNC (the master's 0x1006). Live counts from both valves first ACTIVE; in
+    real time the valves' receive deadline is watched on the wall clock too (no SYNC needed).
+    """
     try:
         bus = loopback_multicast_bus(group, port)
         config = CanBenchConfig(
-            board=board, wait_active=lockstep, duration_syncs=round(duration_s * 1e9 / board.period_ns)
+            board=board,
+            wait_active=True,
+            duration_syncs=round(duration_s * 1e9 / (board.period_ns * divider)),
         )
     except (MulticastRouteError, ValueError, OSError) as error:
         print(f"smm_bench_emulator: {error}", file=sys.stderr)
@@ -73,10 +91,13 @@ def run_canopen(
     )
     never_started = False
     try:
-        if start_timeout_s > 0 and not bench.done.wait(start_timeout_s) and bench.active_syncs == 0:
-            never_started = True
-        else:
-            bench.done.wait()
+        started = time.monotonic()
+        while not bench.done.wait(1.0 if lockstep else _WATCH_S):
+            if not lockstep:
+                bench.watch(time.monotonic_ns())
+            if 0 < start_timeout_s < time.monotonic() - started and bench.active_syncs == 0:
+                never_started = True
+                break
     finally:
         bench.close()
     summary = json.dumps(status(bench, never_started and not stop.is_set()))

@@ -43,7 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("frame", "canopen"),
         default="frame",
         help="frame: the I/O board on UDP; canopen: CiA 408 valves and CiA 406 encoders on udp_multicast "
-        "(lockstep only, SYNC from the bridge; refused unless the group routes over lo)",
+        "(SYNC from the bridge; refused unless the group routes over lo)",
     )
     parser.add_argument("--can-group", default="239.74.163.2", help="canopen: the IPv4 multicast group")
     parser.add_argument("--can-port", type=int, default=43113, help="canopen: the UDP port")
@@ -178,6 +178,7 @@ def run(args: argparse.Namespace) -> int:
             args.can_group,
             args.can_port,
             lockstep=args.mode == "lockstep",
+            divider=args.control_divider,
             duration_s=args.duration,
             start_timeout_s=args.start_timeout,
             status_file=args.status_file,

@@ -37,7 +37,11 @@ ARGUMENTS = (
     ("duration", "", "simulated seconds until the simulator stops (empty: scenario / endless; 0: endless)"),
     ("seed", "", "noise seed of the simulator (empty: as configured)"),
     ("params_file", "", "extra ROS 2 parameter file for every node (empty: none)"),
-    ("control_rate", "1000", "control rate, Hz: 1000 | 500 | 250 (the board's 1 kHz tick divided by N)"),
+    (
+        "control_rate",
+        "1000",
+        "control rate, Hz: 1000 | 500 | 250 | 200 | 100 (the board's 1 kHz tick divided by N)",
+    ),
     ("board", "", "plant hardware: ADDRESS:PORT of the I/O board (empty: start the bench emulator)"),
     ("record", "", "bag folder to record every topic to (empty: no recording)"),
     ("rt_priority", "", "SCHED_FIFO priority of the loop's processes (empty: 50 with hardware, else 0)"),

@@ -19,6 +19,7 @@ from smm_hw_bridge.control_rate import BOARD_TICK_HZ, CONTROL_RATES_HZ, control_
 from smm_bringup.realtime import MAX_PRIORITY
 
 __all__ = [
+    "CANOPEN_REALTIME_RATE_HZ",
     "CHAIN_LAYOUTS",
     "CLOCK_MODES",
     "CONTROL_RATES_HZ",
@@ -32,6 +33,7 @@ __all__ = [
     "REFERENCE_PLACEMENTS",
     "SCENARIO_NAMES",
     "GraphOptions",
+    "default_control_rate",
     "split_endpoint",
 ]
 
@@ -41,7 +43,10 @@ PLANT_ALIASES: Final[Mapping[str, str]] = MappingProxyType({"hw": "hardware"})
 CLOCK_MODES: Final[tuple[str, ...]] = ("lockstep", "realtime")
 LINKS: Final[tuple[str, ...]] = ("frame", "canopen")
 """The hardware plant's link: ``frame`` (the I/O board's frame protocol, docs/HW_PROTOCOL.md) or ``canopen``
-(CiA 408 valves and CiA 406 encoders, docs/HW_CANOPEN.md; lockstep only for now)."""
+(CiA 408 valves and CiA 406 encoders, docs/HW_CANOPEN.md)."""
+CANOPEN_REALTIME_RATE_HZ: Final[int] = 200
+"""The CANopen link's default control rate in real time (the host's loop sends each SYNC; measured to hold
+on a loaded 2-core machine, docs/HW_CANOPEN.md, "Real time"); lockstep keeps 1000 Hz."""
 EXTERNAL_BOARD: Final[str] = "external"
 """``board`` on the CANopen link: no emulator; the bridge drives the devices its ``canopen.*`` name."""
 LOOPS: Final[tuple[str, ...]] = ("auto", "topics", "direct")
@@ -88,10 +93,11 @@ class GraphOptions:
         seed: Seed of the simulator's noise generator, >= 0; ``None`` keeps the configured one.
         params_files: Extra ROS 2 parameter files, applied after the scenario file, in order.
         control_rate: Control rate (Hz), one of ``smm_hw_bridge.control_rate.CONTROL_RATES_HZ`` (1000, 500,
-            250). The board (and the simulator's integration step) keeps its 1 kHz tick; the controller
-            steps every N = 1000 / rate ticks with ``control_period`` = N ms, the board holds each command
-            in between, and the rate's settings file (``smm_controller/config/control_rate_<rate>.yaml``)
-            is applied after the scenario's (docs/LAUNCH.md, "Control rate").
+            250, 200, 100). The board (and the simulator's integration step) keeps its 1 kHz tick; the
+            controller steps every N = 1000 / rate ticks with ``control_period`` = N ms, the board holds each
+            command in between, and the rate's settings file
+            (``smm_controller/config/control_rate_<rate>.yaml``) is applied after the scenario's
+            (docs/LAUNCH.md, "Control rate").
         board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board (``external`` on the CANopen
             link: the devices its parameters name); ``None`` starts ``smm_bench_emulator`` on loopback.
         link: ``hardware`` only: ``frame`` or ``canopen`` (:data:`LINKS`).
@@ -220,14 +226,8 @@ class GraphOptions:
             )
         if self.link not in LINKS:
             raise ValueError(f"link must be one of {LINKS}, got {self.link!r}")
-        if self.link == "canopen" and (
-            self.plant != "hardware" or self.clock_mode != "lockstep" or self.control_rate != BOARD_TICK_HZ
-        ):
-            raise ValueError(
-                "link 'canopen' needs plant 'hardware', clock mode 'lockstep' and the 1000 Hz control rate "
-                "(the bridge sends each SYNC after its setpoints; a SYNC clock for real time and held "
-                "cycles between control ticks are not written yet)"
-            )
+        if self.link == "canopen" and self.plant != "hardware":
+            raise ValueError("link 'canopen' needs plant 'hardware'")
         if self.board is not None:
             if self.plant != "hardware":
                 raise ValueError("board is an option of plant 'hardware' only")
@@ -280,6 +280,11 @@ class GraphOptions:
     def control_period(self) -> float:
         """The controller's period (s): N board ticks."""
         return self.control_divider / BOARD_TICK_HZ
+
+
+def default_control_rate(link: str, clock_mode: str) -> int:
+    """The control rate smm-launch and the launch file use when none is given (Hz)."""
+    return CANOPEN_REALTIME_RATE_HZ if link == "canopen" and clock_mode == "realtime" else BOARD_TICK_HZ
 
 
 def _check_split(name: str, value: object, limits: tuple[float, float], *, integer: bool) -> None:

@@ -165,6 +165,12 @@ def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
             ("bridge.valve.code_limit", (SPOOL_FULL_SCALE, SPOOL_FULL_SCALE)),
             ("bridge.valve.rate_limit", (SPOOL_FULL_SCALE / 0.002,) * 2),
         ]
+    divider = options.control_divider
+    if divider > 1:  # one SYNC a control period; a valve's receive deadline of 10 periods, as at 1 kHz
+        link += [
+            (canopen_parameter("period_us"), 1000 * divider),
+            (canopen_parameter("receive_deadline_ms"), 10 * divider),
+        ]
     if options.clock_mode == "lockstep":
         # the controller's pace, a loaded machine's: generous validity and heartbeat consumer times
         link += [
@@ -172,6 +178,8 @@ def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
             (canopen_parameter("pdo_validity_ms"), 60_000),
             (canopen_parameter("heartbeat_ms"), 1000),
         ]
+    else:  # the bridge's loop sends each SYNC when due (docs/HW_CANOPEN.md, "Real time")
+        link.append((canopen_parameter("sync_clock"), True))
     return link
 
 

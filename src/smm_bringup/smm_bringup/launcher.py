@@ -25,6 +25,7 @@ from smm_bringup.errors import GraphError
 from smm_bringup.graph import build_graph
 from smm_bringup.graph_nodes import EMULATOR_NODE, NodeSpec
 from smm_bringup.graph_options import (
+    CANOPEN_REALTIME_RATE_HZ,
     CHAIN_LAYOUTS,
     CLOCK_MODES,
     CONTROL_RATES_HZ,
@@ -37,6 +38,7 @@ from smm_bringup.graph_options import (
     REFERENCE_PLACEMENTS,
     SCENARIO_NAMES,
     GraphOptions,
+    default_control_rate,
 )
 from smm_bringup.supervisor import (
     EXIT_CONFIGURATION_ERROR,
@@ -79,7 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=LINKS,
         default=GraphOptions.link,
         help="hardware: frame (the I/O board's protocol) or canopen (CiA 408 valves, CiA 406 encoders, "
-        "the emulated CANopen bench unless --board external; lockstep only)",
+        "the emulated CANopen bench unless --board external)",
     )
     parser.add_argument(
         "--bench-file", default=None, help="hardware, emulator: the bench description (YAML, docs/BENCH.md)"
@@ -131,10 +133,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--control-rate",
         type=float,
-        default=GraphOptions.control_rate,
+        default=None,
         metavar="HZ",
         help=f"control rate, one of {', '.join(map(str, CONTROL_RATES_HZ))} Hz: the controller steps every "
-        "1000/HZ ticks of the board's (or the simulator's) 1 kHz tick, the board holds each command between",
+        "1000/HZ ticks of the board's (or the simulator's) 1 kHz tick, the board holds each command between "
+        f"(default 1000; {CANOPEN_REALTIME_RATE_HZ} with --link canopen in realtime)",
     )
     parser.add_argument(
         "--params-file",
@@ -254,7 +257,11 @@ def options_from_arguments(arguments: argparse.Namespace) -> GraphOptions:
         duration=arguments.duration,
         seed=arguments.seed,
         params_files=tuple(arguments.params_file),
-        control_rate=arguments.control_rate,
+        control_rate=(
+            default_control_rate(arguments.link, arguments.clock_mode)
+            if arguments.control_rate is None
+            else arguments.control_rate
+        ),
         board=arguments.board,
         link=arguments.link,
         bench_file=arguments.bench_file,
@@ -279,7 +286,7 @@ def arguments_from_options(options: GraphOptions) -> list[str]:
         arguments += ["--duration", repr(options.duration)]
     if options.seed is not None:
         arguments += ["--seed", str(options.seed)]
-    if options.control_rate != GraphOptions.control_rate:
+    if options.control_rate != default_control_rate(options.link, options.clock_mode):
         arguments += ["--control-rate", str(options.control_rate)]
     for params_file in options.params_files:
         arguments += ["--params-file", params_file]

@@ -193,8 +193,9 @@ class HwBridgeNode(LifecycleNode):
             self.trigger_activate()  # type: ignore[no-untyped-call]
             return
         with self.loop.lock:
+            divider = core.config.control_divider
             self.loop.rehearsal = RehearsalRecorder(
-                core.config.period_ns, core.config.control_divider, config.added_latency_us
+                core.config.period_ns, divider, config.added_latency_us, every=self._feedback_every(divider)
             )
         self._preflight_end = time.monotonic() + config.duration_s
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -245,6 +246,10 @@ class HwBridgeNode(LifecycleNode):
         statistics = None if self.loop.answerer is None else self.loop.statistics
         return closing_line(self.loop.tally, self.run_verdict(), self.preflight_refusal, statistics)
 
+    def _feedback_every(self, divider: int) -> int:
+        """Board ticks between two feedbacks: 1 from a board, N on CANopen (a SYNC a control period)."""
+        return divider if self._link.config.transport == "canopen" else 1
+
     def run_verdict(self) -> str | None:
         """Why this run did not control (never configured, never armed, ...), or None if it did."""
         verdict = run_verdict(self.loop.tally, self.core, waited=self.autostart and not self._started)
@@ -257,7 +262,8 @@ class HwBridgeNode(LifecycleNode):
         link, canopen, self._fault_transition = self._link.config, self._canopen.config, False
         self.publish_us = RunningFigures()
         core = BridgeCore(self._bridge.config, host_session=secrets.randbelow(0xFFFFFFFF) + 1)
-        tally = RunTally(core.config.period_ns, self._verdict.config, core.config.control_divider)
+        divider = core.config.control_divider
+        tally = RunTally(core.config.period_ns, self._verdict.config, divider, self._feedback_every(divider))
         source = f"{link.board_address}:{link.board_port}"
         try:
             opener = functools.partial(open_device, link, canopen, core.config)

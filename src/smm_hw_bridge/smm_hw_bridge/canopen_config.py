@@ -65,6 +65,8 @@ class CanopenConfig:
         sync_on_enabled: Lockstep: a SYNC follows an enabled command, the first disabled one after it, and
             the opening, not the other disabled ones (the frame board's lockstep trigger ``enabled``: a
             run's steps are the controller's, none pass while it has not armed).
+        sync_clock: Real time: the master sends the SYNC every ``period_us`` itself, from the loop's
+            thread as it waits for feedback, not after each command (docs/HW_CANOPEN.md, "Real time").
     """
 
     interface: str = "udp_multicast"
@@ -86,6 +88,7 @@ class CanopenConfig:
     max_bus_load: float = field(default=0.7, metadata=bounds(1e-3, 1.0))
     pdo_validity_ms: int = field(default=100, metadata=bounds(1, 600_000))
     sync_on_enabled: bool = False
+    sync_clock: bool = False
 
     def __post_init__(self) -> None:
         check_bounds(self)
@@ -97,6 +100,13 @@ class CanopenConfig:
                 raise ValueError(
                     f"{name} must name one EDS file or one per joint, got {getattr(self, name)!r}"
                 )
+        if self.receive_deadline_ms * 1000 <= self.period_us:
+            raise ValueError(
+                f"receive_deadline_ms ({self.receive_deadline_ms} ms) must be longer than the SYNC period "
+                f"period_us ({self.period_us} us): a valve would fault between two setpoints on time"
+            )
+        if self.sync_clock and self.sync_on_enabled:
+            raise ValueError("sync_clock (real time) and sync_on_enabled (lockstep) exclude each other")
         if not all(math.isfinite(value) for value in (self.bar_per_unit, self.supply_bar)):
             raise ValueError("bar_per_unit and supply_bar must be finite")
 

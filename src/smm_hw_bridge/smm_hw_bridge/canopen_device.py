@@ -52,6 +52,7 @@ from smm_hw_bridge.protocol import (
     FeedbackFrame,
     StatusBit,
 )
+from smm_hw_bridge.sync_clock import SyncClock
 from smm_hw_bridge.transport import LinkConfig
 from smm_hw_bridge.valve_output import ValveOutputConfig
 
@@ -98,7 +99,7 @@ class _Node:
 
 
 class CanopenDevice(Device):
-    """Two CiA 408 valves and two CiA 406 encoders on one bus, the bridge as master (lockstep SYNC).
+    """Two CiA 408 valves and two CiA 406 encoders on one bus, the bridge as master and SYNC producer.
 
     Args:
         config: The link.
@@ -106,10 +107,16 @@ class CanopenDevice(Device):
         bridge: The bridge's settings: its valve code limit (checked at :meth:`open`) and its A/D scales
             (the pressures are handed over as the A/D codes ``bridge.pressure.*`` and
             ``bridge.supply_bar_per_code`` read back); None: the defaults, the code limit at full spool.
+        boot_wait_s: How long :meth:`open` waits for each node's first SDO answer (s): a bench powering up,
+            an emulator starting after the bridge (``link.configure_timeout``).
     """
 
     def __init__(
-        self, config: CanopenConfig, bus: can.BusABC | None = None, bridge: BridgeConfig | None = None
+        self,
+        config: CanopenConfig,
+        bus: can.BusABC | None = None,
+        bridge: BridgeConfig | None = None,
+        boot_wait_s: float = 0.0,
     ) -> None:
         super().__init__()
         self.description = DeviceDescription(
@@ -123,6 +130,7 @@ class CanopenDevice(Device):
         self.config = config
         self.bridge = bridge or BridgeConfig(valve=ValveOutputConfig(code_limit=(SPOOL_FULL_SCALE,) * 2))
         self._bus = bus
+        self._boot_wait_s = boot_wait_s
         self.network: canopen.Network | None = None
         self.nodes: list[_Node] = []
         self.faults: list[str] = []
@@ -138,8 +146,11 @@ class CanopenDevice(Device):
         self._enabled = False
         self._last_feedback: FeedbackFrame | None = None
         self._delivered_at = 0.0
+        self._answered = -1
         self._synced_at = 0.0
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
+        self.clock = SyncClock(config.period_us * 1000) if config.sync_clock else None
+        """Real time (``sync_clock``): the SYNC schedule, its slots and late periods."""
 
     # ---- open: configure and start ----------------------------------------------------------------
 
@@ -180,7 +191,9 @@ class CanopenDevice(Device):
         try:
             self.nodes = [self._add(network, "valve", j, i) for j, i in enumerate(config.valve_node_ids)]
             self.nodes += [self._add(network, "encoder", j, i) for j, i in enumerate(config.encoder_node_ids)]
+            deadline = time.monotonic() + self._boot_wait_s
             for node in self.nodes:
+                self._await(node, deadline)
                 self._configure(node)
             self._check_bus_load()
         except BaseException:
@@ -204,7 +217,7 @@ class CanopenDevice(Device):
     def _check_bus_load(self) -> None:
         """Refuses a cycle (SYNC, valve RPDO1s, every TPDO1, as the EDS files map them) above the limit."""
         config = self.config
-        payloads = [0]  # the SYNC
+        payloads = [1 if config.sync_clock else 0]  # the SYNC (its counter in real time)
         for node in self.nodes:
             payloads.append(len(node.remote.tpdo[1].data))
             if node.kind == "valve":
@@ -239,6 +252,17 @@ class CanopenDevice(Device):
             0x700 + node_id, lambda _id, data, _t, node=node: self._on_heartbeat(node, bytes(data))
         )
         return node
+
+    def _await(self, node: _Node, deadline: float) -> None:
+        """Until ``deadline`` (monotonic s): asks ``node`` its device type until it answers at all."""
+        while time.monotonic() < deadline:
+            try:
+                node.remote.sdo.upload(DEVICE_TYPE, 0)
+            except SdoCommunicationError:
+                continue  # not up yet; past the deadline, _configure names it
+            except SdoAbortedError:
+                return
+            return
 
     def _upload(self, node: _Node, index: int, subindex: int = 0) -> int:
         try:
@@ -367,16 +391,12 @@ class CanopenDevice(Device):
         """The feedback of the last SYNC once every node's TPDO for it arrived; None after ``timeout_s``."""
         if self.network is None:
             raise DeviceError("the device is not open")
+        if self.clock is not None:
+            return self._read_clocked(timeout_s)
         held = self._last_feedback is not None and self._delivered == self._syncs
         resend_in = self._delivered_at + _RESEND_S - time.monotonic()
         with self._changed:
-            ready = self._changed.wait_for(
-                lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
-                timeout=max(min(timeout_s, resend_in), 0.0) if held else timeout_s,
-            )
-            late = self._watch()
-            if late and all(node.values for node in self.nodes):
-                ready = True  # its feedback, the late nodes' last values with the fault: the loop faults
+            ready = self._arrived(max(min(timeout_s, resend_in), 0.0) if held else timeout_s)
             if ready:
                 self._delivered = self._syncs
                 self._last_feedback = self._feedback()
@@ -386,6 +406,32 @@ class CanopenDevice(Device):
             # unanswered one (the loop re-publishes a duplicate: the controller may have missed it)
             self._delivered_at = time.monotonic()
             return self._last_feedback
+
+    def _read_clocked(self, timeout_s: float) -> Reading | None:
+        """Real time: sends each SYNC when due; the feedback of the last one once its TPDOs arrived."""
+        assert self.clock is not None
+        deadline = time.monotonic_ns() + round(timeout_s * 1e9)
+        while True:
+            now = time.monotonic_ns()
+            if now >= self.clock.due_ns:
+                with self._changed:
+                    self._sync()
+            with self._changed:
+                if self._arrived(max(min(deadline, self.clock.due_ns) - time.monotonic_ns(), 0) / 1e9):
+                    self._delivered = self._syncs
+                    self._last_feedback = self._feedback()
+                    return self._last_feedback
+            if time.monotonic_ns() >= deadline:
+                return None
+
+    def _arrived(self, timeout_s: float) -> bool:
+        """Waits (lock held) for the last SYNC's TPDOs; True when in, or late past their validity (faults)."""
+        ready = self._changed.wait_for(
+            lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
+            timeout=timeout_s,
+        )
+        late = self._watch()  # every read: a lost heartbeat is a fault whether the TPDOs came or not
+        return ready or (late and all(node.values for node in self.nodes))
 
     def _watch(self) -> bool:
         """Faults for lost heartbeats and for TPDOs late past their validity; True if this SYNC's are."""
@@ -422,17 +468,23 @@ class CanopenDevice(Device):
             max(-SPOOL_FULL_SCALE, min(SPOOL_FULL_SCALE, v.values[SPOOL_ACTUAL[0]])) for v in valves
         )
         ticks = self.config.period_us // 1000 or 1
+        tick = self._syncs * ticks
+        if self.clock is not None:  # the schedule's slot; the age counts skipped slots and a late answer
+            tick = self.clock.slot * ticks
+            age = self.clock.age * ticks if self._host_session else NO_COMMAND_AGE
+        else:
+            age = 0 if self._host_session else NO_COMMAND_AGE
         return FeedbackFrame(
             session=self._boots % _U32 or 1,
             seq=self._syncs % _U32,
-            tick=(self._syncs * ticks) % _U32,
+            tick=tick % _U32,
             host_session=self._host_session,
             counts=(encoders[0].values[POSITION] % _U32, encoders[1].values[POSITION] % _U32),
             adc=tuple(min(max(round(value), 0), ADC_MAX) for value in adc),  # type: ignore[arg-type]
             status=status,
             faults=self._fault_bits & 0xFFFF,
             applied_seq=self._last_seq,
-            applied_age=0 if self._host_session else NO_COMMAND_AGE,
+            applied_age=age,
             output_codes=(spool[0], spool[1]),
             late_commands=0,
             crc_errors=0,
@@ -459,9 +511,12 @@ class CanopenDevice(Device):
             enable = False
         else:
             enable = command.enabled and not self._estop and not self._fault_bits
-        sync = enable or self._enabled or not self.config.sync_on_enabled
+        sync = self.clock is None and (enable or self._enabled or not self.config.sync_on_enabled)
         self._enabled = enable
         with self._changed:
+            self._answered = self._delivered  # the SYNC whose feedback this command answers
+            if self.clock is not None and self._answered == self._syncs:
+                self.clock.on_answer(time.monotonic_ns())
             valves = [n for n in self.nodes if n.kind == "valve"]
             for node, code in zip(valves, codes, strict=True):
                 word, setpoint = self._next(node, enable, code, bool(command.flags & CommandFlag.REARM))
@@ -488,9 +543,14 @@ class CanopenDevice(Device):
 
     def _sync(self) -> None:
         assert self.network is not None
+        data = b""
+        if self.clock is not None:  # real time: the slot's SYNC counter tells the devices what passed
+            self.clock.on_sync(time.monotonic_ns(), answered=self._answered == self._syncs)
+            data = bytes([self.clock.counter])
+        if self._delivered == self._syncs:  # validity counts from the first SYNC still unanswered
+            self._synced_at = time.monotonic()
         self._syncs += 1
-        self._synced_at = time.monotonic()
-        self.network.send_message(0x80, b"")
+        self.network.send_message(0x80, data)
 
     def _send_safe(self) -> None:
         with self._changed:
@@ -518,4 +578,4 @@ class CanopenDevice(Device):
 
 def canopen_device(link: LinkConfig, canopen: CanopenConfig, bridge: BridgeConfig) -> CanopenDevice:
     """The CANopen bench the bridge's ``canopen.*`` describe."""
-    return CanopenDevice(canopen, bridge=bridge)
+    return CanopenDevice(canopen, bridge=bridge, boot_wait_s=link.configure_timeout)

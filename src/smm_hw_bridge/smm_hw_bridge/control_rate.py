@@ -22,7 +22,7 @@ __all__ = [
 
 BOARD_TICK_HZ: Final[int] = 1000
 """The I/O board's tick (Hz): its I/O, its hold and its watchdog run at this rate at every control rate."""
-CONTROL_RATES_HZ: Final[tuple[int, ...]] = (1000, 500, 250)
+CONTROL_RATES_HZ: Final[tuple[int, ...]] = (1000, 500, 250, 200, 100)
 """The control rates ``smm-launch --control-rate`` offers (Hz), each with its settings and measured cost."""
 MAX_DIVIDER: Final[int] = 10
 """Largest divider N a bridge takes (100 Hz control on a 1 kHz board)."""

@@ -112,8 +112,9 @@ class BridgeCore:
         self._host_session = host_session
         self._period_ns = config.period_ns
         self._period_s = config.period_ns / 1e9
-        self._command_dt = config.period_ns * 1e-9
-        """dt of the valve's rate limit per command (s), as ``period_ns * 1e-9``."""
+        self._command_dt = config.period_ns * config.control_divider * 1e-9
+        """dt of the valve's rate limit per command (s): one command a control period of N ticks (at 200 Hz
+        a 1 ms dt slewed full scale in 10 ms, not 2, and the loop on the emulated bench went unstable)."""
         self._limits = (float(config.soft_limits[0]), float(config.soft_limits[1]))
         self._safety = SafetyStop(config.limit_stop, self._limits, config.period_ns)
         self._validity = config.validity
@@ -251,13 +252,16 @@ class BridgeCore:
 
     def _use(self, frame: FeedbackFrame, rx_ns: int) -> None:
         self._encoder.update_floats(frame.counts)
+        previous = None if self._last is None else self._tick
         tick = self._tick = self._admission.tick
         self._recent[tick] = (frame.seq, frame.tick)
         while len(self._recent) > _RECENT_KEPT:
             self._recent.popitem(last=False)
         self.stats.on_feedback(frame.seq, frame.applied_seq, rx_ns)
         self._last, self._last_rx_ns = frame, rx_ns
-        self._effort = self._valve.effort_floats(frame.output_codes, self._period_s)
+        # the valves' lag over the ticks since the last feedback: 1 from a board, N from a CANopen SYNC
+        ticks = 1 if previous is None else min(max(tick - previous, 1), self._divider)
+        self._effort = self._valve.effort_floats(frame.output_codes, self._period_s * ticks)
         self._measured = self._load.torque(frame.adc)
         self._safety.on_feedback(tick, self._encoder.position_floats, self._effort, self._live)
         if frame.faults:

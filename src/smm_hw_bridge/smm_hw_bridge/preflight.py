@@ -31,7 +31,7 @@ __all__ = [
 EXIT_PREFLIGHT_REFUSED: Final[int] = 4
 """Exit code of a hardware run whose preflight refused to arm (the host cannot hold the control rate)."""
 CANDIDATE_DIVIDERS: Final[tuple[int, ...]] = tuple(BOARD_TICK_HZ // rate for rate in CONTROL_RATES_HZ)
-"""Board ticks per control period of the rates the preflight names (1000, 500, 250 Hz: 1, 2, 4)."""
+"""Board ticks per control period of the rates the preflight names (1000 ... 100 Hz: 1, 2, 4, 5, 10)."""
 WARM_UP_S: Final[float] = 0.25
 """The rehearsal's first seconds are not judged (first steps of the chain, caches, the DDS discovery)."""
 
@@ -228,6 +228,7 @@ class RehearsalRecorder:
         divider: Board ticks per control period (the chain answers one tick in so many), >= 1.
         added_latency_us: Added to every answer's time (us), >= 0 (:class:`PreflightConfig`).
         idle_states: The CPUs' idle-state setting to report; None: read now (:func:`read_idle_states`).
+        every: Board ticks between two feedbacks: 1 (a board), N (a CANopen SYNC a control period).
     """
 
     def __init__(
@@ -236,6 +237,7 @@ class RehearsalRecorder:
         divider: int = 1,
         added_latency_us: float = 0.0,
         idle_states: IdleStates | None = None,
+        every: int = 1,
     ) -> None:
         if board_period_ns <= 0 or divider < 1 or added_latency_us < 0.0:
             raise ValueError(
@@ -244,6 +246,7 @@ class RehearsalRecorder:
             )
         self.board_period_ns = board_period_ns
         self.divider = divider
+        self.every = every
         self.added_ns = round(added_latency_us * 1e3)
         self.idle_states = read_idle_states() if idle_states is None else idle_states
         self._arrivals: dict[int, int] = {}
@@ -289,7 +292,8 @@ class RehearsalRecorder:
                 unanswered += 1
         if judged.any():
             kept = ticks[judged]
-            unanswered += (int(kept[-1] - kept[0]) + 1 - kept.size) // self.divider
+            missing = int(kept[-1] - kept[0]) // self.every + 1 - kept.size  # feedbacks never seen
+            unanswered += missing * self.every // self.divider
         wakeups = ((arrivals[judged] - grid[judged]) / 1e3).tolist()
         return RehearsalFigures(
             period, self.divider, tuple(latencies), tuple(wakeups), unanswered, self.idle_states

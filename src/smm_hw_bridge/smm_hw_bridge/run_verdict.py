@@ -37,15 +37,19 @@ class RunTally:
         period_ns: The board's tick (ns), > 0.
         config: Limit and settling time.
         divider: N, board ticks per control period (``bridge.control_divider``), >= 1.
+        every: Board ticks between two feedback frames: 1 (a board), N (a CANopen SYNC a period).
     """
 
-    def __init__(self, period_ns: int, config: VerdictConfig | None = None, divider: int = 1) -> None:
+    def __init__(
+        self, period_ns: int, config: VerdictConfig | None = None, divider: int = 1, every: int = 1
+    ) -> None:
         if period_ns <= 0:
             raise ValueError(f"period_ns must be > 0, got {period_ns!r}")
         if isinstance(divider, bool) or not isinstance(divider, int) or divider < 1:
             raise ValueError(f"divider must be an int >= 1, got {divider!r}")
         self.config = config or VerdictConfig()
         self.divider = divider
+        self.every = every
         self.period_ms = period_ns * divider / 1e6
         self.settle_ticks = round(self.config.settle_s * 1e9 / period_ns)
         self.armed = False
@@ -68,7 +72,7 @@ class RunTally:
         """
         last, self._last = self._last, frame
         if last is not None and last.session == frame.session:
-            self.missed_ticks += max(0, u32_diff(frame.tick, last.tick) - 1)
+            self.missed_ticks += max(0, u32_diff(frame.tick, last.tick) - self.every)
         enabled = bool(frame.status & _ENABLED)  # an int: IntFlag arithmetic costs a flag object
         if enabled:
             self.live_ticks += 1
