@@ -60,6 +60,11 @@ _TPDO1_MAP = 0x1A00
 _EVENT_TIMER = 5
 _NMT_START_ALL = 0x01
 _NMT_STOPPED = 0x04
+_NMT_OPERATIONAL = 0x05
+_NMT_PRE_OPERATIONAL = 0x7F
+_NMT_ID = 0x000
+_SYNC_ID = 0x080
+_SDO_REQUEST = 0x600
 _RESEND_S = 0.05
 _BIT = {"valve": FaultBit.VALVE_DRIVER, "encoder": FaultBit.ENCODER}
 """Lockstep without a SYNC: the last feedback again after this long (s), as the frame board's resend."""
@@ -83,6 +88,8 @@ class _Node:
     heard: float = 0.0
     """When its last heartbeat came (monotonic s)."""
     lost: bool = False
+    operational: bool = False
+    """A heartbeat said OPERATIONAL since the start."""
 
     @property
     def name(self) -> str:
@@ -126,6 +133,8 @@ class CanopenDevice(Device):
         self._delivered_at = 0.0
         self._synced_at = 0.0
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
+        self._started = False
+        self._faults_delivered = 0
 
     # ---- open: configure and start ----------------------------------------------------------------
 
@@ -176,9 +185,12 @@ class CanopenDevice(Device):
             f"serial 0x{node.identity[3]:08X}"
             for node in self.nodes
         )
+        for cob_id in (_NMT_ID, _SYNC_ID):  # frames only the master sends: another's is a fault
+            network.subscribe(cob_id, lambda can_id, data, _t: self._on_foreign(None, can_id, data))
         for node in self.nodes:
             node.heard = time.monotonic()  # consumers count from the start
         network.nmt.send_command(_NMT_START_ALL)
+        self._started = True
         self._send_safe()
 
     def _check_bus_load(self) -> None:
@@ -218,6 +230,10 @@ class CanopenDevice(Device):
         network.subscribe(
             0x700 + node_id, lambda _id, data, _t, node=node: self._on_heartbeat(node, bytes(data))
         )
+        rpdo = remote.rpdo.map.maps.get(1) if kind == "valve" else None  # none in the EDS: refused later
+        foreign = [_SDO_REQUEST + node_id] + ([rpdo.cob_id] if rpdo is not None else [])
+        for cob_id in foreign:
+            network.subscribe(cob_id, lambda can_id, data, _t, node=node: self._on_foreign(node, can_id, data))
         return node
 
     def _upload(self, node: _Node, index: int, subindex: int = 0) -> int:
@@ -252,6 +268,7 @@ class CanopenDevice(Device):
                 f"not CiA {profile}"
             )
         node.identity = tuple(self._upload(node, _IDENTITY, sub) for sub in (1, 2, 3, 4))  # type: ignore[assignment]
+        self._check_identity(node)
         if node.kind == "valve":
             self._check_mapping(
                 node, _TPDO1_MAP, node.remote.tpdo[1], (STATUS_WORD, SPOOL_ACTUAL[0], PRESSURE_ACTUAL[0])
@@ -268,6 +285,21 @@ class CanopenDevice(Device):
         self._download(node, _HEARTBEAT_PRODUCER, 0, config.heartbeat_ms, 2)
         consumer = (config.master_node_id << 16) | min(3 * config.heartbeat_ms, 0xFFFF)
         self._download(node, _HEARTBEAT_CONSUMER, 1, consumer, 4)
+
+    def _check_identity(self, node: _Node) -> None:
+        """Refuses a vendor-ID or product code (0x1018:01, :02) other than its EDS's 0x1018 says."""
+        od = node.remote.object_dictionary
+        for sub, what in ((1, "vendor-ID"), (2, "product code")):
+            try:
+                expected = int(od[_IDENTITY][sub].default)
+            except (KeyError, TypeError, ValueError):
+                continue  # the EDS does not say: nothing to compare
+            found = node.identity[sub - 1]
+            if found != expected:
+                raise ConfigureError(
+                    f"{node.name}: identity 0x1018:{sub:02X} ({what}) = 0x{found:08X}, its EDS "
+                    f"{self.config.eds(node.kind, node.joint)} says 0x{expected:08X}: another device"
+                )
 
     def _check_mapping(
         self, node: _Node, index: int, pdo: canopen.pdo.PdoMap, needed: tuple[int, ...]
@@ -295,6 +327,8 @@ class CanopenDevice(Device):
 
     def _on_tpdo(self, node: _Node, pdo: canopen.pdo.PdoMap) -> None:
         with self._changed:
+            if node.sync == self._syncs:  # one a SYNC: another sender, or a SYNC not ours
+                self._fault(node, f"TPDO1 0x{pdo.cob_id:03X} twice for SYNC {self._syncs}", _BIT[node.kind])
             node.values = {variable.index: int(variable.raw) for variable in pdo}
             node.sync = self._syncs
             if node.kind == "valve":
@@ -323,8 +357,27 @@ class CanopenDevice(Device):
             node.heard, node.lost = time.monotonic(), False
             if state == 0:
                 self._boots += 1  # boot-up: a new session
+                if self._started:
+                    self._fault(node, "boot-up: it reset (its configuration lost)", FaultBit.INTERNAL)
             elif state == _NMT_STOPPED:
                 self._fault(node, "NMT state STOPPED in its heartbeat", FaultBit.INTERNAL)
+            elif state == _NMT_OPERATIONAL:
+                node.operational = True
+            elif state == _NMT_PRE_OPERATIONAL and node.operational:
+                self._fault(node, "NMT state PRE-OPERATIONAL in its heartbeat", FaultBit.INTERNAL)
+
+    def _on_foreign(self, node: _Node | None, can_id: int, data: bytearray) -> None:
+        """A frame on a COB-ID only this master sends (NMT, SYNC, RPDO, SDO request): another master's."""
+        what = {_NMT_ID: "NMT command", _SYNC_ID: "SYNC"}.get(can_id, "frame")
+        with self._changed:
+            message = f"{what} 0x{can_id:03X} [{bytes(data).hex(' ')}] from another master"
+            if node is None:
+                if not self.faults or self.faults[-1] != f"bus: {message}":
+                    self.faults.append(f"bus: {message}")
+                self._fault_bits |= int(FaultBit.INTERNAL)
+            else:
+                self._fault(node, message, FaultBit.INTERNAL)
+            self._changed.notify_all()
 
     def _fault(self, node: _Node, what: str, bit: FaultBit) -> None:
         message = f"{node.name}: {what}"
@@ -351,15 +404,19 @@ class CanopenDevice(Device):
         resend_in = self._delivered_at + _RESEND_S - time.monotonic()
         with self._changed:
             ready = self._changed.wait_for(
-                lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
+                lambda: (self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes))
+                or bool(self._fault_bits & ~self._faults_delivered),
                 timeout=max(min(timeout_s, resend_in), 0.0) if held else timeout_s,
             )
-            late = self._watch()
+            ready = self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes)
+            # past the validity, or a fault not yet told: the nodes' last values with the fault bits
+            late = self._watch() or bool(self._fault_bits & ~self._faults_delivered)
             if late and all(node.values for node in self.nodes):
                 ready = True  # its feedback, the late nodes' last values with the fault: the loop faults
             if ready:
                 self._delivered = self._syncs
                 self._last_feedback = self._feedback()
+                self._faults_delivered = self._fault_bits
             elif not held or time.monotonic() < self._delivered_at + _RESEND_S:
                 return None
             # else lockstep, no SYNC since the last feedback: it again, as the frame board re-sends its
@@ -429,6 +486,8 @@ class CanopenDevice(Device):
             self._estop = True
         elif command.flags & CommandFlag.REARM:
             self._estop = False
+            self._fault_bits = self._faults_delivered = 0  # acknowledged (the list kept); a valve still in
+            # a fault state reports it again at its next TPDO
         codes = command.codes
         if any(abs(code) > SPOOL_FULL_SCALE for code in codes):
             self.dropped["code_limit"] = self.dropped.get("code_limit", 0) + 1
