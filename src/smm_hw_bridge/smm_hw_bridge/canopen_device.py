@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import can
@@ -96,6 +97,20 @@ class _Node:
         return f"{self.kind} {JOINTS[self.joint]} (node {self.remote.id})"
 
 
+class _ForeignListener(can.Listener):
+    """Hands the data frames on the master's own COB-IDs (sent by another) to ``handle``."""
+
+    def __init__(self, handle: Callable[[_Node | None, int, bytearray], None], ids: dict[int, _Node | None]):
+        self._handle, self._ids = handle, ids
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if not msg.is_error_frame and not msg.is_remote_frame and msg.arbitration_id in self._ids:
+            self._handle(self._ids[msg.arbitration_id], msg.arbitration_id, msg.data)
+
+    def stop(self) -> None:
+        """Nothing to release."""
+
+
 class CanopenDevice(Device):
     """Two CiA 408 valves and two CiA 406 encoders on one bus, the bridge as master (lockstep SYNC).
 
@@ -118,8 +133,6 @@ class CanopenDevice(Device):
         self._bus = bus
         self.network: canopen.Network | None = None
         self.nodes: list[_Node] = []
-        self.faults: list[str] = []
-        """Every fault seen, in words naming the node and the code (EMCY, valve state, NMT state)."""
         self._fault_bits = 0
         self._changed = threading.Condition()
         self._syncs = 0
@@ -135,6 +148,8 @@ class CanopenDevice(Device):
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
         self._started = False
         self._faults_delivered = 0
+        self._foreign: dict[int, _Node | None] = {_NMT_ID: None, _SYNC_ID: None}
+        """COB-IDs only this master sends (NMT, SYNC, the valves' RPDO1, SDO requests), and their node."""
 
     # ---- open: configure and start ----------------------------------------------------------------
 
@@ -185,8 +200,10 @@ class CanopenDevice(Device):
             f"serial 0x{node.identity[3]:08X}"
             for node in self.nodes
         )
-        for cob_id in (_NMT_ID, _SYNC_ID):  # frames only the master sends: another's is a fault
-            network.subscribe(cob_id, lambda can_id, data, _t: self._on_foreign(None, can_id, data))
+        # frames only the master sends, another's a fault: a listener of its own, called whatever the
+        # canopen library's handlers of the same COB-ID raise (a short NMT frame)
+        assert network.notifier is not None
+        network.notifier.add_listener(_ForeignListener(self._on_foreign, self._foreign))
         for node in self.nodes:
             node.heard = time.monotonic()  # consumers count from the start
         network.nmt.send_command(_NMT_START_ALL)
@@ -233,7 +250,7 @@ class CanopenDevice(Device):
         rpdo = remote.rpdo.map.maps.get(1) if kind == "valve" else None  # none in the EDS: refused later
         foreign = [_SDO_REQUEST + node_id] + ([rpdo.cob_id] if rpdo is not None else [])
         for cob_id in foreign:
-            network.subscribe(cob_id, lambda can_id, data, _t, node=node: self._on_foreign(node, can_id, data))
+            self._foreign[cob_id] = node
         return node
 
     def _upload(self, node: _Node, index: int, subindex: int = 0) -> int:
@@ -326,8 +343,15 @@ class CanopenDevice(Device):
     # ---- bus callbacks (the notifier's thread) ----------------------------------------------------
 
     def _on_tpdo(self, node: _Node, pdo: canopen.pdo.PdoMap) -> None:
+        size = sum(variable.length for variable in pdo) // 8
         with self._changed:
-            if node.sync == self._syncs:  # one a SYNC: another sender, or a SYNC not ours
+            if len(pdo.data) != size:  # malformed: not the node's (the library cannot decode it)
+                what = f"TPDO1 0x{pdo.cob_id:03X} of {len(pdo.data)} bytes, its EDS maps {size}"
+                self._fault(node, what, _BIT[node.kind])
+                self._changed.notify_all()
+                return
+            if node.sync == self._syncs and not self._fault_bits:  # one a SYNC: another sender's, or a
+                # SYNC not ours (after a fault the TPDOs of a SYNC told early may come after the next)
                 self._fault(node, f"TPDO1 0x{pdo.cob_id:03X} twice for SYNC {self._syncs}", _BIT[node.kind])
             node.values = {variable.index: int(variable.raw) for variable in pdo}
             node.sync = self._syncs
@@ -372,18 +396,18 @@ class CanopenDevice(Device):
         with self._changed:
             message = f"{what} 0x{can_id:03X} [{bytes(data).hex(' ')}] from another master"
             if node is None:
+                self._fault_bits |= int(FaultBit.INTERNAL)
                 if not self.faults or self.faults[-1] != f"bus: {message}":
                     self.faults.append(f"bus: {message}")
-                self._fault_bits |= int(FaultBit.INTERNAL)
             else:
                 self._fault(node, message, FaultBit.INTERNAL)
             self._changed.notify_all()
 
     def _fault(self, node: _Node, what: str, bit: FaultBit) -> None:
+        self._fault_bits |= int(bit)  # first: a command that sees the fault listed sees its bit
         message = f"{node.name}: {what}"
         if not self.faults or self.faults[-1] != message:
             self.faults.append(message)
-        self._fault_bits |= int(bit)
 
     # ---- the device interface ---------------------------------------------------------------------
 
