@@ -1,4 +1,4 @@
-"""Random frames on the CANopen link's bus for a set time: the oracle of docs/HW_CANOPEN.md, episode after episode.
+"""Random frames on the CANopen link's bus for a set time, the oracle of docs/HW_CANOPEN.md checked.
 
 Duration: SMM_CANOPEN_FUZZ_S seconds (default 60); seed: SMM_CANOPEN_FUZZ_SEED (default 1). Prints the
 episodes, frames, faults by kind and every violation of the oracle; exits 1 if there was one (not timing).
@@ -16,7 +16,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from hw_bridge.canopen_fuzz import LINK_IDS, Injection, run_episode  # noqa: E402
+from hw_bridge.canopen_fuzz import LINK_IDS, Injection, run_episode
 
 
 def _injection(rng: random.Random) -> Injection:
@@ -42,8 +42,10 @@ def main() -> int:
         for fault in outcome.faults:
             kinds[re.sub(r"\[[^]]*\]|0x[0-9A-F]+|\d+", "#", fault.split(": ", 1)[1])] += 1
         violations += [f"episode {episodes}: {v} ({injections})" for v in outcome.violations]
-    print(f"canopen fuzz: {episodes} episodes, {frames} foreign frames, {changing} episodes with a frame only a "
-          f"master sends, {seconds:g} s; violations of the oracle: {len(violations)}")
+    print(
+        f"canopen fuzz: {episodes} episodes, {frames} foreign frames, {changing} episodes with a frame only "
+        f"a master sends, {seconds:g} s; violations of the oracle: {len(violations)}"
+    )
     for kind, count in kinds.most_common(12):
         print(f"  fault {count:6d}  {kind}")
     for violation in violations[:20]:

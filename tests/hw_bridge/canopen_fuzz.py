@@ -1,4 +1,4 @@
-"""Random frames onto the bus the CANopen master listens on, and the oracle (docs/HW_CANOPEN.md, "Random frames").
+"""Random frames onto the bus the CANopen master listens on, and the oracle (docs/HW_CANOPEN.md).
 
 One episode: the master (:class:`CanopenDevice`) and the emulated bench on a python-can ``virtual`` channel,
 armed, then cycles of the loop's commands with foreign frames sent by a third bus between a command and its
@@ -28,8 +28,7 @@ MASTER_ONLY = frozenset(
 changes a node's state, and must end in a fault."""
 LINK_IDS = tuple(
     sorted(
-        MASTER_ONLY
-        | {base + node for base in (0x080, 0x180, 0x580, 0x700) for node in (*VALVES, *ENCODERS)}
+        MASTER_ONLY | {base + node for base in (0x080, 0x180, 0x580, 0x700) for node in (*VALVES, *ENCODERS)}
     )
 )
 """Every COB-ID the link uses (the nodes' EMCY, TPDO1, SDO answers and heartbeats besides)."""
@@ -129,7 +128,16 @@ def run_episode(
     device = CanopenDevice(config, master_bus)
     try:
         device.open()
-        _drive(device, bench, recorder, injector, injections, codes, arm_cycles, outcome)
+        _drive(
+            device=device,
+            bench=bench,
+            recorder=recorder,
+            injector=injector,
+            injections=injections,
+            codes=codes,
+            arm_cycles=arm_cycles,
+            outcome=outcome,
+        )
     except Exception as error:  # the oracle: nothing the bus carries makes the master raise
         outcome.violations.append(f"raised {type(error).__name__}: {error}")
     finally:
@@ -141,6 +149,7 @@ def run_episode(
 
 
 def _drive(
+    *,
     device: CanopenDevice,
     bench: CanBench,
     recorder: _Recorder,
@@ -166,7 +175,9 @@ def _drive(
         outcome.cycles += 1
         for cob_id, word, setpoint in recorder.sent[before:]:
             if abs(setpoint) > SPOOL_FULL_SCALE:
-                outcome.violations.append(f"setpoint {setpoint} beyond +-{SPOOL_FULL_SCALE} sent to 0x{cob_id:03X}")
+                outcome.violations.append(
+                    f"setpoint {setpoint} beyond +-{SPOOL_FULL_SCALE} sent to 0x{cob_id:03X}"
+                )
             if faulted and (word != _DISABLED or setpoint):
                 outcome.violations.append(
                     f"after the fault {device.faults[0]!r}: control word 0x{word:04X}, setpoint {setpoint} "
@@ -177,6 +188,8 @@ def _drive(
             outcome.violations.append(f"frames on {changing} (only a master sends those) left no fault")
     outcome.rpdos = len(recorder.sent)
     if device.faults:
-        moving = [f"{valve.node.id}: {valve.machine.state.name}, spool {valve.spool}" for valve in bench.valves]
+        moving = [
+            f"{valve.node.id}: {valve.machine.state.name}, spool {valve.spool}" for valve in bench.valves
+        ]
         if any(valve.machine.follows_setpoint and valve.spool for valve in bench.valves):
             outcome.violations.append(f"faulted ({device.faults[0]!r}) yet a valve in motion: {moving}")

@@ -1,7 +1,7 @@
-"""The CANopen link's faults, each named with the node and the code, every valve DISABLED (lockstep, virtual bus).
+"""The CANopen link's faults, each named with the node and the code, every valve DISABLED (lockstep).
 
-A missing node, a wrong device type, a PDO mapping that differs from the EDS, a TPDO past its validity, a lost
-heartbeat with the TPDOs still coming and a valve whose setpoints stop: tests/hw_bridge/test_canopen_device.py.
+A missing node, a wrong device type, a PDO mapping that differs from the EDS, a TPDO past its validity, a
+lost heartbeat with the TPDOs still coming, a valve whose setpoints stop: test_canopen_device.py.
 """
 
 from __future__ import annotations
@@ -10,22 +10,28 @@ from pathlib import Path
 
 import can
 import pytest
-from hw_bridge.test_canopen_device import _command, _feedback, _open, _run, bench, channel  # noqa: F401
+from hw_bridge import test_canopen_device as emulated
+from hw_bridge.test_canopen_device import _command, _feedback, _open, _run
 from smm_bench_emulator.canopen_bench import CanBench, eds_path
 from smm_hw_bridge.canopen_device import ConfigureError
 from smm_hw_bridge.cia408 import ValveState, control_word
 from smm_hw_bridge.protocol import CommandFlag, FaultBit, FeedbackFrame
 
 ENABLE = int(CommandFlag.ENABLE)
+bench = emulated.bench  # the emulated bench on a fresh virtual channel (fixtures)
+channel = emulated.channel
 
 
 def test_a_wrong_identity_is_refused_naming_the_node_and_the_object(
     bench: CanBench, channel: str, tmp_path: Path
 ) -> None:
     text = eds_path("encoder_cia406.eds").read_text()
-    other = text.replace("[1018sub2]\nParameterName=Product code\nObjectType=0x7\nDataType=0x0007\nAccessType=ro\n"
-                         "DefaultValue=0x00000406", "[1018sub2]\nParameterName=Product code\nObjectType=0x7\n"
-                         "DataType=0x0007\nAccessType=ro\nDefaultValue=0x00000999")
+    other = text.replace(
+        "[1018sub2]\nParameterName=Product code\nObjectType=0x7\nDataType=0x0007\nAccessType=ro\n"
+        "DefaultValue=0x00000406",
+        "[1018sub2]\nParameterName=Product code\nObjectType=0x7\n"
+        "DataType=0x0007\nAccessType=ro\nDefaultValue=0x00000999",
+    )
     assert other != text
     user_eds = tmp_path / "encoder.eds"
     user_eds.write_text(other)

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from hw_bridge.canopen_fuzz import LINK_IDS, MASTER_ONLY, Injection, run_episode
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from hw_bridge.canopen_fuzz import LINK_IDS, MASTER_ONLY, Injection, run_episode
 
 pytestmark = pytest.mark.slow
 
@@ -30,7 +30,9 @@ _FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCh
 
 @_FUZZ
 @given(st.lists(_injection(_any_id), min_size=1, max_size=6), st.lists(_codes, min_size=6, max_size=6))
-def test_random_frames_on_the_bus_keep_the_oracle(injections: list[Injection], codes: list[tuple[int, int]]) -> None:
+def test_random_frames_on_the_bus_keep_the_oracle(
+    injections: list[Injection], codes: list[tuple[int, int]]
+) -> None:
     outcome = run_episode(injections, codes)
     assert not outcome.violations, (outcome.violations, outcome.faults, injections)
     assert outcome.cycles == 4 + 6 + 2 and outcome.rpdos == 2 * outcome.cycles + 2  # the opening SYNC's too

@@ -247,7 +247,11 @@ class HwBridgeNode(LifecycleNode):
     def run_verdict(self) -> str | None:
         """Why this run did not control (never configured, never armed, ...), or None if it did."""
         verdict = run_verdict(self.loop.tally, self.core, waited=self.autostart and not self._started)
-        return self.loop.safety_stop or verdict or (f"it faulted: {self._run_fault}" if self._run_fault else None)
+        return (
+            self.loop.safety_stop
+            or verdict
+            or (f"it faulted: {self._run_fault}" if self._run_fault else None)
+        )
 
     # ---- lifecycle --------------------------------------------------------------------------------
 

@@ -8,6 +8,7 @@ bus maps onto :data:`~smm_hw_bridge.device.Feedback`: docs/HW_CANOPEN.md. No ROS
 
 from __future__ import annotations
 
+import collections
 import threading
 import time
 from collections.abc import Callable
@@ -98,14 +99,44 @@ class _Node:
 
 
 class _ForeignListener(can.Listener):
-    """Hands the data frames on the master's own COB-IDs (sent by another) to ``handle``."""
+    """Hands the data frames on the master's own COB-IDs (sent by another) to ``handle``.
 
-    def __init__(self, handle: Callable[[_Node | None, int, bytearray], None], ids: dict[int, _Node | None]):
+    ``echoes``: the bus hands the master its own frames back (python-can's ``udp_multicast``): each frame
+    sent on those COB-IDs is expected back once, in order, and is not another's.
+    """
+
+    def __init__(
+        self,
+        handle: Callable[[_Node | None, int, bytearray], None],
+        ids: dict[int, _Node | None],
+        bus: can.BusABC,
+        echoes: bool,
+    ):
         self._handle, self._ids = handle, ids
+        self._sent: dict[int, collections.deque[bytes]] = {}
+        self._guard = threading.Lock()
+        if echoes:
+            send = bus.send
+
+            def sending(msg: can.Message, timeout: float | None = None) -> None:
+                if msg.arbitration_id in self._ids:
+                    with self._guard:
+                        self._sent.setdefault(msg.arbitration_id, collections.deque(maxlen=64)).append(
+                            bytes(msg.data)
+                        )
+                send(msg, timeout)
+
+            bus.send = sending  # type: ignore[method-assign]
 
     def on_message_received(self, msg: can.Message) -> None:
-        if not msg.is_error_frame and not msg.is_remote_frame and msg.arbitration_id in self._ids:
-            self._handle(self._ids[msg.arbitration_id], msg.arbitration_id, msg.data)
+        if msg.is_error_frame or msg.is_remote_frame or msg.arbitration_id not in self._ids:
+            return
+        with self._guard:
+            sent = self._sent.get(msg.arbitration_id)
+            if sent and sent[0] == bytes(msg.data):
+                sent.popleft()  # our own, echoed
+                return
+        self._handle(self._ids[msg.arbitration_id], msg.arbitration_id, msg.data)
 
     def stop(self) -> None:
         """Nothing to release."""
@@ -181,6 +212,11 @@ class CanopenDevice(Device):
         network = canopen.Network(bus)
         network.connect()
         self.network = network
+        # frames only the master sends, another's a fault from the NMT start on: a listener of its own,
+        # called whatever the canopen library's handlers of the same COB-ID raise (a short NMT frame)
+        assert network.notifier is not None
+        echoes = self._bus is None and config.interface == "udp_multicast"
+        network.notifier.add_listener(_ForeignListener(self._on_foreign, self._foreign, bus, echoes))
         try:
             self.nodes = [self._add(network, "valve", j, i) for j, i in enumerate(config.valve_node_ids)]
             self.nodes += [self._add(network, "encoder", j, i) for j, i in enumerate(config.encoder_node_ids)]
@@ -200,10 +236,6 @@ class CanopenDevice(Device):
             f"serial 0x{node.identity[3]:08X}"
             for node in self.nodes
         )
-        # frames only the master sends, another's a fault: a listener of its own, called whatever the
-        # canopen library's handlers of the same COB-ID raise (a short NMT frame)
-        assert network.notifier is not None
-        network.notifier.add_listener(_ForeignListener(self._on_foreign, self._foreign))
         for node in self.nodes:
             node.heard = time.monotonic()  # consumers count from the start
         network.nmt.send_command(_NMT_START_ALL)
@@ -393,6 +425,8 @@ class CanopenDevice(Device):
     def _on_foreign(self, node: _Node | None, can_id: int, data: bytearray) -> None:
         """A frame on a COB-ID only this master sends (NMT, SYNC, RPDO, SDO request): another master's."""
         what = {_NMT_ID: "NMT command", _SYNC_ID: "SYNC"}.get(can_id, "frame")
+        if not self._started:
+            return  # configuring: not yet a run to fault
         with self._changed:
             message = f"{what} 0x{can_id:03X} [{bytes(data).hex(' ')}] from another master"
             if node is None:
@@ -428,8 +462,10 @@ class CanopenDevice(Device):
         resend_in = self._delivered_at + _RESEND_S - time.monotonic()
         with self._changed:
             ready = self._changed.wait_for(
-                lambda: (self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes))
-                or bool(self._fault_bits & ~self._faults_delivered),
+                lambda: (
+                    (self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes))
+                    or bool(self._fault_bits & ~self._faults_delivered)
+                ),
                 timeout=max(min(timeout_s, resend_in), 0.0) if held else timeout_s,
             )
             ready = self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes)

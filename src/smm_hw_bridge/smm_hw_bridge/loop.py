@@ -437,7 +437,9 @@ class BridgeLoop:
             if core.state != BridgeState.FAULT:
                 return None
             last = core.last_feedback
-            seen = "" if self.device is None or not self.device.faults else f": {'; '.join(self.device.faults)}"
+            seen = (
+                "" if self.device is None or not self.device.faults else f": {'; '.join(self.device.faults)}"
+            )
             return f"board fault bits {0 if last is None else last.faults:#06x}{seen}"
 
     def health(self, lifecycle: str, publish_us: RunningFigures) -> Health:
