@@ -133,3 +133,39 @@ def test_a_malformed_tpdo_is_a_fault_naming_the_node(bench: CanBench, channel: s
     finally:
         injector.shutdown()
         device.close()
+
+
+@pytest.mark.parametrize(
+    ("frames", "named"),
+    [
+        ([(0x18B, b"\x10\x00\x00\x00")], "encoder alpha (node 11): TPDO1 0x18B twice for SYNC "),
+        ([(0x70C, b"\x00")], "encoder beta (node 12): boot-up: it reset (its configuration lost)"),
+        (
+            [(0x702, b"\x05"), (0x702, b"\x7f")],
+            "valve beta (node 2): NMT state PRE-OPERATIONAL in its heartbeat",
+        ),
+        (
+            [(0x601, bytes([0x2B, 0x40, 0x60, 0, 0x0F, 0, 0, 0]))],
+            "valve alpha (node 1): frame 0x601 [2b 40 60",
+        ),
+    ],
+    ids=["tpdo-twice", "boot-up", "back-to-pre-operational", "foreign-sdo-write"],
+)
+def test_a_frame_that_is_not_the_run_s_is_a_fault_naming_the_node(
+    bench: CanBench, channel: str, frames: list[tuple[int, bytes]], named: str
+) -> None:
+    device = _open(channel)
+    injector = can.Bus(interface="virtual", channel=channel)
+    try:
+        armed = _run(device, 5, (3000, 3000), ENABLE)
+        device.write(_command(armed, 10, (3000, 3000), ENABLE))
+        for cob_id, data in frames:
+            injector.send(can.Message(arbitration_id=cob_id, data=data, is_extended_id=False))
+        faulted = _until(device, lambda f: bool(f.faults), armed, 11)
+        assert any(fault.startswith(named) for fault in device.faults), device.faults
+        _run(device, 1, (3000, 3000), ENABLE, start=50, feedback=faulted)
+        assert all(state is not ValveState.ACTIVE for state in bench.valve_states())
+        assert [valve.spool for valve in bench.valves] == [0, 0]
+    finally:
+        injector.shutdown()
+        device.close()

@@ -25,7 +25,7 @@ def _injection(draw: st.DrawFn, ids: st.SearchStrategy[int]) -> Injection:
 
 
 _any_id = st.one_of(st.integers(0, 0x7FF), st.sampled_from(LINK_IDS))
-_FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+_FUZZ = settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 @_FUZZ
