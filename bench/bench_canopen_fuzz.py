@@ -16,7 +16,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from hw_bridge.canopen_fuzz import LINK_IDS, Injection, run_episode
+from hw_bridge.canopen_fuzz import LINK_IDS, Injection, run_episode  # type: ignore[import-not-found]
 
 
 def _injection(rng: random.Random) -> Injection:
