@@ -3,8 +3,8 @@
 Two valves (nodes 21, 22) and two encoders (31, 32) as ``canopen`` LocalNodes with this folder's EDS files
 (other PDO orders than the emulator's, device types with the high word set), and a plant of its own: the
 SPEC's 2-DOF dynamics (M(q) of its Appendix A, C by Christoffel symbols of M by central differences,
-gravity, viscous friction, case 2's disturbance and +10 % inertias), valves as a first-order lag to
-+-``FULL_SCALE_NM`` at +-16384, encoders of ``COUNTS_PER_REV`` with their own zero and direction. Each SYNC:
+gravity, viscous friction, case 2's disturbance and +10 % inertias), ideal valves (+-``FULL_SCALE_NM`` at
++-16384, no lag), encoders of ``COUNTS_PER_REV`` with their own zero and direction. Each SYNC:
 the last RPDO latched, the plant moved one cycle period (0x1006) at 1 kHz sub-steps, the TPDOs sent.
 """
 
@@ -23,7 +23,6 @@ HERE = Path(__file__).resolve().parent
 VALVE_NODES: Final = (21, 22)
 ENCODER_NODES: Final = (31, 32)
 FULL_SCALE_NM: Final = (12.0, 12.0)
-VALVE_TAU_S: Final = (0.015, 0.015)
 COUNTS_PER_REV: Final = (1 << 19, 1 << 19)
 ZERO_COUNTS: Final = (100_000, 7)
 DIRECTION: Final = (1, -1)
@@ -43,7 +42,7 @@ class Valve:
         self.control = 0
         self.setpoint = 0
         self.spool = 0.0
-        """The lagged spool opening (fraction of full scale)."""
+        """The spool opening (fraction of full scale)."""
 
     @property
     def faulted(self) -> bool:
@@ -189,8 +188,8 @@ class IndependentBench:
                 node.emcy.send(_EMCY_RPDO_TIMEOUT, register=0x11)
         if self.live_syncs or all(valve.active for valve in self.valves):
             for _ in range(max(1, round(period_us / 1000))):
-                for valve, tau in zip(self.valves, VALVE_TAU_S, strict=True):
-                    valve.spool += (valve.demand() - valve.spool) * (1 - math.exp(-_STEP_S / tau))
+                for valve in self.valves:  # an ideal valve: the spool at its demand (docs/HW_CANOPEN.md)
+                    valve.spool = valve.demand()
                 torque = np.array([v.spool * fs for v, fs in zip(self.valves, FULL_SCALE_NM, strict=True)])
                 self.plant.step(torque, _STEP_S)
             self.live_syncs += 1
