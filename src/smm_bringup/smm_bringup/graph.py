@@ -152,7 +152,9 @@ def build_graph(options: GraphOptions) -> tuple[NodeSpec, ...]:
             has a node section) no node of the stack declares (docs/LAUNCH.md, "Parameter names are
             checked").
     """
-    if options.plant == "hardware" and options.clock_mode == "lockstep" and options.board is not None:
+    external_frame_board = options.board is not None and options.link != "canopen"  # a CANopen bench steps
+    # on the bridge's SYNC: an external one (a second emulator, a HIL rig) can follow it in lockstep
+    if options.plant == "hardware" and options.clock_mode == "lockstep" and external_frame_board:
         raise PlantNotAvailableError(
             "a real board runs on its own 1 kHz clock: lockstep needs the emulator (no --board), or use "
             "--clock-mode realtime"

@@ -111,6 +111,8 @@ class HwBridgeNode(LifecycleNode):
         self._reader: threading.Thread | None = None
         self._stop = threading.Event()
         self._fault_transition = False
+        self._run_fault = ""
+        """The first fault that took the bridge out of its run (the loop's words), for the verdict."""
         self._joint_states = self.create_publisher(
             JointState, topics.JOINT_STATES, qos_for_topic(topics.JOINT_STATES)
         )
@@ -253,7 +255,11 @@ class HwBridgeNode(LifecycleNode):
     def run_verdict(self) -> str | None:
         """Why this run did not control (never configured, never armed, ...), or None if it did."""
         verdict = run_verdict(self.loop.tally, self.core, waited=self.autostart and not self._started)
-        return self.loop.safety_stop or verdict
+        return (
+            self.loop.safety_stop
+            or verdict
+            or (f"it faulted: {self._run_fault}" if self._run_fault else None)
+        )
 
     # ---- lifecycle --------------------------------------------------------------------------------
 
@@ -392,6 +398,7 @@ class HwBridgeNode(LifecycleNode):
         live = self.lifecycle_state in ("active", "inactive")  # not again once the error transition ran
         if why is not None and live and not self._fault_transition:
             self._fault_transition = True
+            self._run_fault = self._run_fault or why
             self._log.error(f"{why}: safe output, error transition")
             self.diagnostics.publish()
             if self.lifecycle_state == "active":

@@ -8,8 +8,10 @@ bus maps onto :data:`~smm_hw_bridge.device.Feedback`: docs/HW_CANOPEN.md. No ROS
 
 from __future__ import annotations
 
+import collections
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import can
@@ -69,6 +71,11 @@ _TPDO1_MAP = 0x1A00
 _EVENT_TIMER = 5
 _NMT_START_ALL = 0x01
 _NMT_STOPPED = 0x04
+_NMT_OPERATIONAL = 0x05
+_NMT_PRE_OPERATIONAL = 0x7F
+_NMT_ID = 0x000
+_SYNC_ID = 0x080
+_SDO_REQUEST = 0x600
 _RESEND_S = 0.05
 _BIT = {"valve": FaultBit.VALVE_DRIVER, "encoder": FaultBit.ENCODER}
 """Lockstep without a SYNC: the last feedback again after this long (s), as the frame board's resend."""
@@ -92,10 +99,56 @@ class _Node:
     heard: float = 0.0
     """When its last heartbeat came (monotonic s)."""
     lost: bool = False
+    operational: bool = False
+    """A heartbeat said OPERATIONAL since the start."""
 
     @property
     def name(self) -> str:
         return f"{self.kind} {JOINTS[self.joint]} (node {self.remote.id})"
+
+
+class _ForeignListener(can.Listener):
+    """Hands the data frames on the master's own COB-IDs (sent by another) to ``handle``.
+
+    ``echoes``: the bus hands the master its own frames back (python-can's ``udp_multicast``): each frame
+    sent on those COB-IDs is expected back once, in order, and is not another's.
+    """
+
+    def __init__(
+        self,
+        handle: Callable[[_Node | None, int, bytearray], None],
+        ids: dict[int, _Node | None],
+        bus: can.BusABC,
+        echoes: bool,
+    ):
+        self._handle, self._ids = handle, ids
+        self._sent: dict[int, collections.deque[bytes]] = {}
+        self._guard = threading.Lock()
+        if echoes:
+            send = bus.send
+
+            def sending(msg: can.Message, timeout: float | None = None) -> None:
+                if msg.arbitration_id in self._ids:
+                    with self._guard:
+                        self._sent.setdefault(msg.arbitration_id, collections.deque(maxlen=64)).append(
+                            bytes(msg.data)
+                        )
+                send(msg, timeout)
+
+            bus.send = sending  # type: ignore[method-assign]
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.is_error_frame or msg.is_remote_frame or msg.arbitration_id not in self._ids:
+            return
+        with self._guard:
+            sent = self._sent.get(msg.arbitration_id)
+            if sent and sent[0] == bytes(msg.data):
+                sent.popleft()  # our own, echoed
+                return
+        self._handle(self._ids[msg.arbitration_id], msg.arbitration_id, msg.data)
+
+    def stop(self) -> None:
+        """Nothing to release."""
 
 
 class CanopenDevice(Device):
@@ -133,8 +186,6 @@ class CanopenDevice(Device):
         self._boot_wait_s = boot_wait_s
         self.network: canopen.Network | None = None
         self.nodes: list[_Node] = []
-        self.faults: list[str] = []
-        """Every fault seen, in words naming the node and the code (EMCY, valve state, NMT state)."""
         self._fault_bits = 0
         self._changed = threading.Condition()
         self._syncs = 0
@@ -151,6 +202,10 @@ class CanopenDevice(Device):
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
         self.clock = SyncClock(config.period_us * 1000) if config.sync_clock else None
         """Real time (``sync_clock``): the SYNC schedule, its slots and late periods."""
+        self._started = False
+        self._faults_delivered = 0
+        self._foreign: dict[int, _Node | None] = {_NMT_ID: None, _SYNC_ID: None}
+        """COB-IDs only this master sends (NMT, SYNC, the valves' RPDO1, SDO requests), and their node."""
 
     # ---- open: configure and start ----------------------------------------------------------------
 
@@ -188,6 +243,11 @@ class CanopenDevice(Device):
         network = canopen.Network(bus)
         network.connect()
         self.network = network
+        # frames only the master sends, another's a fault from the NMT start on: a listener of its own,
+        # called whatever the canopen library's handlers of the same COB-ID raise (a short NMT frame)
+        assert network.notifier is not None
+        echoes = self._bus is None and config.interface == "udp_multicast"
+        network.notifier.add_listener(_ForeignListener(self._on_foreign, self._foreign, bus, echoes))
         try:
             self.nodes = [self._add(network, "valve", j, i) for j, i in enumerate(config.valve_node_ids)]
             self.nodes += [self._add(network, "encoder", j, i) for j, i in enumerate(config.encoder_node_ids)]
@@ -212,6 +272,7 @@ class CanopenDevice(Device):
         for node in self.nodes:
             node.heard = time.monotonic()  # consumers count from the start
         network.nmt.send_command(_NMT_START_ALL)
+        self._started = True
         self._send_safe()
 
     def _check_bus_load(self) -> None:
@@ -251,6 +312,10 @@ class CanopenDevice(Device):
         network.subscribe(
             0x700 + node_id, lambda _id, data, _t, node=node: self._on_heartbeat(node, bytes(data))
         )
+        rpdo = remote.rpdo.map.maps.get(1) if kind == "valve" else None  # none in the EDS: refused later
+        foreign = [_SDO_REQUEST + node_id] + ([rpdo.cob_id] if rpdo is not None else [])
+        for cob_id in foreign:
+            self._foreign[cob_id] = node
         return node
 
     def _await(self, node: _Node, deadline: float) -> None:
@@ -296,6 +361,7 @@ class CanopenDevice(Device):
                 f"not CiA {profile}"
             )
         node.identity = tuple(self._upload(node, _IDENTITY, sub) for sub in (1, 2, 3, 4))  # type: ignore[assignment]
+        self._check_identity(node)
         if node.kind == "valve":
             self._check_mapping(
                 node, _TPDO1_MAP, node.remote.tpdo[1], (STATUS_WORD, SPOOL_ACTUAL[0], PRESSURE_ACTUAL[0])
@@ -312,6 +378,21 @@ class CanopenDevice(Device):
         self._download(node, _HEARTBEAT_PRODUCER, 0, config.heartbeat_ms, 2)
         consumer = (config.master_node_id << 16) | min(3 * config.heartbeat_ms, 0xFFFF)
         self._download(node, _HEARTBEAT_CONSUMER, 1, consumer, 4)
+
+    def _check_identity(self, node: _Node) -> None:
+        """Refuses a vendor-ID or product code (0x1018:01, :02) other than its EDS's 0x1018 says."""
+        od = node.remote.object_dictionary
+        for sub, what in ((1, "vendor-ID"), (2, "product code")):
+            try:
+                expected = int(od[_IDENTITY][sub].default)
+            except (KeyError, TypeError, ValueError):
+                continue  # the EDS does not say: nothing to compare
+            found = node.identity[sub - 1]
+            if found != expected:
+                raise ConfigureError(
+                    f"{node.name}: identity 0x1018:{sub:02X} ({what}) = 0x{found:08X}, its EDS "
+                    f"{self.config.eds(node.kind, node.joint)} says 0x{expected:08X}: another device"
+                )
 
     def _check_mapping(
         self, node: _Node, index: int, pdo: canopen.pdo.PdoMap, needed: tuple[int, ...]
@@ -338,7 +419,16 @@ class CanopenDevice(Device):
     # ---- bus callbacks (the notifier's thread) ----------------------------------------------------
 
     def _on_tpdo(self, node: _Node, pdo: canopen.pdo.PdoMap) -> None:
+        size = sum(variable.length for variable in pdo) // 8
         with self._changed:
+            if len(pdo.data) != size:  # malformed: not the node's (the library cannot decode it)
+                what = f"TPDO1 0x{pdo.cob_id:03X} of {len(pdo.data)} bytes, its EDS maps {size}"
+                self._fault(node, what, _BIT[node.kind])
+                self._changed.notify_all()
+                return
+            if node.sync == self._syncs and not self._fault_bits:  # one a SYNC: another sender's, or a
+                # SYNC not ours (after a fault the TPDOs of a SYNC told early may come after the next)
+                self._fault(node, f"TPDO1 0x{pdo.cob_id:03X} twice for SYNC {self._syncs}", _BIT[node.kind])
             node.values = {variable.index: int(variable.raw) for variable in pdo}
             node.sync = self._syncs
             if node.kind == "valve":
@@ -367,14 +457,35 @@ class CanopenDevice(Device):
             node.heard, node.lost = time.monotonic(), False
             if state == 0:
                 self._boots += 1  # boot-up: a new session
+                if self._started:
+                    self._fault(node, "boot-up: it reset (its configuration lost)", FaultBit.INTERNAL)
             elif state == _NMT_STOPPED:
                 self._fault(node, "NMT state STOPPED in its heartbeat", FaultBit.INTERNAL)
+            elif state == _NMT_OPERATIONAL:
+                node.operational = True
+            elif state == _NMT_PRE_OPERATIONAL and node.operational:
+                self._fault(node, "NMT state PRE-OPERATIONAL in its heartbeat", FaultBit.INTERNAL)
+
+    def _on_foreign(self, node: _Node | None, can_id: int, data: bytearray) -> None:
+        """A frame on a COB-ID only this master sends (NMT, SYNC, RPDO, SDO request): another master's."""
+        what = {_NMT_ID: "NMT command", _SYNC_ID: "SYNC"}.get(can_id, "frame")
+        if not self._started:
+            return  # configuring: not yet a run to fault
+        with self._changed:
+            message = f"{what} 0x{can_id:03X} [{bytes(data).hex(' ')}] from another master"
+            if node is None:
+                self._fault_bits |= int(FaultBit.INTERNAL)
+                if not self.faults or self.faults[-1] != f"bus: {message}":
+                    self.faults.append(f"bus: {message}")
+            else:
+                self._fault(node, message, FaultBit.INTERNAL)
+            self._changed.notify_all()
 
     def _fault(self, node: _Node, what: str, bit: FaultBit) -> None:
+        self._fault_bits |= int(bit)  # first: a command that sees the fault listed sees its bit
         message = f"{node.name}: {what}"
         if not self.faults or self.faults[-1] != message:
             self.faults.append(message)
-        self._fault_bits |= int(bit)
 
     # ---- the device interface ---------------------------------------------------------------------
 
@@ -398,8 +509,7 @@ class CanopenDevice(Device):
         with self._changed:
             ready = self._arrived(max(min(timeout_s, resend_in), 0.0) if held else timeout_s)
             if ready:
-                self._delivered = self._syncs
-                self._last_feedback = self._feedback()
+                self._deliver()
             elif not held or time.monotonic() < self._delivered_at + _RESEND_S:
                 return None
             # else lockstep, no SYNC since the last feedback: it again, as the frame board re-sends its
@@ -418,20 +528,32 @@ class CanopenDevice(Device):
                     self._sync()
             with self._changed:
                 if self._arrived(max(min(deadline, self.clock.due_ns) - time.monotonic_ns(), 0) / 1e9):
-                    self._delivered = self._syncs
-                    self._last_feedback = self._feedback()
-                    return self._last_feedback
+                    return self._deliver()
             if time.monotonic_ns() >= deadline:
                 return None
 
     def _arrived(self, timeout_s: float) -> bool:
-        """Waits (lock held) for the last SYNC's TPDOs; True when in, or late past their validity (faults)."""
-        ready = self._changed.wait_for(
-            lambda: self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes),
-            timeout=timeout_s,
-        )
-        late = self._watch()  # every read: a lost heartbeat is a fault whether the TPDOs came or not
+        """Waits (lock held) for the last SYNC's TPDOs: in, late past their validity, or a fault untold.
+
+        Late or untold: the nodes' last values go out with the fault bits (the loop faults).
+        """
+        self._changed.wait_for(lambda: self._tpdos_in() or self._untold(), timeout=timeout_s)
+        ready = self._tpdos_in()
+        late = self._watch() or self._untold()  # every read: a lost heartbeat is a fault, TPDOs or not
         return ready or (late and all(node.values for node in self.nodes))
+
+    def _untold(self) -> bool:
+        return bool(self._fault_bits & ~self._faults_delivered)
+
+    def _tpdos_in(self) -> bool:
+        return self._delivered < self._syncs and all(n.sync == self._syncs for n in self.nodes)
+
+    def _deliver(self) -> FeedbackFrame:
+        """The last SYNC's feedback, delivered (lock held): its faults are told."""
+        self._delivered = self._syncs
+        self._last_feedback = self._feedback()
+        self._faults_delivered = self._fault_bits
+        return self._last_feedback
 
     def _watch(self) -> bool:
         """Faults for lost heartbeats and for TPDOs late past their validity; True if this SYNC's are."""
@@ -504,6 +626,8 @@ class CanopenDevice(Device):
             self._estop = True
         elif command.flags & CommandFlag.REARM:
             self._estop = False
+            self._fault_bits = self._faults_delivered = 0  # acknowledged (the list kept); a valve still in
+            # a fault state reports it again at its next TPDO
         codes = command.codes
         if any(abs(code) > SPOOL_FULL_SCALE for code in codes):
             self.dropped["code_limit"] = self.dropped.get("code_limit", 0) + 1

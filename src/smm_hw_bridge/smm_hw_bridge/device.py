@@ -77,6 +77,8 @@ class Device(abc.ABC):
         """What the device dropped before the loop saw it, by reason (foreign source, broken framing)."""
         self.found: tuple[str, ...] = ()
         """What :meth:`open` found (a CANopen bench: each node, its device type and identity), for the log."""
+        self.faults: list[str] = []
+        """The faults it saw, in words (a CANopen bench: each naming the node and the code), for the log."""
 
     @abc.abstractmethod
     def open(self) -> None:

@@ -437,7 +437,10 @@ class BridgeLoop:
             if core.state != BridgeState.FAULT:
                 return None
             last = core.last_feedback
-            return f"board fault bits {0 if last is None else last.faults:#06x}"
+            seen = (
+                "" if self.device is None or not self.device.faults else f": {'; '.join(self.device.faults)}"
+            )
+            return f"board fault bits {0 if last is None else last.faults:#06x}{seen}"
 
     def health(self, lifecycle: str, publish_us: RunningFigures) -> Health:
         """The bridge's status (:func:`bridge_health`); with an answerer, the loop's figures too."""
