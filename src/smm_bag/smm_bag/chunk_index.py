@@ -1,8 +1,9 @@
-"""The MCAP writer's chunk indexes kept as serialized records until the summary (docs/BAGS.md, "Memory").
+"""The MCAP writer's chunk indexes kept as serialized records until the summary.
 
 mcap-python's ``Writer`` holds one ``ChunkIndex`` object per chunk until ``finish()`` writes the summary:
 about 1 KiB each with five channels, 2 chunks a second at the recorder's flush interval, 7 MiB an hour of an
-unsplit file. Packed, a chunk costs its record's bytes (73 + 10 per channel in it); the file is the same.
+unsplit file. Packed, a chunk costs its record's bytes (73 + 10 per channel in it); the file is the same
+(docs/BAGS.md, "Memory of a long recording").
 """
 
 from __future__ import annotations
