@@ -37,6 +37,9 @@ __all__ = [
 
 WARMUP_S = 60.0
 """Seconds of a run left out of the RSS slopes (imports, first allocations)."""
+PLATEAU_S = 600.0
+"""The RSS at this many seconds is the reference of a long run's growth (the middleware's and the allocator's
+pools have reached their working size by then: docs/SOAK.md, "The recorder's memory")."""
 
 _STARTED = re.compile(r"\[smm-launch\] (?:started|respawned) (\S+) \(pid (\d+)")
 _PAGE_KIB = os.sysconf("SC_PAGE_SIZE") // 1024
@@ -81,15 +84,24 @@ class RssSeries:
         points = [(t, k / 1024) for t, k in zip(self.times_s, self.kib, strict=True) if t >= start]
         return slope_per_hour([t for t, _ in points], [v for _, v in points])
 
+    def kib_at(self, seconds: float) -> int | None:
+        """The first sample at least ``seconds`` after this series' first (KiB); None if it ended before."""
+        if not self.times_s:
+            return None
+        start = self.times_s[0] + seconds
+        return next((k for t, k in zip(self.times_s, self.kib, strict=True) if t >= start), None)
+
     def summary(self, warmup_s: float) -> str:
-        """``name pid: first -> last MiB, slope S MiB/h`` (one line)."""
+        """``name pid: first -> last MiB, slope S MiB/h[, end - 10 min D MiB]`` (one line)."""
         if not self.kib:
             return f"{self.name} (pid {self.pid}): no sample"
         span = (self.times_s[-1] - self.times_s[0]) / 60
+        at_10 = self.kib_at(PLATEAU_S) if span * 60 > PLATEAU_S else None
+        since = "" if at_10 is None else f", end - 10 min {(self.kib[-1] - at_10) / 1024:+.1f} MiB"
         return (
             f"{self.name} (pid {self.pid}): RSS {self.kib[0] / 1024:.1f} -> {self.kib[-1] / 1024:.1f} MiB "
             f"(max {max(self.kib) / 1024:.1f}) over {span:.1f} min, slope after {warmup_s:g} s warm-up "
-            f"{self.slope_mib_per_hour(warmup_s):+.2f} MiB/h"
+            f"{self.slope_mib_per_hour(warmup_s):+.2f} MiB/h{since}"
         )
 
 

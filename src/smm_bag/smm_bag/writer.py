@@ -18,6 +18,7 @@ from typing import IO, Literal
 from mcap.writer import CompressionType, Writer
 
 from smm_bag.cdr import stamp_of
+from smm_bag.chunk_index import pack_chunk_indexes
 from smm_bag.errors import BagExistsError, WriterStateError
 from smm_bag.loss import LossAccounting
 from smm_bag.metadata import BagMetadata, FileInfo, TopicInfo, write_metadata
@@ -149,6 +150,7 @@ class BagWriter:
         self._writer = Writer(
             self._stream, chunk_size=self.options.chunk_size, compression=compression, enable_data_crcs=True
         )
+        pack_chunk_indexes(self._writer)  # the summary's index in memory: its records' bytes, not objects
         self._writer.start(profile="ros2", library=_library())
         self._files.append(FileInfo(path=name))
         self._schema_ids = {}
