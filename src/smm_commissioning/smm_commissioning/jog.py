@@ -1,15 +1,13 @@
 """``jog``: one joint at a time, small open-loop code pulses inside a window; the valve and encoder's truths.
 
-Each pulse holds one D/A code for a while, then the valves are disabled (the trapped oil holds the joint)
-before the next. A search steps the code out from 0 on each side until the measured torque answers (the
-overlap's edge), a short staircase past it follows; a line through each side's settled torques gives that
-side's onset code and its torque per code: null bias and deadband from the two onsets, the gain per direction
-from the slopes, polarity from the torque's sign, the encoder's direction from the motion under it.
-docs/COMMISSIONING.md, "jog".
+A search steps the code out from 0 on each side until the measured torque answers, a staircase follows; a
+line through each side's settled torques gives its onset and torque per code: null bias, deadband, gain per
+direction, polarity; the motion under the torque gives the encoder's direction. docs/COMMISSIONING.md, "jog".
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -89,6 +87,7 @@ class Pulse:
         displacement: Joint motion over the pulse (counts, raw direction).
         cut: Why it was cut short ("" when it was not).
         samples: Measured torque of each tick held (N m).
+        held: Measured torque over the rest before it (N m): the load the trapped oil carried (gravity).
     """
 
     code: int
@@ -97,6 +96,12 @@ class Pulse:
     displacement: int
     cut: str
     samples: tuple[float, ...]
+    held: float
+
+    @property
+    def opened(self) -> float:
+        """How far the settled torque moved from the held one (N m): the valve's answer, not the load's."""
+        return abs(self.torque - self.held) if math.isfinite(self.torque) else math.nan
 
 
 @dataclass(frozen=True)
@@ -143,6 +148,12 @@ class _Run:
         self.bits = config.encoder.counter_bits
         self.excursion = 0.0
         self.direction: int | None = None
+        self.load = self.rest()
+
+    def rest(self) -> float:
+        """Valves disabled for ``rest_ticks``; the measured torque over the last 20 of them (N m)."""
+        frames = self.host.hold(self.config.rest_ticks)
+        return float(np.mean([self.torque(frame.adc) for frame in frames[-20:]]))
 
     def offset(self, counts: tuple[int, int], j: int) -> int:
         return int(signed_counts(np.array([counts[j]]), self.start[j], self.bits)[0])
@@ -211,10 +222,10 @@ class _Run:
                 )
             if cut:
                 break
-        self.host.hold(config.rest_ticks)
+        load, self.load = self.load, self.rest()
         ticks = len(samples)
         torque = float("nan") if cut else float(np.mean(samples[-config.average_ticks :]))
-        return Pulse(code, torque, ticks, displacement, cut, tuple(samples))
+        return Pulse(code, torque, ticks, displacement, cut, tuple(samples), load)
 
 
 _LAGS = np.geomspace(0.001, 0.2, 80)
@@ -235,7 +246,7 @@ def _settle(pulses: list[Pulse], config: JogConfig) -> tuple[list[Pulse], float]
     Per pulse the torque over tick k is ``A (1 - m_k) + s0 m_k`` (``m_k``: the start's weight in the
     tick's mean); one time constant for all pulses, the one of least squared residual.
     """
-    used = [p for p in pulses if not p.cut and abs(p.torque) > config.open_torque]
+    used = [p for p in pulses if not p.cut and p.opened > config.open_torque]
     if not used:
         return pulses, 0.0
     best, best_cost = 0.0, math.inf
@@ -256,7 +267,7 @@ def _settle(pulses: list[Pulse], config: JogConfig) -> tuple[list[Pulse], float]
         torque = pulse.torque
         if not pulse.cut:
             torque = float(np.linalg.lstsq(design, np.asarray(pulse.samples), rcond=None)[0][0])
-        out.append(Pulse(pulse.code, torque, pulse.ticks, pulse.displacement, pulse.cut, pulse.samples))
+        out.append(dataclasses.replace(pulse, torque=torque))
     return out, best
 
 
@@ -288,7 +299,8 @@ def jog_joint(
     side = 1
     sign_of: dict[int, int] = {}  # side -> sign of its torque
     while True:
-        todo = [s for s in (1, -1) if s not in onset or stairs[s]]
+        todo = [s for s in (1, -1) if s not in onset]  # search both sides first: only one may push out
+        todo = todo or [s for s in (1, -1) if stairs[s]]
         if not todo:
             break
         if len(todo) == 2 and run.direction is not None and sign_of:
@@ -312,15 +324,15 @@ def jog_joint(
             code = stairs[side].pop(0)
         pulse = run.pulse(code)
         pulses.append(pulse)
-        answer = pulse.torque
+        answer = pulse.torque - pulse.held
         if not math.isfinite(answer) and pulse.ticks >= 20:
-            answer = float(np.mean(pulse.samples[-10:]))  # cut short: did it open?
+            answer = float(np.mean(pulse.samples[-10:])) - pulse.held  # cut short: did it open?
         if side not in onset and abs(answer) > config.open_torque:
             onset[side] = code
             sign_of[side] = int(np.sign(answer))
             levels = range(1 if not pulse.cut else 0, config.stair_levels + 1)  # cut: that code again
             stairs[side] = [code + side * config.stair_step * k for k in levels]
-        if math.isfinite(pulse.torque) and abs(pulse.torque) > config.open_torque:
+        if pulse.opened > config.open_torque:
             if abs(pulse.displacement) >= _MIN_DISPLACEMENT and abs(pulse.torque) > config.counting_torque:
                 vote = int(np.sign(pulse.displacement) * np.sign(pulse.torque))
                 if run.direction is not None and vote != run.direction:
@@ -350,7 +362,8 @@ def jog_joint(
             for p in settled
             if math.isfinite(p.torque)
             and np.sign(p.code) == s
-            and abs(p.torque) > config.open_torque
+            and abs(p.code) >= abs(onset[s])
+            and p.opened > config.open_torque
             and np.sign(p.torque) == sign_of[s]
         ]
         if len(points) < 2:

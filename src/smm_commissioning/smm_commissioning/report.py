@@ -23,8 +23,8 @@ def probe_markdown(result: ProbeResult, config: ProbeConfig) -> str:
     lines = [
         f"## probe: {verdict}",
         "",
-        f"Output disabled for {result.ticks} feedbacks (nothing enabled: "
-        f"{'no' if result.enabled else 'yes'}); "
+        f"Output disabled for {result.ticks} feedbacks (enabled commands sent: "
+        f"{'SOME' if result.enabled else 'none'}); "
         f"pose confirmed by the operator: alpha {result.pose[0]:g} rad, beta {result.pose[1]:g} rad.",
         "",
         "| reading | alpha | beta | check |",
