@@ -25,9 +25,9 @@ __all__ = ["JogConfig", "JointJog", "Pulse", "jog_joint", "run_jog"]
 
 _MIN_DISPLACEMENT = 20
 """Counts a pulse must move its joint for its direction to count (above the encoder's rest noise)."""
-_OUTWARD = 10
-"""Counts a joint past the window must move outwards over 5 ticks for the pulse to be cut: a pulse that
-brings it back runs."""
+_OUTWARD = 40
+"""Counts a joint past the window must move outwards over 10 ticks for the pulse to be cut (the encoder's
+rest noise stays below it): a pulse that brings it back runs."""
 
 
 @dataclass(frozen=True)
@@ -190,7 +190,7 @@ class _Run:
                 where = abs(self.offset(frame.counts, k))
                 moved = where * self.quantum[k]
                 self.excursion = max(self.excursion, moved) if k == j else self.excursion
-                outward = len(history) > 5 and where - abs(self.offset(history[-6], k)) > _OUTWARD
+                outward = len(history) > 10 and where - abs(self.offset(history[-11], k)) > _OUTWARD
                 if moved > config.window and outward:
                     cut = f"{JOINTS[k]} at the window's edge ({moved:.3f} rad)"
                     if moved > 1.5 * config.window:
