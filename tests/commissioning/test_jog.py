@@ -141,6 +141,11 @@ def bridge_of(parameters: dict[str, object]) -> BridgeConfig:
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="not held yet (issue 45): beta's RMS on the jog's parameters is 1.20x (seed 0) and 1.52x (seed 3) "
+    "of the RMS on the bench's own, with null bias and deadband 4-5 codes off; docs/COMMISSIONING.md",
+)
 @pytest.mark.parametrize("seed", [0, 3])
 def test_case1_on_the_jogs_parameters_tracks_as_on_the_benchs_truths(seed: int) -> None:
     """The jog's bridge parameters (zero from probe at home) against the bench's own, same chain and model."""
