@@ -15,7 +15,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.smm-installed
-PACKAGES := smm_schema smm_msgs_py smm_node_runtime smm_dynamics smm_controller smm_sim smm_hw_bridge smm_bench_emulator smm_bag smm_analysis smm_direct_loop smm_bringup
+PACKAGES := smm_schema smm_msgs_py smm_node_runtime smm_dynamics smm_controller smm_sim smm_hw_bridge smm_bench_emulator smm_bag smm_analysis smm_direct_loop smm_bringup smm_commissioning
 PACKAGE_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg src/$(p)/package.xml) src/user_commands.py
 
 # Keep DDS discovery on this machine unless the caller chose otherwise.

@@ -18,6 +18,7 @@ USER_COMMANDS = {
     "smm-reproduce": "smm_analysis",
     "smm-launch": "smm_bringup",
     "smm-demo": "smm_bringup",
+    "smm-commission": "smm_commissioning",
 }
 NODE_EXECUTABLES = {
     "recorder_node": "smm_bag",

@@ -1,0 +1,68 @@
+"""``smm-commission STEP --out DIR (--bench-file FILE | --board ADDRESS:PORT)``: guided commissioning.
+
+The parsing layer: each subcommand's options, then :mod:`smm_commissioning.commands`. docs/COMMISSIONING.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from smm_commissioning.commands import EXIT_USAGE, jog_command, probe_command
+from smm_commissioning.probe import parse_pose
+
+__all__ = ["main", "parser"]
+
+
+def _pose(text: str) -> tuple[float, float]:
+    try:
+        return parse_pose(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from error
+
+
+def _common(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument("--out", type=Path, required=True, help="directory of the state, reports, parameters")
+    bench = sub.add_mutually_exclusive_group(required=True)
+    bench.add_argument("--board", metavar="ADDRESS:PORT", help="the I/O board over UDP (frame protocol)")
+    bench.add_argument(
+        "--bench-file", type=Path, help="the emulated bench of this description, in this process, in lockstep"
+    )
+    sub.add_argument("--bind", default="127.0.0.1:50100", metavar="ADDRESS:PORT", help="UDP: this host's end")
+    sub.add_argument("--timeout", type=float, default=1.0, help="no feedback for this long stops (s)")
+    sub.add_argument("--pose", type=_pose, default=(0.0, 0.0), help="'home' or 'ALPHA,BETA' (rad)")
+    sub.add_argument("--ticks", type=int, default=2000, help="feedbacks probe reads")
+    sub.add_argument("--supply-min", type=float, default=8.0, help="lowest supply pressure (bar)")
+
+
+def parser() -> argparse.ArgumentParser:
+    """The argument parser of ``smm-commission``."""
+    top = argparse.ArgumentParser(prog="smm-commission", description=__doc__)
+    steps = top.add_subparsers(dest="step", required=True)
+    probe = steps.add_parser("probe", help="read the bench with the output disabled; name its faults")
+    _common(probe)
+    jog = steps.add_parser(
+        "jog", help="open-loop pulses per joint: polarity, direction, deadband, bias, gains"
+    )
+    _common(jog)
+    jog.add_argument("--confirm-motion", action="store_true", help="the joints will move: the bench is clear")
+    jog.add_argument("--window", type=float, default=0.2, help="largest excursion from the start (rad)")
+    jog.add_argument("--velocity-limit", type=float, default=1.5, help="largest speed (rad/s)")
+    return top
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point: parses, runs the step, returns its exit code."""
+    arguments = parser().parse_args(argv)
+    if arguments.timeout <= 0:
+        print("smm-commission: --timeout must be > 0", file=sys.stderr)
+        return EXIT_USAGE
+    if arguments.step == "probe":
+        return probe_command(arguments)
+    return jog_command(arguments)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

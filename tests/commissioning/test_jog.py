@@ -1,0 +1,163 @@
+"""jog on drawn emulated benches in lockstep: the valves' and encoders' truths within the issue's tolerances,
+inside the window; stopped at once on what it does not expect, the valves left disabled."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from drawn_benches import FaultyDevice, draw_bench
+from lockstep_case1 import SETTLED, case1, rms
+from smm_bench_emulator.board import BoardConfig
+from smm_commissioning.emulated import LockstepDevice
+from smm_commissioning.errors import MotionStopError
+from smm_commissioning.host import BenchHost
+from smm_commissioning.jog import JogConfig, run_jog
+from smm_commissioning.probe import ProbeConfig, run_probe
+from smm_commissioning.report import bridge_parameters
+from smm_hw_bridge.core import BridgeConfig
+from smm_hw_bridge.protocol import CODE_MAX, FaultBit, StatusBit
+from smm_schema.fields import config_from_parameters
+
+SEEDS = [0, 1, 2, 3, 4, 5, 6]
+"""Drawn benches: every combination of reversed valve and down-counting encoder among them; in 6 beta starts
+its jog off centre, its held oil carrying gravity's load (a torque that is not the valve's answer)."""
+
+
+def jogged(device: LockstepDevice, config: JogConfig | None = None) -> tuple[BenchHost, tuple]:
+    device.open()
+    host = BenchHost(device)
+    host.hold(100)
+    return host, run_jog(host, config or JogConfig())
+
+
+def disabled_at_the_end(device: LockstepDevice, host: BenchHost) -> bool:
+    host.make_safe()
+    last = host.feedback
+    return last is not None and not last.status & StatusBit.ENABLED and device.board.output_codes() == (0, 0)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_jog_finds_each_joints_truths_within_the_tolerances(seed: int) -> None:
+    bench = draw_bench(seed)
+    device = LockstepDevice(bench)
+    host, results = jogged(device)
+    window = JogConfig().window
+    for r in results:
+        j = r.joint
+        full_scale = CODE_MAX / bench.full_scale_torque[j]  # codes per N m at a gain of 1
+        assert r.direction == bench.direction[j]
+        assert r.polarity == bench.valve_polarity[j]
+        assert abs(r.deadband / bench.valve_deadband[j] - 1.0) < 0.15
+        assert abs(r.null_bias - bench.valve_null_bias[j]) < 50.0
+        assert abs(full_scale / r.gain_positive / bench.valve_gain_positive[j] - 1.0) < 0.05
+        assert abs(full_scale / r.gain_negative / bench.valve_gain_negative[j] - 1.0) < 0.05
+        assert 0.015 < r.lag < 0.03  # the emulated valve's rise: 21.7 ms
+    # the window is around the start (q = 0): a cut pulse overshoots it by the hold's travel
+    assert max(device.peak) < window + 0.05 < bench.plant.joint_limits[0]
+    assert disabled_at_the_end(device, host)
+
+
+def test_nothing_moves_before_the_first_enabled_pulse_and_the_valves_are_held_between() -> None:
+    device = LockstepDevice(draw_bench(0))
+    host, _ = jogged(device)
+    record = host.record()
+    enabled = record[:, -1]
+    assert enabled[:100].sum() == 0  # the hold before the jog
+    assert 0 < enabled.sum() < len(enabled)
+
+
+def test_an_encoder_that_stops_counting_stops_the_jog_with_the_valves_disabled() -> None:
+    device = FaultyDevice(draw_bench(1), frozen_encoder=0)
+    with pytest.raises(
+        MotionStopError, match=r"alpha stopped: its valve gives .* the encoder does not count"
+    ):
+        jogged(device)
+    assert max(device.peak) < 0.3
+    assert not device.board.status_enabled
+
+
+def test_a_board_fault_during_the_jog_stops_it() -> None:
+    device = LockstepDevice(draw_bench(2))
+    device.open()
+    host = BenchHost(device)
+    host.hold(10)
+    device.board.set_faults(int(FaultBit.OVERTEMP))
+    with pytest.raises(MotionStopError, match="faults 0x0010"):
+        run_jog(host, JogConfig())
+    assert not device.board.status_enabled
+
+
+def test_a_valve_that_gives_no_torque_stops_the_search() -> None:
+    device = LockstepDevice(draw_bench(3, valve_deadband=[5000.0, 5000.0]))
+    with pytest.raises(MotionStopError, match=r"gave no torque up to .2000 codes"):
+        jogged(device, JogConfig(search_max=2000))
+    assert not device.board.status_enabled
+
+
+def test_a_joint_leaving_the_window_is_held_at_its_edge() -> None:
+    """A tight window: pulses are cut at its edge, the joint never passes 1.5x of it."""
+    bench = draw_bench(4)
+    device = LockstepDevice(bench)
+    try:
+        _, results = jogged(device, JogConfig(window=0.03))
+        assert any(p.cut for r in results for p in r.pulses)
+    except MotionStopError as error:  # too tight to settle enough pulses: said so
+        assert "too few settled pulses" in str(error)
+    assert max(device.peak) < 0.045 + 0.01
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("window", 0.0), ("window", 0.6), ("velocity_limit", -1.0), ("pulse_ticks", 5), ("stair_levels", 0)],
+)
+def test_invalid_jog_settings_are_refused(field: str, value: object) -> None:
+    with pytest.raises(ValueError, match=field):
+        JogConfig(**{field: value})  # type: ignore[arg-type]
+
+
+def test_the_averaged_ticks_must_fit_in_a_pulse() -> None:
+    with pytest.raises(ValueError, match="average_ticks"):
+        JogConfig(pulse_ticks=50, average_ticks=50)
+
+
+def truth_parameters(bench: BoardConfig) -> dict[str, object]:
+    """The bridge parameters that carry the bench's own truths."""
+    nominal = [CODE_MAX / bench.full_scale_torque[j] for j in range(2)]
+    return {
+        "bridge.encoder.direction": list(bench.direction),
+        "bridge.encoder.zero_offset": list(bench.zero_offset),
+        "bridge.valve.polarity": list(bench.valve_polarity),
+        "bridge.valve.null_bias": list(bench.valve_null_bias),
+        "bridge.valve.deadband": list(bench.valve_deadband),
+        "bridge.valve.gain": [nominal[j] / bench.valve_gain_positive[j] for j in range(2)],
+        "bridge.valve.gain_negative": [nominal[j] / bench.valve_gain_negative[j] for j in range(2)],
+        "bridge.valve.deadband_blend": 5.0,
+    }
+
+
+def bridge_of(parameters: dict[str, object]) -> BridgeConfig:
+    values = {name.removeprefix("bridge."): value for name, value in parameters.items()}
+    return config_from_parameters(BridgeConfig, BridgeConfig(lockstep=True), values)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="not held yet (issue 45): beta's RMS on the jog's parameters is 1.20x (seed 0) and 1.52x (seed 3) "
+    "of the RMS on the bench's own, with null bias and deadband 4-5 codes off; docs/COMMISSIONING.md",
+)
+@pytest.mark.parametrize("seed", [0, 3])
+def test_case1_on_the_jogs_parameters_tracks_as_on_the_benchs_truths(seed: int) -> None:
+    """The jog's bridge parameters (zero from probe at home) against the bench's own, same chain and model."""
+    bench = draw_bench(seed)
+    device = LockstepDevice(bench)
+    device.open()
+    host = BenchHost(device)
+    probed = run_probe(host, ProbeConfig())
+    results = run_jog(host, JogConfig())
+    found = bridge_parameters(results, probed.counts_at_pose, probed.pose, JogConfig().encoder)
+    commissioned, _ = case1(bench, bridge_of(found))
+    truth, _ = case1(bench, bridge_of(truth_parameters(bench)))
+    ratio = rms(commissioned[SETTLED:]) / rms(truth[SETTLED:])
+    print(f"seed {seed}: case-1 RMS on the jog's parameters / on the truths = {ratio}")
+    assert np.all(ratio < 1.2), ratio
