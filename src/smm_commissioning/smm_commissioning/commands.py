@@ -14,6 +14,8 @@ from typing import TextIO
 
 from smm_analysis.parameters_file import write_parameters_file
 from smm_bench_emulator.bench_file import BenchFileError, load_bench_file
+from smm_hw_bridge.bridge_config import BridgeConfig
+from smm_hw_bridge.canopen_config import CanopenConfig
 from smm_hw_bridge.device import Device, DeviceError
 from smm_hw_bridge.frame_device import udp_device
 from smm_hw_bridge.transport import LinkConfig
@@ -83,9 +85,10 @@ def open_bench(arguments: argparse.Namespace) -> Device:
     else:
         board = parse_address(arguments.board)
         bind = parse_address(arguments.bind)
-        device = udp_device(
-            LinkConfig(bind_address=bind[0], bind_port=bind[1], board_address=board[0], board_port=board[1])
+        link = LinkConfig(
+            bind_address=bind[0], bind_port=bind[1], board_address=board[0], board_port=board[1]
         )
+        device = udp_device(link, CanopenConfig(), BridgeConfig())
     device.open()
     return device
 
