@@ -426,8 +426,9 @@ class CanopenDevice(Device):
                 self._fault(node, what, _BIT[node.kind])
                 self._changed.notify_all()
                 return
-            if node.sync == self._syncs and not self._fault_bits:  # one a SYNC: another sender's, or a
-                # SYNC not ours (after a fault the TPDOs of a SYNC told early may come after the next)
+            # lockstep: one a SYNC, a second is another sender's or answers a SYNC not ours (after a fault
+            # the TPDOs of a SYNC told early may come after the next); real time: a late one's, not a fault
+            if self.clock is None and node.sync == self._syncs and not self._fault_bits:
                 self._fault(node, f"TPDO1 0x{pdo.cob_id:03X} twice for SYNC {self._syncs}", _BIT[node.kind])
             node.values = {variable.index: int(variable.raw) for variable in pdo}
             node.sync = self._syncs
