@@ -41,7 +41,7 @@ $(STAMP): requirements.txt requirements-dev.txt $(PACKAGE_FILES)
 	@touch $@
 
 test: $(STAMP) $(CORPUS_JS)
-	$(PY) -m pytest tests -n 2
+	$(PY) -m pytest tests
 
 # The real-time versions of the hardware tests (marker realtime, deselected by pyproject's addopts): they need
 # a quiet machine, as a bench run does (docs/TESTING.md, "Real-time tests").
