@@ -1,10 +1,10 @@
 """Shared by the bridge and emulator tests: free loopback ports, the rejections counted before admission, a
-feedback frame made by hand."""
+feedback frame made by hand, a command answering one."""
 
 import socket
 
 from smm_hw_bridge.core import BridgeCore
-from smm_hw_bridge.protocol import FeedbackFrame, Reason
+from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FeedbackFrame, Reason
 
 LOOPBACK = "127.0.0.1"
 
@@ -49,3 +49,23 @@ def feedback_frame(session: int, seq: int, tick: int, **fields: object) -> Feedb
         **fields,
     }
     return FeedbackFrame(session=session, seq=seq, tick=tick, **values)  # type: ignore[arg-type]
+
+
+def answer(
+    feedback: FeedbackFrame,
+    seq: int,
+    codes: tuple[int, int],
+    flags: int = int(CommandFlag.ENABLE),
+    session: int = 7,
+) -> CommandFrame:
+    """A command frame answering ``feedback`` (validity 10 ticks), from host ``session``."""
+    return CommandFrame(
+        session=session,
+        seq=seq,
+        board_session=feedback.session,
+        answers_seq=feedback.seq,
+        answers_tick=feedback.tick,
+        flags=flags,
+        validity=10,
+        codes=codes,
+    )

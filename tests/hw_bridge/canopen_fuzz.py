@@ -17,7 +17,8 @@ from smm_bench_emulator.canopen_bench import CanBench, CanBenchConfig, eds_path
 from smm_hw_bridge.canopen_config import CanopenConfig
 from smm_hw_bridge.canopen_device import CanopenDevice
 from smm_hw_bridge.cia408 import SPOOL_FULL_SCALE, ValveState, control_word
-from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FeedbackFrame
+from smm_hw_bridge.protocol import FeedbackFrame
+from udp_bench import answer
 
 VALVES = (1, 2)
 ENCODERS = (11, 12)
@@ -87,19 +88,6 @@ class _Recorder:
         self._send(msg, timeout)
 
 
-def _command(feedback: FeedbackFrame, seq: int, codes: tuple[int, int]) -> CommandFrame:
-    return CommandFrame(
-        session=7,
-        seq=seq,
-        board_session=feedback.session,
-        answers_seq=feedback.seq,
-        answers_tick=feedback.tick,
-        flags=int(CommandFlag.ENABLE),
-        validity=10,
-        codes=codes,
-    )
-
-
 def _feedback(device: CanopenDevice, outcome: Outcome) -> FeedbackFrame | None:
     reading = device.read(_READ_S)
     if not isinstance(reading, FeedbackFrame):
@@ -167,7 +155,7 @@ def _drive(
             return
         faulted = bool(device.faults)
         before = len(recorder.sent)
-        device.write(_command(feedback, cycle + 1, command_codes))
+        device.write(answer(feedback, cycle + 1, command_codes))
         for injection in injections:
             if injection.cycle + arm_cycles == cycle:
                 injector.send(injection.message())

@@ -15,7 +15,8 @@ from smm_hw_bridge.canopen_config import CanopenConfig
 from smm_hw_bridge.canopen_device import CanopenDevice
 from smm_hw_bridge.cia408 import ValveState
 from smm_hw_bridge.device import DeviceError
-from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FeedbackFrame
+from smm_hw_bridge.protocol import FeedbackFrame
+from udp_bench import answer
 
 GROUP = "239.74.163.2"
 
@@ -58,18 +59,7 @@ def test_the_master_drives_the_bench_over_udp_multicast(ros_netns: None) -> None
         feedback = device.read(5.0)
         for seq in range(1, 6):
             assert isinstance(feedback, FeedbackFrame), feedback
-            device.write(
-                CommandFrame(
-                    session=3,
-                    seq=seq,
-                    board_session=feedback.session,
-                    answers_seq=feedback.seq,
-                    answers_tick=feedback.tick,
-                    flags=int(CommandFlag.ENABLE),
-                    validity=10,
-                    codes=(1000, 1000),
-                )
-            )
+            device.write(answer(feedback, seq, (1000, 1000), session=3))
             feedback = device.read(5.0)
         assert bench.valve_states() == (ValveState.ACTIVE, ValveState.ACTIVE)
         device.make_safe()
@@ -141,18 +131,7 @@ def test_the_emulator_process_runs_its_duration_of_live_syncs_in_lockstep(
         while emulator.poll() is None and seq < 1000:
             assert isinstance(feedback, FeedbackFrame), feedback
             seq += 1
-            device.write(
-                CommandFrame(
-                    session=3,
-                    seq=seq,
-                    board_session=feedback.session,
-                    answers_seq=feedback.seq,
-                    answers_tick=feedback.tick,
-                    flags=int(CommandFlag.ENABLE),
-                    validity=10,
-                    codes=(500, 500),
-                )
-            )
+            device.write(answer(feedback, seq, (500, 500), session=3))
             feedback = device.read(2.0) or feedback
     finally:
         device.close()

@@ -17,9 +17,10 @@ from smm_hw_bridge.cia408 import ValveState
 from smm_hw_bridge.core import BridgeConfig, BridgeCore
 from smm_hw_bridge.device import open_device
 from smm_hw_bridge.pressure import PressureConfig
-from smm_hw_bridge.protocol import CommandFlag, CommandFrame, FaultBit, FeedbackFrame, StatusBit
+from smm_hw_bridge.protocol import CommandFlag, FaultBit, FeedbackFrame, StatusBit
 from smm_hw_bridge.transport import LinkConfig
 from smm_hw_bridge.valve_output import ValveOutputConfig
+from udp_bench import answer
 
 _CHANNELS = itertools.count()
 _FULL_SPOOL = BridgeConfig(valve=ValveOutputConfig(code_limit=(16384, 16384)))
@@ -62,19 +63,6 @@ def _feedback(device: CanopenDevice) -> FeedbackFrame:
     return reading
 
 
-def _command(feedback: FeedbackFrame, seq: int, codes: tuple[int, int], flags: int) -> CommandFrame:
-    return CommandFrame(
-        session=7,
-        seq=seq,
-        board_session=feedback.session,
-        answers_seq=feedback.seq,
-        answers_tick=feedback.tick,
-        flags=flags,
-        validity=10,
-        codes=codes,
-    )
-
-
 def _run(
     device: CanopenDevice,
     cycles: int,
@@ -87,7 +75,7 @@ def _run(
     """``cycles`` commands, each answering the last feedback; the last feedback."""
     feedback = feedback or _feedback(device)
     for seq in range(start, start + cycles):
-        device.write(_command(feedback, seq, codes, flags))
+        device.write(answer(feedback, seq, codes, flags))
         feedback = _feedback(device)
     return feedback
 
@@ -126,7 +114,7 @@ def test_arming_walks_disabled_hold_active_and_the_setpoint_moves_the_plant(
     device = _open(channel)
     try:
         first = _feedback(device)
-        device.write(_command(first, 1, (4000, -4000), int(CommandFlag.ENABLE)))
+        device.write(answer(first, 1, (4000, -4000), int(CommandFlag.ENABLE)))
         held = _feedback(device)
         assert held.status & StatusBit.ENABLED == 0
         assert bench.valve_states() == (ValveState.HOLD, ValveState.HOLD)
@@ -330,13 +318,13 @@ def test_sync_on_enabled_steps_only_with_the_controller_and_still_disables_on_di
     device = _open(channel, sync_on_enabled=True)
     try:
         first = _feedback(device)
-        device.write(_command(first, 1, (0, 0), 0))
+        device.write(answer(first, 1, (0, 0), 0))
         # a disabled command after a disabled one: no SYNC, no step; the last feedback again after a while
         assert device.read(TIMEOUT) == first
         assert bench.syncs == 1
         armed = _run(device, 5, (2000, 2000), int(CommandFlag.ENABLE), start=2, feedback=first)
         assert bench.syncs == 6 and bench.valve_states() == (ValveState.ACTIVE, ValveState.ACTIVE)
-        device.write(_command(armed, 10, (2000, 2000), 0))  # disarm: this one is SYNCed
+        device.write(answer(armed, 10, (2000, 2000), 0))  # disarm: this one is SYNCed
         assert _feedback(device).output_codes == (0, 0)
         assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
         assert bench.syncs == 7
@@ -350,7 +338,7 @@ def _until_fault(device: CanopenDevice, feedback: FeedbackFrame, start: int) -> 
         if feedback.faults:
             return feedback
         time.sleep(0.002)
-        device.write(_command(feedback, seq, (3000, 3000), int(CommandFlag.ENABLE)))
+        device.write(answer(feedback, seq, (3000, 3000), int(CommandFlag.ENABLE)))
         feedback = _feedback(device)
     raise AssertionError(f"no fault: {device.faults}")
 
@@ -379,13 +367,13 @@ def test_a_tpdo_past_its_validity_is_a_fault_naming_the_node(
     try:
         armed = _run(device, 5, (3000, 3000), int(CommandFlag.ENABLE))
         monkeypatch.setattr(bench.encoders[1].tpdo[1], "transmit", lambda: None)
-        device.write(_command(armed, 10, (3000, 3000), int(CommandFlag.ENABLE)))
+        device.write(answer(armed, 10, (3000, 3000), int(CommandFlag.ENABLE)))
         faulted = _feedback(device)
         assert faulted.faults & FaultBit.ENCODER and faulted.seq == armed.seq + 1
         assert device.faults == [
             f"encoder beta (node 12): TPDO1 of SYNC {faulted.seq} not arrived within 500 ms"
         ]
-        device.write(_command(faulted, 11, (3000, 3000), int(CommandFlag.ENABLE)))
+        device.write(answer(faulted, 11, (3000, 3000), int(CommandFlag.ENABLE)))
         assert _feedback(device).output_codes == (0, 0)  # the valves' TPDOs: after the SYNC was latched
         assert bench.valve_states() == (ValveState.DISABLED, ValveState.DISABLED)
     finally:
@@ -442,8 +430,8 @@ def test_a_second_enabled_answer_to_one_feedback_steps_nothing(bench: CanBench, 
     device = _open(channel)
     try:
         armed = _run(device, 5, (2000, 2000), int(CommandFlag.ENABLE))
-        device.write(_command(armed, 10, (2000, 2000), int(CommandFlag.ENABLE)))
-        device.write(_command(armed, 11, (4000, 4000), int(CommandFlag.ENABLE)))  # answers it again
+        device.write(answer(armed, 10, (2000, 2000), int(CommandFlag.ENABLE)))
+        device.write(answer(armed, 11, (4000, 4000), int(CommandFlag.ENABLE)))  # answers it again
         after = _feedback(device)
         assert device.dropped["second_answer"] == 1
         assert after.seq == armed.seq + 1 and bench.syncs == after.seq
@@ -472,7 +460,7 @@ def test_in_real_time_the_reads_send_the_sync_and_a_command_sends_none(bench: Ca
         first = _feedback(device)
         syncs = bench.syncs
         for seq in range(1, 4):  # commands alone step nothing: no SYNC without the loop's read
-            device.write(_command(first, seq, (0, 0), 0))
+            device.write(answer(first, seq, (0, 0), 0))
         assert bench.syncs == syncs
         seen = [_feedback(device) for _ in range(3)]  # the clock sends each SYNC when due
         assert [frame.seq for frame in seen] == [first.seq + 1, first.seq + 2, first.seq + 3]
