@@ -11,11 +11,12 @@ from pathlib import Path
 import can
 import pytest
 from hw_bridge import test_canopen_device as emulated
-from hw_bridge.test_canopen_device import _command, _feedback, _open, _run
+from hw_bridge.test_canopen_device import _feedback, _open, _run
 from smm_bench_emulator.canopen_bench import CanBench, eds_path
 from smm_hw_bridge.canopen_device import ConfigureError
 from smm_hw_bridge.cia408 import ValveState, control_word
 from smm_hw_bridge.protocol import CommandFlag, FaultBit, FeedbackFrame
+from udp_bench import answer
 
 ENABLE = int(CommandFlag.ENABLE)
 bench = emulated.bench  # the emulated bench on a fresh virtual channel (fixtures)
@@ -49,7 +50,7 @@ def test_an_emcy_mid_run_is_a_fault_naming_the_node_and_its_code(bench: CanBench
         armed = _run(device, 5, (3000, 3000), ENABLE)
         assert bench.valve_states() == (ValveState.ACTIVE, ValveState.ACTIVE)
         bench.encoders[1].emcy.send(0x7305, register=0x81)
-        device.write(_command(armed, 10, (3000, 3000), ENABLE))
+        device.write(answer(armed, 10, (3000, 3000), ENABLE))
         faulted = _until(device, lambda f: bool(f.faults), armed, 11)
         assert faulted.faults & FaultBit.ENCODER
         assert device.faults == ["encoder beta (node 12): EMCY 0x7305 (error register 0x81)"]
@@ -66,7 +67,7 @@ def _until(device, done, feedback: FeedbackFrame, start: int) -> FeedbackFrame: 
         feedback = _feedback(device)
         if done(feedback):
             return feedback
-        device.write(_command(feedback, seq, (3000, 3000), ENABLE))
+        device.write(answer(feedback, seq, (3000, 3000), ENABLE))
     raise AssertionError(f"not reached: {device.faults}")
 
 
@@ -107,7 +108,7 @@ def test_a_bench_gone_mid_run_faults_on_its_lost_heartbeats_not_after_the_pdo_va
     try:
         armed = _run(device, 5, (3000, 3000), ENABLE)
         bench.close()  # its heartbeats and TPDOs stop (a bench killed, a cable pulled)
-        device.write(_command(armed, 10, (3000, 3000), ENABLE))
+        device.write(answer(armed, 10, (3000, 3000), ENABLE))
         reading = None
         for _ in range(20):  # each read waits at most 5 s: a lost heartbeat (600 ms) must come first
             reading = device.read(5.0)
@@ -125,7 +126,7 @@ def test_a_malformed_tpdo_is_a_fault_naming_the_node(bench: CanBench, channel: s
     injector = can.Bus(interface="virtual", channel=channel)
     try:
         armed = _run(device, 5, (3000, 3000), ENABLE)
-        device.write(_command(armed, 10, (3000, 3000), ENABLE))
+        device.write(answer(armed, 10, (3000, 3000), ENABLE))
         injector.send(can.Message(arbitration_id=0x18B, data=b"\x01\x02", is_extended_id=False))
         faulted = _until(device, lambda f: bool(f.faults), armed, 11)
         assert faulted.faults & FaultBit.ENCODER
@@ -158,7 +159,7 @@ def test_a_frame_that_is_not_the_run_s_is_a_fault_naming_the_node(
     injector = can.Bus(interface="virtual", channel=channel)
     try:
         armed = _run(device, 5, (3000, 3000), ENABLE)
-        device.write(_command(armed, 10, (3000, 3000), ENABLE))
+        device.write(answer(armed, 10, (3000, 3000), ENABLE))
         for cob_id, data in frames:
             injector.send(can.Message(arbitration_id=cob_id, data=data, is_extended_id=False))
         faulted = _until(device, lambda f: bool(f.faults), armed, 11)
