@@ -38,6 +38,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--record", type=Path, default=None, help="record each run to a bag in this folder")
     parser.add_argument("--label", default="")
+    parser.add_argument("--preflight", type=float, default=None, help="smm-launch --preflight S")
     options = parser.parse_args(argv)
     sys.path.insert(0, str(HERE))
     from bench_preflight import launch
@@ -48,7 +49,8 @@ def main(argv: list[str]) -> int:
     for number in range(options.runs):
         load = load_average()
         bag = [] if options.record is None else ["--record", str(options.record / f"bag{number + 1}")]
-        extra = ["--force", *bag]
+        rehearse = [] if options.preflight is None else ["--preflight", f"{options.preflight:g}"]
+        extra = ["--force", *rehearse, *bag]
         run = launch(f"run {number + 1}", 1000, extra)
         predicted = run.predicted.get(1000.0)
         found = run.first(RUN)

@@ -66,3 +66,16 @@ def test_lockstep_canopen_keeps_the_sync_after_the_setpoints() -> None:
     bridge = _bridge(GraphOptions(plant="hardware", link="canopen", clock_mode="lockstep", control_rate=200))
     assert bridge["canopen.sync_on_enabled"] is True and "canopen.sync_clock" not in bridge
     assert bridge["canopen.period_us"] == 5000
+
+
+@pytest.mark.parametrize("link", ["canopen", "frame"])
+def test_the_bridge_knows_the_emulated_runs_planned_length_and_an_external_bench_has_none(link: str) -> None:
+    """The emulated bench falls silent at its end: a fault after the planned length leaves the verdict."""
+    options = GraphOptions(plant="hardware", link=link, clock_mode="realtime", duration=20.0)
+    assert _bridge(options)["verdict.planned_s"] == 20.0 == _emulator(options)["duration"]
+    board = "external" if link == "canopen" else "127.0.0.1:50101"
+    external = GraphOptions(plant="hardware", link=link, clock_mode="realtime", duration=20.0, board=board)
+    assert "verdict.planned_s" not in _bridge(external)
+    assert "verdict.planned_s" not in _bridge(
+        GraphOptions(plant="hardware", link=link, clock_mode="realtime")
+    )

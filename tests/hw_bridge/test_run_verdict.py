@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from smm_hw_bridge.protocol import NO_COMMAND_AGE, FeedbackFrame, StatusBit
-from smm_hw_bridge.run_verdict import RunTally, VerdictConfig
+from smm_hw_bridge.run_verdict import HostVerdictConfig, RunTally, VerdictConfig
 
 PERIOD_NS = 1_000_000
 
@@ -179,3 +179,24 @@ def test_a_link_with_one_feedback_a_period_misses_no_tick_between_and_a_skipped_
     assert tally.missed_ticks == 0 and tally.late_periods == 0
     tally.on_feedback(frame(2005, age=10))  # slot 2000 skipped: the valves held its setpoint a period
     assert tally.missed_ticks == 5 and tally.late_periods == 1
+
+
+@pytest.mark.parametrize("every", [1, 5])
+def test_a_run_is_past_its_plan_once_its_live_span_covers_it(every: int) -> None:
+    """A fault after the planned live length (an emulated bench fell silent at its end) leaves the verdict."""
+    tally = RunTally(PERIOD_NS, VerdictConfig(settle_s=0.1), every, every)
+    for tick in range(0, 300 * every, every):
+        tally.on_feedback(frame(tick, enabled=tick >= 100 * every, age=0))
+    assert tally.live_s() == pytest.approx(200 * every * PERIOD_NS / 1e9)  # ticks 100N .. 299N, N each
+    planned = 200 * every * PERIOD_NS / 1e9
+    assert not tally.before_plan(planned)
+    assert not tally.before_plan(planned + every * PERIOD_NS / 1e9)  # one control period short: still done
+    assert tally.before_plan(planned + 2 * every * PERIOD_NS / 1e9)
+    assert tally.before_plan(0.0) and RunTally(PERIOD_NS).before_plan(0.0)  # no plan: every fault counts
+    assert RunTally(PERIOD_NS).live_s() == 0.0 and RunTally(PERIOD_NS).before_plan(0.01)
+
+
+def test_the_host_verdict_config_checks_its_plan() -> None:
+    assert HostVerdictConfig(planned_s=20.0).planned_s == 20.0
+    with pytest.raises(ValueError, match="planned_s"):
+        HostVerdictConfig(planned_s=-1.0)

@@ -71,6 +71,11 @@ def hardware_specs(
     if options.board is None and not canopen:
         bind_address, bind_port = split_endpoint("host", EMULATOR_HOST)
         bridge_parameters += [("link.bind_address", bind_address), ("link.bind_port", bind_port)]
+    duration = options.duration
+    if duration is None and lockstep:
+        duration = _scenario_duration(files)  # as the simulator: the scenario's length in lockstep
+    if duration and options.board is None:  # the emulated bench falls silent at its end, not a fault
+        bridge_parameters.append(("verdict.planned_s", float(duration)))
     divider = options.control_divider
     if divider > 1:  # the board keeps its 1 kHz tick; the bridge stretches validity and limits by N
         bridge_parameters.append(("bridge.control_divider", divider))
@@ -99,9 +104,6 @@ def hardware_specs(
         if canopen
         else [("bind", board), ("host", EMULATOR_HOST), ("late-limit", float(options.late_limit))]
     )
-    duration = options.duration
-    if duration is None and lockstep:
-        duration = _scenario_duration(files)  # as the simulator: the scenario's length in lockstep
     if duration:
         emulator_parameters.append(("duration", float(duration)))
     emulator_parameters.append(("start-timeout", float(options.start_timeout)))

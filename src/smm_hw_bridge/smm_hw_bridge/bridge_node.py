@@ -39,7 +39,7 @@ from smm_hw_bridge.loop import Answerer, BridgeLoop, ChangeBuffer, Tick
 from smm_hw_bridge.loop_statistics import RunningFigures
 from smm_hw_bridge.preflight import PreflightConfig, PreflightVerdict, RehearsalRecorder, judge
 from smm_hw_bridge.reading import LoopSettings
-from smm_hw_bridge.run_verdict import RunTally, VerdictConfig
+from smm_hw_bridge.run_verdict import HostVerdictConfig, RunTally
 from smm_hw_bridge.transport import LinkConfig
 from smm_msgs_py import topics
 from smm_node_runtime import (
@@ -90,7 +90,7 @@ class HwBridgeNode(LifecycleNode):
             self._link = ConfigParameters(self, "link", LinkConfig())
             self._canopen = ConfigParameters(self, PARAMETERS, CanopenConfig())
             self._bridge = ConfigParameters(self, "bridge", BridgeConfig())
-            self._verdict = ConfigParameters(self, "verdict", VerdictConfig(), read_only=True)
+            self._verdict = ConfigParameters(self, "verdict", HostVerdictConfig(), read_only=True)
             self._gate = ConfigParameters(self, "", AutostartGate(), read_only=True)
             self._preflight = ConfigParameters(self, "preflight", PreflightConfig(), read_only=True)
             settings = None
@@ -398,8 +398,12 @@ class HwBridgeNode(LifecycleNode):
         live = self.lifecycle_state in ("active", "inactive")  # not again once the error transition ran
         if why is not None and live and not self._fault_transition:
             self._fault_transition = True
-            self._run_fault = self._run_fault or why
             self._log.error(f"{why}: safe output, error transition")
+            planned = self._verdict.config.planned_s
+            if self.loop.tally is None or self.loop.tally.before_plan(planned):
+                self._run_fault = self._run_fault or why
+            else:
+                self._log.info(f"the fault came after the planned {planned:g} s live: the verdict stands")
             self.diagnostics.publish()
             if self.lifecycle_state == "active":
                 self.trigger_deactivate()  # type: ignore[no-untyped-call]

@@ -8,6 +8,7 @@ and its words are :mod:`smm_node_runtime.run_verdict`'s, which the real-time sim
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Final
 
 from smm_node_runtime.run_verdict import (
@@ -17,12 +18,27 @@ from smm_node_runtime.run_verdict import (
     late_fraction,
     late_reason,
 )
+from smm_schema.ranges import at_least
 
 from smm_hw_bridge.protocol import FeedbackFrame, StatusBit, u32_diff
 
-__all__ = ["EXIT_NOT_CONTROLLED", "RunTally", "VerdictConfig"]
+__all__ = ["EXIT_NOT_CONTROLLED", "HostVerdictConfig", "RunTally", "VerdictConfig"]
 
 _ENABLED: Final[int] = int(StatusBit.ENABLED)
+
+
+@dataclass(frozen=True)
+class HostVerdictConfig(VerdictConfig):
+    """The bridge's verdict: the late limit, and the run's planned length.
+
+    Attributes:
+        late_limit: Largest fraction of late control periods after ``settle_s`` (0.01 = 1 %).
+        settle_s: Periods in the first ``settle_s`` seconds of live output are not judged (s).
+        planned_s: The run's planned live length (s), 0 for none (a person ends it): a device fault after it
+            (an emulated bench that ended its run falls silent) does not undo a run that controlled for it.
+    """
+
+    planned_s: float = field(default=0.0, metadata=at_least(0.0))
 
 
 class RunTally:
@@ -50,6 +66,7 @@ class RunTally:
         self.config = config or VerdictConfig()
         self.divider = divider
         self.every = every
+        self.period_ns = period_ns
         self.period_ms = period_ns * divider / 1e6
         self.settle_ticks = round(self.config.settle_s * 1e9 / period_ns)
         self.armed = False
@@ -95,6 +112,16 @@ class RunTally:
             seen = end == frame.tick
             if not enabled or (dead_before and not seen) or u32_diff(answered, end - divider) < 0:
                 self.late_periods += 1
+
+    def live_s(self) -> float:
+        """Seconds from the first live tick to the last feedback counted (0 before the first live one)."""
+        if self._first_live is None or self._last is None:
+            return 0.0
+        return (u32_diff(self._last.tick, self._first_live) + self.every) * self.period_ns / 1e9
+
+    def before_plan(self, planned_s: float) -> bool:
+        """True if the run is short of ``planned_s`` live (by more than a control period); always with 0."""
+        return not planned_s or self.live_s() < planned_s - self.period_ms / 1e3
 
     @property
     def late_fraction(self) -> float:
