@@ -208,11 +208,16 @@ def realtime_hil(
 
     board_priority = DEFAULT_HARDWARE_PRIORITY + BOARD_PRIORITY_OFFSET
     host_priority = DEFAULT_HARDWARE_PRIORITY if host_fifo else 0
+    lock = []
+    if period > 0.001:  # the default hydraulic lock rings too fast for a slower tick (docs/BENCH.md)
+        softer = workdir / f"lock_{period}.yaml"
+        softer.write_text("lock_stiffness: [150.0, 150.0]\nlock_damping: [5.0, 5.0]\n")
+        lock = ["--bench-file", str(softer)]
     emulator = start("emulator", [
         sys.executable, "-m", "smm_bench_emulator.cli", "--bind", f"127.0.0.1:{board}", "--host",
         f"127.0.0.1:{host}", "--control", f"127.0.0.1:{control}", "--no-valve-lag", "--counts-per-rev",
         str(COUNTS), "--full-scale-torque", str(FULL_SCALE), "--duration", str(board_seconds), "--record",
-        str(record), "--control-period", str(period), "--status-file", str(status_file),
+        str(record), "--control-period", str(period), "--status-file", str(status_file), *lock,
     ], board_priority)  # fmt: skip
     bridge = {
         "autostart": "true",
