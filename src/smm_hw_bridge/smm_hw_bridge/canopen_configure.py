@@ -33,9 +33,11 @@ from smm_hw_bridge.cia408 import (
     ValveState,
     control_word,
 )
+from smm_hw_bridge.control_rate import BOARD_TICK_HZ, MAX_DIVIDER
 from smm_hw_bridge.device import DeviceError
 
 __all__ = [
+    "CONTROL_DIVIDER",
     "ConfigureError",
     "await_answer",
     "check_bridge",
@@ -44,6 +46,9 @@ __all__ = [
     "remote_node",
 ]
 
+CONTROL_DIVIDER: Final[str] = "bridge.control_divider"
+"""The bridge's parameter the SYNC period must match (:func:`check_bridge`)."""
+_TICK_US: Final[int] = 1_000_000 // BOARD_TICK_HZ
 _IDENTITY: Final[int] = 0x1018
 _CYCLE_PERIOD: Final[int] = 0x1006
 _HEARTBEAT_CONSUMER: Final[int] = 0x1016
@@ -59,16 +64,26 @@ class ConfigureError(DeviceError):
 
 
 def check_bridge(config: CanopenConfig, bridge: BridgeConfig) -> None:
-    """Refuses, before any bus traffic, a code limit beyond full spool or no EDS files named.
+    """Refuses, before any bus traffic, a code limit beyond full spool or a SYNC period not the control one.
 
     Raises:
-        ConfigureError: The reason, naming the parameter and the value that would fit.
+        ConfigureError: The reason, naming the parameters and the value that would fit.
     """
     limit = bridge.valve.code_limit
     if any(code > SPOOL_FULL_SCALE for code in limit):
         raise ConfigureError(
             f"bridge.valve.code_limit {list(limit)} is above the valves' full scale {SPOOL_FULL_SCALE} "
             f"(100 % spool, 0x6300:01) on the CANopen link: set it to at most {SPOOL_FULL_SCALE}"
+        )
+    divider = bridge.control_divider
+    if config.period_us != _TICK_US * divider:
+        fits, other = _TICK_US * divider, ""
+        if config.period_us % _TICK_US == 0 and 1 <= config.period_us // _TICK_US <= MAX_DIVIDER:
+            other = f" (or {CONTROL_DIVIDER} to {config.period_us // _TICK_US})"
+        raise ConfigureError(
+            f"{parameter('period_us')} {config.period_us} us does not match {CONTROL_DIVIDER} {divider}: "
+            f"one SYNC a control period is {_TICK_US} x {CONTROL_DIVIDER} us; set {parameter('period_us')} "
+            f"to {fits}{other}"
         )
     if not config.valve_eds or not config.encoder_eds:
         raise ConfigureError(

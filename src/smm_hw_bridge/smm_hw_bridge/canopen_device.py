@@ -38,6 +38,7 @@ from smm_hw_bridge.cia408 import (
     control_word,
     state_of_status,
 )
+from smm_hw_bridge.control_rate import MAX_DIVIDER
 from smm_hw_bridge.core import BridgeConfig
 from smm_hw_bridge.device import Device, DeviceDescription, DeviceError, Reading, ValveCommand
 from smm_hw_bridge.protocol import CommandFlag, FaultBit, FeedbackFrame
@@ -61,9 +62,10 @@ class CanopenDevice(Device):
     Args:
         config: The link.
         bus: An open python-can bus to use instead of opening ``config``'s (tests: ``virtual``).
-        bridge: The bridge's settings: its valve code limit (checked at :meth:`open`) and its A/D scales
-            (the pressures are handed over as the A/D codes ``bridge.pressure.*`` and
-            ``bridge.supply_bar_per_code`` read back); None: the defaults, the code limit at full spool.
+        bridge: The bridge's settings: its valve code limit and control divider (checked at :meth:`open`)
+            and its A/D scales (the pressures are handed over as the A/D codes ``bridge.pressure.*`` and
+            ``bridge.supply_bar_per_code`` read back); None: the defaults, the code limit at full spool and
+            the control divider of ``config.period_us``.
         boot_wait_s: How long :meth:`open` waits for each node's first SDO answer (s): a bench powering up,
             an emulator starting after the bridge (``link.configure_timeout``).
     """
@@ -85,7 +87,10 @@ class CanopenDevice(Device):
             validity=False,
         )
         self.config = config
-        self.bridge = bridge or BridgeConfig(valve=ValveOutputConfig(code_limit=(SPOOL_FULL_SCALE,) * 2))
+        self.bridge = bridge or BridgeConfig(
+            valve=ValveOutputConfig(code_limit=(SPOOL_FULL_SCALE,) * 2),
+            control_divider=min(max(config.period_us // 1000, 1), MAX_DIVIDER),
+        )
         self._bus = bus
         self._boot_wait_s = boot_wait_s
         self.network: canopen.Network | None = None
@@ -117,8 +122,8 @@ class CanopenDevice(Device):
         """Configures every node by SDO, starts them (NMT) and sends the first SYNC.
 
         Raises:
-            ConfigureError: The bridge's code limit is beyond full spool, or a node is missing, of the
-                wrong profile, or differs from its EDS.
+            ConfigureError: The bridge's settings do not fit the link (code limit, control divider), or a
+                node is missing, of the wrong profile, or differs from its EDS.
             DeviceError: The bus cannot be opened.
         """
         if self.network is not None:
