@@ -7,11 +7,13 @@ the node and the object (docs/HW_CANOPEN.md, "Objects used"). No ROS.
 
 from __future__ import annotations
 
+import logging
 import time
 from typing import Final
 
 import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
+from canopen.sdo.constants import ABORT_TIMED_OUT
 
 from smm_hw_bridge.bridge_config import BridgeConfig
 from smm_hw_bridge.canopen_config import JOINTS, CanopenConfig, bus_load, highest_rate_that_fits, parameter
@@ -57,6 +59,22 @@ _RPDO1_COMM: Final[int] = 0x1400
 _RPDO1_MAP: Final[int] = 0x1600
 _TPDO1_MAP: Final[int] = 0x1A00
 _EVENT_TIMER: Final[int] = 5
+
+
+class _TimeoutAbortFilter(logging.Filter):
+    """Drops the SDO client's log line of its own abort on a timeout (the raw code 0x05040000).
+
+    Every SDO timeout raises ``SdoCommunicationError``, which the master states in words naming the node
+    and the object; the library's line would only repeat it as a code (and python's last-resort handler
+    prints it on stderr, once a try while waiting for a bench to boot).
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        """False for the abort-on-timeout line, True for every other."""
+        return record.getMessage() != f"Transfer aborted by client with code 0x{ABORT_TIMED_OUT:08X}"
+
+
+logging.getLogger("canopen.sdo.client").addFilter(_TimeoutAbortFilter())
 
 
 class ConfigureError(DeviceError):

@@ -14,7 +14,6 @@ import time
 
 import can
 import canopen
-from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from smm_hw_bridge.can_multicast import MulticastRouteError, loopback_multicast_bus
 from smm_hw_bridge.canopen_config import JOINTS, CanopenConfig
@@ -29,6 +28,7 @@ from smm_hw_bridge.canopen_configure import (
 from smm_hw_bridge.canopen_feedback import feedback_frame
 from smm_hw_bridge.canopen_foreign import NMT_ID, SDO_REQUEST, SYNC_ID, ForeignListener, foreign_message
 from smm_hw_bridge.canopen_node import FAULT_BIT, CanNode
+from smm_hw_bridge.canopen_safe import tell_disabled, untold_line
 from smm_hw_bridge.cia408 import (
     CONTROL_WORD,
     SPOOL_FULL_SCALE,
@@ -437,21 +437,21 @@ class CanopenDevice(Device):
                     self._rpdo(node, control_word(ValveState.DISABLED), 0)
             self._sync()
 
-    def make_safe(self) -> None:
-        """Setpoint 0 and DISABLED to every valve (RPDO and SYNC, and the control word by SDO)."""
+    def make_safe(self) -> str | None:
+        """Setpoint 0 and DISABLED to every valve: by RPDO and SYNC, and the control word by SDO (bounded).
+
+        Returns None, or one line naming the valves not told by SDO and what stops them by themselves.
+        """
         if self.network is None:
-            return
+            return None
         self._send_safe()
-        for node in self.nodes:
-            if node.kind == "valve":
-                try:
-                    node.remote.sdo.download(
-                        CONTROL_WORD, 0, control_word(ValveState.DISABLED).to_bytes(2, "little")
-                    )
-                except (SdoCommunicationError, SdoAbortedError) as error:
-                    self._fault(
-                        node, f"control word DISABLED by SDO refused ({error})", FaultBit.VALVE_DRIVER
-                    )
+        valves = [node for node in self.nodes if node.kind == "valve"]
+        untold = tell_disabled(valves, self.config)
+        for node in valves:
+            if node.name in untold:
+                what = f"control word DISABLED by SDO not told ({untold[node.name]})"
+                self._fault(node, what, FaultBit.VALVE_DRIVER)
+        return untold_line(valves, untold, self.config) if untold else None
 
 
 def canopen_device(link: LinkConfig, canopen: CanopenConfig, bridge: BridgeConfig) -> CanopenDevice:
