@@ -52,6 +52,7 @@ _NMT_START_ALL = 0x01
 _NMT_STOPPED = 0x04
 _NMT_OPERATIONAL = 0x05
 _NMT_PRE_OPERATIONAL = 0x7F
+_U32 = 1 << 32
 _RESEND_S = 0.05
 """Lockstep without a SYNC: the last feedback again after this long (s), as the frame board's resend."""
 
@@ -368,12 +369,22 @@ class CanopenDevice(Device):
         )
 
     def write(self, command: ValveCommand) -> None:
-        """The valves' RPDOs (control word and spool setpoint), then the SYNC: one control cycle."""
+        """The valves' RPDOs (control word and spool setpoint), then the SYNC: one control cycle.
+
+        Lockstep: an enabled command that does not answer the last feedback given is dropped (counted).
+        """
         if self.network is None:
             raise DeviceError("the device is not open")
         if command.enabled and self._syncs > self._delivered:
             # a second answer (to a feedback given again): its SYNC went out already, one step per feedback
             self.dropped["second_answer"] = self.dropped.get("second_answer", 0) + 1
+            return
+        stale = command.answers_seq != self._delivered % _U32
+        if stale and command.flags == CommandFlag.ENABLE and self.clock is None:
+            # lockstep: an answer to an older feedback (a copy given again, answered late) steps nothing,
+            # as the frame board ticks only on an answer to its last feedback; the latest's answer steps
+            # (an e-stop or re-arm is never dropped)
+            self.dropped["stale_answer"] = self.dropped.get("stale_answer", 0) + 1
             return
         self._host_session, self._last_seq = command.session, command.seq
         if command.flags & CommandFlag.ESTOP:
