@@ -1,12 +1,14 @@
-"""smm-launch --bench-file: passed to the emulator, refused where there is no emulator."""
+"""smm-launch --bench-file: passed to the emulator (on CANopen its supply to the bridge too), refused where
+there is no emulator."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
+from smm_bench_emulator.bench_file import default_bench
 from smm_bringup.graph import build_graph
-from smm_bringup.graph_nodes import EMULATOR_NODE
+from smm_bringup.graph_nodes import DIRECT_LOOP, EMULATOR_NODE, HW_NODE
 from smm_bringup.graph_options import GraphOptions
 from smm_bringup.launcher import arguments_from_options, build_parser, options_from_arguments
 
@@ -40,6 +42,43 @@ def test_a_bench_file_without_an_emulator_or_empty_is_refused(kwargs: dict[str, 
         GraphOptions(bench_file=bench_file, **kwargs)  # type: ignore[arg-type]
 
 
-def test_a_bench_file_on_the_canopen_link_is_refused() -> None:
-    with pytest.raises(ValueError, match="bench_file is an option of plant 'hardware' with the frame link"):
-        GraphOptions(plant="hardware", link="canopen", bench_file="bench.yaml")
+@pytest.mark.parametrize("clock_mode", ["lockstep", "realtime"])
+def test_on_the_canopen_link_the_bridge_states_the_supply_of_the_bench_the_emulator_runs(
+    tmp_path: Path, clock_mode: str
+) -> None:
+    bench = tmp_path / "bench.yaml"
+    bench.write_text("supply_pressure: 7.5\n")
+    options = options_from_arguments(
+        build_parser().parse_args(
+            [
+                "--plant",
+                "hardware",
+                "--link",
+                "canopen",
+                "--clock-mode",
+                clock_mode,
+                "--bench-file",
+                str(bench),
+            ]
+        )
+    )
+    specs = build_graph(options)
+    emulator = next(spec for spec in specs if spec.name == EMULATOR_NODE)
+    bridge = next(spec for spec in specs if spec.name in (HW_NODE, DIRECT_LOOP))
+    from smm_bench_emulator.cli import build_parser as emulator_parser
+    from smm_bench_emulator.cli import config_from_args, from_ros_arguments
+
+    parsed = emulator_parser().parse_args(from_ros_arguments(list(emulator.ros_arguments())))
+    assert parsed.link == "canopen" and config_from_args(parsed).board.supply_pressure == 7.5
+    assert dict(bridge.parameters)["canopen.supply_bar"] == 7.5  # no node sends it: the bench's, stated
+    default = build_graph(GraphOptions(plant="hardware", link="canopen", clock_mode=clock_mode))
+    bridge = next(spec for spec in default if spec.name in (HW_NODE, DIRECT_LOOP))
+    assert dict(bridge.parameters)["canopen.supply_bar"] == default_bench().supply_pressure
+
+
+def test_a_real_canopen_bench_gets_no_stated_supply_from_smm_launch() -> None:
+    options = GraphOptions(plant="hardware", link="canopen", board="external")
+    specs = build_graph(options)
+    bridge = next(spec for spec in specs if spec.name in (HW_NODE, DIRECT_LOOP))
+    assert all(spec.name != EMULATOR_NODE for spec in specs)
+    assert "canopen.supply_bar" not in dict(bridge.parameters)  # the user's parameter file states it

@@ -1,11 +1,15 @@
 """The CANopen link's faults, each named with the node and the code, every valve DISABLED (lockstep).
 
 A missing node, a wrong device type, a PDO mapping that differs from the EDS, a TPDO past its validity, a
-lost heartbeat with the TPDOs still coming, a valve whose setpoints stop: test_canopen_device.py.
+lost heartbeat with the TPDOs still coming, a valve whose setpoints stop: test_canopen_device.py. Here too:
+making the valves safe when the bench is gone (the SDO write of DISABLED unanswered).
 """
 
 from __future__ import annotations
 
+import logging
+import re
+import time
 from pathlib import Path
 
 import can
@@ -170,3 +174,55 @@ def test_a_frame_that_is_not_the_run_s_is_a_fault_naming_the_node(
     finally:
         injector.shutdown()
         device.close()
+
+
+_UNTOLD = r"(no answer within 0\.3 s|its heartbeat lost for [0-9.]+ s: not asked)"
+
+
+def test_make_safe_with_the_bench_gone_says_in_one_line_which_valves_were_not_told(
+    bench: CanBench, channel: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    device = _open(channel)  # sdo_timeout 0.3 s, heartbeats 1 s (consumers 3 s)
+    try:
+        _run(device, 5, (3000, 3000), ENABLE)
+        bench.close()  # the emulated bench's process gone before the bridge shuts down
+        caplog.set_level(logging.DEBUG, logger="canopen")
+        line = device.make_safe()
+    finally:
+        device.close()
+    assert line is not None and "\n" not in line
+    assert re.fullmatch(
+        rf"could not tell valve alpha \(node 1\) \({_UNTOLD}\), valve beta \(node 2\) \({_UNTOLD}\) "
+        r"DISABLED by SDO \(0x6040\); each valve goes to its failsafe by itself: its receive deadline "
+        r"0x1400:05 \(10 ms\) once its setpoints stop, its heartbeat consumer 0x1016 \(3000 ms\) once the "
+        r"master's heartbeat stops",
+        line,
+    ), line
+    assert not [r.getMessage() for r in caplog.records if "0x05040000" in r.getMessage()]  # no raw code
+    assert any(
+        f.startswith("valve beta (node 2): control word DISABLED by SDO not told (") for f in device.faults
+    )
+
+
+def test_make_safe_asks_no_valve_whose_heartbeat_is_lost(bench: CanBench, channel: str) -> None:
+    device = _open(channel, heartbeat_ms=50)  # lost after 150 ms without one
+    spy = can.Bus(interface="virtual", channel=channel)
+    try:
+        _run(device, 3, (3000, 3000), ENABLE)
+        bench.close()
+        time.sleep(0.5)  # every node's heartbeat lost
+        while spy.recv(0) is not None:
+            pass
+        line = device.make_safe()
+        sent = []
+        while (message := spy.recv(0)) is not None:
+            sent.append(message.arbitration_id)
+    finally:
+        spy.shutdown()
+        device.close()
+    assert 0x080 in sent  # the RPDOs and the SYNC went out
+    assert 0x601 not in sent and 0x602 not in sent  # no SDO request waited for an answer
+    assert line is not None and re.match(
+        r"could not tell valve alpha \(node 1\) \(its heartbeat lost for [0-9.]+ s: not asked\), valve beta",
+        line,
+    ), line

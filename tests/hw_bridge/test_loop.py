@@ -235,6 +235,14 @@ def test_the_topics_loop_rehearsal_publishes_stamps_an_hour_ahead_and_times_the_
     assert len(board.sent) == before and loop.rehearsal._answers  # timed, never sent
 
 
+def test_detach_hands_on_what_the_device_could_not_do_to_make_the_valves_safe() -> None:
+    loop, _ = attached()
+    assert loop.device is not None
+    loop.device.make_safe = lambda: "could not tell valve alpha (node 1) DISABLED"  # type: ignore[method-assign]
+    assert loop.detach() == "could not tell valve alpha (node 1) DISABLED"
+    assert loop.device is None and loop.detach() is None  # detached: nothing more to say
+
+
 def test_first_feedback_says_why_none_came() -> None:
     class Speaks(Device):
         description = FrameDevice("x", MemoryBoard).description

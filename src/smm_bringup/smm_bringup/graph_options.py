@@ -101,9 +101,10 @@ class GraphOptions:
         board: ``hardware`` only: ``ADDRESS:PORT`` of the bench's I/O board (``external`` on the CANopen
             link: the devices its parameters name); ``None`` starts ``smm_bench_emulator`` on loopback.
         link: ``hardware`` only: ``frame`` or ``canopen`` (:data:`LINKS`).
-        bench_file: ``hardware`` with the emulator only: the bench description it runs (docs/BENCH.md),
-            made absolute; the scenario's plant settings (noise, disturbance, inertia scale) override its
-            fields. ``None``: the emulator's defaults.
+        bench_file: ``hardware`` with the emulator only (either link): the bench description it runs
+            (docs/BENCH.md), made absolute; the scenario's plant settings (noise, disturbance, inertia
+            scale) override its fields; on CANopen the bridge states its supply (``canopen.supply_bar``).
+            ``None``: the emulator's defaults.
         record: Bag folder for ``recorder_node`` (smm_bag), started before the other nodes and stopped
             after them; ``None`` records nothing.
         record_max_size: Start a new bag file when the current one reaches this many bytes: 0 (never) or
@@ -245,10 +246,8 @@ class GraphOptions:
         if self.bench_file is not None:
             if not isinstance(self.bench_file, str) or not self.bench_file.strip():
                 raise ValueError(f"bench_file must be a file path or None, got {self.bench_file!r}")
-            if self.plant != "hardware" or self.board is not None or self.link != "frame":
-                raise ValueError(
-                    "bench_file is an option of plant 'hardware' with the frame link's emulator (no board)"
-                )
+            if self.plant != "hardware" or self.board is not None:
+                raise ValueError("bench_file is an option of plant 'hardware' with the emulator (no board)")
             object.__setattr__(self, "bench_file", os.path.abspath(self.bench_file))
 
     def _choose_loop(self) -> None:

@@ -141,11 +141,16 @@ def emulator_seed(options: GraphOptions) -> int | None:
         return None
     if options.seed is not None:
         return options.seed
+    bench = _emulated_bench(options)
+    return None if bench is None or bench.seed != bench.plant.seed else bench.seed
+
+
+def _emulated_bench(options: GraphOptions) -> BoardConfig | None:
+    """The bench the emulator runs: its bench file's, else the default; None if it will refuse the file."""
     try:
-        bench = default_bench() if options.bench_file is None else load_bench_file(options.bench_file)
-    except BenchFileError:  # the emulator refuses it with its reason (exit 2): no run, no seed
+        return default_bench() if options.bench_file is None else load_bench_file(options.bench_file)
+    except BenchFileError:  # the emulator refuses it with its reason (exit 2): no run
         return None
-    return bench.seed if bench.seed == bench.plant.seed else None
 
 
 def _frame_link(board: str) -> list[tuple[str, ParameterValue]]:
@@ -154,12 +159,15 @@ def _frame_link(board: str) -> list[tuple[str, ParameterValue]]:
 
 
 def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
-    """``link.transport: canopen``; with the emulated bench, its EDS files (a real bench: the user's)."""
+    """``link.transport: canopen``; with the emulated bench, its EDS files and supply (else the user's)."""
     link: list[tuple[str, ParameterValue]] = [("link.transport", "canopen")]
     if options.board is None:
         # the valves' units: spool +-16384 = +-100 % = the emulated valve's full-scale torque; the rate
         # limit as the frame link's default, full scale in 2 ms
         gain = SPOOL_FULL_SCALE / BoardConfig().full_scale_torque[0]
+        bench = _emulated_bench(options)
+        if bench is not None:  # no node sends the supply: the bridge states the emulated bench's
+            link.append((canopen_parameter("supply_bar"), bench.supply_pressure))
         link += [
             (canopen_parameter("valve_eds"), str(eds_path("valve_cia408.eds"))),
             (canopen_parameter("encoder_eds"), str(eds_path("encoder_cia406.eds"))),

@@ -340,7 +340,9 @@ class HwBridgeNode(LifecycleNode):
         reader, self._reader = self._reader, None
         if reader is not None and reader is not threading.current_thread():
             reader.join(2.0)
-        self.loop.detach()
+        untold = self.loop.detach()
+        if untold is not None:
+            self._log.warning(f"make safe: {untold}")
 
     # ---- the receiving thread ---------------------------------------------------------------------
 

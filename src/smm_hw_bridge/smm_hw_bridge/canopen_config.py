@@ -51,7 +51,8 @@ class CanopenConfig:
         encoder_eds: EDS / DCF file of the encoders: one, or one per joint separated by a comma.
         heartbeat_ms: Every node's heartbeat period (ms); consumers allow 3 periods.
         control_mode: The valves' control mode 0x6043 (2: spool position, closed loop).
-        period_us: SYNC period written to 0x1006 (us).
+        period_us: SYNC period written to 0x1006 (us): one a control period, 1000 x
+            ``bridge.control_divider`` (another refused at configure).
         receive_deadline_ms: The valves' RPDO1 event timer 0x1400:05 (ms): no setpoint for that long and a
             valve faults by itself.
         bar_per_unit: The pressure scale: each valve's pressure actual 0x6381:01 (its joint's load

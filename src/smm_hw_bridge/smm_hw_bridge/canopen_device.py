@@ -1,42 +1,36 @@
 """The CANopen link as one :class:`Device`: the bridge masters CiA 408 valves and CiA 406 encoders.
 
-Configure by SDO (device type, identity, PDO mapping against the user's EDS, the settings written), NMT
-start, then in lockstep: each :meth:`CanopenDevice.write` sends the valves' RPDOs and then the SYNC, and
-:meth:`CanopenDevice.read` gives the feedback once every node's TPDO for that SYNC has arrived. How the
-bus maps onto :data:`~smm_hw_bridge.device.Feedback`: docs/HW_CANOPEN.md. No ROS.
+Configure by SDO (:mod:`smm_hw_bridge.canopen_configure`), NMT start, then in lockstep: each
+:meth:`CanopenDevice.write` sends the valves' RPDOs and then the SYNC, and :meth:`CanopenDevice.read` gives
+the feedback once every node's TPDO for that SYNC has arrived; in real time the read sends each SYNC when
+due (:mod:`smm_hw_bridge.sync_clock`). How the bus maps onto :data:`~smm_hw_bridge.device.Feedback`:
+docs/HW_CANOPEN.md. No ROS.
 """
 
 from __future__ import annotations
 
-import collections
 import threading
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import can
 import canopen
-from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from smm_hw_bridge.can_multicast import MulticastRouteError, loopback_multicast_bus
-from smm_hw_bridge.canopen_config import (
-    JOINTS,
-    CanopenConfig,
-    bus_load,
-    highest_rate_that_fits,
-    parameter,
+from smm_hw_bridge.canopen_config import JOINTS, CanopenConfig
+from smm_hw_bridge.canopen_configure import (
+    ConfigureError,
+    await_answer,
+    check_bridge,
+    check_bus_load,
+    configure_node,
+    remote_node,
 )
+from smm_hw_bridge.canopen_feedback import feedback_frame
+from smm_hw_bridge.canopen_foreign import NMT_ID, SDO_REQUEST, SYNC_ID, ForeignListener, foreign_message
+from smm_hw_bridge.canopen_node import FAULT_BIT, CanNode
+from smm_hw_bridge.canopen_safe import tell_disabled, untold_line
 from smm_hw_bridge.cia408 import (
-    CONTROL_MODE,
     CONTROL_WORD,
-    DEVICE_MODE,
-    DEVICE_MODE_BUS,
-    DEVICE_TYPE,
-    POSITION,
-    PRESSURE_ACTUAL,
-    PROFILE_ENCODER,
-    PROFILE_VALVE,
-    SPOOL_ACTUAL,
     SPOOL_FULL_SCALE,
     SPOOL_SETPOINT,
     STATUS_WORD,
@@ -44,111 +38,23 @@ from smm_hw_bridge.cia408 import (
     control_word,
     state_of_status,
 )
+from smm_hw_bridge.control_rate import MAX_DIVIDER
 from smm_hw_bridge.core import BridgeConfig
 from smm_hw_bridge.device import Device, DeviceDescription, DeviceError, Reading, ValveCommand
-from smm_hw_bridge.protocol import (
-    ADC_MAX,
-    NO_COMMAND_AGE,
-    CommandFlag,
-    FaultBit,
-    FeedbackFrame,
-    StatusBit,
-)
+from smm_hw_bridge.protocol import CommandFlag, FaultBit, FeedbackFrame
 from smm_hw_bridge.sync_clock import SyncClock
 from smm_hw_bridge.transport import LinkConfig
 from smm_hw_bridge.valve_output import ValveOutputConfig
 
 __all__ = ["CanopenDevice", "ConfigureError", "canopen_device"]
 
-_U32 = 1 << 32
-_IDENTITY = 0x1018
-_CYCLE_PERIOD = 0x1006
-_HEARTBEAT_CONSUMER = 0x1016
-_HEARTBEAT_PRODUCER = 0x1017
-_RPDO1_COMM = 0x1400
-_RPDO1_MAP = 0x1600
-_TPDO1_MAP = 0x1A00
-_EVENT_TIMER = 5
 _NMT_START_ALL = 0x01
 _NMT_STOPPED = 0x04
 _NMT_OPERATIONAL = 0x05
 _NMT_PRE_OPERATIONAL = 0x7F
-_NMT_ID = 0x000
-_SYNC_ID = 0x080
-_SDO_REQUEST = 0x600
+_U32 = 1 << 32
 _RESEND_S = 0.05
-_BIT = {"valve": FaultBit.VALVE_DRIVER, "encoder": FaultBit.ENCODER}
 """Lockstep without a SYNC: the last feedback again after this long (s), as the frame board's resend."""
-
-
-class ConfigureError(DeviceError):
-    """A node refused at configure: missing, of the wrong profile, or its objects not as its EDS says."""
-
-
-@dataclass
-class _Node:
-    """One configured node and what its last TPDO and heartbeat said."""
-
-    kind: str
-    joint: int
-    remote: canopen.RemoteNode
-    identity: tuple[int, int, int, int] = (0, 0, 0, 0)
-    device_type: int = 0
-    values: dict[int, int] = field(default_factory=dict)
-    sync: int = -1
-    heard: float = 0.0
-    """When its last heartbeat came (monotonic s)."""
-    lost: bool = False
-    operational: bool = False
-    """A heartbeat said OPERATIONAL since the start."""
-
-    @property
-    def name(self) -> str:
-        return f"{self.kind} {JOINTS[self.joint]} (node {self.remote.id})"
-
-
-class _ForeignListener(can.Listener):
-    """Hands the data frames on the master's own COB-IDs (sent by another) to ``handle``.
-
-    ``echoes``: the bus hands the master its own frames back (python-can's ``udp_multicast``): each frame
-    sent on those COB-IDs is expected back once, in order, and is not another's.
-    """
-
-    def __init__(
-        self,
-        handle: Callable[[_Node | None, int, bytearray], None],
-        ids: dict[int, _Node | None],
-        bus: can.BusABC,
-        echoes: bool,
-    ):
-        self._handle, self._ids = handle, ids
-        self._sent: dict[int, collections.deque[bytes]] = {}
-        self._guard = threading.Lock()
-        if echoes:
-            send = bus.send
-
-            def sending(msg: can.Message, timeout: float | None = None) -> None:
-                if msg.arbitration_id in self._ids:
-                    with self._guard:
-                        self._sent.setdefault(msg.arbitration_id, collections.deque(maxlen=64)).append(
-                            bytes(msg.data)
-                        )
-                send(msg, timeout)
-
-            bus.send = sending  # type: ignore[method-assign]
-
-    def on_message_received(self, msg: can.Message) -> None:
-        if msg.is_error_frame or msg.is_remote_frame or msg.arbitration_id not in self._ids:
-            return
-        with self._guard:
-            sent = self._sent.get(msg.arbitration_id)
-            if sent and sent[0] == bytes(msg.data):
-                sent.popleft()  # our own, echoed
-                return
-        self._handle(self._ids[msg.arbitration_id], msg.arbitration_id, msg.data)
-
-    def stop(self) -> None:
-        """Nothing to release."""
 
 
 class CanopenDevice(Device):
@@ -157,9 +63,10 @@ class CanopenDevice(Device):
     Args:
         config: The link.
         bus: An open python-can bus to use instead of opening ``config``'s (tests: ``virtual``).
-        bridge: The bridge's settings: its valve code limit (checked at :meth:`open`) and its A/D scales
-            (the pressures are handed over as the A/D codes ``bridge.pressure.*`` and
-            ``bridge.supply_bar_per_code`` read back); None: the defaults, the code limit at full spool.
+        bridge: The bridge's settings: its valve code limit and control divider (checked at :meth:`open`)
+            and its A/D scales (the pressures are handed over as the A/D codes ``bridge.pressure.*`` and
+            ``bridge.supply_bar_per_code`` read back); None: the defaults, the code limit at full spool and
+            the control divider of ``config.period_us``.
         boot_wait_s: How long :meth:`open` waits for each node's first SDO answer (s): a bench powering up,
             an emulator starting after the bridge (``link.configure_timeout``).
     """
@@ -181,11 +88,14 @@ class CanopenDevice(Device):
             validity=False,
         )
         self.config = config
-        self.bridge = bridge or BridgeConfig(valve=ValveOutputConfig(code_limit=(SPOOL_FULL_SCALE,) * 2))
+        self.bridge = bridge or BridgeConfig(
+            valve=ValveOutputConfig(code_limit=(SPOOL_FULL_SCALE,) * 2),
+            control_divider=min(max(config.period_us // 1000, 1), MAX_DIVIDER),
+        )
         self._bus = bus
         self._boot_wait_s = boot_wait_s
         self.network: canopen.Network | None = None
-        self.nodes: list[_Node] = []
+        self.nodes: list[CanNode] = []
         self._fault_bits = 0
         self._changed = threading.Condition()
         self._syncs = 0
@@ -204,7 +114,7 @@ class CanopenDevice(Device):
         """Real time (``sync_clock``): the SYNC schedule, its slots and late periods."""
         self._started = False
         self._faults_delivered = 0
-        self._foreign: dict[int, _Node | None] = {_NMT_ID: None, _SYNC_ID: None}
+        self._foreign: dict[int, CanNode | None] = {NMT_ID: None, SYNC_ID: None}
         """COB-IDs only this master sends (NMT, SYNC, the valves' RPDO1, SDO requests), and their node."""
 
     # ---- open: configure and start ----------------------------------------------------------------
@@ -213,22 +123,14 @@ class CanopenDevice(Device):
         """Configures every node by SDO, starts them (NMT) and sends the first SYNC.
 
         Raises:
-            ConfigureError: A node is missing, of the wrong profile, or differs from its EDS.
+            ConfigureError: The bridge's settings do not fit the link (code limit, control divider), or a
+                node is missing, of the wrong profile, or differs from its EDS.
             DeviceError: The bus cannot be opened.
         """
         if self.network is not None:
             return
         config = self.config
-        limit = self.bridge.valve.code_limit
-        if any(code > SPOOL_FULL_SCALE for code in limit):
-            raise ConfigureError(
-                f"bridge.valve.code_limit {list(limit)} is above the valves' full scale {SPOOL_FULL_SCALE} "
-                f"(100 % spool, 0x6300:01) on the CANopen link: set it to at most {SPOOL_FULL_SCALE}"
-            )
-        if not config.valve_eds or not config.encoder_eds:
-            raise ConfigureError(
-                f"{parameter('valve_eds')} and {parameter('encoder_eds')} must name the devices' EDS files"
-            )
+        check_bridge(config, self.bridge)
         try:
             if self._bus is not None:
                 bus = self._bus
@@ -247,15 +149,15 @@ class CanopenDevice(Device):
         # called whatever the canopen library's handlers of the same COB-ID raise (a short NMT frame)
         assert network.notifier is not None
         echoes = self._bus is None and config.interface == "udp_multicast"
-        network.notifier.add_listener(_ForeignListener(self._on_foreign, self._foreign, bus, echoes))
+        network.notifier.add_listener(ForeignListener(self._on_foreign, self._foreign, bus, echoes))
         try:
             self.nodes = [self._add(network, "valve", j, i) for j, i in enumerate(config.valve_node_ids)]
             self.nodes += [self._add(network, "encoder", j, i) for j, i in enumerate(config.encoder_node_ids)]
             deadline = time.monotonic() + self._boot_wait_s
             for node in self.nodes:
-                self._await(node, deadline)
-                self._configure(node)
-            self._check_bus_load()
+                await_answer(node, deadline)
+                configure_node(node, config)
+            check_bus_load(config, self.nodes)
         except BaseException:
             self.close()
             raise
@@ -275,36 +177,11 @@ class CanopenDevice(Device):
         self._started = True
         self._send_safe()
 
-    def _check_bus_load(self) -> None:
-        """Refuses a cycle (SYNC, valve RPDO1s, every TPDO1, as the EDS files map them) above the limit."""
-        config = self.config
-        payloads = [1 if config.sync_clock else 0]  # the SYNC (its counter in real time)
-        for node in self.nodes:
-            payloads.append(len(node.remote.tpdo[1].data))
-            if node.kind == "valve":
-                payloads.append(len(node.remote.rpdo[1].data))
-        rate = 1e6 / config.period_us
-        load = bus_load(payloads, rate, config.bitrate)
-        if load > config.max_bus_load:
-            fits = highest_rate_that_fits(payloads, config.bitrate, config.max_bus_load)
-            raise ConfigureError(
-                f"bus load {100 * load:.1f} % at {rate:g} Hz and {config.bitrate} bit/s (frames of "
-                f"{payloads} bytes a cycle, worst-case stuffing) is above {parameter('max_bus_load')} "
-                f"{100 * config.max_bus_load:g} %; "
-                + (f"the highest offered rate that fits is {fits} Hz" if fits else "no offered rate fits")
-            )
-
-    def _add(self, network: canopen.Network, kind: str, joint: int, node_id: int) -> _Node:
-        path = self.config.eds(kind, joint)
-        try:
-            remote = canopen.RemoteNode(node_id, path)
-        except (OSError, ValueError, KeyError) as error:
-            raise ConfigureError(
-                f"{kind} {JOINTS[joint]} (node {node_id}): cannot read EDS {path}: {error}"
-            ) from error
-        remote.sdo.RESPONSE_TIMEOUT = self.config.sdo_timeout
+    def _add(self, network: canopen.Network, kind: str, joint: int, node_id: int) -> CanNode:
+        """The node, its PDOs and callbacks on ``network``; its COB-IDs only the master sends noted."""
+        node = remote_node(self.config, kind, joint, node_id)
+        remote = node.remote
         network.add_node(remote)
-        node = _Node(kind, joint, remote)
         remote.tpdo.read(from_od=True)
         remote.rpdo.read(from_od=True)
         remote.tpdo[1].add_callback(lambda pdo, node=node: self._on_tpdo(node, pdo))
@@ -313,123 +190,27 @@ class CanopenDevice(Device):
             0x700 + node_id, lambda _id, data, _t, node=node: self._on_heartbeat(node, bytes(data))
         )
         rpdo = remote.rpdo.map.maps.get(1) if kind == "valve" else None  # none in the EDS: refused later
-        foreign = [_SDO_REQUEST + node_id] + ([rpdo.cob_id] if rpdo is not None else [])
+        foreign = [SDO_REQUEST + node_id] + ([rpdo.cob_id] if rpdo is not None else [])
         for cob_id in foreign:
             self._foreign[cob_id] = node
         return node
 
-    def _await(self, node: _Node, deadline: float) -> None:
-        """Until ``deadline`` (monotonic s): asks ``node`` its device type until it answers at all."""
-        while time.monotonic() < deadline:
-            try:
-                node.remote.sdo.upload(DEVICE_TYPE, 0)
-            except SdoCommunicationError:
-                continue  # not up yet; past the deadline, _configure names it
-            except SdoAbortedError:
-                return
-            return
-
-    def _upload(self, node: _Node, index: int, subindex: int = 0) -> int:
-        try:
-            data = node.remote.sdo.upload(index, subindex)
-        except SdoCommunicationError as error:
-            raise ConfigureError(
-                f"{node.name}: no answer to reading 0x{index:04X}:{subindex:02X} ({error})"
-            ) from error
-        except SdoAbortedError as error:
-            raise ConfigureError(
-                f"{node.name}: reading 0x{index:04X}:{subindex:02X} refused ({error})"
-            ) from error
-        return int.from_bytes(data[:4], "little")
-
-    def _download(self, node: _Node, index: int, subindex: int, value: int, size: int) -> None:
-        try:
-            node.remote.sdo.download(index, subindex, value.to_bytes(size, "little", signed=value < 0))
-        except (SdoCommunicationError, SdoAbortedError) as error:
-            raise ConfigureError(
-                f"{node.name}: writing 0x{index:04X}:{subindex:02X} = {value} refused ({error})"
-            ) from error
-
-    def _configure(self, node: _Node) -> None:
-        config = self.config
-        node.device_type = self._upload(node, DEVICE_TYPE)
-        profile = PROFILE_VALVE if node.kind == "valve" else PROFILE_ENCODER
-        if node.device_type & 0xFFFF != profile:
-            raise ConfigureError(
-                f"{node.name}: device type 0x1000 = 0x{node.device_type:08X}, "
-                f"profile {node.device_type & 0xFFFF}, "
-                f"not CiA {profile}"
-            )
-        node.identity = tuple(self._upload(node, _IDENTITY, sub) for sub in (1, 2, 3, 4))  # type: ignore[assignment]
-        self._check_identity(node)
-        if node.kind == "valve":
-            self._check_mapping(
-                node, _TPDO1_MAP, node.remote.tpdo[1], (STATUS_WORD, SPOOL_ACTUAL[0], PRESSURE_ACTUAL[0])
-            )
-            self._check_mapping(node, _RPDO1_MAP, node.remote.rpdo[1], (CONTROL_WORD, SPOOL_SETPOINT[0]))
-        else:
-            self._check_mapping(node, _TPDO1_MAP, node.remote.tpdo[1], (POSITION,))
-        if node.kind == "valve":
-            self._download(node, DEVICE_MODE, 0, DEVICE_MODE_BUS, 1)
-            self._download(node, CONTROL_MODE, 0, config.control_mode, 1)
-            self._download(node, _RPDO1_COMM, _EVENT_TIMER, config.receive_deadline_ms, 2)
-            self._download(node, CONTROL_WORD, 0, control_word(ValveState.DISABLED), 2)
-        self._download(node, _CYCLE_PERIOD, 0, config.period_us, 4)
-        self._download(node, _HEARTBEAT_PRODUCER, 0, config.heartbeat_ms, 2)
-        consumer = (config.master_node_id << 16) | min(3 * config.heartbeat_ms, 0xFFFF)
-        self._download(node, _HEARTBEAT_CONSUMER, 1, consumer, 4)
-
-    def _check_identity(self, node: _Node) -> None:
-        """Refuses a vendor-ID or product code (0x1018:01, :02) other than its EDS's 0x1018 says."""
-        od = node.remote.object_dictionary
-        for sub, what in ((1, "vendor-ID"), (2, "product code")):
-            try:
-                expected = int(od[_IDENTITY][sub].default)
-            except (KeyError, TypeError, ValueError):
-                continue  # the EDS does not say: nothing to compare
-            found = node.identity[sub - 1]
-            if found != expected:
-                raise ConfigureError(
-                    f"{node.name}: identity 0x1018:{sub:02X} ({what}) = 0x{found:08X}, its EDS "
-                    f"{self.config.eds(node.kind, node.joint)} says 0x{expected:08X}: another device"
-                )
-
-    def _check_mapping(
-        self, node: _Node, index: int, pdo: canopen.pdo.PdoMap, needed: tuple[int, ...]
-    ) -> None:
-        od = node.remote.object_dictionary
-        if index not in od:
-            raise ConfigureError(f"{node.name}: its EDS has no 0x{index:04X} (PDO mapping)")
-        mapped = {variable.index for variable in pdo}
-        missing = [f"0x{object_index:04X}" for object_index in needed if object_index not in mapped]
-        if missing:
-            raise ConfigureError(
-                f"{node.name}: its EDS's PDO mapping 0x{index:04X} lacks {', '.join(missing)}"
-            )
-        record = od[index]
-        expected = [int(record[sub].default) for sub in range(1, int(record[0].default) + 1)]
-        found_count = self._upload(node, index, 0) & 0xFF
-        found = [self._upload(node, index, sub) for sub in range(1, found_count + 1)]
-        if found != expected:
-            raise ConfigureError(
-                f"{node.name}: PDO mapping 0x{index:04X} on the device is "
-                f"{[f'0x{v:08X}' for v in found]}, its EDS says {[f'0x{v:08X}' for v in expected]}"
-            )
-
     # ---- bus callbacks (the notifier's thread) ----------------------------------------------------
 
-    def _on_tpdo(self, node: _Node, pdo: canopen.pdo.PdoMap) -> None:
+    def _on_tpdo(self, node: CanNode, pdo: canopen.pdo.PdoMap) -> None:
         size = sum(variable.length for variable in pdo) // 8
         with self._changed:
             if len(pdo.data) != size:  # malformed: not the node's (the library cannot decode it)
                 what = f"TPDO1 0x{pdo.cob_id:03X} of {len(pdo.data)} bytes, its EDS maps {size}"
-                self._fault(node, what, _BIT[node.kind])
+                self._fault(node, what, FAULT_BIT[node.kind])
                 self._changed.notify_all()
                 return
             # lockstep: one a SYNC, a second is another sender's or answers a SYNC not ours (after a fault
             # the TPDOs of a SYNC told early may come after the next); real time: a late one's, not a fault
             if self.clock is None and node.sync == self._syncs and not self._fault_bits:
-                self._fault(node, f"TPDO1 0x{pdo.cob_id:03X} twice for SYNC {self._syncs}", _BIT[node.kind])
+                self._fault(
+                    node, f"TPDO1 0x{pdo.cob_id:03X} twice for SYNC {self._syncs}", FAULT_BIT[node.kind]
+                )
             node.values = {variable.index: int(variable.raw) for variable in pdo}
             node.sync = self._syncs
             if node.kind == "valve":
@@ -443,16 +224,15 @@ class CanopenDevice(Device):
                     )
             self._changed.notify_all()
 
-    def _on_emcy(self, node: _Node, data: bytes) -> None:
+    def _on_emcy(self, node: CanNode, data: bytes) -> None:
         code = int.from_bytes(data[:2].ljust(2, b"\0"), "little")
         if code == 0:
             return  # error reset / no error
         with self._changed:
             register = data[2] if len(data) > 2 else 0
-            bit = FaultBit.VALVE_DRIVER if node.kind == "valve" else FaultBit.ENCODER
-            self._fault(node, f"EMCY 0x{code:04X} (error register 0x{register:02X})", bit)
+            self._fault(node, f"EMCY 0x{code:04X} (error register 0x{register:02X})", FAULT_BIT[node.kind])
 
-    def _on_heartbeat(self, node: _Node, data: bytes) -> None:
+    def _on_heartbeat(self, node: CanNode, data: bytes) -> None:
         state = data[0] & 0x7F if data else -1
         with self._changed:
             node.heard, node.lost = time.monotonic(), False
@@ -467,13 +247,12 @@ class CanopenDevice(Device):
             elif state == _NMT_PRE_OPERATIONAL and node.operational:
                 self._fault(node, "NMT state PRE-OPERATIONAL in its heartbeat", FaultBit.INTERNAL)
 
-    def _on_foreign(self, node: _Node | None, can_id: int, data: bytearray) -> None:
+    def _on_foreign(self, node: CanNode | None, can_id: int, data: bytearray) -> None:
         """A frame on a COB-ID only this master sends (NMT, SYNC, RPDO, SDO request): another master's."""
-        what = {_NMT_ID: "NMT command", _SYNC_ID: "SYNC"}.get(can_id, "frame")
         if not self._started:
             return  # configuring: not yet a run to fault
         with self._changed:
-            message = f"{what} 0x{can_id:03X} [{bytes(data).hex(' ')}] from another master"
+            message = foreign_message(can_id, bytes(data))
             if node is None:
                 self._fault_bits |= int(FaultBit.INTERNAL)
                 if not self.faults or self.faults[-1] != f"bus: {message}":
@@ -482,7 +261,7 @@ class CanopenDevice(Device):
                 self._fault(node, message, FaultBit.INTERNAL)
             self._changed.notify_all()
 
-    def _fault(self, node: _Node, what: str, bit: FaultBit) -> None:
+    def _fault(self, node: CanNode, what: str, bit: FaultBit) -> None:
         self._fault_bits |= int(bit)  # first: a command that sees the fault listed sees its bit
         message = f"{node.name}: {what}"
         if not self.faults or self.faults[-1] != message:
@@ -563,64 +342,49 @@ class CanopenDevice(Device):
         for node in self.nodes:
             if not node.lost and now - node.heard > consumer_s:
                 node.lost = True
-                self._fault(node, f"heartbeat lost (none for {3 * config.heartbeat_ms} ms)", _BIT[node.kind])
+                self._fault(
+                    node, f"heartbeat lost (none for {3 * config.heartbeat_ms} ms)", FAULT_BIT[node.kind]
+                )
         if self._delivered >= self._syncs or now - self._synced_at <= config.pdo_validity_ms / 1000.0:
             return False
         for node in self.nodes:
             if node.sync != self._syncs:
                 what = f"TPDO1 of SYNC {self._syncs} not arrived within {config.pdo_validity_ms} ms"
-                self._fault(node, what, _BIT[node.kind])
+                self._fault(node, what, FAULT_BIT[node.kind])
         return True
 
     def _feedback(self) -> FeedbackFrame:
-        valves = [n for n in self.nodes if n.kind == "valve"]
-        encoders = [n for n in self.nodes if n.kind == "encoder"]
-        states = [state_of_status(v.values[STATUS_WORD]) for v in valves]
-        status = int(StatusBit.HOST_LOCKED) if self._host_session else 0
-        if all(state is ValveState.ACTIVE for state in states):
-            status |= int(StatusBit.ENABLED)
-        if self._estop:
-            status |= int(StatusBit.ESTOP_LATCHED)
-        scale, bar_per_unit = self.bridge.pressure, self.config.bar_per_unit
-        load = [
-            scale.zero_code[j] + v.values[PRESSURE_ACTUAL[0]] * bar_per_unit / scale.bar_per_code[j]
-            for j, v in enumerate(valves)
-        ]
-        adc = [self.config.supply_bar / self.bridge.supply_bar_per_code, *load, 0.0]
-        spool = tuple(
-            max(-SPOOL_FULL_SCALE, min(SPOOL_FULL_SCALE, v.values[SPOOL_ACTUAL[0]])) for v in valves
-        )
-        ticks = self.config.period_us // 1000 or 1
-        tick = self._syncs * ticks
-        if self.clock is not None:  # the schedule's slot; the age counts skipped slots and a late answer
-            tick = self.clock.slot * ticks
-            age = self.clock.age * ticks if self._host_session else NO_COMMAND_AGE
-        else:
-            age = 0 if self._host_session else NO_COMMAND_AGE
-        return FeedbackFrame(
-            session=self._boots % _U32 or 1,
-            seq=self._syncs % _U32,
-            tick=tick % _U32,
+        return feedback_frame(
+            self.nodes,
+            self.config,
+            self.bridge,
+            self.clock,
+            syncs=self._syncs,
+            boots=self._boots,
             host_session=self._host_session,
-            counts=(encoders[0].values[POSITION] % _U32, encoders[1].values[POSITION] % _U32),
-            adc=tuple(min(max(round(value), 0), ADC_MAX) for value in adc),  # type: ignore[arg-type]
-            status=status,
-            faults=self._fault_bits & 0xFFFF,
-            applied_seq=self._last_seq,
-            applied_age=age,
-            output_codes=(spool[0], spool[1]),
-            late_commands=0,
-            crc_errors=0,
-            dropped_frames=sum(self.dropped.values()) % _U32,
+            last_seq=self._last_seq,
+            estop=self._estop,
+            fault_bits=self._fault_bits,
+            dropped=sum(self.dropped.values()),
         )
 
     def write(self, command: ValveCommand) -> None:
-        """The valves' RPDOs (control word and spool setpoint), then the SYNC: one control cycle."""
+        """The valves' RPDOs (control word and spool setpoint), then the SYNC: one control cycle.
+
+        Lockstep: an enabled command that does not answer the last feedback given is dropped (counted).
+        """
         if self.network is None:
             raise DeviceError("the device is not open")
         if command.enabled and self._syncs > self._delivered:
             # a second answer (to a feedback given again): its SYNC went out already, one step per feedback
             self.dropped["second_answer"] = self.dropped.get("second_answer", 0) + 1
+            return
+        stale = command.answers_seq != self._delivered % _U32
+        if stale and command.flags == CommandFlag.ENABLE and self.clock is None:
+            # lockstep: an answer to an older feedback (a copy given again, answered late) steps nothing,
+            # as the frame board ticks only on an answer to its last feedback; the latest's answer steps
+            # (an e-stop or re-arm is never dropped)
+            self.dropped["stale_answer"] = self.dropped.get("stale_answer", 0) + 1
             return
         self._host_session, self._last_seq = command.session, command.seq
         if command.flags & CommandFlag.ESTOP:
@@ -649,7 +413,7 @@ class CanopenDevice(Device):
             if sync:
                 self._sync()
 
-    def _next(self, node: _Node, enable: bool, code: int, rearm: bool) -> tuple[int, int]:
+    def _next(self, node: CanNode, enable: bool, code: int, rearm: bool) -> tuple[int, int]:
         """Control word and setpoint: DISABLED -> HOLD -> ACTIVE a step a cycle if enabled; R on re-arm."""
         state = state_of_status(node.values[STATUS_WORD]) if node.values else None
         if state is not None and state.fault:
@@ -660,7 +424,7 @@ class CanopenDevice(Device):
             return control_word(ValveState.ACTIVE), code
         return control_word(ValveState.HOLD), 0
 
-    def _rpdo(self, node: _Node, word: int, setpoint: int) -> None:
+    def _rpdo(self, node: CanNode, word: int, setpoint: int) -> None:
         rpdo = node.remote.rpdo[1]
         rpdo[CONTROL_WORD].raw = word
         rpdo[SPOOL_SETPOINT[0]].raw = setpoint
@@ -675,7 +439,7 @@ class CanopenDevice(Device):
         if self._delivered == self._syncs:  # validity counts from the first SYNC still unanswered
             self._synced_at = time.monotonic()
         self._syncs += 1
-        self.network.send_message(0x80, data)
+        self.network.send_message(SYNC_ID, data)
 
     def _send_safe(self) -> None:
         with self._changed:
@@ -684,21 +448,21 @@ class CanopenDevice(Device):
                     self._rpdo(node, control_word(ValveState.DISABLED), 0)
             self._sync()
 
-    def make_safe(self) -> None:
-        """Setpoint 0 and DISABLED to every valve (RPDO and SYNC, and the control word by SDO)."""
+    def make_safe(self) -> str | None:
+        """Setpoint 0 and DISABLED to every valve: by RPDO and SYNC, and the control word by SDO (bounded).
+
+        Returns None, or one line naming the valves not told by SDO and what stops them by themselves.
+        """
         if self.network is None:
-            return
+            return None
         self._send_safe()
-        for node in self.nodes:
-            if node.kind == "valve":
-                try:
-                    node.remote.sdo.download(
-                        CONTROL_WORD, 0, control_word(ValveState.DISABLED).to_bytes(2, "little")
-                    )
-                except (SdoCommunicationError, SdoAbortedError) as error:
-                    self._fault(
-                        node, f"control word DISABLED by SDO refused ({error})", FaultBit.VALVE_DRIVER
-                    )
+        valves = [node for node in self.nodes if node.kind == "valve"]
+        untold = tell_disabled(valves, self.config)
+        for node in valves:
+            if node.name in untold:
+                what = f"control word DISABLED by SDO not told ({untold[node.name]})"
+                self._fault(node, what, FaultBit.VALVE_DRIVER)
+        return untold_line(valves, untold, self.config) if untold else None
 
 
 def canopen_device(link: LinkConfig, canopen: CanopenConfig, bridge: BridgeConfig) -> CanopenDevice:

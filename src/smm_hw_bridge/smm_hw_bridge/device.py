@@ -109,8 +109,11 @@ class Device(abc.ABC):
         """
 
     @abc.abstractmethod
-    def make_safe(self) -> None:
-        """Nulls or disables the valves by the device's own means, after the loop's last safe command."""
+    def make_safe(self) -> str | None:
+        """Nulls or disables the valves by the device's own means, after the loop's last safe command.
+
+        Returns None, or what it could not do in one line for the log (a valve not told, and what stops it).
+        """
 
 
 DEVICES: Final[Mapping[str, str]] = {

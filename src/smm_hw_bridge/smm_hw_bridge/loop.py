@@ -189,17 +189,22 @@ class BridgeLoop:
             self.send_safe()
         self.changes.running = True
 
-    def detach(self) -> None:
-        """Safe output, then the device made safe and closed (the reader thread has stopped)."""
+    def detach(self) -> str | None:
+        """Safe output, then the device made safe and closed (the reader thread has stopped).
+
+        Returns what the device could not do to make the valves safe (one line), None if nothing.
+        """
+        untold = None
         with self.lock:
             if self.core is not None:
                 self.core.disarm()
                 self.send_safe()
             if self.device is not None:
-                self.device.make_safe()
+                untold = self.device.make_safe()
                 self.device.close()
             self.device = None
         self.changes.running = False
+        return untold
 
     # ---- the tick ---------------------------------------------------------------------------------
 
