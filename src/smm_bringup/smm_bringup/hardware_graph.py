@@ -51,7 +51,7 @@ def hardware_specs(
     board = options.board or EMULATOR_BOARD
     bridge_parameters: list[tuple[str, ParameterValue]] = [
         ("autostart", True),
-        *(_canopen_link(options) if canopen else _frame_link(board)),
+        *(_canopen_link(options, files) if canopen else _frame_link(board)),
         ("verdict.late_limit", options.late_limit / 100.0),
     ]
     if options.preflight is not None:
@@ -158,23 +158,31 @@ def _frame_link(board: str) -> list[tuple[str, ParameterValue]]:
     return [("link.board_address", address), ("link.board_port", port)]
 
 
-def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
-    """``link.transport: canopen``; with the emulated bench, its EDS files and supply (else the user's)."""
+def _canopen_link(options: GraphOptions, files: Sequence[str]) -> list[tuple[str, ParameterValue]]:
+    """``link.transport: canopen``; with the emulated bench, its EDS files and supply (else the user's).
+
+    The emulated bench's valve units (gain from its full-scale torque, code and rate limits) apply only
+    where the parameter ``files`` set none for the bridge: a file's valve truths win, as on the frame link.
+    """
     link: list[tuple[str, ParameterValue]] = [("link.transport", "canopen")]
     if options.board is None:
-        # the valves' units: spool +-16384 = +-100 % = the emulated valve's full-scale torque; the rate
-        # limit as the frame link's default, full scale in 2 ms
-        gain = SPOOL_FULL_SCALE / BoardConfig().full_scale_torque[0]
         bench = _emulated_bench(options)
         if bench is not None:  # no node sends the supply: the bridge states the emulated bench's
             link.append((canopen_parameter("supply_bar"), bench.supply_pressure))
+        full_scale = (bench or BoardConfig()).full_scale_torque
         link += [
             (canopen_parameter("valve_eds"), str(eds_path("valve_cia408.eds"))),
             (canopen_parameter("encoder_eds"), str(eds_path("encoder_cia406.eds"))),
-            ("bridge.valve.gain", (gain, gain)),
+        ]
+        user = _bridge_settings(files)
+        # the valves' units: spool +-16384 = +-100 % = the emulated valve's full-scale torque; the rate
+        # limit as the frame link's default, full scale in 2 ms
+        units: list[tuple[str, ParameterValue]] = [
+            ("bridge.valve.gain", tuple(SPOOL_FULL_SCALE / torque for torque in full_scale)),
             ("bridge.valve.code_limit", (SPOOL_FULL_SCALE, SPOOL_FULL_SCALE)),
             ("bridge.valve.rate_limit", (SPOOL_FULL_SCALE / 0.002,) * 2),
         ]
+        link += [(name, value) for name, value in units if name not in user]
     divider = options.control_divider
     if divider > 1:  # one SYNC a control period; a valve's receive deadline of 10 periods, as at 1 kHz
         link += [
@@ -191,6 +199,14 @@ def _canopen_link(options: GraphOptions) -> list[tuple[str, ParameterValue]]:
     else:  # the bridge's loop sends each SYNC when due (docs/HW_CANOPEN.md, "Real time")
         link.append((canopen_parameter("sync_clock"), True))
     return link
+
+
+def _bridge_settings(files: Sequence[str]) -> dict[str, Any]:
+    """What the parameter ``files`` set for the bridge (later files winning)."""
+    bridge: dict[str, Any] = {}
+    for path in files:
+        bridge.update(load_parameter_file(path, f"/{NAMESPACE}/{HW_NODE}"))
+    return bridge
 
 
 def simulator_settings(files: Sequence[str]) -> dict[str, Any]:
