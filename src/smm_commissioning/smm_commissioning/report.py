@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 from smm_analysis.identification import PARAMETER_NAMES
 from smm_hw_bridge.bridge_config import BridgeConfig
@@ -253,6 +254,6 @@ def verify_markdown(verdict: Verdict, config: VerifyConfig) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _pair(values: object) -> str:
-    items = list(values) if isinstance(values, (list, tuple)) else [values]
+def _pair(values: Sequence[float] | float) -> str:
+    items = list(values) if isinstance(values, Sequence) else [values]
     return ", ".join(f"{float(v):.6g}" for v in items)
