@@ -41,8 +41,10 @@ from smm_dynamics import SMMParameters, gravity_vector, mass_matrix
 __all__ = ["Edge", "IdentifyConfig", "IdentifyResult", "excite", "find_edges", "fit_bag", "pulse_torque"]
 
 FloatArray = NDArray[np.float64]
-_MOVED = 20
-"""Counts a pulse must move its joint to count as open (above the encoder's rest noise)."""
+_MOVED = 5
+"""Counts the mean of a pulse's last 30 positions must lie from the mean of its first 30 for the pulse to
+have moved its joint: six standard deviations of the encoder's rest noise (3 counts) in that difference."""
+_ENDS = 30
 
 
 @dataclass(frozen=True)
@@ -394,4 +396,5 @@ def _pulse(
         settle=config.settle_ticks,
         half=config.velocity_ticks,
     )
-    return torque, abs(pulse.displacement) >= _MOVED
+    moved = float(np.mean(q[-_ENDS:, joint]) - np.mean(q[:_ENDS, joint])) / float(encoder.quantum[joint])
+    return torque, abs(moved) >= _MOVED
