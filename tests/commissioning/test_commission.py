@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import io
 import json
+import shutil
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -22,9 +23,10 @@ from smm_bench_emulator.bench_file import load_bench_file
 from smm_bench_emulator.board import BoardConfig
 from smm_bringup.graph import build_graph
 from smm_bringup.graph_options import GraphOptions
-from smm_commissioning.commands import COMMISSIONED
+from smm_commissioning.commands import EXIT_NOT_READY
 from smm_commissioning.emulated import LockstepDevice
 from smm_commissioning.host import BenchHost
+from smm_commissioning.steps import COMMISSIONED, passed_steps
 from smm_commissioning.verify import VerifyConfig, run_verify, settings_of
 from smm_hw_bridge.protocol import CODE_MAX
 from smm_node_runtime.parameter_files import ParameterFileError, load_parameter_file
@@ -195,3 +197,37 @@ def test_commissioned_yaml_passes_the_checks_of_smm_launch_and_of_the_nodes(
     wrong.write_text(yaml.safe_dump(document))
     with pytest.raises(ParameterFileError, match="nul_bias"):
         build_graph(replace(options, params_files=(str(wrong),)))
+
+
+def test_tune_chooses_gains_no_worse_than_the_papers_in_the_worst_draw(commissioned: Commissioned) -> None:
+    rows = {
+        line.split("|")[1].split()[0]: [float(cell) for cell in line.split("|")[4:6]]
+        for line in (commissioned.out / "tune.md").read_text().splitlines()
+        if line.startswith(("| paper", "| chosen"))
+    }
+    assert rows["chosen"][0] <= rows["paper"][0] and rows["chosen"][1] <= rows["paper"][1]
+    assert commissioned.state["tune"]["sections"]["/**/controller_node"]["algorithm"] == "fpdeso"
+
+
+def test_a_bench_not_ready_gets_no_commissioned_yaml(commissioned: Commissioned, tmp_path: Path) -> None:
+    """verify again with no margin over the model: the bench tracks worse on a joint, so not ready."""
+    out = tmp_path / "out"
+    shutil.copytree(commissioned.out, out)
+    assert (out / COMMISSIONED).is_file()
+    arguments = cli.parser().parse_args(
+        [
+            "verify",
+            "--confirm-motion",
+            "--ready-factor",
+            "1.0",
+            "--out",
+            str(out),
+            "--bench-file",
+            str(commissioned.bench_file),
+        ]
+    )
+    err = io.StringIO()
+    assert cli.verify_command(arguments, io.StringIO(), err) == EXIT_NOT_READY
+    assert not (out / COMMISSIONED).exists()
+    assert passed_steps(out) == ["probe", "jog", "identify", "tune"]
+    assert "## verify: NOT READY" in (out / "REPORT.md").read_text()

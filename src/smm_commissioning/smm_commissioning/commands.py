@@ -54,7 +54,7 @@ from smm_commissioning.report import (
     tune_markdown,
     verify_markdown,
 )
-from smm_commissioning.steps import record_step, require, step_entry, write_report
+from smm_commissioning.steps import COMMISSIONED, record_step, require, step_entry, write_report
 from smm_commissioning.tune import TuneConfig, plant_values, run_tune, tune_spec
 from smm_commissioning.verify import Verdict, VerifyConfig, run_verify, settings_of
 from smm_dynamics import SMMParameters
@@ -91,7 +91,6 @@ EXIT_NOT_READY = 6
 EXIT_NOT_FOUND = 7
 """identify found no sound model, or tune no gain set stable on every drawn plant."""
 EXIT_INTERRUPTED = 130
-COMMISSIONED = "commissioned.yaml"
 _RECHECK_TICKS = 200
 """Feedbacks a motion step reads disabled before it enables anything (a short probe)."""
 
