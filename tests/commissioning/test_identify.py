@@ -78,3 +78,14 @@ def test_the_run_is_kept_as_a_bag_with_the_measured_torque(tmp_path: Path) -> No
 def test_invalid_identify_settings_are_refused(values: dict[str, int | float], field: str) -> None:
     with pytest.raises(ValueError, match=field):
         IdentifyConfig(**values)  # type: ignore[arg-type]
+
+
+def test_the_measured_torque_goes_with_one_run_only(tmp_path: Path) -> None:
+    from smm_analysis.closed_loop import run_closed_loop
+    from smm_analysis.runs.from_trajectory import write_trajectory_bag
+    from smm_analysis.scenarios import get_scenario
+
+    run = run_closed_loop(get_scenario("step").with_duration(0.01), "pid")
+    measured = np.zeros((run.t_ns.size, 2))
+    with pytest.raises(ValueError, match="measured_torque is written for one run"):
+        write_trajectory_bag(run, tmp_path / "bag", measured_torque=measured, repeat=2)
