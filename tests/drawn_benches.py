@@ -4,6 +4,7 @@ the in-process lockstep bench with a broken sensor."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -12,8 +13,10 @@ import yaml
 from smm_bench_emulator.bench_file import bench_from_document, default_bench
 from smm_bench_emulator.board import BoardConfig
 from smm_commissioning.emulated import LockstepDevice
+from smm_hw_bridge.core import BridgeConfig
 from smm_hw_bridge.device import Reading
-from smm_hw_bridge.protocol import FeedbackFrame
+from smm_hw_bridge.protocol import CODE_MAX, FeedbackFrame
+from smm_schema.fields import config_from_parameters
 
 NOISE_STD = 2e-5
 """Position noise of the drawn benches' encoders (rad, about 3 counts): a live encoder jitters at rest."""
@@ -94,3 +97,23 @@ class FaultyDevice(LockstepDevice):
             adc[self.stuck_channel] = self.stuck_code
             reading = dataclasses.replace(reading, adc=(adc[0], adc[1], adc[2], adc[3]))
         return reading
+
+
+def truth_parameters(bench: BoardConfig) -> dict[str, object]:
+    """The bridge parameters that carry the bench's own truths."""
+    nominal = [CODE_MAX / bench.full_scale_torque[j] for j in range(2)]
+    return {
+        "bridge.encoder.direction": list(bench.direction),
+        "bridge.encoder.zero_offset": list(bench.zero_offset),
+        "bridge.valve.polarity": list(bench.valve_polarity),
+        "bridge.valve.null_bias": list(bench.valve_null_bias),
+        "bridge.valve.deadband": list(bench.valve_deadband),
+        "bridge.valve.gain": [nominal[j] / bench.valve_gain_positive[j] for j in range(2)],
+        "bridge.valve.gain_negative": [nominal[j] / bench.valve_gain_negative[j] for j in range(2)],
+        "bridge.valve.deadband_blend": 5.0,
+    }
+
+
+def bridge_of(parameters: Mapping[str, object]) -> BridgeConfig:
+    """The lockstep bridge's config of ``bridge.*`` parameters."""
+    return config_from_parameters(BridgeConfig, BridgeConfig(lockstep=True), parameters, prefix="bridge")

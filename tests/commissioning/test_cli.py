@@ -22,7 +22,7 @@ from smm_commissioning import cli
 def run(*argv: str) -> tuple[int, str]:
     err = io.StringIO()
     arguments = cli.parser().parse_args(argv)
-    command = cli.probe_command if arguments.step == "probe" else cli.jog_command
+    command = getattr(cli, f"{arguments.step}_command")
     return command(arguments, io.StringIO(), err), err.getvalue()
 
 
@@ -130,3 +130,35 @@ def test_bad_arguments_are_refused(tmp_path: Path) -> None:
     assert code == EXIT_USAGE and "cannot read bench file" in err
     code, err = run("probe", "--out", out, "--board", "nowhere")
     assert code == EXIT_USAGE and "ADDRESS:PORT" in err
+
+
+def test_identify_tune_and_verify_refuse_to_run_before_the_step_before_passed(tmp_path: Path) -> None:
+    bench = write_bench(tmp_path / "bench.yaml", 1)
+    out = tmp_path / "out"
+    common = ("--out", str(out), "--bench-file", str(bench))
+    code, err = run("identify", *common)
+    assert code == EXIT_USAGE and "--confirm-motion" in err
+    code, err = run("identify", "--confirm-motion", *common)
+    assert code == EXIT_ORDER and "identify needs jog to have passed" in err
+    code, err = run("tune", "--out", str(out))
+    assert code == EXIT_ORDER and "tune needs identify to have passed" in err
+    code, err = run("verify", "--confirm-motion", *common)
+    assert code == EXIT_ORDER and "verify needs tune to have passed" in err
+    assert not (out / "commissioned.yaml").exists()
+
+
+@pytest.mark.parametrize(
+    "argv, field",
+    [
+        (("tune", "--draws", "0"), "draws"),
+        (("tune", "--duration", "0.1"), "duration"),
+        (("verify", "--confirm-motion", "--ready-factor", "0.5", "--bench-file", "b.yaml"), "ready_factor"),
+        (("identify", "--confirm-motion", "--bootstrap", "3", "--bench-file", "b.yaml"), "bootstrap"),
+    ],
+)
+def test_invalid_step_settings_are_usage_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: tuple[str, ...], field: str
+) -> None:
+    assert cli.main([*argv, "--out", str(tmp_path / "out")]) == EXIT_USAGE
+    assert field in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

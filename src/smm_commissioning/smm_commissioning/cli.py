@@ -7,10 +7,17 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from smm_commissioning.commands import EXIT_USAGE, jog_command, probe_command
+from smm_commissioning.commands import (
+    EXIT_USAGE,
+    identify_command,
+    jog_command,
+    probe_command,
+    tune_command,
+    verify_command,
+)
 from smm_commissioning.probe import parse_pose
 
 __all__ = ["main", "parser"]
@@ -47,21 +54,62 @@ def parser() -> argparse.ArgumentParser:
         "jog", help="open-loop pulses per joint: polarity, direction, deadband, bias, gains"
     )
     _common(jog)
-    jog.add_argument("--confirm-motion", action="store_true", help="the joints will move: the bench is clear")
-    jog.add_argument("--window", type=float, default=0.2, help="largest excursion from the start (rad)")
+    _motion(jog)
     jog.add_argument("--velocity-limit", type=float, default=1.5, help="largest speed (rad/s)")
+    identify = steps.add_parser(
+        "identify", help="the excitation closed on jog's parameters: the model, the valves' gains and null"
+    )
+    _common(identify)
+    _motion(identify)
+    identify.add_argument("--bootstrap", type=int, default=100, help="bootstrap replicates of the intervals")
+    tune = steps.add_parser("tune", help="a gain sweep on the identified model (offline, nothing moves)")
+    tune.add_argument("--out", type=Path, required=True, help="directory of the state, reports, parameters")
+    tune.add_argument("--duration", type=float, default=2.0, help="case 1's length in the sweep (s)")
+    tune.add_argument("--draws", type=int, default=3, help="plants drawn from the intervals per gain set")
+    tune.add_argument("--seed", type=int, default=0, help="seed of the plant draws")
+    tune.add_argument("--workers", type=int, default=1, help="local processes of the sweep")
+    verify = steps.add_parser(
+        "verify", help="case 1 closed on the commissioned parameters; writes commissioned.yaml when ready"
+    )
+    _common(verify)
+    _motion(verify, window=False)
+    verify.add_argument("--duration", type=float, default=5.0, help="case 1's length (s)")
+    verify.add_argument(
+        "--ready-factor", type=float, default=1.5, help="largest bench RMS over the model's for ready"
+    )
     return top
+
+
+def _motion(sub: argparse.ArgumentParser, window: bool = True) -> None:
+    sub.add_argument("--confirm-motion", action="store_true", help="the joints will move: the bench is clear")
+    if window:
+        sub.add_argument("--window", type=float, default=0.2, help="largest excursion of a pulse (rad)")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point: parses, runs the step, returns its exit code."""
     arguments = parser().parse_args(argv)
-    if arguments.timeout <= 0:
+    if getattr(arguments, "timeout", 1.0) <= 0:
         print("smm-commission: --timeout must be > 0", file=sys.stderr)
         return EXIT_USAGE
-    if arguments.step == "probe":
-        return probe_command(arguments)
-    return jog_command(arguments)
+    if arguments.step == "tune":
+        return _configured(lambda: tune_command(arguments))
+    commands = {
+        "probe": probe_command,
+        "jog": jog_command,
+        "identify": identify_command,
+        "verify": verify_command,
+    }
+    return _configured(lambda: commands[arguments.step](arguments))
+
+
+def _configured(command: Callable[[], int]) -> int:
+    """The command's exit code; an invalid option value (the step's config refuses it) is a usage error."""
+    try:
+        return command()
+    except ValueError as error:
+        print(f"smm-commission: {error}", file=sys.stderr)
+        return EXIT_USAGE
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ from smm_commissioning.errors import MotionStopError
 from smm_commissioning.host import BenchHost
 from smm_commissioning.probe import JOINTS, signed_counts
 
-__all__ = ["JogConfig", "JointJog", "Pulse", "jog_joint", "run_jog"]
+__all__ = ["JogConfig", "JointJog", "Pulse", "PulseRun", "jog_joint", "run_jog"]
 
 _MIN_DISPLACEMENT = 20
 """Counts a pulse must move its joint for its direction to count (above the encoder's rest noise)."""
@@ -135,7 +135,7 @@ class JointJog:
     pulses: tuple[Pulse, ...]
 
 
-class _Run:
+class PulseRun:
     """The pulses of one joint's jog, with the safety checks of every tick."""
 
     def __init__(
@@ -156,14 +156,17 @@ class _Run:
         return float(np.mean([self.torque(frame.adc) for frame in frames[-20:]]))
 
     def offset(self, counts: tuple[int, int], j: int) -> int:
+        """Joint ``j``'s raw counts relative to the start (counts, wrap-aware)."""
         return int(signed_counts(np.array([counts[j]]), self.start[j], self.bits)[0])
 
     def torque(self, adc: tuple[int, int, int, int]) -> float:
+        """The jogged joint's measured torque of one feedback's A/D codes (N m)."""
         pressure = self.config.pressure
         j = self.joint
         return (adc[1 + j] - pressure.zero_code[j]) * pressure.torque_per_code[j]
 
     def check(self, status: int, faults: int) -> None:
+        """Stops on a board fault or a latched e-stop."""
         if faults or status & StatusBit.ESTOP_LATCHED:
             raise MotionStopError(
                 f"jog of {JOINTS[self.joint]} stopped: the board reported faults {faults:#06x} / status "
@@ -290,7 +293,7 @@ def jog_joint(
         MotionStopError: A safety limit, a fault, no torque up to ``search_max``, or an encoder not counting.
         LinkLostError: The link failed.
     """
-    run = _Run(host, config, joint, held, origin)
+    run = PulseRun(host, config, joint, held, origin)
     name = JOINTS[joint]
     pulses: list[Pulse] = []
     onset: dict[int, int] = {}  # side (+1 / -1) -> first code that answered

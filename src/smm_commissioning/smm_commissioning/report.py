@@ -3,13 +3,27 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
+from smm_analysis.identification import PARAMETER_NAMES
+from smm_hw_bridge.bridge_config import BridgeConfig
 from smm_hw_bridge.encoder import EncoderConfig
 
+from smm_commissioning.identify import IdentifyResult
 from smm_commissioning.jog import JogConfig, JointJog
 from smm_commissioning.probe import JOINTS, ProbeConfig, ProbeResult, zero_offset
+from smm_commissioning.tune import TuneConfig, TuneResult
+from smm_commissioning.verify import Verdict, VerifyConfig
 
-__all__ = ["BRIDGE_NODE", "bridge_parameters", "jog_markdown", "probe_markdown"]
+__all__ = [
+    "BRIDGE_NODE",
+    "bridge_parameters",
+    "identify_markdown",
+    "jog_markdown",
+    "probe_markdown",
+    "tune_markdown",
+    "verify_markdown",
+]
 
 BRIDGE_NODE = "/**/hw_bridge_node"
 """Parameter-file key of the bridge (what ``smm-launch --params-file`` passes on)."""
@@ -107,3 +121,139 @@ def bridge_parameters(
         "bridge.valve.gain_negative": [round(r.gain_negative, 3) for r in ordered],
         "bridge.valve.deadband_blend": DEADBAND_BLEND if any(deadband) else 50.0,
     }
+
+
+def identify_markdown(result: IdentifyResult, jog: BridgeConfig, refined: dict[str, list[float]]) -> str:
+    """The identify section: the model with its intervals, the valve's gain, the overlap's edges."""
+    ident = result.identification
+    lines = [
+        "## identify: passed",
+        "",
+        f"The excitation closed through the bridge on jog's parameters ({len(result.record.t_ns)} ticks, "
+        f"largest |q| {max(result.record.peak):.3f} rad), its bag fitted as `smm-bag identify` does with the "
+        f"measured torque: {ident.rows} joint rows, condition number {ident.condition_number:.3g}, torque "
+        f"NRMSE {ident.fits[0].nrmse[0]:.4f} (alpha) {ident.fits[0].nrmse[1]:.4f} (beta); intervals: block "
+        f"bootstrap, {ident.settings.bootstrap} replicates (identify_identification.md has the full report).",
+        "",
+        "| parameter | estimate | 95 % interval |",
+        "|---|---|---|",
+    ]
+    for index, name in enumerate(PARAMETER_NAMES):
+        low, high = ident.interval[index]
+        lines.append(f"| {name} | {ident.theta[index]:.6g} | [{low:.6g}, {high:.6g}] |")
+    lines += [
+        "",
+        "Valve gain, measured over modelled torque (a check, not applied: the bridge's lag model parts from "
+        "the valve's where the torque changes fast, jog's settled pulses give the gains; docs):",
+        "",
+        "| joint | positive torque | negative torque |",
+        "|---|---|---|",
+    ]
+    gain = result.gain
+    for j, name in enumerate(JOINTS):
+        cells = [
+            f"{gain.ratio[j, d]:.4f} [{gain.interval[j, d, 0]:.4f}, {gain.interval[j, d, 1]:.4f}]"
+            for d in range(2)
+        ]
+        lines.append(f"| {name} | {cells[0]} | {cells[1]} |")
+    lines += [
+        "",
+        "Edges of the overlap: between the last code that left the joint held by the oil and the first that "
+        "moved it (codes held 0.35 s each); the check: where the line through the torques of the codes that "
+        "moved it (M dq'/dt + F + G of the identified model, after the valve's lag) crosses zero:",
+        "",
+        "| joint | edge | jog's (codes) | found (codes) | the line's (codes) | torque per code (mN m) | "
+        "line residual (mN m) | codes held |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for edge in result.edges:
+        lines.append(
+            f"| {JOINTS[edge.joint]} | {'high' if edge.side > 0 else 'low'} | {edge.start:.1f} | "
+            f"{edge.edge:.1f} | {edge.line:.1f} | {edge.slope * 1e3:+.4f} | {edge.residual * 1e3:.3f} | "
+            f"{len(edge.codes)} |"
+        )
+    lines += [
+        "",
+        "The valves' parameters, jog's and identify's:",
+        "",
+        "| parameter | jog | identify |",
+        "|---|---|---|",
+    ]
+    valve = jog.valve
+    before = {"bridge.valve.null_bias": list(valve.null_bias), "bridge.valve.deadband": list(valve.deadband)}
+    for name, values in refined.items():
+        lines.append(f"| {name} | {_pair(before[name])} | {_pair(values)} |")
+    if result.warnings:
+        lines += ["", "Left out by the identification:", "", *(f"- {w}" for w in result.warnings)]
+    return "\n".join(lines) + "\n"
+
+
+def tune_markdown(result: TuneResult, config: TuneConfig) -> str:
+    """The tune section: the sweep and the chosen gains against the paper's."""
+    spec = result.spec
+    chosen, paper = result.chosen, result.paper
+    gains = spec.gain_sets[chosen]
+    lines = [
+        "## tune: passed",
+        "",
+        f"`smm-sweep` on the identified model: {len(spec.gain_sets)} gain sets (k_p0 and k_d0 of FPDESO "
+        "times "
+        f"{', '.join(f'{f:g}' for f in config.factors)}) x {len(spec.plant_draws)} plants drawn within the "
+        f"identified intervals, case 1 for {config.duration:g} s (tune/ holds the sweep: Parquet, plots, "
+        "report.md, chosen.yaml). Chosen: no worse than the paper's gains on either joint in the worst "
+        "draw, the least alpha RMS.",
+        "",
+        "| gain set | k_p0 | k_d0 | worst RMS alpha (mrad) | worst RMS beta (mrad) |",
+        "|---|---|---|---|---|",
+    ]
+    for label, index in (("paper", paper), ("chosen", chosen)):
+        values = spec.gain_sets[index]
+        worst = result.worst(index)
+        lines.append(
+            f"| {label} ({index}) | {_pair(values['fpdeso.fuzzy.kp0'])} | "
+            f"{_pair(values['fpdeso.fuzzy.kd0'])} | "
+            f"{worst[0] * 1e3:.3f} | {worst[1] * 1e3:.3f} |"
+        )
+    lines += [
+        "",
+        f"Chosen gains: k_p0 {_pair(gains['fpdeso.fuzzy.kp0'])}, k_d0 {_pair(gains['fpdeso.fuzzy.kd0'])}.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def verify_markdown(verdict: Verdict, config: VerifyConfig) -> str:
+    """The verify section: the bench's case 1 against the model's, and whether the bench is ready."""
+    ratio = verdict.ratio
+    lines = [
+        f"## verify: {'READY' if verdict.ready else 'NOT READY'}",
+        "",
+        f"Case 1 for {config.duration:g} s closed on the commissioned parameters (the bridge's valve and "
+        "encoder, the identified model, the chosen gains), against the same run on the identified model "
+        f"(offline loop); RMS after {config.settled:g} s (the valves saturate before).",
+        "",
+        "| joint | bench RMS (mrad) | model's (mrad) | ratio | largest |q| (rad) |",
+        "|---|---|---|---|---|",
+    ]
+    for j, name in enumerate(JOINTS):
+        lines.append(
+            f"| {name} | {verdict.bench[j] * 1e3:.3f} | {verdict.predicted[j] * 1e3:.3f} | {ratio[j]:.3f} | "
+            f"{verdict.peak[j]:.3f} |"
+        )
+    lines.append("")
+    if verdict.ready:
+        lines.append(
+            f"Ready: both joints within {config.ready_factor:g}x of the model. `commissioned.yaml` holds "
+            "every parameter: `smm-launch --plant hardware --board ADDRESS:PORT --params-file "
+            "DIR/commissioned.yaml`."
+        )
+    else:
+        lines.append(
+            f"Not ready: a joint tracks worse than {config.ready_factor:g}x the model's prediction; "
+            "no commissioned.yaml. Check the bench (friction, a sticking valve), then run jog again."
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _pair(values: Sequence[float] | float) -> str:
+    items = list(values) if isinstance(values, Sequence) else [values]
+    return ", ".join(f"{float(v):.6g}" for v in items)

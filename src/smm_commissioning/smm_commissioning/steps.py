@@ -8,12 +8,23 @@ from typing import Any, Final
 
 from smm_commissioning.errors import StepOrderError
 
-__all__ = ["STATE_FILE", "STEPS", "passed_steps", "record_step", "require", "step_entry", "write_report"]
+__all__ = [
+    "COMMISSIONED",
+    "STATE_FILE",
+    "STEPS",
+    "passed_steps",
+    "record_step",
+    "require",
+    "step_entry",
+    "write_report",
+]
 
 STEPS: Final[tuple[str, ...]] = ("probe", "jog", "identify", "tune", "verify")
 """The steps, in the order they must pass."""
 STATE_FILE: Final[str] = "state.json"
 REPORT_FILE: Final[str] = "REPORT.md"
+COMMISSIONED: Final[str] = "commissioned.yaml"
+"""What ``verify`` writes when the bench is ready: every parameter (smm-launch --params-file)."""
 
 
 def _load(out: Path) -> dict[str, Any]:
@@ -67,13 +78,18 @@ def require(out: Path, step: str) -> None:
 
 
 def record_step(out: Path, step: str, passed: bool, summary: dict[str, Any], why: str = "") -> None:
-    """Writes ``step``'s outcome; the steps after it are forgotten (they ran on what it replaced)."""
+    """Writes ``step``'s outcome; the steps after it are forgotten (they ran on what it replaced).
+
+    ``DIR/commissioned.yaml`` is removed unless ``verify`` passed: it would hold what no longer holds.
+    """
     state = _load(out)
     index = STEPS.index(step)
     for later in STEPS[index:]:
         state.pop(later, None)
     state[step] = {"passed": passed, "why": why, **summary}
     out.mkdir(parents=True, exist_ok=True)
+    if not (step == STEPS[-1] and passed):
+        (out / COMMISSIONED).unlink(missing_ok=True)
     (out / STATE_FILE).write_text(json.dumps(state, indent=2, sort_keys=True) + "\n", encoding="utf-8")
 
 

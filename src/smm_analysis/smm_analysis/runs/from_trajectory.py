@@ -46,6 +46,8 @@ def write_trajectory_bag(
     repeat: int = 1,
     then: Sequence[Trajectory] = (),
     parameter_events: Sequence[tuple[int, bytes]] = (),
+    measured_torque: np.ndarray | None = None,
+    plant: str = "sim",
 ) -> BagMetadata:
     """Writes the run as a bag; returns its metadata.
 
@@ -63,15 +65,20 @@ def write_trajectory_bag(
             (several experiments in one recording; the manifest is the first run's).
         parameter_events: ``(stamp ns, rcl_interfaces/msg/ParameterEvent CDR)`` written on
             ``/parameter_events`` just before the first step stamped at or after it.
+        measured_torque: The bridge's load-pressure torque at each step (N m), shape (N + 1, 2): written as
+            ``hw_bridge_internals`` row ``measured_torque``, and no ``ground_truth`` (a bench's run).
+        plant: The manifest's plant (``sim`` or ``hardware``).
     """
     if repeat < 1:
         raise ValueError(f"repeat must be >= 1, got {repeat}")
+    if measured_torque is not None and (repeat != 1 or then):
+        raise ValueError("measured_torque is written for one run, without repeat or then")
     parts = [trajectory] * repeat + list(then)
     manifest = RunManifest(
         version=version,
         scenario=trajectory.scenario,
         seed=trajectory.seed,
-        plant="sim",
+        plant=plant,
         controller=trajectory.controller,
         control_period_ns=round(trajectory.control_period * 1e9),
         clock_mode="lockstep",
@@ -93,7 +100,10 @@ def write_trajectory_bag(
     keys: tuple[str, ...] = tuple(trajectory.internals) if internals else ()
     with BagWriter(path, chosen) as writer:
         writer.create_topic(topic("joint_states"), "sensor_msgs/msg/JointState", [_CONTROL])
-        writer.create_topic(topic("ground_truth"), "sensor_msgs/msg/JointState", [_DIAGNOSTIC])
+        if measured_torque is None:
+            writer.create_topic(topic("ground_truth"), "sensor_msgs/msg/JointState", [_DIAGNOSTIC])
+        else:
+            writer.create_topic(topic("hw_bridge_internals"), "std_msgs/msg/Float64MultiArray", [_DIAGNOSTIC])
         writer.create_topic(topic("reference"), "std_msgs/msg/Float64MultiArray", [_CONTROL])
         writer.create_topic(topic("torque_command"), "std_msgs/msg/Float64MultiArray", [_CONTROL])
         if keys:
@@ -118,6 +128,7 @@ def write_trajectory_bag(
                 events=events,
                 epoch_ns=epoch_ns,
                 done=done,
+                measured=measured_torque,
                 total=total,
                 progress=progress,
             )
@@ -136,8 +147,12 @@ def _write_steps(
     done: int,
     total: int,
     progress: Callable[[int, int], None] | None,
+    measured: np.ndarray | None = None,
 ) -> int:
-    """Writes one run's steps, stamps moved by ``shift`` (ns), and the events due; returns the steps done."""
+    """Writes one run's steps, stamps moved by ``shift`` (ns), and the events due; returns the steps done.
+
+    ``measured``: the bridge's measured torque per step, written in place of the ground truth.
+    """
     names = list(_NAMES)
     internal_rows: Mapping[str, np.ndarray] = trajectory.internals
     internal_dims = (
@@ -161,17 +176,27 @@ def _write_steps(
             encode_joint_state(stamp, names, trajectory.measured_position[k].tolist(), [], applied),
             at + 10_000,
         )
-        writer.write(
-            topic("ground_truth"),
-            encode_joint_state(
-                stamp,
-                names,
-                trajectory.position[k].tolist(),
-                trajectory.velocity[k].tolist(),
-                applied,
-            ),
-            at + 20_000,
-        )
+        if measured is None:
+            writer.write(
+                topic("ground_truth"),
+                encode_joint_state(
+                    stamp,
+                    names,
+                    trajectory.position[k].tolist(),
+                    trajectory.velocity[k].tolist(),
+                    applied,
+                ),
+                at + 20_000,
+            )
+        else:
+            writer.write(
+                topic("hw_bridge_internals"),
+                encode_float64_multi_array(
+                    (("quantity:measured_torque", 1, 2), (_JOINT_DIM, 2, 2), _stamp_dim(stamp)),
+                    measured[k].tolist(),
+                ),
+                at + 300_000,
+            )
         writer.write(
             topic("torque_command"),
             encode_float64_multi_array(
