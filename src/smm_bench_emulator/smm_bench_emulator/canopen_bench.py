@@ -209,6 +209,8 @@ class CanBench:
         """SYNCs at which both valves were ACTIVE (following the bus setpoint)."""
         self.held_syncs = 0
         """Of the live SYNCs with both valves ACTIVE, those without a new setpoint for a valve (held)."""
+        self.skipped_periods = 0
+        """Of those, the periods the SYNC counter said passed without a SYNC (real time; counted in held)."""
         self.answer_us: list[float] = []
         """Per live ACTIVE SYNC answered: the later valve's RPDO after the SYNC before it (us)."""
         self._sync_ns = 0
@@ -269,6 +271,7 @@ class CanBench:
         if self.live_syncs and all(valve.machine.follows_setpoint for valve in self.valves):
             arrivals = [valve.received_ns or 0 for valve in self.valves if valve.received is not None]
             self.held_syncs += periods - 1  # skipped slots: the valves held the setpoint
+            self.skipped_periods += periods - 1
             if len(arrivals) < len(self.valves):
                 self.held_syncs += 1
             elif len(self.answer_us) < _KEPT_ANSWERS:
