@@ -11,24 +11,23 @@ For each rate R (``--rates``, default 100, 200, 250, 500, 1000 Hz), back to back
 
 Per real-time run: the bridge's closing ``host:`` line (late periods: the answer written after the next
 SYNC was due, or a SYNC slot skipped; receive -> send p50 / p99 / max of the direct loop), the emulator's
-status (SYNCs with both valves ACTIVE at which a valve held its setpoint, the periods skipped, its
-feedback -> command p50 / p99 / max: SYNC to the later valve's RPDO), the tracking RMS over [0, D) s of the
+status (SYNCs with both valves ACTIVE at which a valve held its setpoint, the periods skipped, its feedback
+-> command p50 / p99 / max: SYNC to the later valve's RPDO), the tracking RMS over [``--skip``, D) s of the
 bag (``smm-bag analyze``) and its ratio to lockstep. A rate that cannot run (a bus-load refusal, a crash)
-gets its reason in the table. Prints a markdown table.
+gets its reason in the table. Prints a markdown table. Defaults: one full pass in about 6 minutes here.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from canopen_runs import FLOOR, UNDER_LOAD, Run, launch, tracking_rms, uptime  # noqa: E402
+from canopen_runs import FLOOR, UNDER_LOAD, Run, launch, tracking_rms, uptime, workdir  # noqa: E402
 
 RATES_HZ = (100, 200, 250, 500, 1000)
 
@@ -39,7 +38,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--rates", default=",".join(map(str, RATES_HZ)), help="Hz, comma-separated")
     parser.add_argument("--duration", type=float, default=6.0, help="live seconds per run (default 6)")
     parser.add_argument("--scenario", default="case1", help="smm-launch --scenario (default case1)")
+    parser.add_argument("--skip", type=float, default=1.0, help="RMS from this many s on (default 1)")
     parser.add_argument("--busy", type=int, default=2, help="busy processes of the loaded run (0: none)")
+    parser.add_argument("--keep", type=Path, default=None, help="keep the logs and bags in this folder")
     parser.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
     return parser
 
@@ -74,7 +75,7 @@ def row(
     if not isinstance(rms, str) and not isinstance(lockstep, str):
         ratio = f"{rms[0] / lockstep[0]:.2f}x / {rms[1] / lockstep[1]:.2f}x"
     floor = run.first(FLOOR)
-    load_text = load if floor is None else f"{load} (1 ms sleep overshoot {floor[1]})"
+    load_text = load if floor is None else f"{load} (1 ms sleep overshoot p99 {floor[1]} us)"
     cells = [
         str(rate),
         load_text,
@@ -97,13 +98,12 @@ def main(argv: list[str]) -> int:
     rates = [int(text) for text in arguments.rates.split(",")]
     duration = arguments.duration
     print(f"uptime before: {uptime()}", flush=True)
-    loads = [("idle", ())]
+    loads: list[tuple[str, tuple[str, ...]]] = [("idle", ())]
     if arguments.busy:
         loads.append((f"{arguments.busy} busy", (*UNDER_LOAD, "--busy", str(arguments.busy), "--")))
     rows: list[str] = []
     lockstep_rows: list[str] = []
-    with tempfile.TemporaryDirectory(prefix="bench_canopen_rates_") as tmp:
-        work = Path(tmp)
+    with workdir(arguments.keep, "bench_canopen_rates_") as work:
         for rate in rates:
             common = [
                 "--control-rate",
@@ -118,7 +118,7 @@ def main(argv: list[str]) -> int:
                 "lockstep", ["--clock-mode", "lockstep", *common, "--record", str(bag)], work / f"l{rate}.log"
             )
             lockstep = (
-                tracking_rms(bag, duration)
+                tracking_rms(bag, duration, arguments.skip)
                 if reference.code == 0
                 else f"exit {reference.code}: {reference.why()}"
             )
@@ -131,11 +131,14 @@ def main(argv: list[str]) -> int:
                 bag = work / f"realtime_{rate}_{len(prefix)}"
                 options = ["--clock-mode", "realtime", *common, "--force", "--record", str(bag)]
                 run = launch(load, options, work / f"r{rate}_{len(prefix)}.log", prefix=prefix)
-                rms = tracking_rms(bag, duration) if run.host is not None else "no run"
+                rms = tracking_rms(bag, duration, arguments.skip) if run.host is not None else "no run"
                 rows.append(row(rate, load, run, rms, lockstep))
                 print(f"  {rows[-1]}  ({run.wall_s:.0f} s)", flush=True)
     print(f"\nuptime after: {uptime()}")
-    print(f"\n{arguments.scenario}, {duration:g} s live a run, every real-time run with --force:\n")
+    print(
+        f"\n{arguments.scenario}, {duration:g} s live a run, RMS over [{arguments.skip:g}, {duration:g}) s, "
+        "every real-time run with --force:\n"
+    )
     print(
         "| rate (Hz) | load | exit | preflight | host late periods | periods skipped | emulator held "
         "(of ACTIVE SYNCs) | host receive -> send p50 / p99 / max (us) | emulator feedback -> command "

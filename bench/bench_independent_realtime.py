@@ -4,7 +4,8 @@ Figures, not pass/fail (``make bench``); every process in a private network name
 Back to back, the same scenario (case 2) and live duration, at the default CANopen rate (200 Hz) unless
 ``--control-rate``:
 
-1. tests/hw_bridge/independent_bench/run.py (``--keep-answering``, ``--clock``) beside ``smm-launch --plant
+1. tests/hw_bridge/independent_bench/run.py (``--keep-answering``, ``--clock``; under SCHED_FIFO at the
+   emulator's priority where allowed: it stands for hardware) beside ``smm-launch --plant
    hardware --link canopen --board external --clock-mode realtime --scenario case2 --params-file bench.yaml
    --record``, ended by SIGINT once the bench has been live ``--duration`` s (an external bench's run ends
    as a person ends it: smm-launch exits 130; the bridge's judgement is its closing ``host:`` line);
@@ -20,7 +21,6 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -29,7 +29,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from canopen_runs import Run, finish, launch, start, tracking_rms, uptime  # noqa: E402
+from canopen_runs import Run, finish, launch, start, tracking_rms, uptime, workdir  # noqa: E402
 from hw_bridge.independent_bench import parameters  # type: ignore[import-not-found]  # noqa: E402
 
 GROUP, PORT = "239.74.163.17", 43151
@@ -45,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--control-rate", default=None, help="Hz (default: smm-launch's for CANopen)")
     parser.add_argument("--force", action="store_true", help="arm whatever the preflight measured")
     parser.add_argument("--repeat", type=int, default=1, help="pairs of runs (default 1)")
+    parser.add_argument("--keep", type=Path, default=None, help="keep the logs and bags in this folder")
     parser.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
     return parser
 
@@ -62,7 +63,7 @@ def independent_run(work: Path, arguments: argparse.Namespace, clock: str, tag: 
     params = parameters.bench_parameters(work / "bench.yaml", GROUP, PORT)
     bench_log = work / f"independent_bench_{tag}.log"
     command = [sys.executable, str(parameters.HERE / "run.py"), GROUP, str(PORT), str(arguments.duration)]
-    bench = start([*command, str(status), "--keep-answering", "--clock", clock], bench_log)
+    bench = start([*command, str(status), "--keep-answering", "--clock", clock], bench_log, board=True)
     options = ["--board", "external", "--params-file", str(params), *_common(arguments, work / f"i_{tag}")]
     try:
         run = launch(
@@ -141,14 +142,14 @@ def main(argv: list[str]) -> int:
         return reexec_in_private_netns(argv, __file__, domain_base=140, domains=10)
     print(f"uptime before: {uptime()}", flush=True)
     clocks = ("sync", "wall") if arguments.clock == "both" else (arguments.clock,)
-    with tempfile.TemporaryDirectory(prefix="bench_independent_") as tmp:
+    with workdir(arguments.keep, "bench_independent_") as work:
         for repeat in range(arguments.repeat):
             for clock in clocks:
                 print(
                     f"\n--- pair {repeat + 1} of {arguments.repeat}, the bench's clock {clock} ---",
                     flush=True,
                 )
-                pair(Path(tmp), arguments, clock, f"{repeat}_{clock}")
+                pair(work, arguments, clock, f"{repeat}_{clock}")
     print(f"uptime after: {uptime()}")
     return 0
 

@@ -10,8 +10,10 @@ import re
 import signal
 import subprocess
 import sys
+import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,11 +28,12 @@ HOST = re.compile(
 RECEIVE_SEND = re.compile(r"receive->send p50 (\d+) us, p99 (\d+) us, max (\d+) us")
 PREFLIGHT = re.compile(r"preflight: (.*holds here; arming|ARMING ANYWAY.*|refused to arm.*)$")
 PREFLIGHT_LATE = re.compile(r"preflight: late ([0-9.]+) % of control periods")
-FLOOR = re.compile(r"\[under_load\] run .*host floor \(1 ms sleep overshoot\) (.*)$")
+FLOOR = re.compile(r"\[under_load\] run .*host floor \(1 ms sleep overshoot\) .*?p99 (\d+) us")
 EMULATOR_STATUS = '{"link": "canopen"'
 FAULT = "safe output, error transition"
 """The bridge's fault line: the run waits for a person from then on."""
-FAULT_GRACE_S = 3.0
+FAULT_GRACE_S = 20.0
+"""A faulted run still ends by itself when the emulator completes; one that waits for a person, after this."""
 WHY = re.compile(r"error|refus|Traceback|did not|cannot|fault", re.IGNORECASE)
 
 
@@ -89,10 +92,21 @@ class Run:
         return " | ".join(said[-lines:]) or " | ".join(line.strip() for line in self.lines[-lines:])
 
 
-def start(command: Sequence[str], log: Path) -> subprocess.Popen[bytes]:
-    """``command`` in its own session, stdout and stderr to ``log``."""
+def start(command: Sequence[str], log: Path, *, board: bool = False) -> subprocess.Popen[bytes]:
+    """``command`` in its own session, stdout and stderr to ``log``; ``board``: at the emulator's SCHED_FIFO
+    priority where allowed (a bench stands for hardware, as smm-launch runs the emulated one)."""
+    from smm_bringup.realtime import BOARD_PRIORITY_OFFSET, DEFAULT_HARDWARE_PRIORITY, fifo, fifo_allowed
+
+    priority = DEFAULT_HARDWARE_PRIORITY + BOARD_PRIORITY_OFFSET
+    scheduling = fifo(priority).preexec() if board and fifo_allowed(priority) else None
     with log.open("wb") as out:
-        return subprocess.Popen(list(command), stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
+        return subprocess.Popen(
+            list(command),
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            preexec_fn=scheduling,  # noqa: PLW1509
+        )
 
 
 def finish(process: subprocess.Popen[bytes], log: Path, label: str, started: float, timeout_s: float) -> Run:
@@ -161,3 +175,14 @@ def tracking_rms(bag: Path, end_s: float, start_s: float = 0.0) -> tuple[float, 
 def uptime() -> str:
     """``uptime``'s line (the load average of a shared machine)."""
     return subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
+
+
+@contextmanager
+def workdir(keep: Path | None, prefix: str) -> Iterator[Path]:
+    """``keep`` (created) if given, else a temporary folder removed at the end."""
+    if keep is not None:
+        keep.mkdir(parents=True, exist_ok=True)
+        yield keep.resolve()
+        return
+    with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
+        yield Path(tmp)
