@@ -231,9 +231,9 @@ class CanBench:
             self.encoders.append(node)
         self.consumers = [_Consumer(node, self.network) for node in self._nodes()]
         self.network.subscribe(SYNC_ID, self._on_sync)
-        self.network.connect()
-        for node in self._nodes():
+        for node in self._nodes():  # before listening: no SDO answered before the node's boot-up
             node.nmt.send_command(0x81)  # reset node: boot-up, then PRE-OPERATIONAL
+        self.network.connect()
         self._closing = threading.Event()
         self._watcher = threading.Thread(target=self._watch, name="can_bench_heartbeats", daemon=True)
         self._watcher.start()

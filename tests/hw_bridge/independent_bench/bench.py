@@ -222,9 +222,9 @@ class IndependentBench:
             node.rpdo.read(from_od=True)
             node.rpdo[1].add_callback(lambda pdo, index=index: self._on_rpdo(index, pdo))
         self.network.subscribe(0x80, self._on_sync)
-        self.network.connect()
-        for node in (*self.valve_nodes, *self.encoder_nodes):
+        for node in (*self.valve_nodes, *self.encoder_nodes):  # before listening: no SDO before boot-up
             node.nmt.send_command(0x81)  # reset: boot-up, PRE-OPERATIONAL
+        self.network.connect()
 
     def _on_rpdo(self, index: int, pdo: canopen.pdo.PdoMap) -> None:
         with self.lock:
