@@ -1,6 +1,7 @@
 """The bridge drives a CANopen bench it was not written with (tests/hw_bridge/independent_bench), through its
-parameters alone: ``smm-launch --link canopen --board external --params-file``. Lockstep only: a real-time run
-at the default CANopen rate waits for the SYNC clock (docs/HW_CANOPEN.md, "An independent bench")."""
+parameters alone: ``smm-launch --link canopen --board external --params-file``. Lockstep: its tracking against
+the emulated bench's, and a kill mid-run; real time: the kill only (its tracking depends on the machine's
+speed: bench/bench_independent_realtime.py measures it)."""
 
 from __future__ import annotations
 
@@ -13,73 +14,26 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hw_bridge.independent_bench.parameters import bench_parameters
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 HERE = Path(__file__).resolve().parent / "independent_bench"
 GROUP, PORT = "239.74.163.9", 43131
-CANOPEN = "canopen"
-"""The prefix of the CANopen link's bridge parameters: written once here."""
 DURATION_S = 2.0
 
 
-def _nested(flat: dict[str, Any]) -> dict[str, Any]:
-    tree: dict[str, Any] = {}
-    for name, value in flat.items():
-        *parents, leaf = name.split(".")
-        node = tree
-        for parent in parents:
-            node = node.setdefault(parent, {})
-        node[leaf] = value
-    return tree
-
-
-def _yaml(tree: dict[str, Any], indent: int = 0) -> str:
-    lines = []
-    for key, value in tree.items():
-        if isinstance(value, dict):
-            lines.append(" " * indent + f"{key}:\n" + _yaml(value, indent + 2))
-        else:
-            lines.append(" " * indent + f"{key}: {json.dumps(value)}\n")
-    return "".join(lines)
-
-
-def bench_parameters(path: Path, **changes: Any) -> Path:
-    """The bridge's parameter file for the independent bench (its node ids, EDS files, units), at ``path``."""
-    flat: dict[str, Any] = {
-        "link.transport": "canopen",
-        f"{CANOPEN}.channel": GROUP,
-        f"{CANOPEN}.port": PORT,
-        f"{CANOPEN}.valve_node_ids": [21, 22],
-        f"{CANOPEN}.encoder_node_ids": [31, 32],
-        f"{CANOPEN}.valve_eds": str(HERE / "valve.eds"),
-        f"{CANOPEN}.encoder_eds": str(HERE / "encoder.eds"),
-        "bridge.valve.gain": [16384 / 12.0, 16384 / 12.0],  # +-16384 = +-100 % = +-12 N m on this bench
-        "bridge.valve.code_limit": [16384, 16384],
-        "bridge.valve.rate_limit": [16384 / 0.002, 16384 / 0.002],
-        "bridge.valve.time_constants": [0.0, 0.0],  # 0x6301 is the spool measured: no lag model on top
-        "bridge.encoder.counts_per_rev": [1 << 19, 1 << 19],
-        "bridge.encoder.zero_offset": [100_000, 7],
-        "bridge.encoder.direction": [1, -1],
-    }
-    flat.update(
-        {f"{CANOPEN}.{k}" if not k.startswith(("bridge.", "link.")) else k: v for k, v in changes.items()}
-    )
-    path.write_text(_yaml({"/smm/hw_bridge_node": {"ros__parameters": _nested(flat)}}))
-    return path
-
-
-def _start_bench(ros_processes: Any, tmp_path: Path, duration_s: float) -> tuple[Any, Path]:
+def _start_bench(ros_processes: Any, tmp_path: Path, duration_s: float, *options: str) -> tuple[Any, Path]:
     status = tmp_path / "independent.json"
     bench = ros_processes.start(
         "independent-bench",
-        [sys.executable, str(HERE / "run.py"), GROUP, str(PORT), str(duration_s), str(status)],
+        [sys.executable, str(HERE / "run.py"), GROUP, str(PORT), str(duration_s), str(status), *options],
     )
     return bench, status
 
 
-def _launch(ros_processes: Any, name: str, *options: str) -> Any:
-    base = ["--plant", "hardware", "--link", "canopen", "--clock-mode", "lockstep", "--scenario", "case2"]
+def _launch(ros_processes: Any, name: str, *options: str, clock_mode: str = "lockstep") -> Any:
+    base = ["--plant", "hardware", "--link", "canopen", "--clock-mode", clock_mode, "--scenario", "case2"]
     return ros_processes.start(name, [sys.executable, "-m", "smm_bringup.launcher", *base, *options])
 
 
@@ -107,7 +61,7 @@ def _rms(bag: Path) -> tuple[float, float]:
 def test_lockstep_case2_on_the_independent_bench_tracks_as_on_the_emulated_one(
     ros_processes: Any, tmp_path: Path
 ) -> None:
-    params = bench_parameters(tmp_path / "bench.yaml")
+    params = bench_parameters(tmp_path / "bench.yaml", GROUP, PORT)
     bench, status = _start_bench(ros_processes, tmp_path, DURATION_S)
     launcher = _launch(
         ros_processes,
@@ -155,7 +109,7 @@ def test_lockstep_case2_on_the_independent_bench_tracks_as_on_the_emulated_one(
 def test_the_independent_bench_killed_mid_run_faults_the_bridge_naming_the_node(
     ros_processes: Any, tmp_path: Path
 ) -> None:
-    params = bench_parameters(tmp_path / "bench.yaml")
+    params = bench_parameters(tmp_path / "bench.yaml", GROUP, PORT)
     bench, _ = _start_bench(ros_processes, tmp_path, 0.0)
     launcher = _launch(
         ros_processes, "smm-launch-killed", "--board", "external", "--params-file", str(params)
@@ -173,4 +127,52 @@ def test_the_independent_bench_killed_mid_run_faults_the_bridge_naming_the_node(
     fault = next(line for line in logs.splitlines() if "safe output, error transition" in line)
     assert "heartbeat lost (none for 3000 ms)" in fault and "(node 2" in fault, logs
     assert "hw_bridge_node: the run did not control: it faulted: board fault bits" in logs, logs
+    assert "Traceback" not in logs, logs
+
+
+def test_the_independent_bench_killed_mid_run_in_real_time_faults_the_bridge_naming_the_node(
+    ros_processes: Any, tmp_path: Path
+) -> None:
+    """Real time at the default rate, the bridge the SYNC clock. Nothing here depends on this machine's speed:
+    ``--force`` arms whatever the preflight measured, and the limits a slow host's late periods could trip
+    first (the bridge's link and host watchdogs, TPDO validity, the valves' receive deadline) are generous or
+    off, so the fault is the kill's: the nodes' heartbeats lost (3 x 1000 ms)."""
+    params = bench_parameters(
+        tmp_path / "bench.yaml",
+        GROUP,
+        PORT,
+        heartbeat_ms=1000,
+        pdo_validity_ms=60_000,
+        **{
+            "bridge.host_watchdog_ns": 10_000_000_000,
+            "bridge.link_timeout_ns": 60_000_000_000,
+            "bridge.admission.stale_ns": 60_000_000_000,
+        },
+    )
+    bench, _ = _start_bench(ros_processes, tmp_path, 0.0, "--no-receive-deadline")
+    launcher = _launch(
+        ros_processes,
+        "smm-launch-realtime-killed",
+        "--board",
+        "external",
+        "--params-file",
+        str(params),
+        "--force",
+        clock_mode="realtime",
+    )
+    _wait_for(lambda: "; arming" in launcher.logs() or "ARMING ANYWAY" in launcher.logs(), "arming", launcher)
+    time.sleep(2.0)  # mid-run
+    assert "error transition" not in launcher.logs(), launcher.logs()
+    bench.popen.send_signal(signal.SIGKILL)
+    _wait_for(lambda: "error transition" in launcher.logs(), "the bridge's fault", launcher, 120.0)
+    if launcher.alive():
+        launcher.popen.send_signal(signal.SIGINT)
+    code = launcher.wait(120.0)
+    logs = launcher.logs()
+    assert code != 0, logs
+    fault = next(line for line in logs.splitlines() if "safe output, error transition" in line)
+    assert "heartbeat lost (none for 3000 ms)" in fault, logs
+    assert any(f"(node {node})" in fault for node in (21, 22, 31, 32)), logs
+    # its verdict: the fault, or first the late periods a slow machine had before it (both "did not control")
+    assert "the run did not control: " in logs, logs
     assert "Traceback" not in logs, logs

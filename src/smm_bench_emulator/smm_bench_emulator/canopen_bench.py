@@ -209,6 +209,8 @@ class CanBench:
         """SYNCs at which both valves were ACTIVE (following the bus setpoint)."""
         self.held_syncs = 0
         """Of the live SYNCs with both valves ACTIVE, those without a new setpoint for a valve (held)."""
+        self.skipped_periods = 0
+        """Of those, the periods the SYNC counter said passed without a SYNC (real time; counted in held)."""
         self.answer_us: list[float] = []
         """Per live ACTIVE SYNC answered: the later valve's RPDO after the SYNC before it (us)."""
         self._sync_ns = 0
@@ -229,9 +231,9 @@ class CanBench:
             self.encoders.append(node)
         self.consumers = [_Consumer(node, self.network) for node in self._nodes()]
         self.network.subscribe(SYNC_ID, self._on_sync)
-        self.network.connect()
-        for node in self._nodes():
+        for node in self._nodes():  # before listening: no SDO answered before the node's boot-up
             node.nmt.send_command(0x81)  # reset node: boot-up, then PRE-OPERATIONAL
+        self.network.connect()
         self._closing = threading.Event()
         self._watcher = threading.Thread(target=self._watch, name="can_bench_heartbeats", daemon=True)
         self._watcher.start()
@@ -269,6 +271,7 @@ class CanBench:
         if self.live_syncs and all(valve.machine.follows_setpoint for valve in self.valves):
             arrivals = [valve.received_ns or 0 for valve in self.valves if valve.received is not None]
             self.held_syncs += periods - 1  # skipped slots: the valves held the setpoint
+            self.skipped_periods += periods - 1
             if len(arrivals) < len(self.valves):
                 self.held_syncs += 1
             elif len(self.answer_us) < _KEPT_ANSWERS:

@@ -32,7 +32,7 @@ def status(bench: CanBench, never_started: bool) -> dict[str, Any]:
     verdict = "the controller never armed the valves (no SYNC with both ACTIVE)" if never_started else None
     states = [state.name for state in bench.valve_states()]
     answers = np.asarray(bench.answer_us)
-    p50, p99 = (None, None) if not answers.size else np.percentile(answers, (50, 99)).tolist()
+    p50, p99, worst = [None] * 3 if not answers.size else np.percentile(answers, (50, 99, 100)).tolist()
     return {
         "link": "canopen",
         "syncs": bench.syncs,
@@ -41,6 +41,8 @@ def status(bench: CanBench, never_started: bool) -> dict[str, Any]:
         "late_commands": bench.held_syncs,
         "latency_p50_us": p50,
         "latency_p99_us": p99,
+        "latency_max_us": worst,
+        "skipped_periods": bench.skipped_periods,
         "read_latency_p50_us": None,
         "read_latency_p99_us": None,
         "valve_states": states,

@@ -76,7 +76,8 @@ def closing_line(
         return line
     return (
         f"{line}; receive->send p50 {statistics.execution_percentile_us(50):.0f} us, "
-        f"p99 {statistics.execution_percentile_us(99):.0f} us over {statistics.execution_us.count} commands"
+        f"p99 {statistics.execution_percentile_us(99):.0f} us, max {statistics.execution_us.maximum:.0f} us "
+        f"over {statistics.execution_us.count} commands"
     )
 
 
