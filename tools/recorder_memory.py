@@ -221,6 +221,7 @@ class Run:
         self.out = out
         self.arguments = arguments
         self.start = time.monotonic()
+        self.start_ns = time.time_ns()
         self.recorder = self._spawn(
             [
                 "--probe",
@@ -357,8 +358,12 @@ def drive(out: Path, arguments: argparse.Namespace) -> int:
     finally:
         code = run.finish()
     report(out, arguments, phases)
+    if arguments.drops:
+        drops(out / "bag", run.start_ns, round(1e9 / arguments.rate))
     if (out / TRIM_FILE).exists():
-        print((out / TRIM_FILE).read_text().strip())
+        took = sorted(float(line.split()[-2]) for line in (out / TRIM_FILE).read_text().splitlines())
+        median, longest = took[len(took) // 2], took[-1]
+        print(f"malloc_trim(0) {len(took)} times: median {median:.1f} ms, max {longest:.1f} ms")
     for line in (out / "recorder.log").read_text().splitlines():  # its loss report: drops are stamp gaps
         if f"{NAMESPACE}/" in line and "received" in line:
             print(line.split("]: ", 1)[-1])
@@ -430,6 +435,29 @@ def report(out: Path, arguments: argparse.Namespace, phases: Sequence[str]) -> N
         )
 
 
+def drops(bag: Path, start_ns: int, period_ns: int) -> None:
+    """The ``joint_states`` samples missing in the bag's stamps, by the run's time (s) they were noticed."""
+    from smm_bag.cdr import stamp_of  # noqa: PLC0415
+    from smm_bag.reader import BagReader  # noqa: PLC0415
+
+    topic = f"{NAMESPACE}/joint_states"
+    previous: int | None = None
+    found: list[tuple[float, int]] = []
+    with BagReader(bag) as reader:
+        for _, log_time_ns, data in reader.raw_messages([topic]):
+            stamp = stamp_of("sensor_msgs/msg/JointState", data)
+            if stamp is None:
+                continue
+            if previous is not None and stamp - previous > period_ns and stamp - previous < 60 * 10**9:
+                found.append(((log_time_ns - start_ns) / 1e9, round((stamp - previous) / period_ns) - 1))
+            previous = stamp
+    windows: dict[int, int] = {}
+    for seconds, missing in found:
+        windows[int(seconds // 10) * 10] = windows.get(int(seconds // 10) * 10, 0) + missing
+    print(f"{topic}: {sum(n for _, n in found)} samples missing in {len(found)} gaps; per 10 s of the run:")
+    print("  " + ", ".join(f"{start}-{start + 10} s: {n}" for start, n in sorted(windows.items())))
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command line."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -458,6 +486,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--env", action="append", default=[], metavar="KEY=VALUE", help="recorder environment"
     )
     parser.add_argument("--tracemalloc", action="store_true", help="also trace Python's heap (slower)")
+    parser.add_argument("--drops", action="store_true", help="read the bag: joint_states samples missing")
     parser.add_argument("--keep-bag", action="store_true", help="keep the bag (else deleted at the end)")
     parser.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--probe", action="store_true", help=argparse.SUPPRESS)
