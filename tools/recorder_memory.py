@@ -1,18 +1,22 @@
 """The recorder's memory under the soak's load, in minutes instead of an hour.
 
-    python tools/recorder_memory.py --out out/recmem          # about 9 minutes
+    python tools/recorder_memory.py --out out/recmem        # kills, stops, holds of 1-3 s: 9 minutes
+    python tools/recorder_memory.py --skip respawn --skip stop --phase 200 --every 40 \
+        --stall-seconds 1,2,4,8,12 --quiet 40 --drops       # the ladder of holds of docs/SOAK.md: 5 minutes
 
-``recorder_node`` (the soak's parameters) records a synthetic publisher of the direct loop's five topics
-(``joint_states``, ``torque_command``, ``reference``, ``controller_internals``, ``hw_bridge_internals``) at
-``--rate`` Hz, in a private network namespace. After a warm-up, three phases of ``--phase`` seconds each
-repeat one event every ``--every`` seconds: the publisher killed (SIGKILL) and started again (a new
-participant, as the soak's kill of ``direct_loop``), the recorder stopped (SIGSTOP/SIGCONT, 1 to 3 s: every
-thread of it), its executor held (1 to 3 s in a callback: the middleware's threads go on receiving). Then a
-quiet phase. The recorder runs inside a probe that samples, every ``--sample-every`` s: RSS (anonymous,
-file, shared memory), glibc's arenas (``malloc_info``: bytes from the system and free, per arena), Python's
-allocated blocks (and tracemalloc's total with ``--tracemalloc``) and the number of threads. Prints the curve
-with the events and the growth per phase; figures only, nothing is judged (docs/SOAK.md, "The recorder's
-memory").
+``recorder_node`` (the soak's parameters; ``--param``, ``--env`` add to them) records a synthetic publisher
+of the direct loop's five topics (``joint_states``, ``torque_command``, ``reference``,
+``controller_internals``, ``hw_bridge_internals``) at ``--rate`` Hz, in a private network namespace. After
+a warm-up, three phases of ``--phase`` seconds each repeat one event every ``--every`` seconds: the
+publisher killed (SIGKILL) and started again (a new participant, as the soak's kill of ``direct_loop``),
+the recorder stopped (SIGSTOP/SIGCONT: every thread of it), its executor held in a callback (the
+middleware's threads go on receiving), each for ``--stall-seconds`` in turn. Then a quiet phase. The
+recorder runs inside a probe that samples, every ``--sample-every`` s: RSS (anonymous, file, shared
+memory), glibc's arenas (``malloc_info``: size and free, per arena), the RSS of large mappings, Python's
+allocated blocks (tracemalloc's total with ``--tracemalloc``) and the threads; ``--trim-every`` has it call
+``malloc_trim(0)``. Prints the curve with the events, the growth per phase and the recorder's loss report
+(``--drops``: the samples missing in the bag, by time); figures only, nothing is judged (docs/SOAK.md,
+"The recorder's memory").
 """
 
 from __future__ import annotations
