@@ -47,7 +47,6 @@ PUBLISHERS_FILE = ".publishers"
 """File in the bag folder: ``topic count`` per line, the publishers each recording subscription has matched
 (read by smm-launch, which starts the plant once every controller-side publisher is matched)."""
 DEFAULT_EXTRA_TOPICS = ("/clock", "/diagnostics", "/parameter_events", "/rosout")
-_SUBSCRIPTION_DEPTH = 10_000
 _STAMPED = ("joint_states", "ground_truth", "reference", "torque_command", stack.CLOCK)
 
 
@@ -92,6 +91,9 @@ class RecorderConfig:
         controller: Controller name (manifest).
         clock_mode: ``lockstep`` or ``realtime`` (manifest).
         control_period: Control period (s); the stamp-gap check expects this spacing.
+        queue_depth: Messages each subscription queues while the recorder's executor is behind (a stall
+            longer than depth x period loses the oldest). Its memory is kept at its high-water mark:
+            docs/BAGS.md, "Memory of a long recording".
     """
 
     output: str = ""
@@ -108,6 +110,7 @@ class RecorderConfig:
     controller: str = ""
     clock_mode: str = ""
     control_period: float = field(default=0.001, metadata=above(0.0))
+    queue_depth: int = field(default=10_000, metadata=bounds(1, 1_000_000))
 
     def __post_init__(self) -> None:
         check_bounds(self)
@@ -287,7 +290,7 @@ class RecorderNode(SmmNode):
         )
         qos = QoSProfile(  # type: ignore[no-untyped-call,unused-ignore]
             history=HistoryPolicy.KEEP_LAST,
-            depth=_SUBSCRIPTION_DEPTH,
+            depth=self.settings.config.queue_depth,
             reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
             durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
         )
