@@ -7,8 +7,8 @@ Back to back, the same scenario (case 2) and live duration, at the default CANop
 1. tests/hw_bridge/independent_bench/run.py (``--keep-answering``, ``--clock``; under SCHED_FIFO at the
    emulator's priority where allowed: it stands for hardware) beside ``smm-launch --plant
    hardware --link canopen --board external --clock-mode realtime --scenario case2 --params-file bench.yaml
-   --record``, ended by SIGINT once the bench has been live ``--duration`` s (an external bench's run ends
-   as a person ends it: smm-launch exits 130; the bridge's judgement is its closing ``host:`` line);
+   --record --duration D``, which the bridge ends itself after D s live (``verdict.ends_run``), judged: exit 0
+   when it controlled;
 2. ``smm-launch --plant hardware --link canopen --clock-mode realtime --scenario case2 --duration D
    --record``.
 
@@ -65,13 +65,13 @@ def independent_run(work: Path, arguments: argparse.Namespace, clock: str, tag: 
     command = [sys.executable, str(parameters.HERE / "run.py"), GROUP, str(PORT), str(arguments.duration)]
     bench = start([*command, str(status), "--keep-answering", "--clock", clock], bench_log, board=True)
     options = ["--board", "external", "--params-file", str(params), *_common(arguments, work / f"i_{tag}")]
+    options += ["--duration", str(arguments.duration)]  # the bridge ends an external bench's run itself
     try:
         run = launch(
             f"independent bench ({clock} clock)",
             options,
             work / f"launch_independent_{tag}.log",
             timeout_s=arguments.duration + 600.0,
-            until=status.exists,
         )
     finally:
         bench.send_signal(signal.SIGTERM)

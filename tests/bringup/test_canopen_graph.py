@@ -70,13 +70,19 @@ def test_lockstep_canopen_keeps_the_sync_after_the_setpoints() -> None:
 
 
 @pytest.mark.parametrize("link", ["canopen", "frame"])
-def test_the_bridge_knows_the_emulated_runs_planned_length_and_an_external_bench_has_none(link: str) -> None:
+def test_the_bridge_knows_the_runs_planned_length_and_ends_an_external_boards_run_itself(link: str) -> None:
     """The emulated bench falls silent at its end: a fault after the planned length leaves the verdict."""
     options = GraphOptions(plant="hardware", link=link, clock_mode="realtime", duration=20.0)
     assert _bridge(options)["verdict.planned_s"] == 20.0 == _emulator(options)["duration"]
     board = "external" if link == "canopen" else "127.0.0.1:50101"
-    external = GraphOptions(plant="hardware", link=link, clock_mode="realtime", duration=20.0, board=board)
-    assert "verdict.planned_s" not in _bridge(external)
+    external = _bridge(
+        GraphOptions(plant="hardware", link=link, clock_mode="realtime", duration=20.0, board=board)
+    )
+    assert (
+        external["verdict.planned_s"] == 20.0 and external["verdict.ends_run"] is True
+    )  # nothing else ends it
+    emulated = _bridge(options)
+    assert "verdict.ends_run" not in emulated  # the emulated bench ends its run itself
     assert "verdict.planned_s" not in _bridge(
         GraphOptions(plant="hardware", link=link, clock_mode="realtime")
     )

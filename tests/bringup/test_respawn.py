@@ -102,6 +102,7 @@ def test_a_loop_that_ends_its_run_uncontrolled_stops_the_graph_with_exit_3(
         (SIM_NODE, 0, False),  # the plant completed the run
         (SIM_NODE, 3, False),  # the plant completed a run that did not control
         ("direct_loop", 3, False),  # the loop ended a run that did not control (a safety stop): final
+        ("direct_loop", 0, False),  # the loop ended an external board's run after its --duration
         ("hw_bridge_node", 3, False),
         (SIM_NODE, -9, True),
     ],

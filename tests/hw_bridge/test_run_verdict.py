@@ -200,3 +200,9 @@ def test_the_host_verdict_config_checks_its_plan() -> None:
     assert HostVerdictConfig(planned_s=20.0).planned_s == 20.0
     with pytest.raises(ValueError, match="planned_s"):
         HostVerdictConfig(planned_s=-1.0)
+
+
+def test_ending_the_run_needs_a_planned_length() -> None:
+    assert HostVerdictConfig(planned_s=2.0, ends_run=True).ends_run
+    with pytest.raises(ValueError, match="ends_run needs planned_s > 0"):
+        HostVerdictConfig(ends_run=True)

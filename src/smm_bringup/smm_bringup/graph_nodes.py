@@ -26,6 +26,7 @@ __all__ = [
     "PLANT_NODE_NAMES",
     "RECORDER_NODE",
     "REFERENCE_NODE",
+    "RUN_ENDERS",
     "SIM_NODE",
     "TD_NODE",
     "NodeSpec",
@@ -51,6 +52,10 @@ DIRECT_LOOP: Final[str] = "direct_loop"
 PLANT_NODE_NAMES: Final[frozenset[str]] = frozenset((SIM_NODE, HW_NODE, EMULATOR_NODE))
 """Names of the plant processes: when one of them exits 0 the run is complete (see ``docs/LAUNCH.md``);
 with the emulator that is the end of its ``duration``."""
+
+RUN_ENDERS: Final[frozenset[str]] = PLANT_NODE_NAMES | {DIRECT_LOOP}
+"""Processes whose exit 0 completes the run: the plants, and the direct loop hosting the bridge (which ends
+an external board's run after its ``--duration``, ``verdict.ends_run``)."""
 
 _PUBLISHED: Final[dict[str, tuple[str, ...]]] = {
     CONTROLLER_NODE: (topics.TORQUE_COMMAND, topics.CONTROLLER_INTERNALS),

@@ -76,6 +76,8 @@ def hardware_specs(
         duration = _scenario_duration(files)  # as the simulator: the scenario's length in lockstep
     if duration and options.board is None:  # the emulated bench falls silent at its end, not a fault
         bridge_parameters.append(("verdict.planned_s", float(duration)))
+    elif options.duration and options.board is not None:  # nothing else ends an external board's run
+        bridge_parameters += [("verdict.planned_s", float(options.duration)), ("verdict.ends_run", True)]
     divider = options.control_divider
     if divider > 1:  # the board keeps its 1 kHz tick; the bridge stretches validity and limits by N
         bridge_parameters.append(("bridge.control_divider", divider))

@@ -25,7 +25,7 @@ from smm_hw_bridge.preflight import EXIT_PREFLIGHT_REFUSED
 from smm_hw_bridge.run_verdict import EXIT_NOT_CONTROLLED
 
 from smm_bringup.errors import GraphError
-from smm_bringup.graph_nodes import PLANT_NODE_NAMES, RECORDER_NODE, NodeSpec, expected_publishers
+from smm_bringup.graph_nodes import PLANT_NODE_NAMES, RECORDER_NODE, RUN_ENDERS, NodeSpec, expected_publishers
 from smm_bringup.realtime import (
     OBSERVER_NICE,
     Scheduling,
@@ -159,7 +159,7 @@ class RespawnPolicy:
 
     def applies(self, spec: NodeSpec, code: int) -> bool:
         """True when a node ``spec`` that exited with ``code`` is to be restarted."""
-        completed = spec.name in PLANT_NODE_NAMES and code == EXIT_OK
+        completed = spec.name in RUN_ENDERS and code == EXIT_OK
         final = code in (EXIT_NOT_CONTROLLED, EXIT_PREFLIGHT_REFUSED)
         return spec.name != RECORDER_NODE and not completed and not final
 
@@ -434,7 +434,7 @@ def launch_processes(
                 if respawn is not None and respawn.applies(spec, code):
                     if processes.schedule_respawn(spec, code, respawn):
                         continue
-                elif spec.name in PLANT_NODE_NAMES and code in (EXIT_OK, EXIT_NOT_CONTROLLED):
+                elif spec.name in RUN_ENDERS and code in (EXIT_OK, EXIT_NOT_CONTROLLED):
                     _say(f"{spec.name} completed its run; stopping the graph")
                     codes = processes.stop()
                     _report_stop(codes, expected_done=spec.name)

@@ -36,9 +36,17 @@ class HostVerdictConfig(VerdictConfig):
         settle_s: Periods in the first ``settle_s`` seconds of live output are not judged (s).
         planned_s: The run's planned live length (s), 0 for none (a person ends it): a device fault after it
             (an emulated bench that ended its run falls silent) does not undo a run that controlled for it.
+        ends_run: An autostarted run ends itself once ``planned_s`` are live (output disabled, judged): an
+            external board or bench, which nothing else ends. Needs ``planned_s`` > 0.
     """
 
     planned_s: float = field(default=0.0, metadata=at_least(0.0))
+    ends_run: bool = False
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.ends_run and not self.planned_s:
+            raise ValueError("ends_run needs planned_s > 0 (the live seconds after which the run ends)")
 
 
 class RunTally:
