@@ -1,7 +1,7 @@
 # SMM control stack: every target sets itself up on a fresh machine (Python >= 3.11 and make are all it needs).
 #   make demo   full closed-loop run on the simulator (the main job)
-#   make test   the whole test suite (unit, bag, node, end-to-end in a private network namespace); nothing in it
-#               needs the machine to keep up with a clock
+#   make test   the whole test suite on two workers (unit, bag, node, end-to-end in private network namespaces);
+#               nothing in it needs the machine to keep up with a clock
 #   make test-realtime  the tests that need the wall clock kept (1 kHz / 100 Hz runs): a quiet machine only
 #   make test-other-cpu  the tests against data made on another machine, under other numeric paths
 #   make bench  benchmarks: figures and ratios, never pass/fail on a shared machine's timing
@@ -40,8 +40,10 @@ $(STAMP): requirements.txt requirements-dev.txt $(PACKAGE_FILES)
 		$(foreach p,$(PACKAGES),-e src/$(p))
 	@touch $@
 
+# Two pytest-xdist workers, each in a network namespace and a block of ROS_DOMAIN_IDs of its own (tests/conftest.py);
+# loadgroup keeps each xdist_group's tests on one worker (docs/TESTING.md, "Two workers").
 test: $(STAMP) $(CORPUS_JS)
-	$(PY) -m pytest tests
+	$(PY) -m pytest tests -n 2 --dist loadgroup
 
 # The real-time versions of the hardware tests (marker realtime, deselected by pyproject's addopts): they need
 # a quiet machine, as a bench run does (docs/TESTING.md, "Real-time tests").

@@ -4,7 +4,9 @@ At start-up the pytest process re-executes itself under ``unshare --net`` (``-r`
 with ``lo`` brought up by ``netns_exec.py``. Nodes started by tests, and DDS participants created inside the
 test process, therefore cannot send a packet anywhere but loopback, whatever their discovery settings.
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is set to ``LOCALHOST`` when unset, and each test gets its own
-``ROS_DOMAIN_ID`` (fixture ``ros_domain_id``), so tests never see each other's graphs.
+``ROS_DOMAIN_ID`` (fixture ``ros_domain_id``), so tests never see each other's graphs. Under pytest-xdist
+(``make test``: ``-n 2``) every worker enters a namespace of its own at start-up and takes its ROS_DOMAIN_IDs
+from a block of its own, so tests on two workers share no port (docs/TESTING.md, "Two workers").
 """
 
 from __future__ import annotations
@@ -19,9 +21,11 @@ from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
+from ros_harness import DOMAIN_IDS, claim_domain_block, release_domain_blocks
 
 _NETNS_MARKER = "SMM_TEST_PRIVATE_NETNS"
 _NETNS_FAILURE = "SMM_TEST_NETNS_FAILURE"
+_DOMAIN_IDS = pytest.StashKey[Iterator[int]]()
 _HERE = Path(__file__).resolve().parent
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -68,13 +72,35 @@ def _why_no_private_netns() -> str | None:
     return None
 
 
+def _session_domain_ids(config: pytest.Config) -> range:
+    """The ROS_DOMAIN_IDs this session hands out: :data:`DOMAIN_IDS`; an xdist worker's own block of them."""
+    worker = getattr(config, "workerinput", None)
+    if worker is None:
+        return DOMAIN_IDS
+    try:  # the blocks' locks beside the workers' basetemps (<controller's basetemp>/popen-gw<i>)
+        if not config.option.basetemp:
+            raise RuntimeError("no basetemp from the controller (a local, popen, worker has one)")
+        return claim_domain_block(Path(config.option.basetemp).parent, int(worker["workercount"]))
+    except (OSError, RuntimeError, ValueError) as error:
+        raise pytest.UsageError(
+            f"xdist worker {worker['workerid']}: no ROS_DOMAIN_IDs of its own: {error}"
+        ) from error
+
+
 def pytest_configure(config: pytest.Config) -> None:
-    """Registers the ``cross_machine`` marker; re-executes the session in a fresh network namespace, once."""
+    """Registers the markers and the session's ROS_DOMAIN_IDs; re-executes the session in a fresh network
+    namespace, once."""
     config.addinivalue_line(
         "markers",
         "cross_machine: compares numbers computed here with data made on another machine (the committed "
         "sample bag); `make test-other-cpu` runs these under other numeric paths (docs/TESTING.md)",
     )
+    config.addinivalue_line(
+        "markers",
+        "xdist_group(name): the tests of one group run on one worker, one after another (make test's "
+        "--dist loadgroup; docs/TESTING.md)",
+    )
+    config.stash[_DOMAIN_IDS] = itertools.cycle(_session_domain_ids(config))
     if os.environ.get(_NETNS_MARKER) == "1" or _NETNS_FAILURE in os.environ:
         return
     reason = _why_no_private_netns()
@@ -94,6 +120,27 @@ def pytest_configure(config: pytest.Config) -> None:
     os.execvp(command[0], command)
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """An xdist worker enters a network namespace of its own, or stops with the reason.
+
+    Here, not in pytest_configure: the connections plugins open to the controller there (pytest-rerunfailures'
+    status socket) stay in the controller's namespace; everything tests open comes later.
+    """
+    worker = getattr(session.config, "workerinput", None)
+    if worker is None or _NETNS_FAILURE in os.environ:
+        return  # no worker; or the controller had no namespace either: ROS tests fail with why (ros_netns)
+    from netns_exec import enter_private_netns
+
+    try:
+        enter_private_netns()
+    except (OSError, RuntimeError) as error:
+        release_domain_blocks()  # this worker's process outlives the error: its replacement takes them
+        raise pytest.UsageError(
+            f"xdist worker {worker['workerid']}: no private network namespace: {error}"
+        ) from error
+
+
 @pytest.fixture(scope="session")
 def ros_netns() -> None:
     """Fail (never skip) a ROS test that would run outside the private network namespace."""
@@ -106,13 +153,12 @@ def ros_netns() -> None:
         pytest.fail(f"ROS tests must run with loopback only, but interfaces are {names}")
 
 
-_domain_ids = itertools.cycle(range(1, 200))
-
-
 @pytest.fixture
-def ros_domain_id(ros_netns: None, monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
+def ros_domain_id(
+    ros_netns: None, monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest
+) -> Iterator[int]:
     """A ROS_DOMAIN_ID of this test's own, exported to the environment of everything it starts."""
-    domain_id = next(_domain_ids)
+    domain_id = next(request.config.stash[_DOMAIN_IDS])
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain_id))
     monkeypatch.setenv(
         "ROS_AUTOMATIC_DISCOVERY_RANGE", os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

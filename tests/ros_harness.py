@@ -8,6 +8,7 @@ process group, never anything this test did not start.
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import signal
 import subprocess
@@ -18,6 +19,47 @@ from pathlib import Path
 from typing import Any
 
 STOP_TIMEOUT_S = 10.0
+
+DOMAIN_IDS = range(1, 200)
+"""The ROS_DOMAIN_IDs a test session hands out in turn, one per test (Fast DDS takes 0-232)."""
+
+_HELD_BLOCKS: list[int] = []
+"""Open lock files of the blocks this process claimed: held until it ends."""
+
+
+def worker_domain_ids(index: int, count: int) -> range:
+    """The ``index``-th of ``count`` equal, disjoint blocks of :data:`DOMAIN_IDS`."""
+    if not 0 <= index < count <= len(DOMAIN_IDS):
+        raise ValueError(f"block {index} of {count}: needs 0 <= index < count <= {len(DOMAIN_IDS)}")
+    size = len(DOMAIN_IDS) // count
+    start = DOMAIN_IDS.start + index * size
+    return range(start, start + size)
+
+
+def claim_domain_block(lock_dir: Path, count: int) -> range:
+    """The first of ``count`` blocks of :data:`DOMAIN_IDS` no live process holds, held by this one until it
+    ends (a POSIX lock on ``lock_dir/ros-domain-ids-<i>``): a pytest-xdist worker's own, or a crashed
+    worker's for the worker that replaces it.
+
+    Raises:
+        RuntimeError: Every block is held.
+    """
+    for index in range(count):
+        descriptor = os.open(lock_dir / f"ros-domain-ids-{index}", os.O_WRONLY | os.O_CREAT, 0o600)
+        try:
+            fcntl.lockf(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(descriptor)
+            continue
+        _HELD_BLOCKS.append(descriptor)
+        return worker_domain_ids(index, count)
+    raise RuntimeError(f"all {count} blocks of ROS_DOMAIN_IDs are held by live processes ({lock_dir})")
+
+
+def release_domain_blocks() -> None:
+    """Lets the blocks this process claimed go (a worker that stops, for its replacement)."""
+    while _HELD_BLOCKS:
+        os.close(_HELD_BLOCKS.pop())
 
 
 @contextlib.contextmanager

@@ -18,7 +18,8 @@ from bag.corpus import table, upstream
 from bag.corpus.entries import SHOWN, SKIP, Entry, entries, selected
 from bag.corpus.run import Observed, original_metrics, run_entry, smm_bag
 
-pytestmark = pytest.mark.slow
+# One worker: the session's Corpus builds and runs each entry once, and the table test observes every entry.
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("bag_corpus")]
 
 ENTRIES = selected()
 SUBPROCESS = {"mcap-unchunked", "rosbags-file", "js-default", "shape-other-topics", "mcap-unchunked+length"}

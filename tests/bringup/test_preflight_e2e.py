@@ -17,6 +17,10 @@ import pytest
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
+UNDER_SCHED_FIFO = pytest.mark.xdist_group("sched_fifo")
+"""A hardware graph in real time: the loop under SCHED_FIFO (the launcher's default priorities, as root) and
+/dev/cpu_dma_latency held; make test's two workers never run two of them at once."""
+
 SLOWER = "/**/hw_bridge_node:\n  ros__parameters:\n    preflight.added_latency_us: 10000.0\n"
 """A parameter file that makes every rehearsed answer 10 ms late (the 250 Hz period is 4 ms)."""
 
@@ -33,6 +37,7 @@ def _launch(ros_processes: Any, tmp_path: Path, name: str, *arguments: str) -> t
     return code, launcher.logs()
 
 
+@UNDER_SCHED_FIFO
 def test_a_refused_preflight_exits_4_with_its_figures_and_reason(ros_processes: Any, tmp_path: Path) -> None:
     from smm_hw_bridge.preflight import EXIT_PREFLIGHT_REFUSED
 
@@ -53,6 +58,7 @@ def test_a_refused_preflight_exits_4_with_its_figures_and_reason(ros_processes: 
     assert "arming" not in logs
 
 
+@UNDER_SCHED_FIFO
 def test_the_topics_loop_rehearses_with_its_controller_and_refuses_too(
     ros_processes: Any, tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
@@ -78,6 +84,7 @@ def test_the_topics_loop_rehearses_with_its_controller_and_refuses_too(
     assert "hw_bridge_node refused to arm at preflight; stopping the graph" in logs
 
 
+@UNDER_SCHED_FIFO
 def test_force_arms_anyway_with_a_warning(ros_processes: Any, tmp_path: Path) -> None:
     code, logs = _launch(
         ros_processes, tmp_path, "forced", "--clock-mode", "realtime", "--preflight", "1", "--force",

@@ -16,6 +16,8 @@ SRC = REPO / "src"
 PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / "package.xml").is_file())
 COLCON = Path(sys.executable).with_name("colcon")
 
+pytestmark = pytest.mark.xdist_group("colcon")  # one worker: one colcon build (fixture colcon_install)
+
 
 def declared_console_scripts(package: str) -> list[str]:
     """Console scripts of ``package`` as setuptools reads them from its setup.py."""

@@ -78,6 +78,12 @@ def test_pip_install_e_into_a_fresh_venv_puts_the_command_in_bin(tmp_path: Path)
     site = Path(sysconfig.get_path("purelib", vars={"base": str(fresh), "platbase": str(fresh)}))
     (site / "outer.pth").write_text(sysconfig.get_path("purelib") + "\n")  # pip, setuptools, dependencies
     python = fresh / "bin" / "python"
+    # A copy: `pip install -e` rewrites the package's egg-info, which the suite's own smm_bag commands read
+    # as they start (on the other xdist worker too).
+    source = tmp_path / "src"
+    unbuilt = shutil.ignore_patterns("*.egg-info", "__pycache__")
+    shutil.copytree(REPO / "src" / "smm_bag", source / "smm_bag", ignore=unbuilt)
+    shutil.copy2(REPO / "src" / "user_commands.py", source)
     install = run(
         [
             str(python),
@@ -88,7 +94,7 @@ def test_pip_install_e_into_a_fresh_venv_puts_the_command_in_bin(tmp_path: Path)
             "--no-deps",
             "--no-build-isolation",
             "-e",
-            "src/smm_bag",
+            str(source / "smm_bag"),
         ],
         activated(fresh),
     )
