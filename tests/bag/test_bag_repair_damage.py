@@ -64,6 +64,18 @@ def test_repair_keeps_every_checked_message_of_a_damaged_copy(
     assert outcome.kept >= outcome.undamaged
 
 
+def test_a_chunk_opcode_flipped_to_data_end_loses_no_other_chunk(
+    sources: list[tuple[Path, list[OriginalFile]]], tmp_path: Path
+) -> None:
+    """Hypothesis found it: bits 0 and 3 of a file's first Chunk opcode (0x06 -> 0x0F, Data End)."""
+    source, originals = sources[0]
+    places = [Place("chunk bit flip", 1, 0.0, 0), Place("chunk bit flip", 1, 0.0, 3)]
+    damaged = damage_copy(source, originals, tmp_path / "bag", places)
+    assert (damaged.bag / originals[1].name).read_bytes()[originals[1].chunks[0][0]] == 0x0F
+    outcome = repair_and_check(source, originals, damaged)
+    assert outcome.kept >= outcome.undamaged > 0
+
+
 @pytest.mark.parametrize("kind", KINDS)
 def test_each_kind_of_damage_on_the_sample(
     sources: list[tuple[Path, list[OriginalFile]]], tmp_path: Path, kind: str

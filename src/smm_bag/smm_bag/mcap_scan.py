@@ -219,6 +219,8 @@ def _record(data: bytes, offset: int, limit: int) -> tuple[int, int] | None:
         return None
     if opcode == Opcode.MESSAGE and length < _MESSAGE_FIXED:
         return None
+    if opcode == Opcode.DATA_END and length != 4 and offset + 9 + length != limit:
+        return None  # a Data End holds a CRC and ends the data section: a Chunk opcode flipped to 0x0F
     return opcode, offset + 9 + length
 
 
