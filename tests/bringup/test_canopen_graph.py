@@ -88,12 +88,13 @@ def test_the_bridge_knows_the_runs_planned_length_and_ends_an_external_boards_ru
     )
 
 
-def test_the_emulated_benchs_valve_units_follow_its_file_and_yield_to_the_users(tmp_path: Path) -> None:
-    """The bridge's gain on the emulated CANopen bench is the bench's; a parameter file's own gain wins."""
+def test_the_canopen_valve_units_are_the_nominal_valves_and_yield_to_the_users(tmp_path: Path) -> None:
+    """The bridge's gain on the emulated CANopen bench is the nominal valve's (a bench file's truths are not
+    told to the host, as on the frame link); a parameter file's own gain wins over it."""
     bench = tmp_path / "bench.yaml"
     bench.write_text("full_scale_torque: [8.0, 16.0]\n")
     options = GraphOptions(plant="hardware", link="canopen", bench_file=str(bench))
-    assert _bridge(options)["bridge.valve.gain"] == (16384 / 8.0, 16384 / 16.0)
+    assert _bridge(options)["bridge.valve.gain"] == (16384 / 10.0, 16384 / 10.0)
     mine = tmp_path / "mine.yaml"
     mine.write_text(
         "/**/hw_bridge_node:\n  ros__parameters:\n    bridge:\n      valve:\n        gain: [1000.0, 1000.0]\n"
@@ -101,4 +102,4 @@ def test_the_emulated_benchs_valve_units_follow_its_file_and_yield_to_the_users(
     options = GraphOptions(plant="hardware", link="canopen", bench_file=str(bench), params_files=(str(mine),))
     bridge = _bridge(options)
     assert "bridge.valve.gain" not in bridge  # the file's 1000 reaches the node unchanged
-    assert bridge["bridge.valve.code_limit"] == (16384, 16384)  # what the file leaves out stays the bench's
+    assert bridge["bridge.valve.code_limit"] == (16384, 16384)  # what the file leaves out stays the default

@@ -163,21 +163,22 @@ def _frame_link(board: str) -> list[tuple[str, ParameterValue]]:
 def _canopen_link(options: GraphOptions, files: Sequence[str]) -> list[tuple[str, ParameterValue]]:
     """``link.transport: canopen``; with the emulated bench, its EDS files and supply (else the user's).
 
-    The emulated bench's valve units (gain from its full-scale torque, code and rate limits) apply only
-    where the parameter ``files`` set none for the bridge: a file's valve truths win, as on the frame link.
+    The valve units (gain from the nominal valve's full-scale torque, code and rate limits) apply only where
+    the parameter ``files`` set none for the bridge: a file's valve truths win, as on the frame link (a bench
+    file's truths are not told to the host: commissioning finds them).
     """
     link: list[tuple[str, ParameterValue]] = [("link.transport", "canopen")]
     if options.board is None:
         bench = _emulated_bench(options)
         if bench is not None:  # no node sends the supply: the bridge states the emulated bench's
             link.append((canopen_parameter("supply_bar"), bench.supply_pressure))
-        full_scale = (bench or BoardConfig()).full_scale_torque
+        full_scale = BoardConfig().full_scale_torque  # the nominal valve's, as the frame link's default
         link += [
             (canopen_parameter("valve_eds"), str(eds_path("valve_cia408.eds"))),
             (canopen_parameter("encoder_eds"), str(eds_path("encoder_cia406.eds"))),
         ]
         user = _bridge_settings(files)
-        # the valves' units: spool +-16384 = +-100 % = the emulated valve's full-scale torque; the rate
+        # the valves' units: spool +-16384 = +-100 % = the nominal valve's full-scale torque; the rate
         # limit as the frame link's default, full scale in 2 ms
         units: list[tuple[str, ParameterValue]] = [
             ("bridge.valve.gain", tuple(SPOOL_FULL_SCALE / torque for torque in full_scale)),
