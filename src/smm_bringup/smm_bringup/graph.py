@@ -32,7 +32,7 @@ from smm_bringup.graph_nodes import (
 )
 from smm_bringup.graph_options import SCENARIO_NAMES, GraphOptions
 from smm_bringup.hardware_graph import emulator_seed, hardware_specs, simulator_settings
-from smm_bringup.parameter_files import ParameterValue, load_parameter_file, package_file
+from smm_bringup.parameter_files import ParameterValue, load_parameter_file, node_settings, package_file
 from smm_bringup.realtime import (
     BOARD_PRIORITY_OFFSET,
     BRIDGE_PRIORITY_OFFSET,
@@ -116,9 +116,7 @@ def _reference_parameters(files: Sequence[str]) -> tuple[tuple[str, ParameterVal
     So the reference is configured in one place (the ``reference_node`` sections) wherever it is sampled.
     Only ``kind`` and ``<kind>.<field>`` are handed over, not the node's own settings (``lookahead``).
     """
-    values: dict[str, Any] = {}
-    for path in files:
-        values.update(load_parameter_file(path, f"/{NAMESPACE}/{REFERENCE_NODE}"))
+    values = node_settings(files, f"/{NAMESPACE}/{REFERENCE_NODE}")
     return tuple(
         (f"{REFERENCE_PREFIX}.{name}", tuple(value) if isinstance(value, list) else value)
         for name, value in values.items()

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import Any, Final
 
 from smm_bringup.errors import ParameterFileError
-from smm_bringup.parameter_files import ParameterValue, format_parameter_value, load_parameter_file
+from smm_bringup.parameter_files import ParameterValue, format_parameter_value, node_settings
 from smm_msgs_py import topics
 from smm_node_runtime import parameter_check, parameter_files
 
@@ -165,9 +165,7 @@ def parameter_overrides(spec: NodeSpec) -> dict[str, Any]:
     This is what the separate-process command line makes rcl compute; composed mode passes it to the
     node class as ``parameter_overrides``.
     """
-    values: dict[str, Any] = {}
-    for path in spec.parameter_files:
-        values.update(load_parameter_file(path, spec.fully_qualified_name))
+    values = node_settings(spec.parameter_files, spec.fully_qualified_name)
     for name, value in spec.parameters:
         values[name] = list(value) if isinstance(value, tuple) else value
     return values

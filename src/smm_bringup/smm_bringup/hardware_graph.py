@@ -25,7 +25,7 @@ from smm_bringup.graph_nodes import (
     NodeSpec,
 )
 from smm_bringup.graph_options import GraphOptions, split_endpoint
-from smm_bringup.parameter_files import ParameterValue, load_parameter_file
+from smm_bringup.parameter_files import ParameterValue, node_settings
 
 __all__ = ["EMULATOR_BOARD", "EMULATOR_HOST", "emulator_seed", "hardware_specs", "simulator_settings"]
 
@@ -177,7 +177,7 @@ def _canopen_link(options: GraphOptions, files: Sequence[str]) -> list[tuple[str
             (canopen_parameter("valve_eds"), str(eds_path("valve_cia408.eds"))),
             (canopen_parameter("encoder_eds"), str(eds_path("encoder_cia406.eds"))),
         ]
-        user = _bridge_settings(files)
+        user = node_settings(files, f"/{NAMESPACE}/{HW_NODE}")
         # the valves' units: spool +-16384 = +-100 % = the nominal valve's full-scale torque; the rate
         # limit as the frame link's default, full scale in 2 ms
         units: list[tuple[str, ParameterValue]] = [
@@ -204,20 +204,9 @@ def _canopen_link(options: GraphOptions, files: Sequence[str]) -> list[tuple[str
     return link
 
 
-def _bridge_settings(files: Sequence[str]) -> dict[str, Any]:
-    """What the parameter ``files`` set for the bridge (later files winning)."""
-    bridge: dict[str, Any] = {}
-    for path in files:
-        bridge.update(load_parameter_file(path, f"/{NAMESPACE}/{HW_NODE}"))
-    return bridge
-
-
 def simulator_settings(files: Sequence[str]) -> dict[str, Any]:
     """What the parameter ``files`` set for the simulator (its section of each, later files winning)."""
-    sim: dict[str, Any] = {}
-    for path in files:
-        sim.update(load_parameter_file(path, f"/{NAMESPACE}/{SIM_NODE}"))
-    return sim
+    return node_settings(files, f"/{NAMESPACE}/{SIM_NODE}")
 
 
 def _scenario_duration(files: Sequence[str]) -> float | None:

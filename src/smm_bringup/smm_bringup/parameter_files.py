@@ -6,6 +6,7 @@ import contextlib
 import importlib
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_share_
 from smm_bringup.errors import ParameterFileError
 from smm_node_runtime import parameter_files
 
-__all__ = ["ParameterValue", "format_parameter_value", "load_parameter_file", "package_file"]
+__all__ = ["ParameterValue", "format_parameter_value", "load_parameter_file", "node_settings", "package_file"]
 
 ParameterValue = (
     bool | int | float | str | tuple[bool, ...] | tuple[int, ...] | tuple[float, ...] | tuple[str, ...]
@@ -93,3 +94,11 @@ def load_parameter_file(path: str | Path, fully_qualified_name: str) -> dict[str
         return parameter_files.load_parameter_file(path, fully_qualified_name)
     except parameter_files.ParameterFileError as error:
         raise ParameterFileError(str(error)) from error
+
+
+def node_settings(files: Sequence[str | Path], fully_qualified_name: str) -> dict[str, Any]:
+    """What the parameter ``files`` set for one node, later files winning (:func:`load_parameter_file`)."""
+    values: dict[str, Any] = {}
+    for path in files:
+        values.update(load_parameter_file(path, fully_qualified_name))
+    return values
