@@ -434,7 +434,9 @@ def launch_processes(
                 if respawn is not None and respawn.applies(spec, code):
                     if processes.schedule_respawn(spec, code, respawn):
                         continue
-                elif spec.name in RUN_ENDERS and code in (EXIT_OK, EXIT_NOT_CONTROLLED):
+                elif (spec.name in RUN_ENDERS and code == EXIT_OK) or (
+                    spec.name in PLANT_NODE_NAMES and code == EXIT_NOT_CONTROLLED
+                ):
                     _say(f"{spec.name} completed its run; stopping the graph")
                     codes = processes.stop()
                     _report_stop(codes, expected_done=spec.name)
