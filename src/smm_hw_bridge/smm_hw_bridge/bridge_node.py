@@ -135,7 +135,6 @@ class HwBridgeNode(LifecycleNode):
         self.autostart = self.declare_parameter("autostart", False).value is True
         if self.autostart:
             self._autostart = self.create_timer(_AUTOSTART_POLL_S, self._start, clock=steady)
-        self._plan_done = False
         if self.autostart and self._verdict.config.ends_run:
             self.create_timer(_FAULT_TRANSITION_S, self._on_plan, clock=steady)
         self._waiting_logged = False
@@ -421,9 +420,8 @@ class HwBridgeNode(LifecycleNode):
     def _on_plan(self) -> None:
         """``verdict.ends_run``: once ``planned_s`` are live, disarm and end the autostarted run (judged)."""
         tally, planned = self.loop.tally, self._verdict.config.planned_s
-        if self._plan_done or tally is None or tally.live_s() < planned or self.lifecycle_state != "active":
-            return
-        self._plan_done = True
+        if tally is None or tally.live_s() < planned or self.lifecycle_state != "active":
+            return  # once done, deactivated: never again
         self._log.info(f"autostart: the planned {planned:g} s live are done: output disabled, the run ends")
         self.trigger_deactivate()  # type: ignore[no-untyped-call]
         self.context.try_shutdown()
