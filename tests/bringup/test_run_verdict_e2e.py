@@ -5,7 +5,6 @@ Lockstep and "never armed" runs: nothing here depends on the machine keeping up 
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -14,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from launcher_run import analyze
 from udp_bench import LOOPBACK, free_port
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -48,15 +48,7 @@ def test_hardware_lockstep_case2_recorded_twice_gives_a_bag_with_the_same_indice
         assert code == 0, logs
         assert "[smm-launch] run: controlled (late 0 of 3999 periods of 1 ms after the first 1 s live" in logs
         assert " 0 lost, 0 samples missing in stamps" in logs  # else the indices differ for want of samples
-        analysed = subprocess.run(
-            [sys.executable, "-m", "smm_bag.cli", "analyze", "--json", "--quiet", str(bag)],
-            capture_output=True,
-            text=True,
-            check=False,
-            timeout=300,
-        )
-        assert analysed.returncode == 0, analysed.stdout + analysed.stderr
-        indices.append(json.loads(analysed.stdout))
+        indices.append(analyze(bag))
     assert indices[0]["case2"] == indices[1]["case2"]
     assert indices[0]["case2"]["fpdeso"]["alpha"]["RMS"] < 0.05  # rad: it tracked the reference
 

@@ -5,9 +5,7 @@ only (its tracking depends on the machine's speed: bench/bench_independent_realt
 
 from __future__ import annotations
 
-import json
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -15,6 +13,7 @@ from typing import Any
 
 import pytest
 from hw_bridge.independent_bench.parameters import bench_parameters
+from launcher_run import analyze
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -46,15 +45,7 @@ def _wait_for(predicate: Any, what: str, process: Any, timeout_s: float = 1800.0
 
 
 def _rms(bag: Path) -> tuple[float, float]:
-    analysed = subprocess.run(
-        [sys.executable, "-m", "smm_bag.cli", "analyze", "--json", "--quiet", str(bag)],
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=300,
-    )
-    assert analysed.returncode == 0, analysed.stdout + analysed.stderr
-    figures = json.loads(analysed.stdout)["case2"]["fpdeso"]
+    figures = analyze(bag)["case2"]["fpdeso"]
     return figures["alpha"]["RMS"], figures["beta"]["RMS"]
 
 
