@@ -99,13 +99,17 @@ def test_lockstep_case2_on_the_independent_bench_tracks_as_on_the_emulated_one(
     assert all(mine <= 1.1 * theirs for mine, theirs in zip(independent, emulated, strict=True))
 
 
+@pytest.mark.parametrize("planned", [False, True], ids=["until-stopped", "planned"])
 def test_the_independent_bench_killed_mid_run_faults_the_bridge_naming_the_node(
-    ros_processes: Any, tmp_path: Path
+    ros_processes: Any, tmp_path: Path, planned: bool
 ) -> None:
+    """Without a planned length the faulted run waits for a person; with one it ends at once (exit 3): it
+    cannot reach its plan, and nothing re-arms it."""
     params = bench_parameters(tmp_path / "bench.yaml", GROUP, PORT)
     bench, _ = _start_bench(ros_processes, tmp_path, 0.0)
+    plan = ["--duration", "3600"] if planned else []
     launcher = _launch(
-        ros_processes, "smm-launch-killed", "--board", "external", "--params-file", str(params)
+        ros_processes, "smm-launch-killed", "--board", "external", "--params-file", str(params), *plan
     )
     _wait_for(
         lambda: "configured: encoder beta (node 32)" in launcher.logs(), "the configured bench", launcher
@@ -113,8 +117,17 @@ def test_the_independent_bench_killed_mid_run_faults_the_bridge_naming_the_node(
     time.sleep(3.0)  # mid-run
     bench.popen.send_signal(signal.SIGKILL)
     _wait_for(lambda: "error transition" in launcher.logs(), "the bridge's fault", launcher, 120.0)
-    launcher.popen.send_signal(signal.SIGINT)
-    code = launcher.wait(120.0)
+    if planned:
+        code = launcher.wait(120.0)
+        logs = launcher.logs()
+        assert code == 3, logs
+        assert "the run ends at its fault, before its planned 3600 s live" in logs, logs
+        assert "ended the run: it did not control" in logs, logs
+    else:
+        time.sleep(2.0)
+        assert launcher.alive(), launcher.logs()  # waits for a person: the operator ends it
+        launcher.popen.send_signal(signal.SIGINT)
+        code = launcher.wait(120.0)
     logs = launcher.logs()
     assert code != 0, logs
     fault = next(line for line in logs.splitlines() if "safe output, error transition" in line)

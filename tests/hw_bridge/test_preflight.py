@@ -56,19 +56,26 @@ def test_nothing_holds_says_so() -> None:
     assert "none of the candidate rates holds" in verdict.refusal(direct_loop=True, realtime=True)
 
 
-def test_the_margin_asks_for_a_share_of_the_limit() -> None:
-    rehearsal = figures([100.0] * 993 + [1500.0] * 7)  # 0.7 % late at 1 kHz
+def test_the_unseen_share_is_added_to_every_prediction() -> None:
+    rehearsal = figures([100.0] * 993 + [1500.0] * 7)  # 0.7 % late at 1 kHz, none at 500 Hz
     assert judge(rehearsal, 0.01).holds
-    halved = judge(rehearsal, 0.01, margin=0.5)
-    assert not halved.holds and halved.allowed == pytest.approx(0.005)
-    assert halved.fastest_held_hz == 500.0
-    assert "above 0.5 % (the limit of 1 % with the preflight's margin)" in halved.refusal(
-        direct_loop=True, realtime=True
+    verdict = judge(rehearsal, 0.01, unseen_late=0.0035)
+    assert verdict.late_share == pytest.approx(0.007)
+    assert verdict.prediction == pytest.approx(0.0105)
+    assert dict(verdict.predicted) == pytest.approx(
+        {1000.0: 0.0105, 500.0: 0.0035, 250.0: 0.0035, 200.0: 0.0035, 100.0: 0.0035}
     )
-    with pytest.raises(ValueError, match="margin"):
-        judge(rehearsal, 0.01, margin=0.0)
-    with pytest.raises(ValueError, match="margin"):
-        PreflightConfig(margin=1.5)
+    assert not verdict.holds and verdict.fastest_held_hz == 500.0
+    text = verdict.refusal(direct_loop=True, realtime=True)
+    assert "0.70 % of the rehearsed control periods were late" in text
+    assert "predicted 1.05 % late (with 0.35 points a short rehearsal does not see)" in text
+    assert "predicted: 1.05 % at 1000 Hz / 0.35 % at 500 Hz" in verdict.lines()[-1]
+    assert judge(figures([20000.0] * 10), 1.0, unseen_late=0.5).prediction == 1.0  # a share, capped
+    for bad in (-0.001, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="unseen_late"):
+            judge(rehearsal, 0.01, unseen_late=bad)
+        with pytest.raises(ValueError, match="unseen_late"):
+            PreflightConfig(unseen_late=bad)
 
 
 def test_unanswered_periods_count_as_late() -> None:

@@ -216,7 +216,7 @@ class HwBridgeNode(LifecycleNode):
             return
         self.publish_us = RunningFigures()  # the run's figures, not the rehearsal's
         config = self._preflight.config
-        verdict = judge(recorder.figures(), self._verdict.config.late_limit, margin=config.margin)
+        verdict = judge(recorder.figures(), self._verdict.config.late_limit, unseen_late=config.unseen_late)
         self.preflight = verdict
         refusal = verdict.refusal(direct_loop=self.loop.answerer is not None, realtime=realtime_scheduled())
         for line in verdict.lines():
@@ -415,6 +415,12 @@ class HwBridgeNode(LifecycleNode):
                 self.trigger_cleanup()  # type: ignore[no-untyped-call]
             if self.autostart and self.loop.safety_stop:  # final, as a refusal at preflight: a person looks
                 self._log.error("autostart: the run ends at its safety stop (not configured again)")
+                self.context.try_shutdown()
+            elif self.autostart and planned > 0.0 and self._run_fault:  # it cannot reach its plan
+                self._log.error(
+                    f"autostart: the run ends at its fault, before its planned {planned:g} s live (not armed "
+                    "again: a person re-arms)"
+                )
                 self.context.try_shutdown()
 
     def _on_plan(self) -> None:

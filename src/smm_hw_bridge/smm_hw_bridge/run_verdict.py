@@ -35,7 +35,8 @@ class HostVerdictConfig(VerdictConfig):
         late_limit: Largest fraction of late control periods after ``settle_s`` (0.01 = 1 %).
         settle_s: Periods in the first ``settle_s`` seconds of live output are not judged (s).
         planned_s: The run's planned live length (s), 0 for none (a person ends it): a device fault after it
-            (an emulated bench that ended its run falls silent) does not undo a run that controlled for it.
+            (an emulated bench that ended its run falls silent) does not undo a run that controlled for it;
+            one before it ends an autostarted run (exit 3: it cannot reach its plan without a person).
         ends_run: An autostarted run ends itself once ``planned_s`` are live (output disabled, judged): an
             external board or bench, which nothing else ends. Needs ``planned_s`` > 0.
     """
