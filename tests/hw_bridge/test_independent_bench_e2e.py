@@ -122,7 +122,7 @@ def test_the_independent_bench_killed_mid_run_faults_the_bridge_naming_the_node(
         logs = launcher.logs()
         assert code == 3, logs
         assert "the run ends at its fault, before its planned 3600 s live" in logs, logs
-        assert "ended the run: it did not control" in logs, logs
+        assert "hw_bridge_node: the run did not control (exit code 3" in logs, logs
     else:
         time.sleep(2.0)
         assert launcher.alive(), launcher.logs()  # waits for a person: the operator ends it
