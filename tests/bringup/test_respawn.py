@@ -92,8 +92,13 @@ def test_a_loop_that_ends_its_run_uncontrolled_stops_the_graph_with_exit_3(
     assert len(nodes.read_text().split()) == 1  # never started again
 
 
-def test_the_direct_loop_ending_its_run_uncontrolled_is_told_as_such_and_its_exit_0_as_completion(
-    nodes: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+@pytest.mark.parametrize("name", ["direct_loop", "hw_bridge_node"])
+def test_a_loop_ending_its_run_uncontrolled_is_told_as_such_and_its_exit_0_as_completion(
+    nodes: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    name: str,
 ) -> None:
     monkeypatch.setenv("STARTS", "1000")  # the plant never completes
     for code, said, exit_code in (
@@ -101,9 +106,9 @@ def test_the_direct_loop_ending_its_run_uncontrolled_is_told_as_such_and_its_exi
         (0, "completed its run", 0),
     ):
         _script(tmp_path, "stopper", f"echo $$ >> {nodes}\nexit {code}")  # as direct_loop at its end
-        graph = [_graph()[0], NodeSpec("no_such_package", "stopper", "direct_loop", "m:C")]
+        graph = [_graph()[0], NodeSpec("no_such_package", "stopper", name, "m:C")]
         assert launch_processes(graph, stop_grace_s=2.0) == exit_code
-        assert f"direct_loop {said}" in capsys.readouterr().out
+        assert f"{name} {said}" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(

@@ -437,7 +437,8 @@ def launch_processes(
                 elif (spec.name in RUN_ENDERS and code == EXIT_OK) or (
                     spec.name in PLANT_NODE_NAMES and code == EXIT_NOT_CONTROLLED
                 ):
-                    _say(f"{spec.name} completed its run; stopping the graph")
+                    ended = "completed its run" if code == EXIT_OK else "ended the run: it did not control"
+                    _say(f"{spec.name} {ended}; stopping the graph")
                     codes = processes.stop()
                     _report_stop(codes, expected_done=spec.name)
                     return EXIT_NOT_CONTROLLED if EXIT_NOT_CONTROLLED in codes.values() else EXIT_OK
