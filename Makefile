@@ -99,7 +99,10 @@ clean:
 
 # The soak of the bench path (not in `make test`): the hardware graph in real time on the emulator, recorded,
 # under scripted faults, in a private network namespace (docs/SOAK.md). make soak SOAK_MINUTES=60
+# (SOAK_ARGS=--launch-arg=--force: arm past the preflight, whose refusal ends a soak)
 SOAK_MINUTES ?= 10
 SOAK_OUT ?= out/soak_$(shell date -u +%Y%m%d_%H%M%S)
+SOAK_ARGS ?=
 soak: $(STAMP)
-	unshare --net -- $(PY) tests/netns_exec.py $(PY) tools/soak.py --minutes $(SOAK_MINUTES) --out $(SOAK_OUT)
+	unshare --net -- $(PY) tests/netns_exec.py $(PY) tools/soak.py --minutes $(SOAK_MINUTES) --out $(SOAK_OUT) \
+		$(SOAK_ARGS)
