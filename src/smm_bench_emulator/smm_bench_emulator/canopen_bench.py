@@ -238,6 +238,9 @@ class CanBench:
         self.network.subscribe(SYNC_ID, self._on_sync)
         for node in self._nodes():  # before listening: no SDO answered before the node's boot-up
             node.nmt.send_command(0x81)  # reset node: boot-up, then PRE-OPERATIONAL
+            # (CiA 301 enters it by itself; canopen's LocalNode stays INITIALISING, whose heartbeat, started
+            # by the master's 0x1017 write, would be a boot-up after the master's start)
+            node.nmt.send_command(0x80)
         self.network.connect()
         self._closing = threading.Event()
         self._watcher = threading.Thread(target=self._watch, name="can_bench_heartbeats", daemon=True)

@@ -1,5 +1,6 @@
-"""The emulated CANopen valves' pressure actual 0x6381:01: the load pressure exactly (to the unit) without
-transducer noise; with ``pressure_noise`` about it with that standard deviation, seeded."""
+"""The emulated CANopen bench: every node PRE-OPERATIONAL after its boot-up; the valves' pressure actual
+0x6381:01, the load pressure exactly (to the unit) without transducer noise, with ``pressure_noise`` about it
+with that standard deviation, seeded."""
 
 from __future__ import annotations
 
@@ -48,3 +49,20 @@ def test_the_transducer_noise_has_its_standard_deviation_and_its_seed() -> None:
 def test_a_negative_noise_is_refused() -> None:
     with pytest.raises(ValueError, match="pressure_noise"):
         CanBenchConfig(pressure_noise=-0.1)
+
+
+def test_every_node_is_pre_operational_after_its_boot_up_and_its_heartbeat_says_so() -> None:
+    """Not INITIALISING: a heartbeat started by the master's 0x1017 write would be a boot-up (state 0)."""
+    channel = f"noise-{next(_CHANNELS)}"
+    bench = CanBench(CanBenchConfig(), can.Bus(interface="virtual", channel=channel))
+    listener = can.Bus(interface="virtual", channel=channel)
+    try:
+        nodes = (*(valve.node for valve in bench.valves), *bench.encoders)
+        assert [node.nmt.state for node in nodes] == ["PRE-OPERATIONAL"] * 4
+        nodes[0].sdo[0x1017].raw = 50  # the master's write of the producer time
+        message = listener.recv(5.0)
+        assert message is not None and message.arbitration_id == 0x700 + nodes[0].id
+        assert list(message.data) == [127]
+    finally:
+        listener.shutdown()
+        bench.close()
