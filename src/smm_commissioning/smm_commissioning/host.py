@@ -11,7 +11,7 @@ import secrets
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Final, TypeVar
+from typing import Any, Final, TypeVar, cast
 
 import numpy as np
 from smm_hw_bridge.bridge_config import BridgeConfig
@@ -34,10 +34,7 @@ __all__ = [
     "valve_units",
 ]
 
-if TYPE_CHECKING:
-    from _typeshed import DataclassInstance
-
-ConfigT = TypeVar("ConfigT", bound="DataclassInstance")
+ConfigT = TypeVar("ConfigT")
 FULL_SCALE: Final[dict[str, int]] = {"frame": CODE_MAX, "canopen": SPOOL_FULL_SCALE}
 """The valve output at 100 % per link: the frame board's D/A code, the CiA 408 spool setpoint (0x6300:01)."""
 
@@ -181,8 +178,11 @@ def in_link_units(codes: int, link: str) -> int:
 
 
 def in_units(config: ConfigT, link: str, names: tuple[str, ...]) -> ConfigT:
-    """``config`` with its code fields ``names`` (the frame board's D/A codes) in ``link``'s units."""
-    return dataclasses.replace(config, **{name: in_link_units(getattr(config, name), link) for name in names})
+    """Dataclass ``config`` with its code fields ``names`` (frame board D/A codes) in ``link``'s units."""
+    replaced: ConfigT = dataclasses.replace(
+        cast(Any, config), **{name: in_link_units(getattr(config, name), link) for name in names}
+    )
+    return replaced
 
 
 def valve_units(link: str) -> dict[str, list[float]]:
