@@ -19,7 +19,7 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
     ],
-    install_requires=["setuptools", "numpy"],
+    install_requires=["setuptools", "numpy", "python-can"],
     zip_safe=True,
     maintainer="SMM control stack maintainers",
     maintainer_email="smm-maintainers@example.org",

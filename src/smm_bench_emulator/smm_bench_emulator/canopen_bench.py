@@ -18,6 +18,7 @@ from typing import Final
 
 import can
 import canopen
+import numpy as np
 from smm_hw_bridge.cia408 import (
     CONTROL_WORD,
     POSITION,
@@ -71,6 +72,8 @@ class CanBenchConfig:
         valve_node_ids: Valve node ids (alpha, beta), in [1, 127].
         encoder_node_ids: Encoder node ids (alpha, beta), in [1, 127].
         bar_per_unit: Pressure actual 0x6381:01 (the joint's load pressure) per unit (bar), > 0.
+        pressure_noise: Standard deviation of each valve's pressure transducer noise on 0x6381:01 (bar),
+            >= 0, seeded by the board's seed (0: the load pressure exactly, to the unit).
         wait_active: The plant stands still until both valves are first ACTIVE (lockstep runs line up
             with the simulator's, whose step 0 is the controller's first answer).
         duration_syncs: Live SYNCs (the plant moving) after which :attr:`CanBench.done` is set (0: never).
@@ -80,6 +83,7 @@ class CanBenchConfig:
     valve_node_ids: tuple[int, int] = field(default=(1, 2), metadata=bounds(1, 127))
     encoder_node_ids: tuple[int, int] = field(default=(11, 12), metadata=bounds(1, 127))
     bar_per_unit: float = field(default=0.01, metadata=bounds(1e-9, 1e3))
+    pressure_noise: float = field(default=0.0, metadata=bounds(0.0, 1e3))
     wait_active: bool = False
     duration_syncs: int = field(default=0, metadata=bounds(0, 1 << 62))
 
@@ -200,6 +204,7 @@ class CanBench:
     def __init__(self, config: CanBenchConfig, bus: can.BusABC) -> None:
         self.config = config
         self.board = BoardCore(config.board)
+        self._noise = np.random.default_rng(config.board.seed)
         self.lock = threading.Lock()
         self.syncs = 0
         self.live_syncs = 0
@@ -233,6 +238,9 @@ class CanBench:
         self.network.subscribe(SYNC_ID, self._on_sync)
         for node in self._nodes():  # before listening: no SDO answered before the node's boot-up
             node.nmt.send_command(0x81)  # reset node: boot-up, then PRE-OPERATIONAL
+            # (CiA 301 enters it by itself; canopen's LocalNode stays INITIALISING, whose heartbeat, started
+            # by the master's 0x1017 write, would be a boot-up after the master's start)
+            node.nmt.send_command(0x80)
         self.network.connect()
         self._closing = threading.Event()
         self._watcher = threading.Thread(target=self._watch, name="can_bench_heartbeats", daemon=True)
@@ -293,8 +301,10 @@ class CanBench:
         self.syncs += 1
         if not all(node.nmt.state == "OPERATIONAL" for node in self._nodes()):
             return
-        load = board.valves.load_pressure()
-        for valve, bar in zip(self.valves, load, strict=True):
+        load = np.asarray(board.valves.load_pressure())
+        if self.config.pressure_noise > 0:
+            load = load + self._noise.normal(0.0, self.config.pressure_noise, len(self.valves))
+        for valve, bar in zip(self.valves, load.tolist(), strict=True):
             valve.transmit(bar / self.config.bar_per_unit)
         for encoder, count in zip(self.encoders, self.board.counts(), strict=True):
             encoder.tpdo[1][POSITION].raw = count

@@ -1,4 +1,7 @@
-"""``smm-commission STEP --out DIR (--bench-file FILE | --board ADDRESS:PORT)``: guided commissioning.
+"""``smm-commission STEP --out DIR [--link canopen --params-file F] (--bench-file FILE | --board B)``.
+
+Guided commissioning, on the frame link (``--board ADDRESS:PORT``) or the CANopen link (``--board
+external``), or on either's emulated bench in this process (``--bench-file``).
 
 The parsing layer: each subcommand's options, then :mod:`smm_commissioning.commands`. docs/COMMISSIONING.md.
 """
@@ -18,6 +21,7 @@ from smm_commissioning.commands import (
     tune_command,
     verify_command,
 )
+from smm_commissioning.link import EXTERNAL, LINKS
 from smm_commissioning.probe import parse_pose
 
 __all__ = ["main", "parser"]
@@ -32,10 +36,23 @@ def _pose(text: str) -> tuple[float, float]:
 
 def _common(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--out", type=Path, required=True, help="directory of the state, reports, parameters")
+    sub.add_argument(
+        "--link", choices=LINKS, default="frame", help="frame: the I/O board; canopen: CiA 408 / 406 nodes"
+    )
     bench = sub.add_mutually_exclusive_group(required=True)
-    bench.add_argument("--board", metavar="ADDRESS:PORT", help="the I/O board over UDP (frame protocol)")
+    bench.add_argument(
+        "--board",
+        metavar="ADDRESS:PORT",
+        help=f"the I/O board over UDP (frame protocol); with --link canopen '{EXTERNAL}': the real bus",
+    )
     bench.add_argument(
         "--bench-file", type=Path, help="the emulated bench of this description, in this process, in lockstep"
+    )
+    sub.add_argument(
+        "--params-file",
+        type=Path,
+        action="append",
+        help="--link canopen: the bridge's parameter file with its canopen.* (repeatable, later wins)",
     )
     sub.add_argument("--bind", default="127.0.0.1:50100", metavar="ADDRESS:PORT", help="UDP: this host's end")
     sub.add_argument("--timeout", type=float, default=1.0, help="no feedback for this long stops (s)")

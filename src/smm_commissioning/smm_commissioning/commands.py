@@ -1,6 +1,8 @@
 """The commands of ``smm-commission``: each takes the parsed arguments and returns an exit code.
 
-Every step leaves the bench disabled however it ends (done, failed, Ctrl-C) and says why on stderr.
+Codes are in the link's units (:data:`~smm_commissioning.host.FULL_SCALE`): the jog's and identify's steps
+are the frame link's scaled to it. Every step leaves the bench disabled however it ends (done, failed,
+Ctrl-C) and says why on stderr.
 """
 
 from __future__ import annotations
@@ -16,16 +18,13 @@ from typing import TextIO
 import numpy as np
 from smm_analysis.identify_command import MODEL_NODES, model_sections, render_identification
 from smm_analysis.parameters_file import write_parameters_file
-from smm_bench_emulator.bench_file import BenchFileError, load_bench_file
+from smm_bench_emulator.bench_file import BenchFileError
 from smm_hw_bridge.bridge_config import BridgeConfig
-from smm_hw_bridge.canopen_config import CanopenConfig
+from smm_hw_bridge.canopen_configure import ConfigureError
 from smm_hw_bridge.device import Device, DeviceError
-from smm_hw_bridge.frame_device import udp_device
-from smm_hw_bridge.transport import LinkConfig
 from smm_schema.fields import config_from_parameters
 
 from smm_commissioning.closed import LoopRecord
-from smm_commissioning.emulated import LockstepDevice
 from smm_commissioning.errors import (
     BenchFaultError,
     CommissioningError,
@@ -33,7 +32,7 @@ from smm_commissioning.errors import (
     MotionStopError,
     StepOrderError,
 )
-from smm_commissioning.host import BenchHost
+from smm_commissioning.host import BenchHost, in_units, valve_units
 from smm_commissioning.identify import (
     Edge,
     IdentifyConfig,
@@ -44,6 +43,7 @@ from smm_commissioning.identify import (
     write_bag,
 )
 from smm_commissioning.jog import JogConfig, JointJog, run_jog
+from smm_commissioning.link import open_bench
 from smm_commissioning.probe import ProbeConfig, ProbeResult, run_probe
 from smm_commissioning.report import (
     BRIDGE_NODE,
@@ -95,39 +95,6 @@ _RECHECK_TICKS = 200
 """Feedbacks a motion step reads disabled before it enables anything (a short probe)."""
 
 
-def parse_address(text: str) -> tuple[str, int]:
-    """``ADDRESS:PORT`` -> (address, port).
-
-    Raises:
-        ValueError: Not ADDRESS:PORT with a port in [0, 65535].
-    """
-    address, _, port = text.rpartition(":")
-    if not address or not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise ValueError(f"expected ADDRESS:PORT, got {text!r}")
-    return address, int(port)
-
-
-def open_bench(arguments: argparse.Namespace) -> Device:
-    """The bench the arguments name: the emulator in this process (``--bench-file``) or a board over UDP.
-
-    Raises:
-        BenchFileError: The bench file is invalid.
-        DeviceError: The link cannot be opened.
-        ValueError: A malformed address.
-    """
-    if arguments.bench_file is not None:
-        device: Device = LockstepDevice(load_bench_file(arguments.bench_file))
-    else:
-        board = parse_address(arguments.board)
-        bind = parse_address(arguments.bind)
-        link = LinkConfig(
-            bind_address=bind[0], bind_port=bind[1], board_address=board[0], board_port=board[1]
-        )
-        device = udp_device(link, CanopenConfig(), BridgeConfig())
-    device.open()
-    return device
-
-
 @contextmanager
 def _session(
     arguments: argparse.Namespace, err: TextIO, opener: Callable[[argparse.Namespace], Device]
@@ -137,9 +104,15 @@ def _session(
     host = BenchHost(device, timeout_s=arguments.timeout)
     try:
         yield host
+    except BaseException:
+        if device.faults:  # a CANopen bench's: each naming the node and the code
+            print(f"smm-commission: the link's faults: {'; '.join(device.faults)}", file=err)
+        raise
     finally:
-        host.make_safe()
+        untold = host.make_safe()
         device.close()
+        if untold is not None:
+            print(f"smm-commission: {untold}", file=err)
         if host.enabled_ever:
             print("smm-commission: the valves are disabled (the bench holds the joints)", file=err)
 
@@ -210,7 +183,7 @@ def _failed(out: Path, step: str, error: BaseException, err: TextIO) -> int:
     )
     (out / f"{step}.md").write_text(section, encoding="utf-8")
     write_report(out)
-    if isinstance(error, BenchFaultError):
+    if isinstance(error, (BenchFaultError, ConfigureError)):  # a CANopen node missing, of another type, ...
         return EXIT_FAULT
     if isinstance(error, MotionStopError):
         return EXIT_MOTION
@@ -277,7 +250,11 @@ def jog_command(
 ) -> int:
     """``smm-commission jog --confirm-motion``: the valves' and encoders' truths; 0 when it passed."""
     out: Path = arguments.out
-    config = JogConfig(window=arguments.window, velocity_limit=arguments.velocity_limit)
+    config = in_units(
+        JogConfig(window=arguments.window, velocity_limit=arguments.velocity_limit),
+        arguments.link,
+        ("search_step", "search_max", "stair_step"),
+    )
     found: list[tuple[JointJog, ...]] = []
     failed = _motion(
         arguments, "jog", lambda host: found.append(run_jog(host, config)), err=err, opener=opener
@@ -288,7 +265,7 @@ def jog_command(
     counts = (int(probe["counts_at_pose"][0]), int(probe["counts_at_pose"][1]))
     pose = (float(probe["pose"][0]), float(probe["pose"][1]))
     results = found[0]
-    parameters = bridge_parameters(results, counts, pose, config.encoder)
+    parameters = {**bridge_parameters(results, counts, pose, config.encoder), **valve_units(arguments.link)}
     write_parameters_file(
         out / "jog.yaml",
         {BRIDGE_NODE: parameters},
@@ -313,7 +290,11 @@ def identify_command(
     overlap's edges.
     """
     out: Path = arguments.out
-    config = IdentifyConfig(bootstrap=arguments.bootstrap, window=arguments.window)
+    config = in_units(
+        IdentifyConfig(bootstrap=arguments.bootstrap, window=arguments.window),
+        arguments.link,
+        ("edge_span", "edge_step"),
+    )
     jog = step_entry(out, "jog").get("parameters", {})
     lockstep = arguments.bench_file is not None
     records: list[LoopRecord] = []

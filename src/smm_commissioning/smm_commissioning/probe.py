@@ -1,7 +1,8 @@
 """``probe``: the bench read with the output disabled, nothing moving; its faults named (pure, over a host).
 
 Session and host lock, board faults, e-stop, supply, each encoder's counts and their noise, each load-pressure
-channel; the raw counts at the pose the operator confirms (the joint zero). docs/COMMISSIONING.md, "probe".
+channel; the raw counts at the pose the operator confirms (the joint zero); on CANopen the nodes, their
+states and faults (:mod:`smm_commissioning.probe_canopen`). docs/COMMISSIONING.md, "probe".
 """
 
 from __future__ import annotations
@@ -10,12 +11,15 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from smm_hw_bridge.canopen_device import CanopenDevice
+from smm_hw_bridge.device import Feedback
 from smm_hw_bridge.encoder import EncoderConfig
 from smm_hw_bridge.pressure import PressureConfig
 from smm_hw_bridge.protocol import ADC_MAX, FaultBit, StatusBit
 from smm_schema.ranges import above, at_least, bounds, check_bounds, no_range
 
 from smm_commissioning.host import BenchHost
+from smm_commissioning.probe_canopen import HeartbeatWatch, NodeReading, canopen_findings, pressure_actuals
 
 __all__ = ["JOINTS", "ProbeConfig", "ProbeResult", "parse_pose", "run_probe", "signed_counts", "zero_offset"]
 
@@ -85,6 +89,8 @@ class ProbeResult:
         findings: One sentence per fault found; empty when the bench passed.
         notes: What could not be checked, and why.
         enabled: True if any enabled command was sent (never, by construction; reported as a check).
+        link: ``frame`` or ``canopen``.
+        nodes: Each CANopen node as read (none on the frame link).
     """
 
     ticks: int
@@ -101,6 +107,8 @@ class ProbeResult:
     findings: tuple[str, ...]
     notes: tuple[str, ...]
     enabled: bool
+    link: str = "frame"
+    nodes: tuple[NodeReading, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -118,9 +126,13 @@ def signed_counts(raw: np.ndarray, reference: int, bits: int) -> np.ndarray:
 def run_probe(host: BenchHost, config: ProbeConfig) -> ProbeResult:
     """Reads the bench for ``config.ticks`` feedbacks with the output disabled and checks what it read.
 
+    On the CANopen link the bus's own checks too (:func:`~smm_commissioning.probe_canopen.canopen_findings`).
+
     Raises:
         LinkLostError: No feedback, or the board restarted.
     """
+    master = host.device if isinstance(host.device, CanopenDevice) else None
+    watch = HeartbeatWatch(master) if master is not None else None
     first = host.next()
     findings: list[str] = []
     notes: list[str] = []
@@ -129,32 +141,40 @@ def run_probe(host: BenchHost, config: ProbeConfig) -> ProbeResult:
             f"another host holds the board (host session {first.host_session:#010x}): stop the bridge or "
             "the other tool that drives it, then probe again"
         )
-    frames = host.hold(config.ticks)
+    frames: list[Feedback] = []
+    pressures: list[tuple[int, ...]] = []
+    for _ in range(config.ticks):
+        frames.append(host.answer(None))
+        if master is not None:
+            pressures.append(pressure_actuals(master))
     counts = np.array([frame.counts for frame in frames], dtype=np.int64)
     adc = np.array([frame.adc for frame in frames], dtype=np.int64)
     faults = 0
     for frame in frames:
         faults |= frame.faults
     status = frames[-1].status
-    for bit, words in _FAULT_WORDS.items():
-        if faults & bit:
-            findings.append(words)
-    unknown = faults & ~sum(int(bit) for bit in _FAULT_WORDS)
-    if unknown:
-        findings.append(
-            f"the board reports fault bits {unknown:#06x} this tool does not know: see its manual"
-        )
+    nodes: tuple[NodeReading, ...] = ()
+    if master is None:
+        findings += _fault_words(faults)
     if any(frame.status & StatusBit.ESTOP_LATCHED for frame in frames):
         findings.append("the e-stop is latched: release it and re-arm the board before the next step")
-
     supply_codes = adc[:, 0].astype(np.float64)
     supply = float(np.mean(supply_codes)) * config.supply_bar_per_code
     supply_std = float(np.std(supply_codes))
-    if supply < config.supply_min:
-        findings.append(
-            f"supply pressure {supply:.2f} bar, below the {config.supply_min:g} bar the steps need: "
-            "start the pump, open the supply valve, check the supply transducer on A/D channel 0"
+    if master is None:
+        if supply < config.supply_min:
+            findings.append(
+                f"supply pressure {supply:.2f} bar, below the {config.supply_min:g} bar the steps need: "
+                "start the pump, open the supply valve, check the supply transducer on A/D channel 0"
+            )
+    elif watch is not None:
+        watch.await_all(host)
+        supply, supply_std = master.config.supply_bar, 0.0
+        found, more, nodes = canopen_findings(
+            master, watch, np.array(pressures, dtype=np.int64).reshape(-1, 2), config.supply_min
         )
+        findings += found
+        notes += more
 
     bits = config.encoder.counter_bits
     relative = np.stack([signed_counts(counts[:, j], int(counts[0, j]), bits) for j in range(2)], axis=1)
@@ -163,11 +183,12 @@ def run_probe(host: BenchHost, config: ProbeConfig) -> ProbeResult:
     quantum = config.encoder.quantum
     for j, name in enumerate(JOINTS):
         other = 1 - j
+        where = "the counter input on the board" if master is None else f"{_encoder_name(master, j)}'s node"
         if span[j] == 0 and span[other] > 0:
             findings.append(
                 f"encoder {name} does not count: its counter stayed at {int(counts[0, j])} for {len(frames)} "
                 f"ticks while {JOINTS[other]}'s moved over {span[other]} counts; check its cable, its supply "
-                "and the counter input on the board"
+                f"and {where}"
             )
         moved = span[j] * float(quantum[j])
         if moved > config.rest_motion_max:
@@ -189,25 +210,17 @@ def run_probe(host: BenchHost, config: ProbeConfig) -> ProbeResult:
         load_std.append(spread)
         torque = (float(np.mean(channel)) - config.pressure.zero_code[j]) * config.pressure.torque_per_code[j]
         rest_torque.append(torque)
-        if int(channel.min()) <= 0 or int(channel.max()) >= ADC_MAX:
-            findings.append(
-                f"load-pressure channel {1 + j} ({name}) reads its rail "
-                f"({int(channel.min())}..{int(channel.max())}): the transducer is unplugged or shorted; "
-                "check its cable and supply"
-            )
-        elif spread < config.stuck_spread <= supply_std:
-            findings.append(
-                f"load-pressure channel {1 + j} ({name}) is stuck at {int(channel[0])} (no noise over "
-                f"{len(frames)} ticks while the supply channel varies by {supply_std:.2f} codes): check the "
-                "transducer and its A/D input"
-            )
-        elif abs(torque) > config.rest_torque_max:
+        problem = None if master is not None else _channel_problem(channel, j, spread, supply_std, config)
+        if problem is not None:  # on CANopen the A/D carries 0x6381:01, checked as the valves sent it
+            findings.append(problem)
+            continue
+        if abs(torque) > config.rest_torque_max:
             findings.append(
                 f"load pressure of {name} reads {torque:.2f} N m with the valves disabled and nothing moving "
                 f"(at most {config.rest_torque_max:g}): check the transducer's zero "
                 "(bridge.pressure.zero_code)"
             )
-    if supply_std < config.stuck_spread:
+    if master is None and supply_std < config.stuck_spread:
         notes.append("the A/D shows no noise: a stuck load-pressure channel cannot be told from a quiet one")
     last = frames[-1].counts
     return ProbeResult(
@@ -225,7 +238,44 @@ def run_probe(host: BenchHost, config: ProbeConfig) -> ProbeResult:
         findings=tuple(findings),
         notes=tuple(notes),
         enabled=host.enabled_ever,
+        link="frame" if master is None else "canopen",
+        nodes=nodes,
     )
+
+
+def _fault_words(faults: int) -> list[str]:
+    """The frame board's fault bits in words."""
+    findings = [words for bit, words in _FAULT_WORDS.items() if faults & bit]
+    unknown = faults & ~sum(int(bit) for bit in _FAULT_WORDS)
+    if unknown:
+        findings.append(
+            f"the board reports fault bits {unknown:#06x} this tool does not know: see its manual"
+        )
+    return findings
+
+
+def _channel_problem(
+    channel: np.ndarray, j: int, spread: float, supply_std: float, config: ProbeConfig
+) -> str | None:
+    """A frame board's load-pressure A/D channel at its rail, or stuck while the supply channel varies."""
+    name = JOINTS[j]
+    if int(channel.min()) <= 0 or int(channel.max()) >= ADC_MAX:
+        return (
+            f"load-pressure channel {1 + j} ({name}) reads its rail "
+            f"({int(channel.min())}..{int(channel.max())}): the transducer is unplugged or shorted; "
+            "check its cable and supply"
+        )
+    if spread < config.stuck_spread <= supply_std:
+        return (
+            f"load-pressure channel {1 + j} ({name}) is stuck at {int(channel[0])} (no noise over "
+            f"{len(channel)} ticks while the supply channel varies by {supply_std:.2f} codes): check the "
+            "transducer and its A/D input"
+        )
+    return None
+
+
+def _encoder_name(master: CanopenDevice, joint: int) -> str:
+    return next(node.name for node in master.nodes if node.kind == "encoder" and node.joint == joint)
 
 
 def zero_offset(counts: int, pose: float, direction: int, encoder: EncoderConfig, joint: int) -> int:

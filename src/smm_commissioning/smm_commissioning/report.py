@@ -34,6 +34,9 @@ DEADBAND_BLEND = 5.0
 def probe_markdown(result: ProbeResult, config: ProbeConfig) -> str:
     """The probe's section: what it read, what it checked, what is wrong."""
     verdict = "passed" if result.passed else "FAILED"
+    canopen = result.link == "canopen"
+    supply = "supply (bar, stated: canopen.supply_bar)" if canopen else "supply (bar)"
+    stuck = "0x6381:01 below" if canopen else f"> {config.stuck_spread:g} when the supply's is"
     lines = [
         f"## probe: {verdict}",
         "",
@@ -43,7 +46,7 @@ def probe_markdown(result: ProbeResult, config: ProbeConfig) -> str:
         "",
         "| reading | alpha | beta | check |",
         "|---|---|---|---|",
-        f"| supply (bar) | {result.supply_bar:.2f} | | >= {config.supply_min:g} |",
+        f"| {supply} | {result.supply_bar:.2f} | | >= {config.supply_min:g} |",
         f"| counts at the pose | {result.counts_at_pose[0]} | {result.counts_at_pose[1]} | |",
         f"| count span at rest (counts) | {result.counts_span[0]} | {result.counts_span[1]} | "
         f"<= {config.rest_motion_max:g} rad |",
@@ -51,10 +54,26 @@ def probe_markdown(result: ProbeResult, config: ProbeConfig) -> str:
         f"| load torque at rest (N m) | {result.rest_torque[0]:+.3f} | {result.rest_torque[1]:+.3f} | "
         f"abs <= {config.rest_torque_max:g} |",
         f"| load channel noise (std, codes) | {result.load_std[0]:.2f} | {result.load_std[1]:.2f} | "
-        f"> {config.stuck_spread:g} when the supply's is |",
+        f"{stuck} |",
         f"| faults / status bits | {result.faults:#06x} | {result.status:#06x} | faults 0 |",
         "",
     ]
+    if result.nodes:
+        lines += [
+            "| CANopen node | device type 0x1000 | NMT state | device state | pressure actual 0x6381:01 "
+            "mean / std / span (units) |",
+            "|---|---|---|---|---|",
+        ]
+        for node in result.nodes:
+            pressure = ""
+            if node.pressure is not None:
+                mean, spread, span = node.pressure
+                pressure = f"{mean:.1f} / {spread:.2f} / {span}"
+            lines.append(
+                f"| {node.name} | 0x{node.device_type:08X} (CiA {node.device_type & 0xFFFF}) | {node.nmt} | "
+                f"{node.state or '-'} | {pressure} |"
+            )
+        lines.append("")
     if result.findings:
         lines += ["What is wrong:", ""] + [f"- {finding}" for finding in result.findings] + [""]
     if result.notes:

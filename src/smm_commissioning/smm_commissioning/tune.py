@@ -22,7 +22,6 @@ from smm_analysis.sweep.results import SweepResult, analyse
 from smm_analysis.sweep.spec import SweepSpec, parse_spec
 from smm_controller.fpdeso import FPDESOConfig
 from smm_hw_bridge.bridge_config import BridgeConfig
-from smm_hw_bridge.protocol import CODE_MAX
 from smm_schema.ranges import above, bounds, check_bounds
 
 from smm_commissioning.errors import CommissioningError
@@ -101,7 +100,7 @@ def plant_values(
     limit, quantum = [], []
     for j in range(2):
         negative = valve.gain_negative[j] or valve.gain[j]
-        room = CODE_MAX - abs(valve.null_bias[j]) - valve.deadband[j]
+        room = valve.code_limit[j] - abs(valve.null_bias[j]) - valve.deadband[j]  # the link's full scale
         limit.append(min(room / valve.gain[j], room / negative))
         quantum.append(1.0 / max(valve.gain[j], negative))
     values: dict[str, Any] = {f"params.{name}": float(getattr(params, name)) for name in _MODEL}
