@@ -123,7 +123,9 @@ def bridge_parameters(
     }
 
 
-def identify_markdown(result: IdentifyResult, jog: BridgeConfig, refined: dict[str, list[float]]) -> str:
+def identify_markdown(
+    result: IdentifyResult, jog: BridgeConfig, refined: dict[str, list[float] | float]
+) -> str:
     """The identify section: the model with its intervals, the valve's gain, the overlap's edges."""
     ident = result.identification
     lines = [
@@ -180,7 +182,11 @@ def identify_markdown(result: IdentifyResult, jog: BridgeConfig, refined: dict[s
         "|---|---|---|",
     ]
     valve = jog.valve
-    before = {"bridge.valve.null_bias": list(valve.null_bias), "bridge.valve.deadband": list(valve.deadband)}
+    before = {
+        "bridge.valve.null_bias": list(valve.null_bias),
+        "bridge.valve.deadband": list(valve.deadband),
+        "bridge.valve.deadband_blend": valve.deadband_blend,
+    }
     for name, values in refined.items():
         lines.append(f"| {name} | {_pair(before[name])} | {_pair(values)} |")
     if result.warnings:
