@@ -26,6 +26,7 @@ from smm_bringup.graph_options import GraphOptions
 from smm_commissioning.commands import EXIT_NOT_READY
 from smm_commissioning.emulated import LockstepDevice
 from smm_commissioning.host import BenchHost
+from smm_commissioning.identify import OPEN_MARGIN
 from smm_commissioning.steps import COMMISSIONED, passed_steps
 from smm_commissioning.verify import VerifyConfig, run_verify, settings_of
 from smm_hw_bridge.protocol import CODE_MAX
@@ -106,7 +107,8 @@ def test_the_valves_and_encoders_are_found_within_the_tolerances(commissioned: C
     for j in range(2):
         assert found["bridge.encoder.direction"][j] == bench.direction[j]
         assert found["bridge.valve.polarity"][j] == bench.valve_polarity[j]
-        assert abs(found["bridge.valve.deadband"][j] / bench.valve_deadband[j] - 1.0) < 0.15
+        overlap = found["bridge.valve.deadband"][j] - OPEN_MARGIN  # the edges' half distance
+        assert abs(overlap / bench.valve_deadband[j] - 1.0) < 0.15
         assert abs(found["bridge.valve.null_bias"][j] - bench.valve_null_bias[j]) < 50.0
         nominal = CODE_MAX / bench.full_scale_torque[j]
         assert abs(nominal / found["bridge.valve.gain"][j] / bench.valve_gain_positive[j] - 1.0) < 0.05
@@ -126,7 +128,7 @@ def test_identify_finds_the_overlap_to_the_codes_the_loop_needs(commissioned: Co
             f"{abs(jog['bridge.valve.null_bias'][j] - bench.valve_null_bias[j]):.2f})"
         )
         assert error < 2.0
-        assert abs(found["bridge.valve.deadband"][j] - bench.valve_deadband[j]) < 2.0
+        assert abs(found["bridge.valve.deadband"][j] - OPEN_MARGIN - bench.valve_deadband[j]) < 2.0
 
 
 def test_the_model_is_found_within_the_tolerances(commissioned: Commissioned) -> None:

@@ -9,7 +9,7 @@ from smm_analysis.identification import PARAMETER_NAMES
 from smm_hw_bridge.bridge_config import BridgeConfig
 from smm_hw_bridge.encoder import EncoderConfig
 
-from smm_commissioning.identify import IdentifyResult
+from smm_commissioning.identify import LOOP_BLEND, OPEN_MARGIN, IdentifyResult
 from smm_commissioning.jog import JogConfig, JointJog
 from smm_commissioning.probe import JOINTS, ProbeConfig, ProbeResult, zero_offset
 from smm_commissioning.tune import TuneConfig, TuneResult
@@ -176,7 +176,8 @@ def identify_markdown(
         )
     lines += [
         "",
-        "The valves' parameters, jog's and identify's:",
+        "The valves' parameters, jog's and identify's (identify's deadband: the edges' half distance plus "
+        f"{OPEN_MARGIN:g} codes, blend {LOOP_BLEND:g} codes: the code jumps over the overlap; docs):",
         "",
         "| parameter | jog | identify |",
         "|---|---|---|",
