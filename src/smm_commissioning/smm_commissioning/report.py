@@ -183,7 +183,7 @@ def identify_markdown(
         "|---|---|---|",
     ]
     valve = jog.valve
-    before = {
+    before: dict[str, list[float] | float] = {
         "bridge.valve.null_bias": list(valve.null_bias),
         "bridge.valve.deadband": list(valve.deadband),
         "bridge.valve.deadband_blend": valve.deadband_blend,
