@@ -36,8 +36,9 @@ from smm_commissioning import cli
 
 SEEDS = [2, 7]
 """Drawn benches: beta's valve reversed on both, alpha's encoder counting down on 2, beta's on 7
-(tests/drawn_benches.py); the two benches whose verify missed 1.2x of the truths with a blend of 5 codes
-(beta 1.28x and 1.29x, docs/COMMISSIONING.md), 7 the one whose null bias identify finds the least well."""
+(tests/drawn_benches.py); verify missed 1.2x of the truths on both with jog's blend of 5 codes (beta 1.28x on
+2 at an earlier commit, on 7 at 7e00376; docs/COMMISSIONING.md), and 7's null bias is the one identify finds
+the least well (1.42 codes)."""
 STEPS = ("probe", "jog", "identify", "tune", "verify")
 
 
