@@ -13,6 +13,7 @@ import yaml
 from smm_bench_emulator.bench_file import bench_from_document, default_bench
 from smm_bench_emulator.board import BoardConfig
 from smm_commissioning.emulated import LockstepDevice
+from smm_commissioning.identify import LOOP_BLEND, OPEN_MARGIN
 from smm_hw_bridge.core import BridgeConfig
 from smm_hw_bridge.device import Reading
 from smm_hw_bridge.protocol import CODE_MAX, FeedbackFrame
@@ -100,17 +101,17 @@ class FaultyDevice(LockstepDevice):
 
 
 def truth_parameters(bench: BoardConfig) -> dict[str, object]:
-    """The bridge parameters that carry the bench's own truths."""
+    """The bridge parameters that carry the bench's own truths, with identify's compensation settings."""
     nominal = [CODE_MAX / bench.full_scale_torque[j] for j in range(2)]
     return {
         "bridge.encoder.direction": list(bench.direction),
         "bridge.encoder.zero_offset": list(bench.zero_offset),
         "bridge.valve.polarity": list(bench.valve_polarity),
         "bridge.valve.null_bias": list(bench.valve_null_bias),
-        "bridge.valve.deadband": list(bench.valve_deadband),
+        "bridge.valve.deadband": [d + OPEN_MARGIN for d in bench.valve_deadband],
         "bridge.valve.gain": [nominal[j] / bench.valve_gain_positive[j] for j in range(2)],
         "bridge.valve.gain_negative": [nominal[j] / bench.valve_gain_negative[j] for j in range(2)],
-        "bridge.valve.deadband_blend": 5.0,
+        "bridge.valve.deadband_blend": LOOP_BLEND,
     }
 
 

@@ -26,6 +26,7 @@ from smm_bringup.graph_options import GraphOptions
 from smm_commissioning.commands import EXIT_NOT_READY
 from smm_commissioning.emulated import LockstepDevice
 from smm_commissioning.host import BenchHost
+from smm_commissioning.identify import OPEN_MARGIN
 from smm_commissioning.steps import COMMISSIONED, passed_steps
 from smm_commissioning.verify import VerifyConfig, run_verify, settings_of
 from smm_hw_bridge.protocol import CODE_MAX
@@ -33,9 +34,11 @@ from smm_node_runtime.parameter_files import ParameterFileError, load_parameter_
 
 from smm_commissioning import cli
 
-SEEDS = [0, 3]
-"""Drawn benches: beta's valve reversed on 3, alpha's encoder counting down on 3 (tests/drawn_benches.py);
-the two benches whose case 1 on jog's parameters alone was 1.20x and 1.52x of the truths."""
+SEEDS = [2, 7]
+"""Drawn benches: beta's valve reversed on both, alpha's encoder counting down on 2, beta's on 7
+(tests/drawn_benches.py); verify missed 1.2x of the truths on both with jog's blend of 5 codes (beta 1.28x on
+2 at an earlier commit, on 7 at 7e00376; docs/COMMISSIONING.md), and 7's null bias is the one identify finds
+the least well (1.42 codes)."""
 STEPS = ("probe", "jog", "identify", "tune", "verify")
 
 
@@ -105,7 +108,8 @@ def test_the_valves_and_encoders_are_found_within_the_tolerances(commissioned: C
     for j in range(2):
         assert found["bridge.encoder.direction"][j] == bench.direction[j]
         assert found["bridge.valve.polarity"][j] == bench.valve_polarity[j]
-        assert abs(found["bridge.valve.deadband"][j] / bench.valve_deadband[j] - 1.0) < 0.15
+        overlap = found["bridge.valve.deadband"][j] - OPEN_MARGIN  # the edges' half distance
+        assert abs(overlap / bench.valve_deadband[j] - 1.0) < 0.15
         assert abs(found["bridge.valve.null_bias"][j] - bench.valve_null_bias[j]) < 50.0
         nominal = CODE_MAX / bench.full_scale_torque[j]
         assert abs(nominal / found["bridge.valve.gain"][j] / bench.valve_gain_positive[j] - 1.0) < 0.05
@@ -125,7 +129,7 @@ def test_identify_finds_the_overlap_to_the_codes_the_loop_needs(commissioned: Co
             f"{abs(jog['bridge.valve.null_bias'][j] - bench.valve_null_bias[j]):.2f})"
         )
         assert error < 2.0
-        assert abs(found["bridge.valve.deadband"][j] - bench.valve_deadband[j]) < 2.0
+        assert abs(found["bridge.valve.deadband"][j] - OPEN_MARGIN - bench.valve_deadband[j]) < 2.0
 
 
 def test_the_model_is_found_within_the_tolerances(commissioned: Commissioned) -> None:
@@ -144,7 +148,8 @@ def test_no_joint_reaches_its_stop_in_any_step(commissioned: Commissioned) -> No
 
 
 def test_verify_tracks_case1_within_1_2x_of_the_same_run_on_the_truths(commissioned: Commissioned) -> None:
-    """The same chosen gains; the bridge's truths and the plant's own model against the commissioned ones."""
+    """The same chosen gains and compensation settings; the bridge's truths and the plant's own model against
+    the commissioned ones."""
     bench, state = commissioned.bench, commissioned.state
     config = VerifyConfig()
     settings = settings_of(state["tune"], config)
@@ -164,7 +169,7 @@ def test_verify_tracks_case1_within_1_2x_of_the_same_run_on_the_truths(commissio
 def test_case1_on_identifys_bridge_parameters_tracks_as_on_the_benchs_truths(
     commissioned: Commissioned,
 ) -> None:
-    """jog's parameters alone gave 1.20x (seed 0) and 1.52x (seed 3) here: identify's null holds it."""
+    """FPDESO on the nominal model: the bridge's parameters found against the truths, the same blend."""
     bench = commissioned.bench
     found = commissioned.state["identify"]["parameters"]
     commissioned_errors, peak = case1(bench, bridge_of(found))
@@ -173,6 +178,21 @@ def test_case1_on_identifys_bridge_parameters_tracks_as_on_the_benchs_truths(
     print(f"seed {commissioned.seed}: case-1 RMS on identify's parameters / on the truths = {ratio}")
     assert np.all(ratio < 1.2), ratio
     assert peak < bench.plant.joint_limits[0]
+
+
+def test_case1_does_not_move_with_two_codes_of_null_bias_either_way() -> None:
+    """identify's blend jumps the code over the overlap, so the spool is not held inside it while the torque
+    passes through zero at speed: a null bias 2 codes off either way (identify's worst: 1.4) moves case 1's
+    RMS by under 2 %. With the blend of 5 codes, +2 codes gave 0.71x on beta here (a lock spell less)."""
+    bench = draw_bench(3)
+    truths = truth_parameters(bench)
+    base = rms(case1(bench, bridge_of(truths))[0][SETTLED:])
+    for shift in (-2.0, 2.0):
+        null = [float(b) + shift for b in bench.valve_null_bias]
+        errors, _ = case1(bench, bridge_of({**truths, "bridge.valve.null_bias": null}))
+        ratio = rms(errors[SETTLED:]) / base
+        print(f"null bias {shift:+g} codes: case-1 RMS / the truths' = {ratio}")
+        assert np.all(np.abs(ratio - 1.0) < 0.02), (shift, ratio)
 
 
 def test_commissioned_yaml_passes_the_checks_of_smm_launch_and_of_the_nodes(

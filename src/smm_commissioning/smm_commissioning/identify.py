@@ -38,13 +38,30 @@ from smm_commissioning.jog import JogConfig, PulseRun
 from smm_commissioning.probe import JOINTS, signed_counts
 from smm_dynamics import SMMParameters, gravity_vector, mass_matrix
 
-__all__ = ["Edge", "IdentifyConfig", "IdentifyResult", "excite", "find_edges", "fit_bag", "pulse_torque"]
+__all__ = [
+    "LOOP_BLEND",
+    "OPEN_MARGIN",
+    "Edge",
+    "IdentifyConfig",
+    "IdentifyResult",
+    "excite",
+    "find_edges",
+    "fit_bag",
+    "pulse_torque",
+]
 
 FloatArray = NDArray[np.float64]
 _MOVED = 5
 """Counts the mean of a pulse's last 30 positions must lie from the mean of its first 30 for the pulse to
 have moved its joint: six standard deviations of the encoder's rest noise (3 counts) in that difference."""
 _ENDS = 30
+LOOP_BLEND = 0.01
+"""``bridge.valve.deadband_blend`` once the edges are known to a code (codes): a demand's code jumps over the
+overlap, so the spool is not held inside it while the torque passes through zero at speed (docs/
+COMMISSIONING.md, "Why the null bias, and how fine")."""
+OPEN_MARGIN = 2.0
+"""Codes ``bridge.valve.deadband`` puts past each edge found, so that an edge found a code or so short still
+opens the valve for a demand near zero (same section)."""
 
 
 @dataclass(frozen=True)
@@ -134,12 +151,14 @@ class IdentifyResult:
     record: LoopRecord
     warnings: tuple[str, ...]
 
-    def valve(self) -> dict[str, list[float]]:
-        """``bridge.valve.null_bias`` and ``deadband`` from the edges (jog's gains stay: docs)."""
+    def valve(self) -> dict[str, list[float] | float]:
+        """``bridge.valve.null_bias`` and ``deadband`` (+ the margin) of the edges, ``deadband_blend``."""
         edges = {(e.joint, e.side): e.edge for e in self.edges}
+        half = [(edges[j, 1] - edges[j, -1]) / 2.0 for j in range(2)]
         return {
             "bridge.valve.null_bias": [round((edges[j, 1] + edges[j, -1]) / 2.0, 2) for j in range(2)],
-            "bridge.valve.deadband": [round((edges[j, 1] - edges[j, -1]) / 2.0, 2) for j in range(2)],
+            "bridge.valve.deadband": [round(half[j] + OPEN_MARGIN, 2) for j in range(2)],
+            "bridge.valve.deadband_blend": LOOP_BLEND,
         }
 
 

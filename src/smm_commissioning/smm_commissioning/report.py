@@ -9,7 +9,7 @@ from smm_analysis.identification import PARAMETER_NAMES
 from smm_hw_bridge.bridge_config import BridgeConfig
 from smm_hw_bridge.encoder import EncoderConfig
 
-from smm_commissioning.identify import IdentifyResult
+from smm_commissioning.identify import LOOP_BLEND, OPEN_MARGIN, IdentifyResult
 from smm_commissioning.jog import JogConfig, JointJog
 from smm_commissioning.probe import JOINTS, ProbeConfig, ProbeResult, zero_offset
 from smm_commissioning.tune import TuneConfig, TuneResult
@@ -142,7 +142,9 @@ def bridge_parameters(
     }
 
 
-def identify_markdown(result: IdentifyResult, jog: BridgeConfig, refined: dict[str, list[float]]) -> str:
+def identify_markdown(
+    result: IdentifyResult, jog: BridgeConfig, refined: dict[str, list[float] | float]
+) -> str:
     """The identify section: the model with its intervals, the valve's gain, the overlap's edges."""
     ident = result.identification
     lines = [
@@ -193,13 +195,18 @@ def identify_markdown(result: IdentifyResult, jog: BridgeConfig, refined: dict[s
         )
     lines += [
         "",
-        "The valves' parameters, jog's and identify's:",
+        "The valves' parameters, jog's and identify's (identify's deadband: the edges' half distance plus "
+        f"{OPEN_MARGIN:g} codes, blend {LOOP_BLEND:g} codes: the code jumps over the overlap; docs):",
         "",
         "| parameter | jog | identify |",
         "|---|---|---|",
     ]
     valve = jog.valve
-    before = {"bridge.valve.null_bias": list(valve.null_bias), "bridge.valve.deadband": list(valve.deadband)}
+    before: dict[str, list[float] | float] = {
+        "bridge.valve.null_bias": list(valve.null_bias),
+        "bridge.valve.deadband": list(valve.deadband),
+        "bridge.valve.deadband_blend": valve.deadband_blend,
+    }
     for name, values in refined.items():
         lines.append(f"| {name} | {_pair(before[name])} | {_pair(values)} |")
     if result.warnings:
