@@ -269,8 +269,8 @@ def verify_markdown(verdict: Verdict, config: VerifyConfig) -> str:
     if verdict.ready:
         lines.append(
             f"Ready: both joints within {config.ready_factor:g}x of the model. `commissioned.yaml` holds "
-            "every parameter: `smm-launch --plant hardware --board ADDRESS:PORT --params-file "
-            "DIR/commissioned.yaml`."
+            "every parameter: `smm-launch --plant hardware --params-file DIR/commissioned.yaml` with the "
+            "link's options (`--board ADDRESS:PORT`; CANopen: `--link canopen --board external`)."
         )
     else:
         lines.append(
