@@ -19,26 +19,22 @@ import numpy as np
 from smm_analysis.closed_loop import run_closed_loop
 from smm_analysis.errors import ClosedLoopDivergedError
 from smm_analysis.metrics import control_energy, rms_error
-from smm_bringup.graph import control_rate_settings
+from smm_bringup.graph import control_rate_configs
 from smm_hw_bridge.control_rate import BOARD_TICK_HZ, CONTROL_RATES_HZ, control_divider
 
-from smm_controller import TrackingDifferentiatorConfig
+from smm_controller import FPDESOController, TrackingDifferentiatorConfig
+from smm_dynamics import SMMParameters
 
 SCENARIOS = ("case1", "case2")
-
-
-def rate_td(rate: int) -> TrackingDifferentiatorConfig:
-    """The TD settings ``smm-launch --control-rate rate`` gives ``controller_node`` (its rate file's)."""
-    filter_factor = control_rate_settings(rate).get("td.filter_factor")
-    if filter_factor is None:
-        return TrackingDifferentiatorConfig()
-    return TrackingDifferentiatorConfig(filter_factor=(float(filter_factor[0]), float(filter_factor[1])))
 
 
 def measure(
     scenario: str, rate: int, td: TrackingDifferentiatorConfig
 ) -> tuple[np.ndarray, np.ndarray] | None:
-    """(RMS alpha, beta (rad), eps_u alpha, beta) of FPDESO on ``scenario`` at ``rate``; None: diverged."""
+    """(RMS alpha, beta (rad), eps_u alpha, beta) of FPDESO on ``scenario`` at ``rate``; None: diverged.
+
+    FPDESO's gains are those of ``rate``'s file (smm_bringup.graph.control_rate_configs), the TD ``td``.
+    """
     divider = control_divider(rate)
     try:
         run = run_closed_loop(
@@ -47,6 +43,7 @@ def measure(
             control_period=divider / BOARD_TICK_HZ,
             substeps=divider,
             td_config=td,
+            controller=FPDESOController(control_rate_configs(rate)[1], SMMParameters()),
             record_internals=False,
         )
     except ClosedLoopDivergedError:
@@ -63,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweep", action="store_true", help="also h = 2 dt at each rate below 1 kHz")
     arguments = parser.parse_args(argv)
     runs: list[tuple[int, str, TrackingDifferentiatorConfig]] = [
-        (rate, "settings file" if rate != BOARD_TICK_HZ else "defaults", rate_td(rate))
+        (rate, "settings file" if rate != BOARD_TICK_HZ else "defaults", control_rate_configs(rate)[0])
         for rate in CONTROL_RATES_HZ
     ]
     if arguments.sweep:

@@ -1,4 +1,9 @@
-"""Case 1 (5 s) closed in one process: bridge core + board core in lockstep with the FPDESO chain."""
+"""Case 1 (5 s) closed in one process: bridge core + board core in lockstep with the FPDESO chain.
+
+At ``bridge.control_divider`` N > 1 the chain steps every N board ticks with dt = N ms and the settings of
+that rate's file (smm_bringup.graph.control_rate_configs); the board holds the command in between, as the
+emulator in lockstep.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +12,9 @@ from pathlib import Path
 
 import numpy as np
 from smm_bench_emulator.board import BoardConfig, BoardCore
-from smm_controller.chain import make_chain
+from smm_bringup.graph import control_rate_configs
+from smm_controller.chain import build_chain
+from smm_controller.fpdeso import FPDESOController
 from smm_controller.reference import SineReference
 from smm_hw_bridge.core import BridgeConfig, BridgeCore, BridgeState
 from smm_hw_bridge.protocol import encode
@@ -30,7 +37,11 @@ def bridge_config(path: Path | None) -> BridgeConfig:
 
 
 def case1(board_config: BoardConfig, bridge_config: BridgeConfig) -> tuple[np.ndarray, float]:
-    """Tracking errors of 5 s of case 1 (rad, shape (5000, 2)) and the largest |q| reached (rad)."""
+    """Tracking errors of 5 s of case 1 at every board tick (rad, shape (5000, 2)) and the largest |q| (rad).
+
+    Raises:
+        AssertionError: The bridge left ARMED or called a safety stop (its reason).
+    """
     board, bridge = BoardCore(board_config), BridgeCore(bridge_config, host_session=0x3333)
     now = 0
 
@@ -51,15 +62,21 @@ def case1(board_config: BoardConfig, bridge_config: BridgeConfig) -> tuple[np.nd
     bridge.arm()
     send()
     deliver()
-    chain, reference = make_chain("fpdeso", SMMParameters()), SineReference()
+    divider = bridge_config.control_divider
+    dt = divider * 1e-3
+    td, law = control_rate_configs(1000 // divider)
+    chain = build_chain("fpdeso", SMMParameters(), law=FPDESOController(law, SMMParameters()), td=td)
+    reference = SineReference()
     errors, peak = [], 0.0
     for step in range(5000):
-        torque = chain.step(bridge.position, bridge.applied_torque, reference.rows(step * 1e-3), 1e-3)
-        assert bridge.on_command(torque, bridge.stamp_ns, now) is None
-        send()
-        assert board.answered_enabled and bridge.state == BridgeState.ARMED
+        if bridge.control_tick:  # board ticks that are multiples of N, as the bridge's loop answers
+            torque = chain.step(bridge.position, bridge.applied_torque, reference.rows(step * 1e-3), dt)
+            assert bridge.on_command(torque, bridge.stamp_ns, now) is None
+            send()
+            assert board.answered_enabled and bridge.state == BridgeState.ARMED
         board.tick_lockstep()
         deliver()
+        assert bridge.limit_stop() is None, bridge.limit_stop()
         t = (step + 1) * 1e-3
         alpha, beta = board.plant.state_floats[:2]
         errors.append((alpha - math.sin(math.pi * t), beta - 0.785 * math.sin(math.pi * t)))

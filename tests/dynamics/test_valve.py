@@ -7,7 +7,7 @@ import math
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from smm_dynamics.valve import valve_lag_step, valve_time_constants_from_response_times
+from smm_dynamics.valve import valve_lag_goal, valve_lag_step, valve_time_constants_from_response_times
 
 RISE, FALL, H = 0.02, 0.01, 1e-3
 
@@ -98,3 +98,36 @@ def test_time_constants_refuse_what_has_no_first_order_reading(
 def test_a_hold_exactly_at_the_goal_stays_there() -> None:
     for start in (3.0, -3.0):
         assert valve_lag_step(start, start, H, RISE, FALL) == (start, start)
+
+
+@pytest.mark.parametrize(
+    ("start", "end", "time_constant"),
+    [
+        (0.0, 2.0, RISE),  # opening from null: the goal is the end over the share of the step reached
+        (0.0, -2.0, RISE),
+        (1.0, 3.0, RISE),  # opening further
+        (3.0, 1.0, FALL),  # closing
+        (3.0, -2.0, FALL),  # reversing: closes through null
+        (-3.0, 2.0, FALL),
+    ],
+)
+def test_valve_lag_goal_by_hand(start: float, end: float, time_constant: float) -> None:
+    h = 0.005
+    expected = start + (end - start) / (1.0 - math.exp(-h / time_constant))
+    assert valve_lag_goal(start, end, h, RISE, FALL) == pytest.approx(expected, rel=1e-14)
+
+
+@given(
+    st.floats(-50.0, 50.0, allow_subnormal=True),
+    st.floats(-50.0, 50.0, allow_subnormal=True),
+    st.floats(1e-4, 0.05),
+)
+def test_valve_lag_goal_takes_the_valve_to_the_end_in_h(start: float, end: float, h: float) -> None:
+    reached, _mean = valve_lag_step(start, valve_lag_goal(start, end, h, RISE, FALL), h, RISE, FALL)
+    assert reached == pytest.approx(end, rel=1e-9, abs=1e-9)
+
+
+def test_valve_lag_goal_of_a_step_too_short_to_move_the_valve_is_infinite() -> None:
+    assert valve_lag_goal(1.0, 2.0, 5e-324, RISE, FALL) == math.inf
+    assert valve_lag_goal(1.0, -2.0, 5e-324, RISE, FALL) == -math.inf
+    assert valve_lag_goal(1.0, 1.0, 5e-324, RISE, FALL) == 1.0

@@ -140,3 +140,29 @@ def test_the_valve_rate_limit_allows_its_slew_per_control_period_not_per_board_t
     frame = core.next_frame(board.now)
     assert frame is not None and frame.enabled
     assert frame.codes == (500 + 1000 * divider, -250 - 1000 * divider)
+
+
+@pytest.mark.parametrize("divider", [2, 5, 10])
+def test_the_effort_at_a_control_tick_is_the_mean_over_its_period_on_both_links(divider: int) -> None:
+    """The observer's applied torque is the valves' over the control period: the frame link's N feedbacks
+    of one tick give what the CANopen link's one feedback of N ticks gives (first-order lag from null)."""
+    lag = (0.02, 0.01)
+    valve = dataclasses.replace(CONFIG.valve, time_constants=lag)
+    config = dataclasses.replace(CONFIG, control_divider=divider, valve=valve)
+    h = divider * 1e-3
+    expected = [goal * (1.0 - lag[0] / h * (1.0 - math.exp(-h / lag[0]))) for goal in (2.0, -1.0)]
+    efforts = []
+    for ticks_per_feedback in (1, divider):  # frame link, CANopen link
+        core = BridgeCore(config, HOST)
+        board = Board(core)
+        while board.tick <= divider:  # the valves at null up to control tick N
+            board.step()
+            board.tick += ticks_per_feedback - 1
+        while board.tick <= 2 * divider:  # then at (2, -1) N m for the period up to control tick 2 N
+            board.step(output_codes=(2000, -1000))
+            board.tick += ticks_per_feedback - 1
+        assert core.control_tick and core.last_feedback is not None
+        assert core.last_feedback.tick == 2 * divider
+        efforts.append(core.applied_torque)
+    for effort in efforts:
+        assert effort == pytest.approx(expected, rel=1e-12)

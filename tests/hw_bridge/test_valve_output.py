@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -129,3 +130,61 @@ def test_bad_torque_is_rejected(torque: object) -> None:
 def test_invalid_configs_are_rejected(kwargs: dict[str, object]) -> None:
     with pytest.raises(ValueError):
         ValveOutputConfig(**kwargs)  # type: ignore[arg-type]
+
+
+LAG = (0.02, 0.01)  # (T_rise, T_fall) (s)
+PERIOD = 0.005  # a command every 5 ticks (200 Hz)
+
+
+@pytest.mark.parametrize(
+    ("setting", "divider", "time_constants", "expected"),
+    [
+        ("auto", 1, LAG, False),  # 1 kHz: the loop keeps its codes bit for bit
+        ("auto", 2, LAG, True),
+        ("auto", 10, LAG, True),
+        ("on", 1, LAG, True),
+        ("off", 5, LAG, False),
+        ("on", 5, (0.0, 0.0), False),  # no lag model: nothing to compensate
+    ],
+)
+def test_lag_compensation_auto_compensates_at_control_periods_longer_than_a_tick(
+    setting: str, divider: int, time_constants: tuple[float, float], expected: bool
+) -> None:
+    config = ValveOutputConfig(time_constants=time_constants, lag_compensation=setting)  # type: ignore[arg-type]
+    assert config.compensates_lag(divider) is expected
+
+
+def test_a_compensated_code_brings_the_modelled_valve_to_the_demand_in_one_period() -> None:
+    config = ValveOutputConfig(gain=(1000.0, 1000.0), rate_limit=INF, time_constants=LAG)
+    output = ValveOutput(config, control_divider=5)
+    # from null, opening: goal = demand / (1 - exp(-h / T_rise)); closing from there: T_fall
+    first = output.step([2.0, -1.0], PERIOD)
+    reached = 1.0 - math.exp(-PERIOD / LAG[0])
+    assert first.codes == (round(2000.0 / reached), round(-1000.0 / reached))
+    mean = output.effort(first.codes, PERIOD)  # the valve over the period, from null towards the goal
+    goal = np.array(first.codes) / 1000.0
+    np.testing.assert_allclose(mean, goal * (1.0 - LAG[0] / PERIOD * reached), rtol=1e-12)
+    # the modelled valve is at the demand (to a code): the same demand again is its own code
+    assert output.step([2.0, -1.0], PERIOD).codes == (2000, -1000)
+    output.effort((2000, -1000), PERIOD)
+    closing = output.step([1.5, -1.0], PERIOD).codes[0]  # the valve at 2 N m (to a code) closes with T_fall
+    assert abs(closing - (2000.0 + (1500.0 - 2000.0) / (1.0 - math.exp(-PERIOD / LAG[1])))) <= 1.0
+
+
+def test_without_compensation_the_code_is_the_demand_s() -> None:
+    config = ValveOutputConfig(gain=(1000.0, 1000.0), rate_limit=INF, time_constants=LAG)
+    off = dataclasses.replace(config, lag_compensation="off")
+    for output in (ValveOutput(config), ValveOutput(off, control_divider=5)):
+        assert output.step([2.0, -1.0], PERIOD).codes == (2000, -1000)
+
+
+def test_a_compensated_goal_beyond_the_code_limit_is_clamped() -> None:
+    config = ValveOutputConfig(gain=(1000.0, 1000.0), rate_limit=INF, time_constants=LAG)
+    sample = ValveOutput(config, control_divider=5).step([9.0, 0.0], PERIOD)  # goal 9 / 0.22 N m
+    assert sample.codes == (32767, 0) and sample.clamped.tolist() == [True, False]
+
+
+@pytest.mark.parametrize("setting", ["", "yes", "Auto", True])
+def test_an_unknown_lag_compensation_is_refused_with_the_choices(setting: object) -> None:
+    with pytest.raises(ValueError, match="lag_compensation must be one of auto, on, off"):
+        ValveOutputConfig(lag_compensation=setting)  # type: ignore[arg-type]

@@ -13,8 +13,11 @@ from pathlib import Path
 from typing import Any, Final
 
 from smm_controller.controller_node import REFERENCE_PREFIX
+from smm_controller.fpdeso import FPDESOConfig
 from smm_controller.reference import REFERENCE_KINDS
+from smm_controller.td import TrackingDifferentiatorConfig
 from smm_hw_bridge.control_rate import control_divider
+from smm_schema.fields import config_from_parameters
 
 from smm_bringup.errors import ParameterFileError, PlantNotAvailableError
 from smm_bringup.graph_nodes import (
@@ -42,7 +45,13 @@ from smm_bringup.realtime import (
 )
 from smm_sim.config import PlantParameters
 
-__all__ = ["build_graph", "control_rate_file", "control_rate_settings", "scenario_file"]
+__all__ = [
+    "build_graph",
+    "control_rate_configs",
+    "control_rate_file",
+    "control_rate_settings",
+    "scenario_file",
+]
 
 _CONTROLLER_NODES: Final[tuple[tuple[str, str], ...]] = (
     # (node name = console script, class inside smm_controller.<name>)
@@ -87,6 +96,15 @@ def control_rate_settings(rate_hz: float) -> dict[str, Any]:
     """What the settings file of control rate ``rate_hz`` gives ``controller_node`` (empty at 1 kHz)."""
     path = control_rate_file(rate_hz)
     return {} if path is None else load_parameter_file(path, f"/{NAMESPACE}/{CONTROLLER_NODE}")
+
+
+def control_rate_configs(rate_hz: float) -> tuple[TrackingDifferentiatorConfig, FPDESOConfig]:
+    """The TD and FPDESO settings of control rate ``rate_hz``: the defaults with its file's applied."""
+    settings = control_rate_settings(rate_hz)
+    return (
+        config_from_parameters(TrackingDifferentiatorConfig, TrackingDifferentiatorConfig(), settings, "td"),
+        config_from_parameters(FPDESOConfig, FPDESOConfig(), settings, "fpdeso"),
+    )
 
 
 def _sim_parameters(options: GraphOptions) -> tuple[tuple[str, ParameterValue], ...]:

@@ -5,7 +5,12 @@ from __future__ import annotations
 import math
 from typing import Final
 
-__all__ = ["PAPER_VALVE_RESPONSE_TIMES", "valve_lag_step", "valve_time_constants_from_response_times"]
+__all__ = [
+    "PAPER_VALVE_RESPONSE_TIMES",
+    "valve_lag_goal",
+    "valve_lag_step",
+    "valve_time_constants_from_response_times",
+]
 
 PAPER_VALVE_RESPONSE_TIMES: Final[tuple[float, float]] = (0.050, 0.025)
 """Servo-valve response time for a +-100 % step of the paper's Table 5 (rise, fall) (s)."""
@@ -47,3 +52,16 @@ def valve_lag_step(start: float, goal: float, h: float, rise: float, fall: float
     time_constant = rise if opening else fall
     decay = math.exp(-h / time_constant)
     return goal + (start - goal) * decay, goal + (start - goal) * (time_constant / h) * (1.0 - decay)
+
+
+def valve_lag_goal(start: float, end: float, h: float, rise: float, fall: float) -> float:
+    """The goal that takes one joint's valve torque from ``start`` to ``end`` in ``h`` s (N m).
+
+    The inverse of :func:`valve_lag_step`'s end value (the same opening / closing rule): the valve reaches
+    ``end`` at the end of the step (deadbeat), the step amplified by 1 / (1 - exp(-h / T)).
+    """
+    opening = start == 0.0 or (end > start) == (start > 0.0)
+    reached = -math.expm1(-h / (rise if opening else fall))  # the share of a step reached in h
+    if reached == 0.0:  # h negligible against T: no finite goal gets there
+        return start if end == start else math.copysign(math.inf, end - start)
+    return start + (end - start) / reached

@@ -123,7 +123,7 @@ class BridgeCore:
         self._divider = config.control_divider
         self._encoder = EncoderDecoder(config.encoder)
         self._count_limit = config.encoder.modulus
-        self._valve = ValveOutput(config.valve)
+        self._valve = ValveOutput(config.valve, config.control_divider)
         self._admission = FeedbackAdmission(config.admission)
         self._load = LoadTorque(config.pressure)
         self.stats = LinkStats()
@@ -146,6 +146,8 @@ class BridgeCore:
         self._last: FeedbackFrame | None = None
         self._last_rx_ns: int | None = None
         self._effort = (0.0, 0.0)
+        self._period_effort = (0.0, 0.0)  # N > 1: the mean of the ticks since the last control tick
+        self._period_sum = (0.0, 0.0, 0)
         self._measured = (0.0, 0.0)
         self._tick = 0
         self._pending: _Pending | None = None
@@ -262,6 +264,8 @@ class BridgeCore:
         # the valves' lag over the ticks since the last feedback: 1 from a board, N from a CANopen SYNC
         ticks = 1 if previous is None else min(max(tick - previous, 1), self._divider)
         self._effort = self._valve.effort_floats(frame.output_codes, self._period_s * ticks)
+        if self._divider > 1:
+            self._average_effort(frame.tick, ticks)
         self._measured = self._load.torque(frame.adc)
         self._safety.on_feedback(tick, self._encoder.position_floats, self._effort, self._live)
         if frame.faults:
@@ -279,6 +283,17 @@ class BridgeCore:
             self._pending = None
         elif self.state == BridgeState.FAULT:
             pass  # stays until reset: the lifecycle error path reconfigures
+
+    def _average_effort(self, board_tick: int, ticks: int) -> None:
+        """Adds this feedback's ticks to the period's mean effort; a control tick closes the period."""
+        sum_a, sum_b, count = self._period_sum
+        sum_a += self._effort[0] * ticks
+        sum_b += self._effort[1] * ticks
+        count += ticks
+        if is_control_tick(board_tick, self._divider):
+            self._period_effort = (sum_a / count, sum_b / count)
+            sum_a, sum_b, count = 0.0, 0.0, 0
+        self._period_sum = (sum_a, sum_b, count)
 
     def limit_stop(self) -> str | None:
         """Why the run must stop while arming or armed (:class:`~smm_hw_bridge.safety_stop.SafetyStop`)."""
@@ -309,16 +324,18 @@ class BridgeCore:
 
     @property
     def applied_torque(self) -> FloatArray:
-        """Torque the valves gave over the last tick (N m), shape (2,); 0 before any feedback.
+        """Torque the valves gave over the last control period (N m), shape (2,); 0 before any feedback.
 
-        The D/A codes the board reports, through the valve lag model (``valve.time_constants``).
+        The D/A codes the board reports, through the valve lag model (``valve.time_constants``); at a divider
+        N > 1 the mean over the ticks since the control tick before (one feedback of N ticks on CANopen, N
+        of one tick on the frame link), at N = 1 the last tick's.
         """
-        return np.array(self._effort, dtype=np.float64)
+        return np.array(self.applied_torque_floats, dtype=np.float64)
 
     @property
     def applied_torque_floats(self) -> tuple[float, float]:
         """:attr:`applied_torque` as Python floats (alpha, beta) (N m), without building an array."""
-        return self._effort
+        return self._period_effort if self._divider > 1 else self._effort
 
     @property
     def measured_torque(self) -> FloatArray:

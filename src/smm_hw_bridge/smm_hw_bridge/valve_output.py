@@ -5,11 +5,13 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Final, Literal, get_args
 
 import numpy as np
 import numpy.typing as npt
 from smm_dynamics.valve import (
     PAPER_VALVE_RESPONSE_TIMES,
+    valve_lag_goal,
     valve_lag_step,
     valve_time_constants_from_response_times,
 )
@@ -17,12 +19,15 @@ from smm_schema.ranges import above, at_least, bounds, check_bounds
 
 from smm_hw_bridge.protocol import CODE_MAX
 
-__all__ = ["OutputSample", "ValveOutput", "ValveOutputConfig"]
+__all__ = ["LAG_COMPENSATION", "OutputSample", "ValveOutput", "ValveOutputConfig"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 PAPER_TIME_CONSTANTS = valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES)
 """(T_rise, T_fall) of the paper's servo valve (s)."""
+LagCompensation = Literal["auto", "on", "off"]
+LAG_COMPENSATION: Final[tuple[str, ...]] = get_args(LagCompensation)
+"""Values of :attr:`ValveOutputConfig.lag_compensation`."""
 
 
 @dataclass(frozen=True)
@@ -48,6 +53,11 @@ class ValveOutputConfig:
         time_constants: (T_rise, T_fall) of the valves' first-order lag (s), both > 0, or (0, 0) for none:
             the model by which :meth:`ValveOutput.effort` turns the codes on the valves into the torque they
             give (the board cannot measure it). Default: the paper's valve (SPEC section 2).
+        lag_compensation: Drive the valves through the inverse of that lag: each command's code is the goal
+            that brings the modelled valve torque to the demand by the end of the command's period (deadbeat;
+            :func:`~smm_dynamics.valve.valve_lag_goal`). "auto": at control periods longer than one board
+            tick (``bridge.control_divider`` > 1), where the lag breaks the FPDESO loop (docs/LAUNCH.md,
+            "Control rate"); "on": at every period; "off": never. Nothing without a lag model.
     """
 
     gain: tuple[float, float] = field(default=(CODE_MAX / 10.0, CODE_MAX / 10.0), metadata=above(0.0))
@@ -63,6 +73,7 @@ class ValveOutputConfig:
     time_constants: tuple[float, float] = field(
         default=valve_time_constants_from_response_times(*PAPER_VALVE_RESPONSE_TIMES), metadata=at_least(0.0)
     )
+    lag_compensation: LagCompensation = "auto"
 
     def __post_init__(self) -> None:
         check_bounds(self)
@@ -77,6 +88,17 @@ class ValveOutputConfig:
             raise ValueError(
                 f"time_constants must be both > 0 or both 0 (no lag), got {self.time_constants!r}"
             )
+        if self.lag_compensation not in LAG_COMPENSATION:
+            raise ValueError(
+                f"lag_compensation must be one of {', '.join(LAG_COMPENSATION)}, "
+                f"got {self.lag_compensation!r}"
+            )
+
+    def compensates_lag(self, control_divider: int) -> bool:
+        """True if the valves are driven through their lag's inverse at ``control_divider`` ticks a period."""
+        if self.time_constants[0] == 0.0 or self.lag_compensation == "off":
+            return False
+        return self.lag_compensation == "on" or control_divider > 1
 
 
 @dataclass(frozen=True)
@@ -85,7 +107,8 @@ class OutputSample:
 
     Attributes:
         codes: D/A codes sent (alpha, beta).
-        torque: Torque those codes command (N m), shape (2,): the demand after clamping and rounding.
+        torque: Torque those codes command (N m), shape (2,): the demand (its lag goal when compensated)
+            after clamping and rounding.
         clamped: Per joint, True if saturation or the rate limit changed the demand, shape (2,).
     """
 
@@ -104,11 +127,13 @@ class ValveOutput:
     """Maps torque demands to D/A codes, one call per sent command (the rate limit is per call's ``dt``).
 
     Python floats per joint (numpy on 2-element arrays costs more than the arithmetic); the arrays of
-    :attr:`last` and :attr:`internals` are built when read.
+    :attr:`last` and :attr:`internals` are built when read. ``control_divider``: board ticks a command
+    (``bridge.control_divider``), which decides ``lag_compensation`` "auto".
     """
 
-    def __init__(self, config: ValveOutputConfig) -> None:
+    def __init__(self, config: ValveOutputConfig, control_divider: int = 1) -> None:
         self._config = config
+        self._compensate = config.compensates_lag(control_divider)
         self._gain = (
             float(config.gain[0]) * float(config.polarity[0]),
             float(config.gain[1]) * float(config.polarity[1]),
@@ -146,6 +171,8 @@ class ValveOutput:
         limit = self._limit[joint]
         deadband = self._deadband[joint]
         blend = self._blend
+        if self._compensate:  # the goal that brings the modelled valve to the demand in dt
+            torque = valve_lag_goal(self._valve[joint], torque, dt, self._lag[0], self._lag[1])
         demand = torque * (self._gain[joint] if torque >= 0.0 else self._gain_negative[joint])
         magnitude = abs(demand)
         if magnitude >= blend:  # demand != 0 here: np.sign is +-1
