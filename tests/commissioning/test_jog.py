@@ -11,9 +11,10 @@ from smm_commissioning.host import BenchHost
 from smm_commissioning.jog import JogConfig, run_jog
 from smm_hw_bridge.protocol import CODE_MAX, FaultBit, StatusBit
 
-SEEDS = [0, 1, 2, 3, 4, 5, 6]
+SEEDS = [0, 1, 2, 3, 4, 5, 6, 12]
 """Drawn benches: every combination of reversed valve and down-counting encoder among them; in 6 beta starts
-its jog off centre, its held oil carrying gravity's load (a torque that is not the valve's answer)."""
+its jog off centre, its held oil carrying gravity's load (a torque that is not the valve's answer); in 12
+beta's null bias (-236 codes) is past its overlap (204): code 0 opens it, so beta is jogged first."""
 
 
 def jogged(device: LockstepDevice, config: JogConfig | None = None) -> tuple[BenchHost, tuple]:
@@ -48,6 +49,25 @@ def test_jog_finds_each_joints_truths_within_the_tolerances(seed: int) -> None:
     # the window is around the start (q = 0): a cut pulse overshoots it by the hold's travel
     assert max(device.peak) < window + 0.05 < bench.plant.joint_limits[0]
     assert disabled_at_the_end(device, host)
+
+
+def test_a_held_valve_open_at_code_0_has_its_joint_jogged_first() -> None:
+    """Seed 12: beta drifts at code 0 during alpha's first pulses; beta is jogged, then alpha with beta at
+    its null, and beta never reaches the window's edge."""
+    device = LockstepDevice(draw_bench(12))
+    _, results = jogged(device)
+    assert [r.joint for r in results] == [0, 1]
+    assert max(device.peak) < JogConfig().window
+
+
+def test_both_valves_open_at_code_0_stop_the_jog() -> None:
+    """Both nulls 100 codes past their overlaps, a window of 0.1 rad: alpha drifts while beta is jogged
+    first."""
+    device = LockstepDevice(draw_bench(12, valve_deadband=[200.0, 200.0], valve_null_bias=[300.0, -300.0]))
+    with pytest.raises(MotionStopError, match=r"alpha drifted .* both valves open at code 0"):
+        jogged(device, JogConfig(window=0.1))
+    assert max(device.peak) < 0.1
+    assert not device.board.status_enabled
 
 
 def test_nothing_moves_before_the_first_enabled_pulse_and_the_valves_are_held_between() -> None:

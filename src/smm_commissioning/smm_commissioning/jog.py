@@ -28,6 +28,13 @@ _MIN_DISPLACEMENT = 20
 _OUTWARD = 40
 """Counts a joint past the window must move outwards over 10 ticks for the pulse to be cut (the encoder's
 rest noise stays below it): a pulse that brings it back runs."""
+_HELD_DRIFT = 0.5
+"""Fraction of the window the joint not jogged may drift while its valve is held at code 0, its null not
+yet known: past it that valve is open at code 0 and its joint is jogged first."""
+
+
+class _HeldJointOpenError(MotionStopError):
+    """The joint not jogged drifted at code 0 before its own jog: its null bias is past its overlap."""
 
 
 @dataclass(frozen=True)
@@ -139,10 +146,17 @@ class PulseRun:
     """The pulses of one joint's jog, with the safety checks of every tick."""
 
     def __init__(
-        self, host: BenchHost, config: JogConfig, joint: int, held: tuple[int, int], origin: tuple[int, int]
+        self,
+        host: BenchHost,
+        config: JogConfig,
+        joint: int,
+        held: tuple[int, int],
+        origin: tuple[int, int],
+        *,
+        held_known: bool = True,
     ) -> None:
         self.host, self.config, self.joint = host, config, joint
-        self.held = held
+        self.held, self.held_known = held, held_known
         self.start = origin
         self.quantum = [float(q) for q in config.encoder.quantum]
         self.bits = config.encoder.counter_bits
@@ -193,6 +207,12 @@ class PulseRun:
                 where = abs(self.offset(frame.counts, k))
                 moved = where * self.quantum[k]
                 self.excursion = max(self.excursion, moved) if k == j else self.excursion
+                if k != j and not self.held_known and moved > _HELD_DRIFT * config.window:
+                    self.host.hold(config.rest_ticks)
+                    raise _HeldJointOpenError(
+                        f"jog of {JOINTS[j]} stopped: {JOINTS[k]} drifted {moved:.3f} rad at code 0: "
+                        f"{JOINTS[k]}'s null bias is past its overlap"
+                    )
                 outward = len(history) > 10 and where - abs(self.offset(history[-11], k)) > _OUTWARD
                 if moved > config.window and outward:
                     cut = f"{JOINTS[k]} at the window's edge ({moved:.3f} rad)"
@@ -283,17 +303,25 @@ def _fit(points: list[Pulse]) -> tuple[float, float]:
 
 
 def jog_joint(
-    host: BenchHost, config: JogConfig, joint: int, held: tuple[int, int], origin: tuple[int, int]
+    host: BenchHost,
+    config: JogConfig,
+    joint: int,
+    held: tuple[int, int],
+    origin: tuple[int, int],
+    *,
+    held_known: bool = True,
 ) -> JointJog:
     """Jogs ``joint`` with the other valve at its code of ``held``; its truths from the pulses.
 
-    The window is around ``origin`` (raw counts where the jog started), for both joints.
+    The window is around ``origin`` (raw counts where the jog started), for both joints. ``held_known``:
+    the other valve's held code is its null (it was jogged), else the jog stops once the other joint drifts
+    past half the window.
 
     Raises:
         MotionStopError: A safety limit, a fault, no torque up to ``search_max``, or an encoder not counting.
         LinkLostError: The link failed.
     """
-    run = PulseRun(host, config, joint, held, origin)
+    run = PulseRun(host, config, joint, held, origin, held_known=held_known)
     name = JOINTS[joint]
     pulses: list[Pulse] = []
     onset: dict[int, int] = {}  # side (+1 / -1) -> first code that answered
@@ -402,14 +430,30 @@ def jog_joint(
 def run_jog(host: BenchHost, config: JogConfig, joints: tuple[int, ...] = (0, 1)) -> tuple[JointJog, ...]:
     """Jogs each of ``joints`` in turn; a joint done holds its valve at its null bias for the next.
 
+    A joint that drifts at code 0 while another is jogged (its null bias past its overlap) is jogged first,
+    the other then held at its null. Results in the order of ``joints``.
+
     Raises:
         MotionStopError, LinkLostError: As :func:`jog_joint`.
     """
     held = [0, 0]
-    found = []
+    found: dict[int, JointJog] = {}
     origin = (host.feedback if host.feedback is not None else host.next()).counts
-    for joint in joints:
-        result = jog_joint(host, config, joint, (held[0], held[1]), origin)
+    todo = list(joints)
+    while todo:
+        joint = todo[0]
+        try:
+            result = jog_joint(host, config, joint, (held[0], held[1]), origin, held_known=not todo[1:])
+        except _HeldJointOpenError as error:
+            other = 1 - joint
+            if other not in todo[1:] or found or todo != list(joints):
+                raise MotionStopError(
+                    f"{error}, and its jog cannot come first: both valves open at code 0; re-zero the "
+                    "valves' null on their drivers"
+                ) from None
+            todo = [other, joint]
+            continue
         held[joint] = round(result.null_bias)
-        found.append(result)
-    return tuple(found)
+        found[joint] = result
+        todo.pop(0)
+    return tuple(found[joint] for joint in joints)
