@@ -34,11 +34,12 @@ from smm_node_runtime.parameter_files import ParameterFileError, load_parameter_
 
 from smm_commissioning import cli
 
-SEEDS = [2, 7]
+SEEDS = [2, 7, 12]
 """Drawn benches: beta's valve reversed on both, alpha's encoder counting down on 2, beta's on 7
 (tests/drawn_benches.py); verify missed 1.2x of the truths on both with jog's blend of 5 codes (beta 1.28x on
 2 at an earlier commit, on 7 at 7e00376; docs/COMMISSIONING.md), and 7's null bias is the one identify finds
-the least well (1.42 codes)."""
+the least well (1.42 codes). 12's beta valve opens at code 0 (null bias past its overlap): jog takes beta
+first."""
 STEPS = ("probe", "jog", "identify", "tune", "verify")
 
 

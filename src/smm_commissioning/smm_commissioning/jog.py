@@ -146,17 +146,12 @@ class PulseRun:
     """The pulses of one joint's jog, with the safety checks of every tick."""
 
     def __init__(
-        self,
-        host: BenchHost,
-        config: JogConfig,
-        joint: int,
-        held: tuple[int, int],
-        origin: tuple[int, int],
-        *,
-        held_known: bool = True,
+        self, host: BenchHost, config: JogConfig, joint: int, held: tuple[int, int], origin: tuple[int, int]
     ) -> None:
         self.host, self.config, self.joint = host, config, joint
-        self.held, self.held_known = held, held_known
+        self.held = held
+        self.held_known = True
+        """The other valve's held code is its null: False stops the jog once the other joint drifts."""
         self.start = origin
         self.quantum = [float(q) for q in config.encoder.quantum]
         self.bits = config.encoder.counter_bits
@@ -321,7 +316,8 @@ def jog_joint(
         MotionStopError: A safety limit, a fault, no torque up to ``search_max``, or an encoder not counting.
         LinkLostError: The link failed.
     """
-    run = PulseRun(host, config, joint, held, origin, held_known=held_known)
+    run = PulseRun(host, config, joint, held, origin)
+    run.held_known = held_known
     name = JOINTS[joint]
     pulses: list[Pulse] = []
     onset: dict[int, int] = {}  # side (+1 / -1) -> first code that answered
