@@ -48,8 +48,7 @@ def valve_lag_step(start: float, goal: float, h: float, rise: float, fall: float
     (towards null or across it) with ``fall`` (s, > 0). Signs are compared, not multiplied: a product of
     two tiny torques underflows to 0.
     """
-    opening = start == 0.0 or (goal > start) == (start > 0.0)
-    time_constant = rise if opening else fall
+    time_constant = _lag_time_constant(start, goal, rise, fall)
     decay = math.exp(-h / time_constant)
     return goal + (start - goal) * decay, goal + (start - goal) * (time_constant / h) * (1.0 - decay)
 
@@ -60,8 +59,12 @@ def valve_lag_goal(start: float, end: float, h: float, rise: float, fall: float)
     The inverse of :func:`valve_lag_step`'s end value (the same opening / closing rule): the valve reaches
     ``end`` at the end of the step (deadbeat), the step amplified by 1 / (1 - exp(-h / T)).
     """
-    opening = start == 0.0 or (end > start) == (start > 0.0)
-    reached = -math.expm1(-h / (rise if opening else fall))  # the share of a step reached in h
+    reached = -math.expm1(-h / _lag_time_constant(start, end, rise, fall))  # the share of a step reached in h
     if reached == 0.0:  # h negligible against T: no finite goal gets there
         return start if end == start else math.copysign(math.inf, end - start)
     return start + (end - start) / reached
+
+
+def _lag_time_constant(start: float, goal: float, rise: float, fall: float) -> float:
+    """``rise`` when the valve opens (away from null, or from null), ``fall`` when it closes or crosses it."""
+    return rise if start == 0.0 or (goal > start) == (start > 0.0) else fall
