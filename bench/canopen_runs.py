@@ -30,10 +30,6 @@ PREFLIGHT = re.compile(r"preflight: (.*holds here; arming|ARMING ANYWAY.*|refuse
 PREFLIGHT_LATE = re.compile(r"preflight: late ([0-9.]+) % of control periods")
 FLOOR = re.compile(r"\[under_load\] run .*host floor \(1 ms sleep overshoot\) .*?p99 (\d+) us")
 EMULATOR_STATUS = '{"link": "canopen"'
-FAULT = "safe output, error transition"
-"""The bridge's fault line: the run waits for a person from then on."""
-FAULT_GRACE_S = 20.0
-"""A faulted run still ends by itself when the emulator completes; one that waits for a person, after this."""
 WHY = re.compile(r"error|refus|Traceback|did not|cannot|fault", re.IGNORECASE)
 
 
@@ -135,21 +131,16 @@ def launch(
 ) -> Run:
     """``smm-launch --plant hardware --link canopen OPTIONS`` (after ``prefix``: a load), to its end.
 
-    Ended as a person ends it (SIGINT) once ``until`` (polled every 0.2 s) is true, after ``timeout_s``, or
-    :data:`FAULT_GRACE_S` after the bridge's error transition (a faulted run waits for a person).
+    Ended as a person ends it (SIGINT) once ``until`` (polled every 0.2 s) is true, or after ``timeout_s``.
+    A run with ``--duration`` ends itself, also at a fault before it (the bridge's exit 3).
     """
     command = [*prefix, *LAUNCH, *options]
     shown = " ".join(command[len(prefix) + 3 :])
     print(f"$ smm-launch {shown}{' (beside busy processes)' if prefix else ''}", flush=True)
     started = time.monotonic()
     process = start(command, log)
-    faulted: float | None = None
     while process.poll() is None and time.monotonic() - started < timeout_s:
         if until is not None and until():
-            break
-        if faulted is None and FAULT in log.read_text(errors="replace"):
-            faulted = time.monotonic()
-        if faulted is not None and time.monotonic() - faulted > FAULT_GRACE_S:
             break
         time.sleep(0.2)
     if process.poll() is None:
